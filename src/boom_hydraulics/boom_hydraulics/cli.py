@@ -1,0 +1,206 @@
+"""``boom-sim``: the boom drive without a ROS graph.
+
+    boom-sim run --config config/default.yaml --duration 5 --out run.csv
+    boom-sim run --config config/paper_fig8.yaml --duration 1.5 --method euler --dt 1e-4 --out e.csv
+    boom-sim run --config config/default.yaml --profile steps:0=1,3=0,4=-1 --duration 7 --out cycle.csv
+    boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
+
+Errors in arguments, configs or the run print one line and exit non-zero.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import commands, config, geometry
+from .errors import BoomHydraulicsError, ConfigError
+from .parameters import GEOMETRY_CLEARANCE_M, Parameters, from_mapping
+from .simulation import OUTPUTS, Simulator
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of exiting, so every error ends as one line."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise ConfigError(f"{self.prog}: {message}")
+
+
+def parse_profile(text: str) -> dict[str, Any]:
+    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
+    -> the command_* parameters."""
+    kind, _, body = text.partition(":")
+    try:
+        if kind == "constant":
+            return {"command_profile": "constant", "command_value": float(body)}
+        if kind in ("steps", "ramp"):
+            pairs = [item.split("=") for item in body.split(",") if item]
+            times = [float(t) for t, _ in pairs]
+            values = [float(u) for _, u in pairs]
+            return {"command_profile": kind, "command_times_s": times, "command_values": values}
+        if kind == "sine":
+            offset, amplitude, frequency = (float(x) for x in body.split(","))
+            return {
+                "command_profile": "sine",
+                "command_offset": offset,
+                "command_amplitude": amplitude,
+                "command_frequency_hz": frequency,
+            }
+    except ValueError:
+        pass
+    raise ConfigError(
+        f"--profile {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
+        "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
+    )
+
+
+def load_parameters(args: argparse.Namespace) -> Parameters:
+    """Config file (or defaults) plus --set, --profile, --method and --dt, validated at once."""
+    overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
+    if getattr(args, "profile", None):
+        overrides.update(parse_profile(args.profile))
+    if getattr(args, "method", None):
+        overrides["method"] = args.method
+    if getattr(args, "dt", None) is not None:
+        overrides["time_step_s"] = args.dt
+    if args.config:
+        return config.load(args.config, overrides)
+    return from_mapping(overrides)
+
+
+def _write_csv(path: Path, header: Sequence[str], rows: Any) -> None:
+    """Write to a temporary file first, so that a failed run leaves no half-written CSV."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.partial")
+    with tmp.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows(rows)
+    tmp.replace(path)
+
+
+def _format(value: Any) -> str:
+    if isinstance(value, (bool, np.bool_)):
+        return "1" if value else "0"
+    return repr(float(value))
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    params = load_parameters(args)
+    if not (args.duration > 0 and math.isfinite(args.duration)):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration}")
+    if args.every < 1:
+        raise ConfigError(f"--every must be >= 1, got {args.every}")
+    sim = Simulator(params)
+    trajectory = sim.run(args.duration, commands.from_parameters(params), every=args.every)
+    header = [f"{name} [{unit}]" for name, unit, _ in OUTPUTS]
+    columns = [trajectory[name] for name, _, _ in OUTPUTS]
+    rows = ([_format(col[i]) for col in columns] for i in range(len(trajectory)))
+    _write_csv(Path(args.out), header, rows)
+    print(
+        f"{args.out}: {len(trajectory)} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
+        f"q1 {trajectory['q1'][0]:.4f} -> {trajectory['q1'][-1]:.4f} m"
+    )
+    return 0
+
+
+def statics_table(params: Parameters, diameters_m: Sequence[float], points: int) -> tuple[list[str], np.ndarray]:
+    """alpha, phi, static rod force and holding pressure over the open geometric stroke (Figs. 3-5)."""
+    p = params
+    low = abs(p.b_m - p.a_m) + GEOMETRY_CLEARANCE_M
+    high = p.a_m + p.b_m - GEOMETRY_CLEARANCE_M
+    q1 = np.linspace(low, high, points)
+    alpha = geometry.boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m, np)
+    phi = geometry.rod_boom_angle_rad(q1, p.a_m, p.b_m, np)
+    force = geometry.static_rod_force_n(
+        q1,
+        p.a_m,
+        p.b_m,
+        p.support_height_m,
+        p.boom_mass_kg,
+        p.payload_mass_kg,
+        p.boom_length_m,
+        p.gravity_m_s2,
+        np,
+    )
+    header = ["q1 [m]", "alpha [rad]", "phi [rad]", "static_force [N]"]
+    columns = [q1, alpha, phi, force]
+    for d in diameters_m:
+        header.append(f"holding_pressure_D{d * 1000:g}mm [Pa]")
+        columns.append(geometry.holding_pressure_pa(force, d))
+    return header, np.column_stack(columns)
+
+
+def cmd_statics(args: argparse.Namespace) -> int:
+    params = load_parameters(args)
+    try:
+        diameters = [float(x) for x in args.diameters.split(",") if x]
+    except ValueError:
+        raise ConfigError(f"--diameters expects comma-separated metres, got {args.diameters!r}") from None
+    if not diameters or any(not (d > 0 and math.isfinite(d)) for d in diameters):
+        raise ConfigError(f"--diameters must be positive diameters in m, got {args.diameters!r}")
+    if args.points < 2:
+        raise ConfigError(f"--points must be >= 2, got {args.points}")
+    header, table = statics_table(params, diameters, args.points)
+    _write_csv(Path(args.out), header, ([repr(float(v)) for v in row] for row in table))
+    print(f"{args.out}: {len(table)} positions x {len(diameters)} piston diameters")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    def common(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--config", help="ROS 2 params YAML (boom_sim: ros__parameters: ...)")
+        p.add_argument(
+            "--set",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override one parameter (repeatable), e.g. --set piston_diameter_m=0.063",
+        )
+        p.add_argument("--out", required=True, help="CSV file to write")
+
+    run = sub.add_parser("run", help="integrate over time and write one CSV row per step")
+    common(run)
+    run.add_argument("--duration", type=float, required=True, help="simulated seconds")
+    run.add_argument("--method", choices=("euler", "rk4", "rk45"), help="integrator (default: config)")
+    run.add_argument("--dt", type=float, help="time step in s (default: config)")
+    run.add_argument("--every", type=int, default=1, help="write every N-th step (default 1)")
+    run.add_argument(
+        "--profile", help="valve command: constant:U | steps:T=U,... | ramp:T=U,... | sine:OFFSET,AMPLITUDE,FREQ_HZ"
+    )
+    run.set_defaults(handler=cmd_run)
+
+    statics = sub.add_parser("statics", help="alpha, phi, static force and holding pressure over the stroke")
+    common(statics)
+    statics.add_argument("--diameters", default="0.04,0.063,0.08", help="piston diameters in m")
+    statics.add_argument("--points", type=int, default=161, help="positions over the stroke")
+    statics.set_defaults(handler=cmd_statics)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return args.handler(args)
+    except BoomHydraulicsError as exc:
+        print(f"boom-sim: error: {exc}", file=sys.stderr)
+        return 2 if isinstance(exc, ConfigError) else 1
+    except OSError as exc:
+        print(f"boom-sim: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+"""Paper mode: the Fig. 7 Mathematica listing of the paper, quirks included.
+
+State y = [q1 (m), v (m/s), p1 (Pa), E_supply (J), E_loss (J)]; the energies are extra
+integrals that do not feed back into q1, v, p1. As in the listing: only the piston
+chamber (p2 dropped), constant V1, constant friction F_mp whatever the direction, the
+spring c * q1 on the absolute cylinder length, the turbulent orifice of eq. 14, and the
+acceleration of eq. 16 with its factor 1/2. A valve opening u in [0, 1] scales the
+orifice area (u = 1 is the paper's case). Pressures are relative to the drain (p_37 = 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+from .friction import paper_friction_n
+from .geometry import boom_angle_rad, lever_rad_per_m, piston_area_m2, rod_boom_angle_rad
+from .hydraulics import chamber_pressure_rate, orifice_coefficient, pos, turbulent_orifice_flow
+from .mechanics import boom_inertia_kgm2, paper_acceleration, paper_load_force_n
+from .parameters import Parameters
+
+Num = Any  # float or numpy.ndarray
+
+STATE_NAMES = ("q1", "v", "p1", "supply_energy", "valve_loss_energy")
+STATE_SCALES = ("length", "velocity", "pressure", "energy", "energy")
+
+
+@dataclass(frozen=True)
+class Constants:
+    """Values derived once from :class:`Parameters` (floats, or arrays for a batch)."""
+
+    a: Num
+    b: Num
+    h: Num
+    inertia: Num  # J_1 = m1 L1^2 / 3 + mb L1^2 (eq. 8)
+    weight_coeff: Num  # (0.5 m1 + mb) g L1
+    boom_mass: Num
+    payload_mass: Num
+    boom_length: Num
+    g: Num
+    s1: Num
+    v1: Num
+    bulk_modulus: Num
+    k_orifice: Num  # mu fdr sqrt(2/rho) (eq. 14, 17)
+    p_n: Num
+    coulomb: Num
+    viscous: Num
+    spring: Num
+
+
+def constants(p: Parameters) -> Constants:
+    """Derived constants of one parameter set."""
+    return Constants(
+        a=p.a_m,
+        b=p.b_m,
+        h=p.support_height_m,
+        inertia=boom_inertia_kgm2(p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m),
+        weight_coeff=(0.5 * p.boom_mass_kg + p.payload_mass_kg) * p.gravity_m_s2 * p.boom_length_m,
+        boom_mass=p.boom_mass_kg,
+        payload_mass=p.payload_mass_kg,
+        boom_length=p.boom_length_m,
+        g=p.gravity_m_s2,
+        s1=piston_area_m2(p.piston_diameter_m),
+        v1=p.piston_dead_volume_m3,
+        bulk_modulus=p.bulk_modulus_pa,
+        k_orifice=orifice_coefficient(
+            p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3
+        ),  # eq. 17
+        p_n=p.supply_pressure_pa,
+        coulomb=p.coulomb_friction_n,
+        viscous=p.viscous_friction_n_s_m,
+        spring=p.spring_stiffness_n_m,
+    )
+
+
+def initial_pressure_pa(p: Parameters, q1_m: float) -> float:
+    """p0 of the listing: g L1 cos(alpha0) / (a sin(phi0) S1) (0.5 m1 + mb), Pa."""
+    alpha0 = boom_angle_rad(q1_m, p.a_m, p.b_m, p.support_height_m)
+    phi0 = rod_boom_angle_rad(q1_m, p.a_m, p.b_m)
+    s1 = piston_area_m2(p.piston_diameter_m)
+    return (
+        p.gravity_m_s2
+        * p.boom_length_m
+        * math.cos(alpha0)
+        / (p.a_m * math.sin(phi0) * s1)
+        * (0.5 * p.boom_mass_kg + p.payload_mass_kg)
+    )
+
+
+def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
+    """q0, v0 and the listing's static pressure p0."""
+    q1 = p.initial_length_m if q1_m is None else q1_m
+    return [q1, p.initial_velocity_m_s, initial_pressure_pa(p, q1), 0.0, 0.0]
+
+
+def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
+    q1, v, p1 = y[0], y[1], y[2]
+    u_open = pos(u)  # the paper's valve connects pump to piston chamber only
+    flow = turbulent_orifice_flow(c.k_orifice * u_open, c.p_n - p1, xp)  # eq. 14
+    dp1 = chamber_pressure_rate(c.bulk_modulus, c.v1, flow, c.s1 * v)  # eq. 12, constant V1
+    acc = paper_acceleration(
+        q1,
+        v,
+        p1 * c.s1,
+        paper_friction_n(v, c.coulomb, c.viscous),
+        c.spring,
+        c.inertia,
+        c.weight_coeff,
+        c.a,
+        c.b,
+        c.h,
+        xp,
+    )  # eq. 16 as in Fig. 7
+    return u_open, flow, dp1, acc, c.p_n * flow, (c.p_n - p1) * flow
+
+
+def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
+    """dy/dt of the listing for valve opening ``u``."""
+    _, _, dp1, acc, power, loss = _terms(y, c, u, xp)
+    return [y[1], acc, dp1, power, loss]
+
+
+def project(y: list, c: Constants) -> list:
+    """Paper mode knows no cavitation floor: the state is left as it is."""
+    return y
+
+
+def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
+    """Outputs of DriveState at state ``y``; rod-side quantities are 0 (not modelled)."""
+    u_open, flow, _, acc, power, _ = _terms(y, c, u, xp)
+    q1, v = y[0], y[1]
+    zero = 0.0 * q1
+    return {
+        "t": t,
+        "q1": q1,
+        "v": v,
+        "a": acc,
+        "alpha": boom_angle_rad(q1, c.a, c.b, c.h, xp),
+        "alpha_rate": lever_rad_per_m(q1, c.a, c.b, xp) * v,
+        "p1": y[2],
+        "p2": zero,
+        "q_in1": flow,
+        "q_in2": zero,
+        "f_hyd": y[2] * c.s1,
+        "f_load": paper_load_force_n(
+            q1, v, acc, c.inertia, c.boom_mass, c.payload_mass, c.boom_length, c.g, c.a, c.b, xp
+        ),  # eq. 10
+        "u": u,
+        "x_v": u_open,
+        "p_supply": c.p_n + zero,
+        "power": power,
+        "supply_energy": y[3],
+        "valve_loss_energy": y[4],
+        "at_end_stop": zero != zero,
+        "cavitation": y[2] < 0.0,
+        "relief_open": zero != zero,
+        "pump_saturated": zero != zero,
+    }

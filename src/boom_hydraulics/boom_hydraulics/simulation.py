@@ -1,0 +1,202 @@
+"""Stepping one boom drive through time: the driver shared by the node, the CLI and tests.
+
+:class:`Simulator` owns the state, the simulated time and the integrator, and applies a
+valve command held constant over each step (zero-order hold). Physics lives in the
+model modules (:mod:`physical`, :mod:`paper`); this module only drives them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import ModuleType
+
+import numpy as np
+
+from . import integrators, paper, physical
+from .errors import SimulationError
+from .parameters import Parameters
+
+MODELS: dict[str, ModuleType] = {"physical": physical, "paper": paper}
+
+#: Output names, units and descriptions, in the order of CSV columns.
+OUTPUTS: tuple[tuple[str, str, str], ...] = (
+    ("t", "s", "simulated time"),
+    ("q1", "m", "cylinder length q1"),
+    ("v", "m/s", "rod velocity"),
+    ("a", "m/s^2", "rod acceleration"),
+    ("alpha", "rad", "boom elevation (eq. 4)"),
+    ("alpha_rate", "rad/s", "boom angular rate"),
+    ("p1", "Pa", "piston-chamber pressure"),
+    ("p2", "Pa", "rod-chamber pressure"),
+    ("q_in1", "m^3/s", "flow into the piston chamber"),
+    ("q_in2", "m^3/s", "flow into the rod chamber"),
+    ("f_hyd", "N", "hydraulic rod force p1 S1 - p2 S2"),
+    ("f_load", "N", "load force of eq. 10"),
+    ("u", "1", "valve command"),
+    ("x_v", "1", "spool position applied"),
+    ("p_supply", "Pa", "pressure at the valve P port"),
+    ("power", "W", "hydraulic power drawn from the supply"),
+    ("supply_energy", "J", "energy drawn from the supply"),
+    ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),
+    ("at_end_stop", "bool", "rod against an end stop"),
+    ("cavitation", "bool", "a chamber at the cavitation floor"),
+    ("relief_open", "bool", "a relief valve passes flow"),
+    ("pump_saturated", "bool", "pump at its maximum flow"),
+)
+OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+
+_SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
+
+
+def absolute_tolerances(p: Parameters) -> list[float]:
+    """rk45 absolute tolerance per state: atol_scale times the state's natural scale."""
+    model = MODELS[p.mode]
+    scale = dict(_SCALES, pressure=p.supply_pressure_pa)
+    return [p.atol_scale * scale[kind] for kind in model.STATE_SCALES]
+
+
+def make_integrator(p: Parameters) -> integrators.Integrator:
+    """The integrator the parameters ask for."""
+    return integrators.make(p.method, p.substeps, p.rtol, absolute_tolerances(p))
+
+
+@dataclass
+class Trajectory:
+    """Outputs sampled over a run: one numpy array per name in :data:`OUTPUT_NAMES`."""
+
+    columns: dict[str, np.ndarray]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["t"])
+
+
+class Simulator:
+    """One boom drive: state, simulated time and integrator for a parameter set."""
+
+    def __init__(self, params: Parameters):
+        self._install(params)
+        self.reset()
+
+    def _install(self, params: Parameters) -> None:
+        self.params = params
+        self.model = MODELS[params.mode]
+        self.constants = self.model.constants(params)
+        self.integrator = make_integrator(params)
+        self._derivative = self.model.derivative
+        self._project = self.model.project
+
+    # --- state --------------------------------------------------------------------------
+    def reset(self, initial_length_m: float | None = None) -> None:
+        """Back to rest at ``initial_length_m`` (default q1(0)), t = 0, valve closed."""
+        p = self.params
+        if initial_length_m is not None:
+            low, high = (
+                (p.cylinder_min_length_m, p.cylinder_max_length_m)
+                if p.mode == "physical"
+                else (abs(p.b_m - p.a_m), p.a_m + p.b_m)
+            )
+            if not (low <= initial_length_m <= high) or not math.isfinite(initial_length_m):
+                raise SimulationError(
+                    f"reset position {initial_length_m} m lies outside the stroke [{low:.4g}, {high:.4g}] m"
+                )
+        self.y = self.model.initial_state(p, initial_length_m)
+        self.t = 0.0
+        self.u = 0.0
+        self.step_count = 0
+        self.integrator = make_integrator(p)
+
+    def set_parameters(self, params: Parameters) -> None:
+        """Use ``params`` from the next step on, keeping the state (e.g. a new payload).
+
+        A change of ``mode`` changes the state vector, so it resets the simulation.
+        """
+        mode_changed = params.mode != self.params.mode
+        self._install(params)
+        if mode_changed:
+            self.reset()
+
+    def set_payload_mass(self, payload_mass_kg: float) -> None:
+        """Change the payload between steps (validated like any parameter)."""
+        from .parameters import with_updates
+
+        self.set_parameters(with_updates(self.params, payload_mass_kg=payload_mass_kg))
+
+    # --- stepping -------------------------------------------------------------------------
+    def step(self, u: float, steps: int = 1) -> None:
+        """Advance ``steps`` time steps with the valve command ``u`` held constant."""
+        if not math.isfinite(u):
+            raise SimulationError(f"valve command must be finite, got {u!r}")
+        c, derivative, project = self.constants, self._derivative, self._project
+        dt = self.params.time_step_s
+
+        def fun(t: float, y: list) -> list:
+            return derivative(t, y, c, u)
+
+        advance = self.integrator.advance
+        for _ in range(steps):
+            try:
+                y = project(advance(fun, self.t, self.y, dt), c)
+            except (ValueError, ZeroDivisionError, OverflowError) as exc:
+                # math.acos/sqrt outside their domain: a stage left the geometry of eq. 1
+                raise SimulationError(
+                    f"the model cannot be evaluated near t = {self.t:.6g} s ({self._describe(self.y)}): "
+                    f"{exc}; the rod is about to leave the valid geometry (paper mode has no end stops)"
+                ) from None
+            self._check(y)
+            self.y = y
+            self.step_count += 1
+            self.t += dt
+        self.u = u
+
+    def _check(self, y: list) -> None:
+        p = self.params
+        q1 = y[0]
+        if not all(math.isfinite(v) for v in y):
+            raise SimulationError(
+                f"state became non-finite at t = {self.t:.6g} s ({self._describe(y)}); "
+                "try a smaller time_step_s, more substeps or method rk45"
+            )
+        if not abs(p.b_m - p.a_m) < q1 < p.a_m + p.b_m:
+            raise SimulationError(
+                f"rod left the valid geometry at t = {self.t:.6g} s: q1 = {q1:.6g} m is outside "
+                f"({abs(p.b_m - p.a_m):.4g}, {p.a_m + p.b_m:.4g}) m where the triangle of eq. 1 "
+                "degenerates (paper mode has no end stops)"
+            )
+
+    def _describe(self, y: list) -> str:
+        return ", ".join(f"{n} = {v:.6g}" for n, v in zip(self.model.STATE_NAMES, y))
+
+    def outputs(self) -> dict[str, float]:
+        """Every output (see :data:`OUTPUTS`) at the current state and command."""
+        return self.model.observe(self.t, self.y, self.constants, self.u)
+
+    def run(self, duration_s: float, command: Callable[[float], float], every: int = 1) -> Trajectory:
+        """Simulate ``duration_s`` from the current state with valve command ``command(t)``.
+
+        Records the outputs at the start and after every ``every`` steps.
+        """
+        if every < 1:
+            raise ValueError("every must be >= 1")
+        n_steps = round(duration_s / self.params.time_step_s)
+        rows = [self.model.observe(self.t, self.y, self.constants, command(self.t))]
+        for i in range(1, n_steps + 1):
+            self.step(command(self.t))
+            if i % every == 0 or i == n_steps:
+                rows.append(self.model.observe(self.t, self.y, self.constants, command(self.t)))
+        columns = {name: np.array([row[name] for row in rows]) for name in OUTPUT_NAMES}
+        return Trajectory(columns)
+
+
+def simulate(
+    params: Parameters, duration_s: float, command: Callable[[float], float] | None = None, every: int = 1
+) -> Trajectory:
+    """Run a fresh simulation of ``params`` for ``duration_s`` (command from the parameters by default)."""
+    from .commands import from_parameters
+
+    sim = Simulator(params)
+    return sim.run(duration_s, command or from_parameters(params), every)
