@@ -1,0 +1,44 @@
+# boom_hydraulics: two commands for a newcomer (see README).
+#   make run    set up if needed, then run the node with the default scenario
+#   make test   set up if needed, then run the whole test suite
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+WITH_ENV := tools/with-env
+
+DEPS_STAMP := $(VENV)/.boom-deps-stamp
+BUILD_STAMP := install/.boom-build-stamp
+BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name package.xml -o \
+	-name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name setup.py -o \
+	-name setup.cfg -o -name '*.launch.py' \) -print) $(wildcard config/*.yaml) \
+	tools/build tools/cmake/drop_missing_include_dirs.cmake
+
+.PHONY: setup run node test lint bench clean
+
+setup: $(BUILD_STAMP)
+
+$(DEPS_STAMP): requirements.txt constraints.txt
+	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install --disable-pip-version-check -q \
+		-r requirements.txt -c constraints.txt
+	@touch $@
+
+$(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
+	tools/build
+	@touch $@
+
+run: setup
+	$(WITH_ENV) boom-demo --params-file config/default.yaml
+
+node: setup
+	$(WITH_ENV) boom_sim --ros-args --params-file config/default.yaml
+
+test: setup
+	$(WITH_ENV) python -m pytest -q test
+
+lint: setup
+	$(WITH_ENV) ruff check src test
+	$(WITH_ENV) ruff format --check src test
+
+clean:
+	rm -rf build install log $(VENV)

@@ -1,0 +1,109 @@
+"""``boom-demo``: start the node, drive it through a lift-hold-lower cycle, report what it does.
+
+The scenario is published as ValveCommand messages on the node's ``valve_command``
+topic, the same path a user's ``ros2 topic pub`` takes; the node runs as its own process
+through its real entry point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+
+#: (start time s, opening): lift, hold, lower, hold.
+DEFAULT_SCENARIO = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
+
+
+class ScenarioDriver(Node):
+    """Publishes the scenario's openings at 50 Hz and keeps the latest DriveState."""
+
+    def __init__(self, scenario: tuple[tuple[float, float], ...]) -> None:
+        super().__init__("boom_demo")
+        self.scenario = scenario
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub = self.create_publisher(ValveCommand, "valve_command", qos)
+        self.create_subscription(DriveState, "drive_state", self.on_state, qos)
+        self.state: DriveState | None = None
+        self.start: float | None = None
+
+    def on_state(self, msg: DriveState) -> None:
+        self.state = msg
+
+    def opening_at(self, t: float) -> float:
+        u = 0.0
+        for start, value in self.scenario:
+            if t >= start:
+                u = value
+        return u
+
+    def send(self, t: float) -> float:
+        msg = ValveCommand()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.opening = self.opening_at(t)
+        self.pub.publish(msg)
+        return msg.opening
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="boom-demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--params-file", default=None, help="params YAML for the node")
+    parser.add_argument("--duration", type=float, default=9.0, help="scenario length in s")
+    args = parser.parse_args(argv)
+
+    node_exe = shutil.which("boom_sim")
+    if node_exe is None:
+        print("boom-demo: error: the boom_sim executable is not on PATH (run through tools/with-env)", file=sys.stderr)
+        return 2
+    cmd = [node_exe]
+    if args.params_file:
+        cmd += ["--ros-args", "--params-file", args.params_file]
+    node_proc = subprocess.Popen(cmd, env=os.environ.copy())
+    rclpy.init()
+    driver = ScenarioDriver(DEFAULT_SCENARIO)
+    try:
+        deadline = time.monotonic() + 20.0
+        while driver.state is None:  # wait for the node to come up
+            rclpy.spin_once(driver, timeout_sec=0.1)
+            if node_proc.poll() is not None or time.monotonic() > deadline:
+                print("boom-demo: error: the node did not start", file=sys.stderr)
+                return 1
+        print(" t [s]  opening  q1 [m]  alpha [deg]  p1 [MPa]  p2 [MPa]  energy [kJ]")
+        start = time.monotonic()
+        next_print = 0.0
+        while (t := time.monotonic() - start) < args.duration:
+            u = driver.send(t)
+            rclpy.spin_once(driver, timeout_sec=0.02)
+            if t >= next_print and driver.state is not None:
+                s = driver.state
+                print(
+                    f"{t:6.1f}  {u:+7.2f}  {s.rod_position_m:6.4f}  {s.boom_angle_rad * 57.29578:11.2f}  "
+                    f"{s.piston_pressure_pa / 1e6:8.2f}  {s.rod_pressure_pa / 1e6:8.2f}  "
+                    f"{s.supply_energy_j / 1e3:11.2f}"
+                )
+                next_print += 0.5
+    except KeyboardInterrupt:
+        pass
+    finally:
+        driver.destroy_node()
+        rclpy.try_shutdown()
+        node_proc.send_signal(signal.SIGINT)
+        try:
+            node_proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            node_proc.kill()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

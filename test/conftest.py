@@ -1,0 +1,22 @@
+"""Shared test setup: isolate ROS traffic of this test run in its own DDS domain."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "config"
+
+# One DDS domain per test run, so that a node left running elsewhere on the machine
+# (make run, another checkout's tests) does not talk to these tests.
+os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+
+@pytest.fixture
+def python_exe() -> str:
+    return sys.executable

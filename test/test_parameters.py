@@ -1,0 +1,113 @@
+"""Parameter validation and the params YAML format shared by node and CLI."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import CONFIG
+
+from boom_hydraulics import config
+from boom_hydraulics.errors import ConfigError
+from boom_hydraulics.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.simulation import Simulator
+
+
+def test_default_yaml_spells_out_the_code_defaults():
+    assert config.load(CONFIG / "default.yaml") == Parameters()
+
+
+@pytest.mark.parametrize("name", ["paper_fig8", "paper_fig9", "paper_fig10"])
+def test_paper_configs_are_paper_mode_with_printed_values(name):
+    p = config.load(CONFIG / f"{name}.yaml")
+    assert p.mode == "paper" and p.method == "rk4" and p.time_step_s == 0.001
+    assert (p.a_m, p.b_m, p.boom_length_m, p.support_height_m) == (0.4, 1.4, 2.0, 1.307)
+    assert (p.boom_mass_kg, p.payload_mass_kg, p.initial_length_m) == (100.0, 50.0, 1.37)
+    assert p.piston_dead_volume_m3 == 2e-5 and p.spring_stiffness_n_m == 2000.0
+    expected = {"paper_fig8": (0.04, 1.45e6), "paper_fig9": (0.08, 1.45e6), "paper_fig10": (0.08, 14.5e6)}
+    assert (p.piston_diameter_m, p.bulk_modulus_pa) == expected[name]
+
+
+def test_numbers_read_as_ros2_reads_them(tmp_path):
+    f = tmp_path / "p.yaml"
+    f.write_text(
+        "boom_sim:\n  ros__parameters:\n    bulk_modulus_pa: 1.5e9\n    rtol: 1e-07\n    payload_mass_kg: 80\n"
+    )
+    p = config.load(f)
+    assert p.bulk_modulus_pa == 1.5e9 and p.rtol == 1e-7 and p.payload_mass_kg == 80.0
+
+
+def test_wildcard_node_section_and_nested_names(tmp_path):
+    f = tmp_path / "p.yaml"
+    f.write_text("/**:\n  ros__parameters:\n    piston_diameter_m: 0.05\n")
+    assert config.load(f).piston_diameter_m == 0.05
+
+
+def test_unknown_key_names_the_closest_valid_ones():
+    with pytest.raises(ConfigError, match=r"unknown parameter 'piston_diameter'.*did you mean piston_diameter_m"):
+        from_mapping({"piston_diameter": 0.05})
+
+
+@pytest.mark.parametrize(
+    ("values", "pattern"),
+    [
+        ({"boom_mass_kg": "heavy"}, r"'boom_mass_kg' must be a number"),
+        ({"substeps": 1.5}, r"'substeps' must be an integer"),
+        ({"mode": "fast"}, r"choose one of physical, paper"),
+        ({"command_values": "1,0"}, r"must be a list of numbers"),
+        ({"boom_mass_kg": 0.0}, r"'boom_mass_kg'.*must be > 0"),
+        ({"payload_mass_kg": -1.0}, r"'payload_mass_kg'.*must be >= 0"),
+        ({"piston_diameter_m": -0.04}, r"'piston_diameter_m'.*must be > 0"),
+        ({"orifice_diameter_m": 0.0}, r"'orifice_diameter_m'.*must be > 0"),
+        ({"piston_dead_volume_m3": 0.0}, r"'piston_dead_volume_m3'.*must be > 0"),
+        ({"bulk_modulus_pa": 0.0}, r"'bulk_modulus_pa'.*must be > 0"),
+        ({"time_step_s": 0.0}, r"'time_step_s'.*must be > 0"),
+        ({"time_step_s": float("nan")}, r"'time_step_s' must be finite"),
+        ({"rod_diameter_m": 0.04}, r"rod_diameter_m .* must be smaller than piston_diameter_m"),
+        ({"cylinder_min_length_m": 1.0}, r"degenerates at q1 = \|b - a\| = 1 m"),
+        ({"cylinder_max_length_m": 1.8}, r"a \+ b = 1.8 m"),
+        ({"cylinder_min_length_m": 1.6, "cylinder_max_length_m": 1.5}, r"increasing interval"),
+        ({"initial_length_m": 1.77}, r"initial_length_m \(1.77 m\) lies outside the stroke"),
+        ({"support_height_m": 1.5}, r"arccos\(h / b\)"),
+        ({"relief_pressure_pa": 10e6}, r"relief_pressure_pa .* at least supply_pressure_pa"),
+        ({"command_profile": "steps", "command_times_s": [0, 1], "command_values": [1.0]}, r"equal length"),
+        ({"command_profile": "steps", "command_times_s": [1, 0], "command_values": [1, 0]}, r"strictly increasing"),
+        ({"command_value": 1.5}, r"valve opening 1.5 .* outside \[-1, 1\]"),
+        ({"mode": "paper", "command_value": -0.5}, r"outside \[0, 1\] \(paper mode"),
+    ],
+)
+def test_invalid_values_are_refused_with_a_reason(values, pattern):
+    with pytest.raises(ConfigError, match=pattern):
+        from_mapping(values)
+
+
+def test_malformed_yaml_names_file_and_line(tmp_path):
+    f = tmp_path / "bad.yaml"
+    f.write_text("boom_sim:\n  ros__parameters:\n    a_m: [0.4\n    b_m: 1.4\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml: malformed YAML at line \d+"):
+        config.load(f)
+
+
+def test_missing_file_and_missing_section(tmp_path):
+    with pytest.raises(ConfigError, match=r"nope.yaml: no such file"):
+        config.load(tmp_path / "nope.yaml")
+    f = tmp_path / "other.yaml"
+    f.write_text("other_node:\n  ros__parameters: {}\n")
+    with pytest.raises(ConfigError, match=r"no section for node 'boom_sim'"):
+        config.load(f)
+
+
+def test_error_leaves_nothing_half_applied():
+    sim = Simulator(Parameters())
+    before = sim.params
+    with pytest.raises(ConfigError):
+        sim.set_parameters(with_updates(before, payload_mass_kg=80.0, rod_diameter_m=0.05))
+    assert sim.params is before and sim.params.payload_mass_kg == 50.0
+
+
+def test_payload_changes_between_steps():
+    sim = Simulator(Parameters())
+    sim.step(0.0, 10)
+    q_before = sim.y[0]
+    sim.set_payload_mass(120.0)
+    assert sim.params.payload_mass_kg == 120.0 and sim.y[0] == q_before
+    sim.step(0.0, 200)  # the closed valve now holds a heavier boom: it sinks a little
+    assert sim.y[0] < q_before
