@@ -140,8 +140,8 @@ class Parameters:
     )
 
     # --- end stops (physical mode) -------------------------------------------------------
-    end_stop_stiffness_n_m: float = _param(1.0e8, "N/m", "End-stop contact stiffness", low=0.0)
-    end_stop_damping_n_s_m: float = _param(5.0e5, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True)
+    end_stop_stiffness_n_m: float = _param(1.0e9, "N/m", "End-stop contact stiffness", low=0.0)
+    end_stop_damping_n_s_m: float = _param(2.0e6, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True)
 
     # --- fluid ---------------------------------------------------------------------------
     density_kg_m3: float = _param(860.0, "kg/m^3", "rho: oil density", low=0.0)

@@ -108,6 +108,7 @@ class Simulator:
         self.t = 0.0
         self.u = 0.0
         self.step_count = 0
+        self._t_base, self._n_base = 0.0, 0  # t = t_base + (step_count - n_base) dt, no drift
         self.integrator = make_integrator(p)
 
     def set_parameters(self, params: Parameters) -> None:
@@ -119,6 +120,8 @@ class Simulator:
         self._install(params)
         if mode_changed:
             self.reset()
+        else:
+            self._t_base, self._n_base = self.t, self.step_count
 
     def set_payload_mass(self, payload_mass_kg: float) -> None:
         """Change the payload between steps (validated like any parameter)."""
@@ -150,7 +153,7 @@ class Simulator:
             self._check(y)
             self.y = y
             self.step_count += 1
-            self.t += dt
+            self.t = self._t_base + (self.step_count - self._n_base) * dt
         self.u = u
 
     def _check(self, y: list) -> None:

@@ -1,0 +1,172 @@
+"""Physical mode: conservation laws, an independent formulation, and the circuit's behaviour."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from boom_hydraulics import geometry, hydraulics, integrators, mechanics, physical
+from boom_hydraulics.commands import steps
+from boom_hydraulics.parameters import Parameters, with_updates
+from boom_hydraulics.simulation import Simulator, simulate
+
+P = Parameters()
+J = mechanics.boom_inertia_kgm2(P.boom_mass_kg, P.payload_mass_kg, P.boom_length_m)
+W = (0.5 * P.boom_mass_kg + P.payload_mass_kg) * P.boom_length_m * P.gravity_m_s2  # M_g = W cos(alpha)
+
+
+def _integrate(fun, y0, dt, n):
+    ys = [y0]
+    for i in range(n):
+        ys.append(integrators.rk4_step(fun, i * dt, ys[-1], dt))
+    return np.array(ys)
+
+
+def _energy(q, v):
+    k = geometry.lever_rad_per_m(q, P.a_m, P.b_m, np)
+    alpha = geometry.boom_angle_rad(q, P.a_m, P.b_m, P.support_height_m, np)
+    return 0.5 * J * (k * v) ** 2 + W * np.sin(alpha)  # T (eq. 8) + potential energy
+
+
+def test_falling_boom_conserves_energy_without_hydraulics_and_friction():
+    def fall(t, y):
+        return [y[1], mechanics.rod_acceleration(y[0], y[1], 0.0, J, W, P.a_m, P.b_m, P.support_height_m)]
+
+    ys = _integrate(fall, [1.6, 0.0], 1e-4, 4000)
+    q, v = ys[:, 0], ys[:, 1]
+    assert q[-1] < 1.5  # it really fell
+    energy = _energy(q, v)
+    kinetic_max = np.max(0.5 * J * (geometry.lever_rad_per_m(q, P.a_m, P.b_m, np) * v) ** 2)
+    assert np.max(np.abs(energy - energy[0])) < 1e-6 * kinetic_max
+
+
+def test_the_paper_acceleration_does_not_conserve_energy():
+    """The factor 1/2 of eq. 16 shows up as lost energy (why physical mode corrects it)."""
+
+    def fall(t, y):
+        return [y[1], mechanics.paper_acceleration(y[0], y[1], 0.0, 0.0, 0.0, J, W, P.a_m, P.b_m, P.support_height_m)]
+
+    ys = _integrate(fall, [1.6, 0.0], 1e-4, 4000)
+    energy = _energy(ys[:, 0], ys[:, 1])
+    assert abs(energy[-1] - energy[0]) > 0.1 * abs(np.max(energy) - np.min(energy))
+
+
+def test_q1_formulation_agrees_with_a_pendulum_in_alpha():
+    """J alpha'' = F / k - M_g in alpha, mapped to q1, gives the same motion."""
+    force = 6000.0
+    alpha2 = math.acos(P.support_height_m / P.b_m)
+
+    def in_q(t, y):
+        return [y[1], mechanics.rod_acceleration(y[0], y[1], force, J, W, P.a_m, P.b_m, P.support_height_m)]
+
+    def q_of_alpha(alpha):
+        theta = alpha + math.pi / 2 - alpha2  # eq. 4 solved for theta
+        return math.sqrt(P.a_m**2 + P.b_m**2 - 2 * P.a_m * P.b_m * math.cos(theta))
+
+    def in_alpha(t, y):
+        q = q_of_alpha(y[0])
+        k = geometry.lever_rad_per_m(q, P.a_m, P.b_m)
+        return [y[1], (force / k - W * math.cos(y[0])) / J]
+
+    q0 = 1.3
+    alpha0 = geometry.boom_angle_rad(q0, P.a_m, P.b_m, P.support_height_m)
+    by_q = _integrate(in_q, [q0, 0.0], 1e-4, 10000)[:, 0]
+    by_alpha = np.array([q_of_alpha(a) for a in _integrate(in_alpha, [alpha0, 0.0], 1e-4, 10000)[:, 0]])
+    assert by_q[-1] - q0 > 0.1  # the rod force lifts the boom
+    assert np.max(np.abs(by_q - by_alpha)) < 1e-9
+
+
+def test_closed_valve_at_holding_pressure_holds_the_boom():
+    tr = simulate(P, 2.0, command=lambda t: 0.0)
+    assert np.max(np.abs(tr["q1"] - P.initial_length_m)) < 1e-3  # leakage drift only
+    assert abs(tr["v"][-1]) < 1e-3
+
+
+def test_fluid_entering_a_chamber_equals_the_integral_of_its_flow():
+    """For eq. 12: integral of Q1 dt = change of V1 + integral of V1 / E dp1."""
+    params = with_updates(P, time_step_s=2e-4)
+    tr = simulate(params, 2.0, command=steps([0.0, 1.0], [0.5, -0.3]))
+    assert not tr["cavitation"].any() and not tr["relief_open"].any()
+    t, p1 = tr["t"], tr["p1"]
+    vol1 = P.piston_dead_volume_m3 + physical.constants(P).s1 * (tr["q1"] - P.cylinder_min_length_m)
+    inflow = np.trapezoid(tr["q_in1"], t)
+    stored = vol1[-1] - vol1[0] + np.trapezoid(vol1 / P.bulk_modulus_pa * np.gradient(p1, t), t)
+    assert abs(inflow) > 2e-5  # fluid did move
+    assert inflow == pytest.approx(stored, rel=2e-3)
+
+
+def test_end_stops_are_never_crossed():
+    tr = simulate(P, 9.0, command=steps([0.0, 4.0], [1.0, -1.0]), every=5)
+    q = tr["q1"]
+    assert q.max() > P.cylinder_max_length_m - 1e-3 and q.min() < P.cylinder_min_length_m + 1e-3  # reached both
+    assert q.max() < P.cylinder_max_length_m + 1e-3 and q.min() > P.cylinder_min_length_m - 1e-3
+    assert tr["at_end_stop"].any()
+
+
+def test_pressures_stay_between_cavitation_floor_and_relief_range():
+    """Slamming the valve shut at full speed (no spool lag) opens a relief valve."""
+    params = with_updates(P, spool_time_constant_s=0.0, time_step_s=2e-4)
+    tr = simulate(params, 4.0, command=steps([0.0, 1.0, 2.0, 2.8], [1.0, 0.0, -1.0, 0.0]))
+    assert tr["relief_open"].any()
+    for p in (tr["p1"], tr["p2"]):
+        assert p.max() <= P.relief_pressure_pa + P.relief_range_pa
+        assert p.min() >= P.cavitation_pressure_pa
+
+
+def test_lowering_an_overrunning_load_cavitates_the_rod_chamber():
+    """A heavy payload lowered with the valve wide open outruns the pump: flagged cavitation."""
+    params = with_updates(P, payload_mass_kg=400.0, pump_max_flow_m3_s=1e-4)
+    tr = simulate(params, 1.0, command=lambda t: -1.0)
+    assert tr["cavitation"].any()
+    assert tr["p2"].min() == pytest.approx(P.cavitation_pressure_pa)
+
+
+def _steady_speed(params: Parameters, q1: float) -> float:
+    """Rod speed at which both orifices pass the flow the piston needs against the static load."""
+    c = physical.constants(params)
+    load = geometry.static_rod_force_n(
+        q1,
+        params.a_m,
+        params.b_m,
+        params.support_height_m,
+        params.boom_mass_kg,
+        params.payload_mass_kg,
+        params.boom_length_m,
+        params.gravity_m_s2,
+    )
+
+    def residual(v):
+        p1 = params.supply_pressure_pa - hydraulics.orifice_pressure_drop(c.k_valve, c.s1 * v, c.transition2)
+        p2 = params.tank_pressure_pa + hydraulics.orifice_pressure_drop(c.k_valve, c.s2 * v, c.transition2)
+        friction = params.coulomb_friction_n + params.viscous_friction_n_s_m * v
+        return p1 * c.s1 - p2 * c.s2 - load - friction
+
+    return brentq(residual, 1e-6, 2.0)
+
+
+def test_steady_extension_speed_matches_the_orifice_equation_at_the_load():
+    tr = simulate(P, 1.5, command=lambda t: 1.0)
+    i = int(np.argmin(np.abs(tr["q1"] - 1.5)))
+    assert tr["v"][i] == pytest.approx(_steady_speed(P, tr["q1"][i]), rel=0.01)
+
+
+def test_pump_flow_limit_caps_the_speed():
+    params = with_updates(P, pump_max_flow_m3_s=1e-4)
+    tr = simulate(params, 2.0, command=lambda t: 1.0)
+    window = (tr["t"] >= 0.5) & (tr["t"] <= 1.5)
+    assert tr["pump_saturated"][window].all()
+    # a flow source against the oil spring rings, so compare the mean speed over a second
+    mean_speed = (tr["q1"][window][-1] - tr["q1"][window][0]) / 1.0
+    assert mean_speed == pytest.approx(1e-4 / physical.constants(params).s1, rel=0.01)
+
+
+def test_reset_returns_to_rest_at_a_given_position():
+    sim = Simulator(P)
+    sim.step(1.0, 500)
+    sim.reset(1.6)
+    assert sim.y[0] == 1.6 and sim.y[1] == 0.0 and sim.t == 0.0
+    sim.step(0.0, 300)
+    assert abs(sim.y[0] - 1.6) < 1e-3
