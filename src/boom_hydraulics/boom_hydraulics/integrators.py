@@ -1,8 +1,8 @@
 """Time integrators behind one interface: ``advance(fun, t, y, dt) -> y(t + dt)``.
 
-``fun(t, y)`` returns dy/dt as a list. A state ``y`` is a list of components, each a
-float (one simulation) or a numpy array (a batch of simulations integrated together), so
-the same fixed-step code serves both. Methods:
+``fun(t, y, *args)`` returns dy/dt as a list (``args`` as in scipy's solve_ivp). A state
+``y`` is a list of components, each a float (one simulation) or a numpy array (a batch
+of simulations integrated together), so the same fixed-step code serves both. Methods:
 
 - ``euler``: explicit Euler, order 1.
 - ``rk4``: classical Runge-Kutta of order 4, the paper's method (Fig. 7).
@@ -20,7 +20,7 @@ from typing import Any, Protocol
 
 from .errors import SimulationError
 
-Derivative = Callable[[float, list], list]
+Derivative = Callable[..., list]
 
 
 class Integrator(Protocol):
@@ -28,24 +28,24 @@ class Integrator(Protocol):
 
     name: str
 
-    def advance(self, fun: Derivative, t: float, y: list, dt: float) -> list:
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
         """The state at ``t + dt``."""
         ...
 
 
-def euler_step(fun: Derivative, t: float, y: list, h: float) -> list:
+def euler_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
     """y + h f(t, y)."""
-    k1 = fun(t, y)
+    k1 = fun(t, y, *args)
     return [yi + h * ki for yi, ki in zip(y, k1)]
 
 
-def rk4_step(fun: Derivative, t: float, y: list, h: float) -> list:
+def rk4_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
     """Classical RK4: y + h/6 (k1 + 2 k2 + 2 k3 + k4) (the listing's rk4Step)."""
     h2 = 0.5 * h
-    k1 = fun(t, y)
-    k2 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k1)])
-    k3 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k2)])
-    k4 = fun(t + h, [yi + h * ki for yi, ki in zip(y, k3)])
+    k1 = fun(t, y, *args)
+    k2 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k1)], *args)
+    k3 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k2)], *args)
+    k4 = fun(t + h, [yi + h * ki for yi, ki in zip(y, k3)], *args)
     h6 = h / 6.0
     return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
 
@@ -53,19 +53,19 @@ def rk4_step(fun: Derivative, t: float, y: list, h: float) -> list:
 class FixedStep:
     """A fixed-step method with ``substeps`` internal steps per advance."""
 
-    def __init__(self, name: str, step: Callable[[Derivative, float, list, float], list], substeps: int = 1):
+    def __init__(self, name: str, step: Callable[..., list], substeps: int = 1):
         if substeps < 1:
             raise ValueError("substeps must be >= 1")
         self.name = name
         self._step = step
         self.substeps = substeps
 
-    def advance(self, fun: Derivative, t: float, y: list, dt: float) -> list:
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
         if self.substeps == 1:
-            return self._step(fun, t, y, dt)
+            return self._step(fun, t, y, dt, args)
         h = dt / self.substeps
         for i in range(self.substeps):
-            y = self._step(fun, t + i * h, y, h)
+            y = self._step(fun, t + i * h, y, h, args)
         return y
 
 
@@ -103,14 +103,14 @@ class DormandPrince45:
         self.accepted = 0
         self.rejected = 0
 
-    def _try_step(self, fun: Derivative, t: float, y: list, h: float, k1: list) -> tuple[list, list, float]:
+    def _try_step(self, fun: Derivative, t: float, y: list, h: float, k1: list, args: tuple) -> tuple:
         ks = [k1]
         for i in range(1, 6):
             a = _DP_A[i]
             yi = [y0 + h * sum(aij * kj[n] for aij, kj in zip(a, ks)) for n, y0 in enumerate(y)]
-            ks.append(fun(t + _DP_C[i] * h, yi))
+            ks.append(fun(t + _DP_C[i] * h, yi, *args))
         y_new = [y0 + h * sum(bj * kj[n] for bj, kj in zip(_DP_B, ks)) for n, y0 in enumerate(y)]
-        k7 = fun(t + h, y_new)
+        k7 = fun(t + h, y_new, *args)
         ks.append(k7)
         err = 0.0
         for n, (y0, y1) in enumerate(zip(y, y_new)):
@@ -121,17 +121,17 @@ class DormandPrince45:
             err = math.inf  # a NaN or infinite trial state is never accepted
         return y_new, k7, err
 
-    def advance(self, fun: Derivative, t: float, y: list, dt: float) -> list:
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
         t_end = t + dt
         h_try = self._h or dt
-        k1 = fun(t, y)
+        k1 = fun(t, y, *args)
         for _ in range(self.max_steps_per_advance):
             if t >= t_end - 1e-12 * dt:
                 self._h = h_try
                 return y
             h = min(h_try, t_end - t)
             truncated = h < h_try  # shortened to land on t_end: not a measure of the right step
-            y_new, k_new, err = self._try_step(fun, t, y, h, k1)
+            y_new, k_new, err = self._try_step(fun, t, y, h, k1, args)
             if err <= 1.0:
                 t, y, k1 = t + h, y_new, k_new
                 self.accepted += 1

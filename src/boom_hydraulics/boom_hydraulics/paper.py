@@ -11,9 +11,8 @@ orifice area (u = 1 is the paper's case). Pressures are relative to the drain (p
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, NamedTuple
 
 from .friction import paper_friction_n
 from .geometry import boom_angle_rad, lever_rad_per_m, piston_area_m2, rod_boom_angle_rad
@@ -27,8 +26,7 @@ STATE_NAMES = ("q1", "v", "p1", "supply_energy", "valve_loss_energy")
 STATE_SCALES = ("length", "velocity", "pressure", "energy", "energy")
 
 
-@dataclass(frozen=True)
-class Constants:
+class Constants(NamedTuple):
     """Values derived once from :class:`Parameters` (floats, or arrays for a batch)."""
 
     a: Num

@@ -9,9 +9,8 @@ state component (``xp=numpy`` and array-valued constants).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, NamedTuple
 
 from .end_stops import end_stop_force_n
 from .friction import seal_friction_n
@@ -34,8 +33,7 @@ STATE_NAMES = ("q1", "v", "p1", "p2", "x_v", "supply_energy", "valve_loss_energy
 STATE_SCALES = ("length", "velocity", "pressure", "pressure", "unit", "energy", "energy")
 
 
-@dataclass(frozen=True)
-class Constants:
+class Constants(NamedTuple):
     """Values derived once from :class:`Parameters` (floats, or arrays for a batch)."""
 
     a: Num

@@ -1,0 +1,126 @@
+"""boom-sim through its real entry point: outputs, and one-line errors without traceback."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+BOOM_SIM = shutil.which("boom-sim")
+pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([BOOM_SIM, *map(str, args)], capture_output=True, text=True, timeout=120)
+
+
+def _read(path):
+    with open(path, newline="") as handle:
+        rows = list(csv.reader(handle))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def test_run_writes_a_row_per_step_with_named_unit_columns(tmp_path):
+    out = tmp_path / "run.csv"
+    result = _run("run", "--config", CONFIG / "default.yaml", "--duration", "0.5", "--out", out)
+    assert result.returncode == 0, result.stderr
+    header, data = _read(out)
+    for column in (
+        "t [s]",
+        "q1 [m]",
+        "v [m/s]",
+        "a [m/s^2]",
+        "p1 [Pa]",
+        "p2 [Pa]",
+        "alpha [rad]",
+        "u [1]",
+        "f_hyd [N]",
+    ):
+        assert column in header
+    assert len(data) == 501
+    t, q1 = data[:, header.index("t [s]")], data[:, header.index("q1 [m]")]
+    assert t[-1] == pytest.approx(0.5) and q1[-1] > q1[0]  # the default command opens the valve
+
+
+def test_run_options_profile_set_method_every(tmp_path):
+    out = tmp_path / "cycle.csv"
+    result = _run(
+        "run",
+        "--config",
+        CONFIG / "default.yaml",
+        "--duration",
+        "2",
+        "--every",
+        "10",
+        "--profile",
+        "steps:0=1,1=-1",
+        "--set",
+        "piston_diameter_m=0.063",
+        "--set",
+        "rod_diameter_m=0.036",
+        "--method",
+        "euler",
+        "--dt",
+        "2e-4",
+        "--out",
+        out,
+    )
+    assert result.returncode == 0, result.stderr
+    header, data = _read(out)
+    assert len(data) == 1001
+    u, q1 = data[:, header.index("u [1]")], data[:, header.index("q1 [m]")]
+    t = data[:, header.index("t [s]")]
+    assert set(u) == {1.0, -1.0}
+    top = q1[np.argmin(np.abs(t - 1.0))]
+    assert top > q1[0] + 0.05 and q1[-1] < top - 0.05  # up, then down again
+
+
+def test_statics_covers_the_open_stroke_for_each_diameter(tmp_path):
+    out = tmp_path / "statics.csv"
+    result = _run("statics", "--config", CONFIG / "default.yaml", "--diameters", "0.04,0.08", "--out", out)
+    assert result.returncode == 0, result.stderr
+    header, data = _read(out)
+    assert header[-2:] == ["holding_pressure_D40mm [Pa]", "holding_pressure_D80mm [Pa]"]
+    assert 1.0 < data[0, 0] < 1.01 and 1.79 < data[-1, 0] < 1.8
+    assert np.allclose(data[:, -2], 4 * data[:, -1])
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--duration", "1", "--set", "piston_diameter=0.05"], "unknown parameter 'piston_diameter'"),
+        (["run", "--duration", "1", "--set", "rod_diameter_m=0.05"], "must be smaller than piston_diameter_m"),
+        (["run", "--duration", "-1"], "--duration must be a positive number"),
+        (["run", "--duration", "1", "--profile", "steps:0=1,oops"], "--profile 'steps:0=1,oops'"),
+        (["run", "--duration", "1", "--config", "/nonexistent.yaml"], "/nonexistent.yaml: no such file"),
+        (["run", "--duration", "1", "--method", "heun"], "invalid choice: 'heun'"),
+        (["statics", "--diameters", "0.04,x"], "--diameters expects comma-separated metres"),
+    ],
+)
+def test_bad_input_gives_one_line_and_no_file(tmp_path, args, message):
+    out = tmp_path / "never.csv"
+    result = _run(*args, "--out", out)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_run_that_leaves_the_geometry_fails_cleanly(tmp_path):
+    out = tmp_path / "fig8.csv"
+    result = _run("run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "3", "--out", out)
+    assert result.returncode == 1
+    assert "rod is about to leave the valid geometry" in result.stderr and "Traceback" not in result.stderr
+    assert not out.exists() and not list(tmp_path.iterdir())  # no partial CSV either
+
+
+def test_malformed_yaml_is_one_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("boom_sim:\n  ros__parameters:\n    a_m: [0.4\n")
+    result = _run("run", "--config", bad, "--duration", "1", "--out", tmp_path / "x.csv")
+    assert result.returncode == 2 and "malformed YAML at line" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
