@@ -37,8 +37,11 @@ test: setup
 	$(WITH_ENV) python -m pytest -q test
 
 lint: setup
-	$(WITH_ENV) ruff check src test
-	$(WITH_ENV) ruff format --check src test
+	$(WITH_ENV) ruff check src test bench
+	$(WITH_ENV) ruff format --check src test bench
+
+bench: setup
+	$(WITH_ENV) python bench/bench_model.py
 
 clean:
 	rm -rf build install log $(VENV)

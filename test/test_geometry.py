@@ -21,6 +21,11 @@ def test_boom_angle_at_the_paper_start_position():
     assert math.degrees(alpha) == pytest.approx(77.464 - 90 + 21.001, abs=0.002)
 
 
+def test_cos_boom_angle_without_arccos_equals_cos_of_eq_4():
+    alpha = geometry.boom_angle_rad(Q, A, B, H, np)
+    assert np.allclose(geometry.cos_boom_angle(Q, A, B, H, np), np.cos(alpha), rtol=0, atol=1e-14)
+
+
 def test_lever_is_the_derivative_of_the_boom_angle_and_one_over_a_sin_phi():
     k = geometry.lever_rad_per_m(Q, A, B, np)
     dq = 1e-6

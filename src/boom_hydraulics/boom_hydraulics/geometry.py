@@ -26,6 +26,15 @@ def boom_angle_rad(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType
     return xp.acos(xi(q1_m, a_m, b_m)) - math.pi / 2.0 + xp.acos(h_m / b_m)  # eq. 2-4
 
 
+def cos_boom_angle(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType = math) -> Num:
+    """cos(alpha) without arccos (eq. 4): alpha = theta - (pi/2 - alpha2), so
+    cos(alpha) = cos(theta) sin(alpha2) + sin(theta) cos(alpha2) = xi sqrt(1 - (h/b)^2) + sqrt(1 - xi^2) h/b.
+    """
+    x = xi(q1_m, a_m, b_m)
+    hb = h_m / b_m
+    return x * xp.sqrt(1.0 - hb * hb) + xp.sqrt(1.0 - x * x) * hb
+
+
 def rod_boom_angle_rad(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -> Num:
     """phi: angle between the rod axis and the boom, rad (eq. 5)."""
     return xp.acos((a_m * a_m + q1_m * q1_m - b_m * b_m) / (2.0 * a_m * q1_m))  # eq. 5

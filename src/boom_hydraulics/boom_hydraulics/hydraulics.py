@@ -39,7 +39,7 @@ def turbulent_orifice_flow(k: Num, dp_pa: Num, xp: ModuleType = math) -> Num:
     return k * xp.copysign(xp.sqrt(abs(dp_pa)), dp_pa)  # eq. 14
 
 
-def orifice_flow(k: Num, dp_pa: Num, transition_pa2: Num) -> Num:
+def orifice_flow(k: Num, dp_pa: Num, transition_pa2: Num, xp: ModuleType = math) -> Num:
     """Orifice flow with a laminar-turbulent transition, m^3/s.
 
     Q = K dp / (dp^2 + p_tr^2)^(1/4): turbulent K sqrt(|dp|) sign(dp) for |dp| >> p_tr,
@@ -47,17 +47,17 @@ def orifice_flow(k: Num, dp_pa: Num, transition_pa2: Num) -> Num:
     This is the smooth orifice of Simscape Fluids' orifice blocks, with p_tr given directly.
     ``transition_pa2`` is p_tr^2.
     """
-    return k * dp_pa / (dp_pa * dp_pa + transition_pa2) ** 0.25
+    return k * dp_pa / xp.sqrt(xp.sqrt(dp_pa * dp_pa + transition_pa2))  # (..)^(1/4); pow is slow on arrays
 
 
-def orifice_pressure_drop(k: Num, flow_m3_s: Num, transition_pa2: Num) -> Num:
+def orifice_pressure_drop(k: Num, flow_m3_s: Num, transition_pa2: Num, xp: ModuleType = math) -> Num:
     """Inverse of :func:`orifice_flow` for flow >= 0: the dp that passes ``flow_m3_s``, Pa.
 
     With r = Q / K, dp^4 = r^4 (dp^2 + p_tr^2), so dp^2 = r^4 / 2 (1 + sqrt(1 + 4 p_tr^2 / r^4)).
     """
     r = flow_m3_s / k
     r4 = r * r * r * r
-    return (0.5 * r4 * (1.0 + (1.0 + 4.0 * transition_pa2 / r4) ** 0.5)) ** 0.5
+    return xp.sqrt(0.5 * r4 * (1.0 + xp.sqrt(1.0 + 4.0 * transition_pa2 / r4)))
 
 
 def chamber_pressure_rate(bulk_modulus_pa: Num, volume_m3: Num, inflow_m3_s: Num, volume_rate_m3_s: Num) -> Num:
@@ -91,6 +91,7 @@ def valve_flows(
     k_max: Num,
     transition_pa2: Num,
     leak_m3_s_pa: Num,
+    xp: ModuleType = math,
 ) -> tuple[Num, Num, Num, Num]:
     """Flows through the four paths of a critically lapped 4/3 proportional valve, m^3/s.
 
@@ -103,15 +104,22 @@ def valve_flows(
     x_minus = x_plus - opening
     dp_pa, dp_at = p_supply_pa - p1_pa, p1_pa - p_tank_pa
     dp_pb, dp_bt = p_supply_pa - p2_pa, p2_pa - p_tank_pa
-    q_pa = k_max * x_plus * orifice_flow(1.0, dp_pa, transition_pa2) + leak_m3_s_pa * dp_pa
-    q_at = k_max * x_minus * orifice_flow(1.0, dp_at, transition_pa2) + leak_m3_s_pa * dp_at
-    q_pb = k_max * x_minus * orifice_flow(1.0, dp_pb, transition_pa2) + leak_m3_s_pa * dp_pb
-    q_bt = k_max * x_plus * orifice_flow(1.0, dp_bt, transition_pa2) + leak_m3_s_pa * dp_bt
+    q_pa = k_max * x_plus * orifice_flow(1.0, dp_pa, transition_pa2, xp) + leak_m3_s_pa * dp_pa
+    q_at = k_max * x_minus * orifice_flow(1.0, dp_at, transition_pa2, xp) + leak_m3_s_pa * dp_at
+    q_pb = k_max * x_minus * orifice_flow(1.0, dp_pb, transition_pa2, xp) + leak_m3_s_pa * dp_pb
+    q_bt = k_max * x_plus * orifice_flow(1.0, dp_bt, transition_pa2, xp) + leak_m3_s_pa * dp_bt
     return q_pa, q_at, q_pb, q_bt
 
 
 def supply_pressure(
-    opening: Num, p_set_pa: Num, p1_pa: Num, p2_pa: Num, k_max: Num, transition_pa2: Num, pump_max_flow_m3_s: Num
+    opening: Num,
+    p_set_pa: Num,
+    p1_pa: Num,
+    p2_pa: Num,
+    k_max: Num,
+    transition_pa2: Num,
+    pump_max_flow_m3_s: Num,
+    xp: ModuleType = math,
 ) -> Num:
     """Pressure at the valve's P port from a pressure-compensated pump, Pa.
 
@@ -121,5 +129,5 @@ def supply_pressure(
     """
     x_abs = abs(opening)
     p_fed = (pos(opening) * p1_pa + pos(-opening) * p2_pa) / (x_abs + _TINY_COEFF)
-    dp_max = orifice_pressure_drop(k_max * x_abs + _TINY_COEFF, pump_max_flow_m3_s, transition_pa2)
+    dp_max = orifice_pressure_drop(k_max * x_abs + _TINY_COEFF, pump_max_flow_m3_s, transition_pa2, xp)
     return smaller(p_set_pa, p_fed + dp_max)

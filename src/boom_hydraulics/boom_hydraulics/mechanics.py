@@ -16,7 +16,7 @@ import math
 from types import ModuleType
 from typing import Any
 
-from .geometry import boom_angle_rad, lever_derivative, lever_rad_per_m, xi
+from .geometry import cos_boom_angle, lever_derivative, lever_rad_per_m, xi
 
 Num = Any  # float or numpy.ndarray
 
@@ -50,8 +50,7 @@ def rod_acceleration(
     q1'' = (F_rod - M_g k) / (J k^2) - (k' / k) q1'^2, since m' / (2 m) = k' / k.
     """
     k = lever_rad_per_m(q1_m, a_m, b_m, xp)
-    alpha = boom_angle_rad(q1_m, a_m, b_m, h_m, xp)
-    moment = weight_coeff_nm * xp.cos(alpha)
+    moment = weight_coeff_nm * cos_boom_angle(q1_m, a_m, b_m, h_m, xp)  # M_g
     return (rod_force_n - moment * k) / (inertia_kgm2 * k * k) - (
         lever_derivative(q1_m, a_m, b_m, xp) / k
     ) * v_m_s * v_m_s
@@ -75,8 +74,7 @@ def load_force_n(
     """
     k = lever_rad_per_m(q1_m, a_m, b_m, xp)
     mass = effective_mass_kg(inertia_kgm2, k)
-    alpha = boom_angle_rad(q1_m, a_m, b_m, h_m, xp)
-    moment = weight_coeff_nm * xp.cos(alpha)  # M_g
+    moment = weight_coeff_nm * cos_boom_angle(q1_m, a_m, b_m, h_m, xp)  # M_g
     return mass * acc_m_s2 + mass * lever_derivative(q1_m, a_m, b_m, xp) / k * v_m_s * v_m_s + moment * k
 
 

@@ -135,8 +135,8 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
     """Every intermediate quantity of one evaluation, shared by derivative and observe."""
     q1, v, p1, p2, x_v = y[0], y[1], y[2], y[3], y[4]
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
-    ps = supply_pressure(x, c.p_supply, p1, p2, c.k_valve, c.transition2, c.pump_max_flow)
-    q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak)
+    ps = supply_pressure(x, c.p_supply, p1, p2, c.k_valve, c.transition2, c.pump_max_flow, xp)
+    q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak, xp)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
     q_in1 = q_pa - q_at - q_r1  # Q_1 into the piston chamber

@@ -207,17 +207,33 @@ class Simulator:
     def run(self, duration_s: float, command: Callable[[float], float], every: int = 1) -> Trajectory:
         """Simulate ``duration_s`` from the current state with valve command ``command(t)``.
 
-        Records the outputs at the start and after every ``every`` steps.
+        The command of a step is ``command`` at the step's middle, held over the step (so a
+        step change at T takes effect at the step starting within half a step of T, as the
+        node applies stamped commands). Records the outputs at the start and after every
+        ``every`` steps.
         """
         if every < 1:
             raise ValueError("every must be >= 1")
         n_steps = round(duration_s / self.params.time_step_s)
-        rows = [self.model.observe(self.t, self.y, self.constants, command(self.t))]
+        half = 0.5 * self.params.time_step_s
+        n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
+        columns: dict[str, np.ndarray] = {}
+
+        def record(row: int) -> None:
+            values = self.model.observe(self.t, self.y, self.constants, command(self.t + half))
+            if not columns:
+                for name in OUTPUT_NAMES:
+                    columns[name] = np.empty(n_rows, dtype=bool if isinstance(values[name], bool) else float)
+            for name in OUTPUT_NAMES:
+                columns[name][row] = values[name]
+
+        record(0)
+        row = 1
         for i in range(1, n_steps + 1):
-            self.step(command(self.t))
+            self.step(command(self.t + half))
             if i % every == 0 or i == n_steps:
-                rows.append(self.model.observe(self.t, self.y, self.constants, command(self.t)))
-        columns = {name: np.array([row[name] for row in rows]) for name in OUTPUT_NAMES}
+                record(row)
+                row += 1
         return Trajectory(columns)
 
 

@@ -1,0 +1,167 @@
+"""Model-core benchmarks: step cost, scipy comparison, batch throughput, Euler vs RK4.
+
+    tools/with-env python bench/bench_model.py          # about two minutes
+
+Prints tables; nothing is asserted (these machines are shared and noisy: read the
+numbers, rerun when in doubt).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from boom_hydraulics import accelerate, config, physical
+from boom_hydraulics.batch import simulate_batch
+from boom_hydraulics.parameters import Parameters, with_updates
+from boom_hydraulics.simulation import Simulator, simulate
+
+CONFIG = Path(__file__).resolve().parents[1] / "config"
+FIG8 = config.load(CONFIG / "paper_fig8.yaml")
+PHYSICAL = Parameters()
+
+
+def table(title: str, header: list[str], rows: list[list[str]]) -> None:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    print(f"\n{title}")
+    print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
+    print("  ".join("-" * w for w in widths))
+    for r in rows:
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths)))
+
+
+def best_of(fn, repeat: int = 3) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def step_cost() -> None:
+    rows = []
+    for label, params in (("paper (fig8)", FIG8), ("physical (default)", PHYSICAL)):
+        for jit in (False, True):
+            if jit and not accelerate.available():
+                continue
+            # paper mode reaches the degenerate geometry after ~2 s of simulated time
+            n = 1500 if params.mode == "paper" else (200_000 if jit else 20_000)
+            sim = Simulator(params, jit=jit)
+            sim.step(0.5, 10)  # compile / warm up
+
+            def run(sim=sim, n=n):
+                sim.reset()
+                sim.step(0.5, n)
+
+            seconds = best_of(run, 5)
+            us = seconds / n * 1e6
+            rows.append(
+                [label, "compiled" if jit else "interpreted", f"{us:.2f}", f"{params.time_step_s / (us * 1e-6):.0f}"]
+            )
+    table(
+        "RK4 step, one simulation, dt = 1 ms (many steps per call)",
+        ["model", "path", "us/step", "sim s per wall s"],
+        rows,
+    )
+
+
+def scipy_comparison() -> None:
+    """The same 1.5 s physical lift with solve_ivp at the accuracy RK4 reaches at 1 ms."""
+    c = physical.constants(PHYSICAL)
+    y0 = physical.initial_state(PHYSICAL)
+    duration = 1.5
+
+    def fun(t, y):
+        return physical.derivative(t, list(y), c, 1.0)
+
+    ref = solve_ivp(
+        fun, (0, duration), y0, method="DOP853", rtol=1e-11, atol=[1e-12, 1e-12, 1e-2, 1e-2, 1e-12, 1e-6, 1e-6]
+    )
+    q_ref = ref.y[0, -1]
+    rk4_time = best_of(lambda: simulate(PHYSICAL, duration, lambda t: 1.0, every=10**9, jit=False), 2)
+    rk4_err = abs(simulate(PHYSICAL, duration, lambda t: 1.0, every=10**9, jit=False)["q1"][-1] - q_ref) / q_ref
+    rows = [["rk4 dt=1 ms (ours, interpreted)", f"{rk4_err:.1e}", f"{rk4_time:.3f}", "1.0"]]
+    if accelerate.available():
+        t_jit = best_of(lambda: simulate(PHYSICAL, duration, lambda t: 1.0, every=10**9, jit=True), 2)
+        rows.append(["rk4 dt=1 ms (ours, compiled)", f"{rk4_err:.1e}", f"{t_jit:.3f}", f"{t_jit / rk4_time:.2f}"])
+    for method in ("RK45", "LSODA"):
+        chosen = None
+        for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+            atol = [rtol * s for s in (1.0, 1.0, 1e7, 1e7, 1.0, 1e3, 1e3)]
+            sol = solve_ivp(fun, (0, duration), y0, method=method, rtol=rtol, atol=atol)
+            err = abs(sol.y[0, -1] - q_ref) / q_ref
+            if sol.success and err <= rk4_err:
+                chosen = (rtol, atol, err)
+                break
+        if chosen is None:
+            rows.append([f"solve_ivp {method}", "did not reach it", "", ""])
+            continue
+        rtol, atol, err = chosen
+        seconds = best_of(
+            lambda method=method, rtol=rtol, atol=atol: solve_ivp(
+                fun, (0, duration), y0, method=method, rtol=rtol, atol=atol
+            ),
+            2,
+        )
+        rows.append([f"solve_ivp {method} rtol={rtol:g}", f"{err:.1e}", f"{seconds:.3f}", f"{seconds / rk4_time:.2f}"])
+    table(
+        "1.5 s physical lift at matching accuracy (error in final q1 against DOP853 rtol 1e-11)",
+        ["solver", "rel. error q1", "wall s", "ratio to rk4 interpreted"],
+        rows,
+    )
+
+
+def batch_throughput() -> None:
+    rows = []
+    for n in (1, 100, 10_000):
+        params = [with_updates(PHYSICAL, piston_diameter_m=0.04 + 0.04 * i / n) for i in range(n)]
+        steps = 200 if n >= 10_000 else 1000
+        seconds = best_of(lambda p=params, s=steps: simulate_batch(p, s * 1e-3, lambda t: 1.0, every=10**9), 2)
+        rows.append([str(n), str(steps), f"{seconds:.2f}", f"{n * steps / seconds / 1e6:.3f}"])
+    table("Batched physical RK4 (numpy over N parameter sets)", ["N", "steps", "wall s", "M state-steps/s"], rows)
+
+
+def euler_vs_rk4() -> None:
+    """Step size each method needs for 1e-6 relative error on q1 (paper fig. 8, 1 s), as the paper stored it."""
+    duration = 1.0
+    reference = simulate(with_updates(FIG8, time_step_s=1.25e-4), duration, every=10**9, jit=False)["q1"][-1]
+    rows = []
+    for method, steps in (("euler", [1e-4, 3e-5, 1e-5, 5e-6, 2e-6, 1e-6]), ("rk4", [1e-2, 5e-3, 2.5e-3, 1e-3])):
+        for h in steps:
+            params = with_updates(FIG8, method=method, time_step_s=h)
+            tracemalloc.start()
+            t0 = time.perf_counter()
+            tr = simulate(params, duration, every=1)  # every point kept, as the paper's listing does
+            seconds = time.perf_counter() - t0
+            peak = tracemalloc.get_traced_memory()[1]
+            tracemalloc.stop()
+            err = abs(tr["q1"][-1] - reference) / reference
+            if err <= 1e-6:
+                rows.append([method, f"{h:g}", f"{err:.1e}", f"{len(tr)}", f"{seconds:.2f}", f"{peak / 2**20:.1f}"])
+                break
+        else:
+            rows.append([method, f"< {steps[-1]:g}", f"{err:.1e}", "", "", ""])
+    table(
+        "Step size for 1e-6 relative error on q1 (paper fig. 8, 1 s, every point stored)",
+        ["method", "dt s", "rel. error", "points", "wall s", "peak MiB"],
+        rows,
+    )
+
+
+def main() -> int:
+    print(f"numba: {'yes' if accelerate.available() else 'no'}; numpy {np.__version__}")
+    step_cost()
+    scipy_comparison()
+    batch_throughput()
+    euler_vs_rk4()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
