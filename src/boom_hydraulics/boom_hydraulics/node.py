@@ -2,49 +2,85 @@
 
     ros2 run boom_hydraulics boom_sim --ros-args --params-file config/default.yaml
 
-Subscribes ``valve_command`` (boom_hydraulics_msgs/ValveCommand); publishes
-``drive_state`` (boom_hydraulics_msgs/DriveState) and ``joint_states``
-(sensor_msgs/JointState) at ``publish_rate_hz``. Physics runs at ``time_step_s`` as
-several steps per timer tick; simulated time follows the steady clock by elapsed time
-(a late tick catches up), so the trajectory depends only on when commands arrive.
+Physics runs at ``time_step_s``, several steps per timer tick; simulated time follows the
+steady clock by elapsed time (times ``real_time_factor``; 0 runs as fast as possible),
+so a late tick catches up. Commands are applied by their stamps (see :mod:`command_queue`),
+which makes a run depend only on the commands and their times, not on wall-clock jitter.
+Topics, services and parameters are listed in the README.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import JointState
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics_msgs.srv import Reset, Step
 
-from .errors import BoomHydraulicsError, SimulationError
+from .command_queue import CommandQueue
+from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
 from .parameters import NAMES, describe, from_mapping
 from .simulation import Simulator
 
-#: Extra steps a tick may take to catch up before the node gives up real-time lock.
-_MAX_CATCH_UP_S = 0.5
+#: Parameters of the node itself (not of the model): name -> (default, description, low, high).
+NODE_PARAMETERS: dict[str, tuple[Any, str, float | None, float | None]] = {
+    "publish_rate_hz": (100.0, "State publish (timer) rate [Hz]", 1.0, 1000.0),
+    "real_time_factor": (1.0, "Simulated seconds per wall second; 0: as fast as possible", 0.0, 1000.0),
+    "publish_clock": (False, "Publish /clock and stamp messages with simulated time", None, None),
+    "command_timeout_s": (
+        0.5,
+        "Valve returns to 0 when no command arrived for this long (simulated s); 0: never",
+        0.0,
+        3600.0,
+    ),
+    "max_catch_up_s": (
+        0.2,
+        "Largest backlog a tick works off before the node gives up real-time lock [s]",
+        0.001,
+        10.0,
+    ),
+    "jit": (False, "Step with the numba-compiled model (a few seconds to compile at start)", None, None),
+    "start_paused": (
+        False,
+        "Start paused (resume with ~/pause data: false), e.g. to queue a scenario first",
+        None,
+        None,
+    ),
+}
 
 
-def _descriptor(name: str) -> ParameterDescriptor:
+def _descriptor(description: str, low: float | None, high: float | None, kind: str, choices=None):
+    # dynamic typing: a params file may write 50 for 50.0; Parameters validates types itself
+    desc = ParameterDescriptor(description=description, dynamic_typing=True)
+    if kind == "float" and low is not None and high is not None:
+        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high))]
+    if kind == "int" and low is not None:
+        desc.integer_range = [IntegerRange(from_value=int(low), to_value=2**31 - 1, step=1)]
+    if choices:
+        desc.additional_constraints = f"one of: {', '.join(choices)}"
+    return desc
+
+
+def _model_descriptor(name: str) -> ParameterDescriptor:
     meta = describe(name)
     unit = f" [{meta['unit']}]" if meta["unit"] else ""
-    # dynamic typing: a params file may write 50 for 50.0; Parameters validates the type itself
-    desc = ParameterDescriptor(description=f"{meta['description']}{unit}", dynamic_typing=True)
-    low, high = meta["low"], meta["high"]
-    if meta["type"] == "float" and low is not None and high is not None:
-        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high))]
-    if meta["type"] == "int" and low is not None:
-        desc.integer_range = [IntegerRange(from_value=int(low), to_value=2**31 - 1, step=1)]
-    if meta["choices"]:
-        desc.additional_constraints = f"one of: {', '.join(meta['choices'])}"
-    return desc
+    return _descriptor(f"{meta['description']}{unit}", meta["low"], meta["high"], meta["type"], meta["choices"])
 
 
 class BoomSimNode(Node):
@@ -53,73 +89,232 @@ class BoomSimNode(Node):
     def __init__(self) -> None:
         super().__init__("boom_sim")
         for name in NAMES:
-            self.declare_parameter(name, describe(name)["default"], _descriptor(name))
-        self.declare_parameter("publish_rate_hz", 100.0, ParameterDescriptor(description="State publish rate [Hz]"))
-        self.declare_parameter(
-            "command_timeout_s",
-            0.5,
-            ParameterDescriptor(description="Valve returns to 0 when no command arrived for this long [s]; 0: never"),
-        )
+            self.declare_parameter(name, describe(name)["default"], _model_descriptor(name))
+        for name, (default, description, low, high) in NODE_PARAMETERS.items():
+            kind = "float" if isinstance(default, float) else "bool"
+            self.declare_parameter(name, default, _descriptor(description, low, high, kind))
+        self._read_node_parameters()
         params = from_mapping({name: self.get_parameter(name).value for name in NAMES})
-        self.sim = Simulator(params)
-        self.command = 0.0
-        self.last_command_time: float | None = None
-        self.failed = False
-        self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
-        self.timeout_s = float(self.get_parameter("command_timeout_s").value)
+        self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
+        if self.sim.jit:
+            self.sim.step(0.0, 0)  # compile before the clock starts
+        self.commands = CommandQueue()
+        self.current = 0.0  # valve opening applied now
+        self.timer_reset_needed = False
+        self.paused = bool(self.get_parameter("start_paused").value)
+        self.failure: str | None = None
+        self.last_command_sim_time: float | None = None
+        self.lag_s = 0.0
+        self.late_ticks = 0
 
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.state_pub = self.create_publisher(DriveState, "drive_state", state_qos)
         self.joint_pub = self.create_publisher(JointState, "joint_states", state_qos)
-        # best-effort subscription: accepts commands from reliable and best-effort publishers
+        self.p1_pub = self.create_publisher(FluidPressure, "piston_pressure", state_qos)
+        self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
+        self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
+        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos)
+        # best-effort subscriptions accept commands from reliable and best-effort publishers
         self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data)
+        self.create_subscription(Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data)
+        self.create_service(Reset, "~/reset", self.on_reset)
+        self.create_service(SetBool, "~/pause", self.on_pause)
+        self.create_service(Step, "~/step", self.on_step)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
 
-        self.start_wall = time.monotonic()
-        self.timer = self.create_timer(1.0 / self.rate_hz, self.on_tick)
+        self._restart_clock()
+        self.timer = self.create_timer(self._timer_period(), self.on_tick)
+        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        p = self.sim.params
         self.get_logger().info(
-            f"boom_sim: {params.mode} mode, {params.method} dt={params.time_step_s} s, publishing at {self.rate_hz} Hz"
+            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, "
+            f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}, "
+            f"{'compiled' if self.sim._compiled else 'interpreted'}"
         )
 
-    def on_command(self, msg: ValveCommand) -> None:
-        u = msg.opening
-        if not math.isfinite(u):
-            self.get_logger().warning(f"ignored non-finite valve opening {u}", throttle_duration_sec=1.0)
+    # --- parameters -----------------------------------------------------------------------
+    def _read_node_parameters(self) -> None:
+        self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
+        self.rtf = float(self.get_parameter("real_time_factor").value)
+        self.publish_clock = bool(self.get_parameter("publish_clock").value)
+        self.timeout_s = float(self.get_parameter("command_timeout_s").value)
+        self.max_catch_up_s = float(self.get_parameter("max_catch_up_s").value)
+
+    def _timer_period(self) -> float:
+        return 1e-4 if self.rtf == 0 else 1.0 / self.rate_hz
+
+    def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
+        model_changes = {p.name: p.value for p in changes if p.name in NAMES}
+        node_changes = {p.name: p.value for p in changes if p.name in NODE_PARAMETERS}
+        try:
+            for name, value in node_changes.items():
+                default, _, low, high = NODE_PARAMETERS[name]
+                if isinstance(default, bool):
+                    if not isinstance(value, bool):
+                        raise ConfigError(f"parameter '{name}' must be a bool, got {value!r}")
+                elif isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+                    raise ConfigError(f"parameter '{name}' must be a number in [{low}, {high}], got {value!r}")
+            new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if new_params is not None:
+            self.sim.set_parameters(new_params)
+        if node_changes:
+            self.get_logger().info(f"node parameters changed: {node_changes}")
+            self.timer_reset_needed = True  # applied at the next tick, after rclpy stored them
+        return SetParametersResult(successful=True)
+
+    # --- commands -------------------------------------------------------------------------
+    def _stamp_to_sim_time(self, stamp: Any) -> float | None:
+        """Simulated time a command stamp means; None for a zero (unset) stamp."""
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            return None
+        return stamp.sec + stamp.nanosec * 1e-9 - self.clock_origin_s
+
+    def _accept(self, opening: float, stamp: Any | None) -> None:
+        if not math.isfinite(opening):
+            self.get_logger().warning(f"ignored non-finite valve opening {opening}", throttle_duration_sec=1.0)
             return
         low = 0.0 if self.sim.params.mode == "paper" else -1.0
-        if not low <= u <= 1.0:
-            self.get_logger().warning(f"valve opening {u} clamped to [{low:g}, 1]", throttle_duration_sec=1.0)
-            u = min(1.0, max(low, u))
-        self.command = u
-        self.last_command_time = time.monotonic()
+        if not low <= opening <= 1.0:
+            self.get_logger().warning(f"valve opening {opening} clamped to [{low:g}, 1]", throttle_duration_sec=1.0)
+            opening = min(1.0, max(low, opening))
+        at = self._stamp_to_sim_time(stamp) if stamp is not None else None
+        if not self.commands.push(self.sim.t if at is None else at, opening):
+            self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
+
+    def on_command(self, msg: ValveCommand) -> None:
+        self._accept(msg.opening, msg.header.stamp)
+
+    def on_command_array(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != 1:
+            self.get_logger().warning(
+                f"'commands' expects one value (the valve opening), got {len(msg.data)}", throttle_duration_sec=1.0
+            )
+            return
+        self._accept(msg.data[0], None)
+
+    # --- services -------------------------------------------------------------------------
+    def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        try:
+            self.sim.reset(request.rod_position_m if request.use_rod_position else None)
+        except SimulationError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        self.commands.clear()
+        self.current = 0.0
+        self.failure = None
+        self.last_command_sim_time = None
+        self._restart_clock()
+        response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
+        self.publish_state()
+        return response
+
+    def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        if request.data == self.paused:
+            response.success, response.message = True, "already paused" if self.paused else "already running"
+            return response
+        self.paused = request.data
+        if not self.paused:
+            self._restart_clock()
+        response.success, response.message = True, "paused" if self.paused else "resumed"
+        return response
+
+    def on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
+        if not self.paused:
+            response.success, response.message = False, "step works while paused; call ~/pause with data: true"
+        elif self.failure:
+            response.success, response.message = False, f"simulation stopped: {self.failure}; call ~/reset"
+        else:
+            self.advance(max(1, request.steps))
+            response.success, response.message = self.failure is None, self.failure or "ok"
+            self.publish_state()
+        response.sim_time_s = self.sim.t
+        return response
+
+    # --- time and stepping ---------------------------------------------------------------------
+    def _restart_clock(self) -> None:
+        """Tie simulated time to the steady clock from now on (start, reset, resume)."""
+        self.wall_origin = time.monotonic()
+        self.sim_origin_steps = self.sim.step_count
+        # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
+        now = self.get_clock().now().nanoseconds * 1e-9
+        self.clock_origin_s = 0.0 if self.publish_clock else now - self.sim.t
+
+    def advance(self, steps: int) -> None:
+        """Take ``steps`` physics steps, applying queued commands at their times."""
+        dt = self.sim.params.time_step_s
+        while steps > 0 and self.failure is None:
+            t = self.sim.t
+            self.commands.apply_due(t, dt, self._set_command)
+            chunk = self.commands.steps_until_next(t, dt, steps)
+            if self.timeout_s > 0 and self.current != 0.0 and self.last_command_sim_time is not None:
+                deadline = self.last_command_sim_time + self.timeout_s  # spring-centred valve
+                if t + 0.5 * dt >= deadline:
+                    self.current = 0.0
+                else:
+                    chunk = max(1, min(chunk, math.ceil((deadline - t) / dt - 0.5 - 1e-9)))
+            try:
+                self.sim.step(self.current, chunk)
+            except SimulationError as exc:
+                self.failure = str(exc)
+                self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
+            steps -= chunk
+
+    def _set_command(self, opening: float, at_s: float) -> None:
+        self.current = opening
+        self.last_command_sim_time = at_s
 
     def on_tick(self) -> None:
-        if self.failed:
+        if self.timer_reset_needed:
+            self.timer_reset_needed = False
+            self._read_node_parameters()
+            self.timer.cancel()
+            self.timer = self.create_timer(self._timer_period(), self.on_tick)
+            self._restart_clock()
+        if self.paused or self.failure:
             return
-        now = time.monotonic()
-        if self.timeout_s > 0 and self.last_command_time is not None and now - self.last_command_time > self.timeout_s:
-            self.command = 0.0
         dt = self.sim.params.time_step_s
-        target = (now - self.start_wall) / dt
-        behind = int(target) - self.sim.step_count
-        if behind * dt > _MAX_CATCH_UP_S:  # cannot keep up: drop the backlog, keep running
-            self.get_logger().warning(
-                f"{behind * dt:.3f} s behind real time; skipping ahead", throttle_duration_sec=5.0
-            )
-            self.start_wall += behind * dt - _MAX_CATCH_UP_S
-            behind = int(_MAX_CATCH_UP_S / dt)
-        if behind <= 0:
+        per_tick = max(1, round(1.0 / (self.rate_hz * dt)))
+        if self.rtf == 0:
+            steps = per_tick
+        else:
+            elapsed = (time.monotonic() - self.wall_origin) * self.rtf
+            steps = int(elapsed / dt + 1e-9) - (self.sim.step_count - self.sim_origin_steps)
+            self.lag_s = max(0.0, steps * dt - per_tick * dt) / self.rtf
+            max_steps = max(per_tick, round(self.max_catch_up_s * self.rtf / dt))
+            if steps > max_steps:  # cannot keep up: work off what we may, drop the rest
+                self.late_ticks += 1
+                self.get_logger().warning(
+                    f"{steps * dt / self.rtf:.3f} s behind real time; dropping the backlog",
+                    throttle_duration_sec=5.0,
+                )
+                dropped_s = (steps - max_steps) * dt / self.rtf
+                self.wall_origin += dropped_s
+                if not self.publish_clock:
+                    self.clock_origin_s += dropped_s  # ROS-time stamps map to the later sim time
+                steps = max_steps
+        if steps <= 0:
             return
-        try:
-            self.sim.step(self.command, behind)
-        except SimulationError as exc:
-            self.failed = True
-            self.get_logger().error(f"simulation stopped: {exc}")
-            return
-        self.publish_state()
+        self.advance(steps)
+        if self.failure is None:
+            self.publish_state()
+
+    # --- output ------------------------------------------------------------------------------
+    def _stamp(self):
+        if self.publish_clock:
+            return Time(nanoseconds=round(self.sim.t * 1e9)).to_msg()
+        return self.get_clock().now().to_msg()
 
     def publish_state(self) -> None:
         out = self.sim.outputs()
-        stamp = self.get_clock().now().to_msg()
+        if not all(math.isfinite(float(v)) for v in out.values()):
+            return  # a NaN never reaches a topic
+        stamp = self._stamp()
+        if self.publish_clock:
+            self.clock_pub.publish(Clock(clock=stamp))
         msg = DriveState()
         msg.header.stamp = stamp
         msg.header.frame_id = "boom_base"
@@ -144,15 +339,65 @@ class BoomSimNode(Node):
         msg.relief_open = bool(out["relief_open"])
         self.state_pub.publish(msg)
 
+        p = self.sim.params
+        lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k
         joints = JointState()
         joints.header.stamp = stamp
         joints.name = ["boom_joint", "cylinder_joint"]
         joints.position = [float(out["alpha"]), float(out["q1"])]
         joints.velocity = [float(out["alpha_rate"]), float(out["v"])]
-        p = self.sim.params
-        lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k
         joints.effort = [float(out["f_hyd"] / lever), float(out["f_hyd"])]
         self.joint_pub.publish(joints)
+
+        for pub, frame, value in ((self.p1_pub, "piston_chamber", out["p1"]), (self.p2_pub, "rod_chamber", out["p2"])):
+            fluid = FluidPressure(fluid_pressure=float(value), variance=0.0)
+            fluid.header.stamp, fluid.header.frame_id = stamp, frame
+            pub.publish(fluid)
+        wrench = WrenchStamped()
+        wrench.header.stamp, wrench.header.frame_id = stamp, "cylinder_rod"  # x along the rod, extending
+        wrench.wrench.force.x = float(out["f_hyd"])
+        self.force_pub.publish(wrench)
+
+    def publish_diagnostics(self) -> None:
+        out = self.sim.outputs() if self.failure is None else {}
+        array = DiagnosticArray()
+        array.header.stamp = self._stamp()
+
+        def status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
+            return DiagnosticStatus(
+                level=level,
+                name=f"boom_sim: {name}",
+                message=message,
+                hardware_id="boom_hydraulics",
+                values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+            )
+
+        if self.failure:
+            array.status.append(status("simulation", DiagnosticStatus.ERROR, f"stopped: {self.failure}"))
+        else:
+            flags = [name for name in ("at_end_stop", "cavitation", "relief_open") if out.get(name)]
+            array.status.append(
+                status(
+                    "drive",
+                    DiagnosticStatus.WARN if flags else DiagnosticStatus.OK,
+                    ", ".join(flags) if flags else "ok",
+                    sim_time_s=f"{self.sim.t:.3f}",
+                    paused=self.paused,
+                )
+            )
+        behind = self.lag_s > 2.0 / self.rate_hz
+        array.status.append(
+            status(
+                "real-time",
+                DiagnosticStatus.WARN if (behind or self.late_ticks) else DiagnosticStatus.OK,
+                "cannot keep up" if (behind or self.late_ticks) else "ok",
+                lag_s=f"{self.lag_s:.4f}",
+                dropped_backlogs=self.late_ticks,
+                real_time_factor=self.rtf,
+            )
+        )
+        self.late_ticks = 0
+        self.diag_pub.publish(array)
 
 
 def main(args: list[str] | None = None) -> None:
@@ -160,13 +405,19 @@ def main(args: list[str] | None = None) -> None:
     try:
         node = BoomSimNode()
     except BoomHydraulicsError as exc:
-        print(f"boom_sim: error: {exc}")
+        print(f"boom_sim: error: {exc}", flush=True)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # SIGINT/SIGTERM shut the context down; the executor may then fail building its
+        # wait set (RCLError) instead of raising ExternalShutdownException: that is a
+        # clean shutdown too. Anything else is a real error.
+        if rclpy.ok():
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

@@ -1,0 +1,240 @@
+"""The boom_sim node in its own process, driven from this one with rclpy."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+rclpy = pytest.importorskip("rclpy")
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
+from std_srvs.srv import SetBool  # noqa: E402
+
+from boom_hydraulics import config  # noqa: E402
+from boom_hydraulics.commands import steps  # noqa: E402
+from boom_hydraulics.parameters import with_updates  # noqa: E402
+from boom_hydraulics.simulation import simulate  # noqa: E402
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
+from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
+
+BOOM_SIM = shutil.which("boom_sim")
+pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
+
+
+def start_node(*params: str) -> subprocess.Popen:
+    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / "default.yaml")]
+    for p in params:
+        args += ["-p", p]
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+class Client:
+    """The test's side of the ROS graph: commands out, state in, services."""
+
+    def __init__(self) -> None:
+        self.node = rclpy.create_node(f"test_client_{os.getpid()}")
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub = self.node.create_publisher(ValveCommand, "valve_command", qos)
+        self.states: list[DriveState] = []
+        self.joints: list[JointState] = []
+        self.pressures: list[FluidPressure] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        self.node.create_subscription(DriveState, "drive_state", self.states.append, qos)
+        self.node.create_subscription(JointState, "joint_states", self.joints.append, qos)
+        self.node.create_subscription(FluidPressure, "piston_pressure", self.pressures.append, qos)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, qos)
+        self.reset = self.node.create_client(Reset, "/boom_sim/reset")
+        self.pause = self.node.create_client(SetBool, "/boom_sim/pause")
+        self.step = self.node.create_client(Step, "/boom_sim/step")
+        self.set_params = self.node.create_client(SetParameters, "/boom_sim/set_parameters")
+        self.get_params = self.node.create_client(GetParameters, "/boom_sim/get_parameters")
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = 15.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+        return predicate()
+
+    def spin_for(self, seconds: float, opening: float | None = None) -> None:
+        """Spin, publishing ``opening`` at 50 Hz if given."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if opening is not None:
+                self.command(opening)
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
+    def command(self, opening: float, stamp_s: float | None = None) -> None:
+        msg = ValveCommand(opening=opening)
+        if stamp_s is not None:
+            msg.header.stamp.sec = int(stamp_s)
+            msg.header.stamp.nanosec = round((stamp_s - int(stamp_s)) * 1e9)
+        self.pub.publish(msg)
+
+    def call(self, client, request, timeout: float = 10.0):
+        assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
+        future = client.call_async(request)
+        assert self.spin_until(future.done, timeout)
+        return future.result()
+
+    def set_parameter(self, name: str, value: float):
+        param = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
+        return self.call(self.set_params, SetParameters.Request(parameters=[param])).results[0]
+
+    def last(self) -> DriveState:
+        return self.states[-1]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def ros_context() -> Iterator[None]:
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+@pytest.fixture
+def client() -> Iterator[Client]:
+    c = Client()
+    yield c
+    c.node.destroy_node()
+
+
+@pytest.fixture
+def node() -> Iterator[subprocess.Popen]:
+    proc = start_node("command_timeout_s:=0.5")
+    yield proc
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def test_openings_hold_extend_and_retract(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the node"
+    q0, alpha0 = client.last().rod_position_m, client.last().boom_angle_rad
+    client.spin_for(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
+    assert abs(client.last().rod_position_m - q0) < 5e-4
+    client.spin_for(1.0, opening=1.0)
+    up = client.last()
+    assert up.rod_position_m > q0 + 0.05 and up.boom_angle_rad > alpha0 + 0.1
+    client.spin_for(1.0, opening=-1.0)
+    down = client.last()
+    assert down.rod_position_m < up.rod_position_m - 0.05
+    assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_joint"]
+    assert client.pressures and client.pressures[-1].fluid_pressure == pytest.approx(
+        client.last().piston_pressure_pa, rel=0.2
+    )
+
+
+def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    client.spin_for(0.3, opening=0.8)
+    client.spin_for(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
+    assert client.last().valve_command == pytest.approx(0.8)
+    assert client.last().rod_velocity_m_s > 0.02
+    client.spin_for(1.0)  # no commands: the spring-centred valve closes
+    assert client.last().valve_command == 0.0
+    assert node.poll() is None  # still running
+
+
+def test_out_of_range_opening_is_clamped(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    client.spin_for(0.3, opening=7.0)
+    assert client.last().valve_command == 1.0
+
+
+def test_bad_parameter_is_refused_with_a_reason_and_a_good_one_applies(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    bad = client.set_parameter("rod_diameter_m", 0.05)
+    assert not bad.successful and "must be smaller than piston_diameter_m" in bad.reason
+    got = client.call(client.get_params, GetParameters.Request(names=["rod_diameter_m"]))
+    assert got.values[0].double_value == 0.022  # the old value stays
+
+    def holding_pressure_after_reset() -> float:
+        """While paused, the only state published is the one reset publishes (at rest)."""
+        client.spin_for(0.2)
+        client.states.clear()
+        assert client.call(client.reset, Reset.Request()).success
+        assert client.spin_until(lambda: len(client.states) > 0)
+        return client.last().piston_pressure_pa
+
+    assert client.call(client.pause, SetBool.Request(data=True)).success
+    p_light = holding_pressure_after_reset()
+    assert client.set_parameter("payload_mass_kg", 150.0).successful
+    assert holding_pressure_after_reset() > 1.5 * p_light  # heavier payload, higher holding pressure
+
+
+def test_reset_pause_and_step(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    result = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.6))
+    assert result.success
+    assert client.spin_until(lambda: abs(client.last().rod_position_m - 1.6) < 1e-3)
+    bad = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.9))
+    assert not bad.success and "outside the stroke" in bad.message
+    assert client.call(client.step, Step.Request(steps=5)).success is False  # not paused
+    assert client.call(client.pause, SetBool.Request(data=True)).success
+    first = client.call(client.step, Step.Request(steps=10))
+    second = client.call(client.step, Step.Request(steps=10))
+    assert first.success and second.sim_time_s == pytest.approx(first.sim_time_s + 0.010, abs=1e-9)
+    client.spin_for(0.3)
+    third = client.call(client.step, Step.Request(steps=1))
+    assert third.sim_time_s == pytest.approx(second.sim_time_s + 0.001, abs=1e-9)  # paused: time stood still
+    assert client.call(client.pause, SetBool.Request(data=False)).success
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signals_end_the_node_cleanly(client, sig):
+    proc = start_node()
+    assert client.spin_until(lambda: len(client.states) > 3)
+    proc.send_signal(sig)
+    assert proc.wait(timeout=10) == 0
+
+
+def test_diagnostics_report_the_end_stop(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    client.spin_for(3.5, opening=1.0)  # drive into the upper end stop (about 2 s away)
+    assert client.last().at_end_stop
+    client.spin_for(1.2, opening=1.0)  # diagnostics come at 1 Hz
+    assert any("at_end_stop" in s.message for d in client.diagnostics for s in d.status)
+
+
+def test_fast_run_with_clock_equals_the_headless_simulation(client):
+    """Real-time factor 0 (as fast as possible), /clock, a stamped scenario queued while paused."""
+    proc = start_node("real_time_factor:=0.0", "publish_clock:=true", "start_paused:=true", "command_timeout_s:=0.0")
+    try:
+        scenario = [(0.0, 1.0), (3.0, 0.0), (5.0, -0.7), (8.0, 0.0)]
+        assert client.pause.wait_for_service(timeout_sec=15)
+        for at, opening in scenario:
+            client.command(opening, stamp_s=at if at > 0 else None)
+        client.spin_for(0.5)
+        start = time.monotonic()
+        client.call(client.pause, SetBool.Request(data=False))
+        assert client.spin_until(lambda: client.states and client.last().header.stamp.sec >= 10, timeout=60)
+        wall = time.monotonic() - start
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    assert wall < 5.0  # 10 s of simulated time in a fraction of it
+    stamps = np.array([s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 for s in client.states])
+    q_node = np.array([s.rod_position_m for s in client.states])
+    params = with_updates(config.load(CONFIG / "default.yaml"))
+    headless = simulate(params, 10.0, steps([t for t, _ in scenario], [u for _, u in scenario]), jit=False)
+    index = np.round(stamps / params.time_step_s).astype(int)
+    keep = index <= 10_000
+    assert keep.sum() > 100
+    assert np.max(np.abs(q_node[keep] - headless["q1"][index[keep]])) < 1e-12
