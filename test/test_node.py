@@ -33,8 +33,8 @@ BOOM_SIM = shutil.which("boom_sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
 
 
-def start_node(*params: str) -> subprocess.Popen:
-    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / "default.yaml")]
+def start_node(*params: str, config_file: str = "default.yaml") -> subprocess.Popen:
+    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
     for p in params:
         args += ["-p", p]
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -238,3 +238,41 @@ def test_fast_run_with_clock_equals_the_headless_simulation(client):
     keep = index <= 10_000
     assert keep.sum() > 100
     assert np.max(np.abs(q_node[keep] - headless["q1"][index[keep]])) < 1e-12
+
+
+def test_a_blow_up_stops_the_simulation_until_reset(client):
+    """Paper mode has no end stops: fig. 8 leaves the valid geometry after 2.2 s."""
+    proc = start_node("real_time_factor:=4.0", "command_timeout_s:=0.0", config_file="paper_fig8.yaml")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3)
+        client.command(1.0)
+        assert client.spin_until(
+            lambda: any(s.level == b"\x02" and "stopped" in s.message for d in client.diagnostics for s in d.status),
+            timeout=10,
+        )
+        assert all(math.isfinite(s.rod_position_m) and s.rod_position_m < 1.8 for s in client.states)
+        count = len(client.states)
+        client.spin_for(0.5)
+        assert len(client.states) == count  # no more state while stopped
+        assert client.call(client.reset, Reset.Request()).success
+        assert client.spin_until(lambda: len(client.states) > count + 3)
+        assert client.last().rod_position_m == pytest.approx(1.37, abs=0.01)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+
+
+def test_bad_node_parameter_at_start_is_one_clear_line():
+    proc = start_node("real_time_factor:=-2.0")
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert "boom_sim: error:" in out and "real_time_factor" in out and "-2.0" in out
+    assert "Traceback" not in out
+
+
+def test_bad_model_parameter_at_start_is_one_clear_line():
+    proc = start_node("rod_diameter_m:=0.05")
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert "boom_sim: error: rod_diameter_m (0.05 m) must be smaller than piston_diameter_m" in out
+    assert "Traceback" not in out

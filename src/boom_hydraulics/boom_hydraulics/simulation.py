@@ -90,6 +90,11 @@ class Simulator:
         self._install(params)
         self.reset()
 
+    @property
+    def compiled(self) -> bool:
+        """True when steps run through the numba-compiled model."""
+        return self._compiled is not None
+
     def _install(self, params: Parameters) -> None:
         self.params = params
         self.model = MODELS[params.mode]
