@@ -127,16 +127,7 @@ def test_lowering_an_overrunning_load_cavitates_the_rod_chamber():
 def _steady_speed(params: Parameters, q1: float) -> float:
     """Rod speed at which both orifices pass the flow the piston needs against the static load."""
     c = physical.constants(params)
-    load = geometry.static_rod_force_n(
-        q1,
-        params.a_m,
-        params.b_m,
-        params.support_height_m,
-        params.boom_mass_kg,
-        params.payload_mass_kg,
-        params.boom_length_m,
-        params.gravity_m_s2,
-    )
+    load = geometry.static_rod_force_of(params, q1)
 
     def residual(v):
         p1 = params.supply_pressure_pa - hydraulics.orifice_pressure_drop(c.k_valve, c.s1 * v, c.transition2)

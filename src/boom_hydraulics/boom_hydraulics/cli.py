@@ -119,17 +119,7 @@ def statics_table(params: Parameters, diameters_m: Sequence[float], points: int)
     q1 = np.linspace(low, high, points)
     alpha = geometry.boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m, np)
     phi = geometry.rod_boom_angle_rad(q1, p.a_m, p.b_m, np)
-    force = geometry.static_rod_force_n(
-        q1,
-        p.a_m,
-        p.b_m,
-        p.support_height_m,
-        p.boom_mass_kg,
-        p.payload_mass_kg,
-        p.boom_length_m,
-        p.gravity_m_s2,
-        np,
-    )
+    force = geometry.static_rod_force_of(p, q1, np)
     header = ["q1 [m]", "alpha [rad]", "phi [rad]", "static_force [N]"]
     columns = [q1, alpha, phi, force]
     for d in diameters_m:

@@ -86,6 +86,21 @@ def static_rod_force_n(
     return moment * lever_rad_per_m(q1_m, a_m, b_m, xp)  # eq. 6 with 1/(a sin(phi)) = k
 
 
+def static_rod_force_of(p: Any, q1_m: Num, xp: ModuleType = math) -> Num:
+    """:func:`static_rod_force_n` with geometry and masses taken from a Parameters set ``p``, N."""
+    return static_rod_force_n(
+        q1_m,
+        p.a_m,
+        p.b_m,
+        p.support_height_m,
+        p.boom_mass_kg,
+        p.payload_mass_kg,
+        p.boom_length_m,
+        p.gravity_m_s2,
+        xp,
+    )
+
+
 def piston_area_m2(diameter_m: Num) -> Num:
     """S1 = pi D^2 / 4 (also eq. 17 for the throttle area)."""
     return math.pi * diameter_m * diameter_m / 4.0

@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 from .end_stops import end_stop_force_n
 from .friction import seal_friction_n
-from .geometry import annulus_area_m2, boom_angle_rad, lever_rad_per_m, piston_area_m2, static_rod_force_n
+from .geometry import annulus_area_m2, boom_angle_rad, lever_rad_per_m, piston_area_m2, static_rod_force_of
 from .hydraulics import (
     chamber_pressure_rate,
     hold_at_floor,
@@ -113,16 +113,7 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     """Rod at rest at ``q1_m`` (default q1(0)), valve closed, rod chamber at tank pressure,
     piston chamber at the pressure that holds the boom statically (eq. 6)."""
     q1 = p.initial_length_m if q1_m is None else q1_m
-    force = static_rod_force_n(
-        q1,
-        p.a_m,
-        p.b_m,
-        p.support_height_m,
-        p.boom_mass_kg,
-        p.payload_mass_kg,
-        p.boom_length_m,
-        p.gravity_m_s2,
-    )
+    force = static_rod_force_of(p, q1)
     s1 = piston_area_m2(p.piston_diameter_m)
     s2 = annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
     spring = p.spring_stiffness_n_m * (q1 - p.spring_free_length_m)
