@@ -136,9 +136,14 @@ def test_openings_hold_extend_and_retract(node, client):
     down = client.last()
     assert down.rod_position_m < up.rod_position_m - 0.05
     assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_joint"]
-    assert client.pressures and client.pressures[-1].fluid_pressure == pytest.approx(
-        client.last().piston_pressure_pa, rel=0.2
-    )
+    # the FluidPressure of a tick carries the same value and stamp as that tick's DriveState
+    by_stamp = {(s.header.stamp.sec, s.header.stamp.nanosec): s.piston_pressure_pa for s in client.states}
+    matched = [
+        (m.fluid_pressure, by_stamp[key])
+        for m in client.pressures
+        if (key := (m.header.stamp.sec, m.header.stamp.nanosec)) in by_stamp
+    ]
+    assert len(matched) > 10 and all(a == b for a, b in matched)
 
 
 def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(node, client):
@@ -229,7 +234,9 @@ def test_fast_run_with_clock_equals_the_headless_simulation(client):
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=10)
-    assert wall < 5.0  # 10 s of simulated time in a fraction of it
+    # faster than real time: it does not wait for the wall clock (about 1.5 s unloaded, 5.5 s
+    # with four CPU hogs on two cores, measured); speed itself is bench/bench_node.py's job
+    assert wall < 10.0
     stamps = np.array([s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 for s in client.states])
     q_node = np.array([s.rod_position_m for s in client.states])
     params = with_updates(config.load(CONFIG / "default.yaml"))
