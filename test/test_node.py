@@ -33,8 +33,10 @@ BOOM_SIM = shutil.which("boom_sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
 
 
-def start_node(*params: str, config_file: str = "default.yaml") -> subprocess.Popen:
+def start_node(*params: str, config_file: str = "default.yaml", record: bool = False) -> subprocess.Popen:
     args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
+    if not record:
+        args += ["-p", "record:=false"]
     for p in params:
         args += ["-p", p]
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -283,3 +285,47 @@ def test_bad_model_parameter_at_start_is_one_clear_line():
     assert proc.returncode == 2
     assert "boom_sim: error: rod_diameter_m (0.05 m) must be smaller than piston_diameter_m" in out
     assert "Traceback" not in out
+
+
+def test_recording_holds_every_published_and_received_message(client, tmp_path):
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+
+    proc = start_node("command_timeout_s:=0.0", f"record_folder:={tmp_path}", record=True)
+    assert client.spin_until(lambda: len(client.states) > 5)
+    for _ in range(20):
+        client.command(0.5)
+        client.spin_for(0.05)
+    client.spin_for(0.5)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=20)
+    assert proc.returncode == 0
+    (folder,) = list(tmp_path.iterdir())
+    assert f"boom_sim: bag {folder}" in out
+    assert (folder / "metadata.yaml").is_file()
+
+    with AnyReader([folder]) as reader:
+        counts: dict[str, int] = {}
+        for connection, timestamp, raw in reader.messages():
+            msg = reader.deserialize(raw, connection.msgtype)  # every message deserialises
+            counts[connection.topic] = counts.get(connection.topic, 0) + 1
+            if connection.topic == "/drive_state":
+                assert timestamp == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    per_tick = {counts[t] for t in ("/drive_state", "/joint_states", "/piston_pressure", "/rod_pressure", "/rod_force")}
+    assert len(per_tick) == 1 and per_tick.pop() > 100
+    assert counts["/valve_command"] == 20
+    assert counts["/diagnostics"] >= 1
+
+    with (folder / f"{folder.name}_0.mcap").open("rb") as handle:
+        reader = make_reader(handle)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == sum(counts.values())
+        assert all(s.encoding == "ros2msg" for s in summary.schemas.values())
+        drive = next(s for s in summary.schemas.values() if s.name == "boom_hydraulics_msgs/msg/DriveState")
+        assert b"MSG: std_msgs/Header" in drive.data and b"MSG: builtin_interfaces/Time" in drive.data
+        for channel in summary.channels.values():
+            assert channel.message_encoding == "cdr"
+            assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
+            assert "reliability:" in channel.metadata["offered_qos_profiles"]
+        assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)

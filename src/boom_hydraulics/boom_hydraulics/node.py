@@ -32,6 +32,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import serialize_message
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
@@ -45,6 +46,7 @@ from .command_queue import CommandQueue
 from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
 from .parameters import NAMES, describe, from_mapping
+from .recording import BagRecorder, Topic, new_bag_folder
 from .simulation import Simulator
 
 #: Parameters of the node itself (not of the model): name -> (default, description, low, high).
@@ -65,6 +67,8 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, float | None, float | None]] = {
         10.0,
     ),
     "jit": (False, "Step with the numba-compiled model (a few seconds to compile at start)", None, None),
+    "record": (True, "Record every published topic and received command to a bag (start only)", None, None),
+    "record_folder": ("bags", "Folder in which each run's bag folder is created (start only)", None, None),
     "start_paused": (
         False,
         "Start paused (resume with ~/pause data: false), e.g. to queue a scenario first",
@@ -82,10 +86,18 @@ _NODE_ATTRIBUTES = {
 }
 
 
+def _type_name(msg_type: Any) -> str:
+    """'pkg/msg/Type' of a generated message class."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
 def check_node_parameter(name: str, value: Any) -> None:
     """Raise ConfigError unless ``value`` fits node parameter ``name``."""
     default, _, low, high = NODE_PARAMETERS[name]
-    if isinstance(default, bool):
+    if isinstance(default, str):
+        if not isinstance(value, str) or not value:
+            raise ConfigError(f"parameter '{name}' must be a non-empty string, got {value!r}")
+    elif isinstance(default, bool):
         if not isinstance(value, bool):
             raise ConfigError(f"parameter '{name}' must be true or false, got {value!r}")
     elif isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
@@ -129,7 +141,7 @@ class BoomSimNode(Node):
         for name in NAMES:
             self.declare_parameter(name, describe(name)["default"], _model_descriptor(name))
         for name, (default, description, low, high) in NODE_PARAMETERS.items():
-            kind = "float" if isinstance(default, float) else "bool"
+            kind = {float: "float", bool: "bool", str: "str"}[type(default)]
             self.declare_parameter(name, default, _descriptor(description, low, high, kind))
             check_node_parameter(name, self.get_parameter(name).value)
         self._read_node_parameters()
@@ -159,6 +171,7 @@ class BoomSimNode(Node):
         # best-effort subscriptions accept commands from reliable and best-effort publishers
         self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data)
         self.create_subscription(Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data)
+        self.recorder = self._start_recording() if self.get_parameter("record").value else None
         self.create_service(Reset, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.create_service(Step, "~/step", self.on_step)
@@ -173,6 +186,32 @@ class BoomSimNode(Node):
             f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}, "
             f"{'compiled' if self.sim.compiled else 'interpreted'}"
         )
+
+    def _start_recording(self) -> BagRecorder:
+        """A bag of every topic this node publishes and every command it receives."""
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
+        if self.publish_clock:
+            pubs.append(self.clock_pub)
+        topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
+        topics += [
+            Topic(self.resolve_topic_name("valve_command"), _type_name(ValveCommand), reliable=False),
+            Topic(self.resolve_topic_name("commands"), _type_name(Float64MultiArray), reliable=False),
+        ]
+        recorder = BagRecorder(new_bag_folder(self.get_parameter("record_folder").value), topics)
+        self.get_logger().info(f"recording to {recorder.folder}")
+        return recorder
+
+    def _record(self, topic: str, msg: Any, stamp: Any) -> None:
+        if self.recorder is not None:
+            self.recorder.write(topic, stamp.sec * 1_000_000_000 + stamp.nanosec, serialize_message(msg))
+
+    def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
+        """Publish (publisher, message) pairs, then record them all: a tick cut short by
+        shutdown leaves no partial tick in the bag."""
+        for publisher, msg in messages:
+            publisher.publish(msg)
+        for publisher, msg in messages:
+            self._record(publisher.topic_name, msg, stamp)
 
     # --- parameters -----------------------------------------------------------------------
     def _read_node_parameters(self) -> None:
@@ -225,10 +264,15 @@ class BoomSimNode(Node):
 
     @_locked
     def on_command(self, msg: ValveCommand) -> None:
-        self._accept(msg.opening, msg.header.stamp)
+        stamp = msg.header.stamp
+        self._record(
+            self.resolve_topic_name("valve_command"), msg, stamp if stamp.sec or stamp.nanosec else self._stamp()
+        )
+        self._accept(msg.opening, stamp)
 
     @_locked
     def on_command_array(self, msg: Float64MultiArray) -> None:
+        self._record(self.resolve_topic_name("commands"), msg, self._stamp())
         if len(msg.data) != 1:
             self.get_logger().warning(
                 f"'commands' expects one value (the valve opening), got {len(msg.data)}", throttle_duration_sec=1.0
@@ -376,7 +420,7 @@ class BoomSimNode(Node):
             return  # a NaN never reaches a topic
         stamp = self._stamp()
         if self.publish_clock:
-            self.clock_pub.publish(Clock(clock=stamp))
+            self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
         msg = DriveState()
         msg.header.stamp = stamp
         msg.header.frame_id = "boom_base"
@@ -399,7 +443,6 @@ class BoomSimNode(Node):
         msg.at_end_stop = bool(out["at_end_stop"])
         msg.cavitation = bool(out["cavitation"])
         msg.relief_open = bool(out["relief_open"])
-        self.state_pub.publish(msg)
 
         p = self.sim.params
         lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k
@@ -409,16 +452,17 @@ class BoomSimNode(Node):
         joints.position = [float(out["alpha"]), float(out["q1"])]
         joints.velocity = [float(out["alpha_rate"]), float(out["v"])]
         joints.effort = [float(out["f_hyd"] / lever), float(out["f_hyd"])]
-        self.joint_pub.publish(joints)
 
+        tick: list[tuple[Any, Any]] = [(self.state_pub, msg), (self.joint_pub, joints)]
         for pub, frame, value in ((self.p1_pub, "piston_chamber", out["p1"]), (self.p2_pub, "rod_chamber", out["p2"])):
             fluid = FluidPressure(fluid_pressure=float(value), variance=0.0)
             fluid.header.stamp, fluid.header.frame_id = stamp, frame
-            pub.publish(fluid)
+            tick.append((pub, fluid))
         wrench = WrenchStamped()
         wrench.header.stamp, wrench.header.frame_id = stamp, "cylinder_rod"  # x along the rod, extending
         wrench.wrench.force.x = float(out["f_hyd"])
-        self.force_pub.publish(wrench)
+        tick.append((self.force_pub, wrench))
+        self._publish(tick, stamp)
 
     @_locked
     def publish_diagnostics(self) -> None:
@@ -461,7 +505,7 @@ class BoomSimNode(Node):
             )
         )
         self.late_ticks = 0
-        self.diag_pub.publish(array)
+        self._publish([(self.diag_pub, array)], array.header.stamp)
 
 
 def main(args: list[str] | None = None) -> None:
@@ -489,6 +533,10 @@ def main(args: list[str] | None = None) -> None:
     finally:
         node.stopping.set()
         node.loop.join(timeout=5.0)
+        if node.recorder is not None:
+            folder = node.recorder.close()
+            counts = ", ".join(f"{t} {n}" for t, n in node.recorder.counts.items() if n)
+            print(f"boom_sim: bag {folder} ({counts})", flush=True)
         node.destroy_node()
         rclpy.try_shutdown()
 
