@@ -27,6 +27,7 @@ setup(
             "boom_sim = boom_hydraulics.node:main",
             "boom-sim = boom_hydraulics.cli:main",
             "boom-demo = boom_hydraulics.demo:main",
+            "boom-analyze = boom_hydraulics.analyze:main",
         ],
     },
 )

@@ -2,7 +2,8 @@
 
 The scenario is published as ValveCommand messages on the node's ``valve_command``
 topic, the same path a user's ``ros2 topic pub`` takes; the node runs as its own process
-through its real entry point.
+through its real entry point and records the run to a bag under ``bags/``, which this
+command then analyses (boom-analyze: signals, metrics, plots).
 """
 
 from __future__ import annotations
@@ -14,12 +15,15 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+
+from .analyze import main as analyze_main
 
 #: (start time s, opening): lift, hold, lower, hold.
 DEFAULT_SCENARIO = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
@@ -59,15 +63,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="boom-demo", description=__doc__.splitlines()[0])
     parser.add_argument("--params-file", default=None, help="params YAML for the node")
     parser.add_argument("--duration", type=float, default=9.0, help="scenario length in s")
+    parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into")
     args = parser.parse_args(argv)
+    before = set(args.bags.glob("*_boom_sim")) if args.bags.is_dir() else set()
 
     node_exe = shutil.which("boom_sim")
     if node_exe is None:
         print("boom-demo: error: the boom_sim executable is not on PATH (run through tools/with-env)", file=sys.stderr)
         return 2
-    cmd = [node_exe]
+    cmd = [node_exe, "--ros-args", "-p", f"record_folder:={args.bags}"]
     if args.params_file:
-        cmd += ["--ros-args", "--params-file", args.params_file]
+        cmd += ["--params-file", args.params_file]
     node_proc = subprocess.Popen(cmd, env=os.environ.copy())
     rclpy.init()
     driver = ScenarioDriver(DEFAULT_SCENARIO)
@@ -102,7 +108,11 @@ def main(argv: list[str] | None = None) -> int:
             node_proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             node_proc.kill()
-    return 0
+    new_bags = sorted(set(args.bags.glob("*_boom_sim")) - before)
+    if not new_bags:
+        print("boom-demo: error: the node recorded no bag", file=sys.stderr)
+        return 1
+    return analyze_main([str(new_bags[-1])])
 
 
 if __name__ == "__main__":

@@ -1,0 +1,105 @@
+"""Design metrics of a run, from its signals (a recorded bag or a simulated trajectory).
+
+Each metric is defined in :func:`metrics`; all are SI (s, m, m/s, Pa, Hz, J, J/m).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+
+def _first_opening(u: np.ndarray) -> int:
+    opened = np.nonzero(u > 0.0)[0]
+    return int(opened[0]) if len(opened) else 0
+
+
+def _first_close_after_opening(u: np.ndarray) -> int | None:
+    """Index where the valve command first returns to 0 after opening positively."""
+    opened = np.nonzero(u > 0.0)[0]
+    if not len(opened):
+        return None
+    after = np.nonzero(u[opened[0] :] <= 0.0)[0]
+    return int(opened[0] + after[0]) if len(after) else None
+
+
+def _segment_after(u: np.ndarray, start: int) -> slice:
+    """From ``start`` until the command changes again (a hold)."""
+    changes = np.nonzero(u[start:] != u[start])[0]
+    return slice(start, start + int(changes[0]) if len(changes) else len(u))
+
+
+def oscillation(t: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """Dominant frequency (Hz) and damping ratio of the oscillation in ``x``.
+
+    Frequency: the highest peak of the spectrum of ``x`` minus its linear trend.
+    Damping: from the logarithmic decrement of successive positive peaks of the
+    detrended signal, zeta = d / sqrt(4 pi^2 + d^2). NaN where there is no oscillation.
+    """
+    if len(t) < 16:
+        return math.nan, math.nan
+    detrended = x - np.polyval(np.polyfit(t, x, 1), t)
+    if np.ptp(detrended) <= 1e-12 * max(1.0, np.max(np.abs(x))):
+        return math.nan, math.nan
+    dt = float(np.median(np.diff(t)))
+    spectrum = np.abs(np.fft.rfft(detrended * np.hanning(len(detrended))))
+    freqs = np.fft.rfftfreq(len(detrended), dt)
+    k = int(np.argmax(spectrum[1:]) + 1)
+    frequency = float(freqs[k])
+    inner = detrended[1:-1]
+    peaks = np.nonzero((inner > detrended[:-2]) & (inner >= detrended[2:]) & (inner > 0))[0] + 1
+    if len(peaks) < 2:
+        return frequency, math.nan
+    amplitudes = detrended[peaks]
+    decrement = float(np.mean(np.log(amplitudes[:-1] / amplitudes[1:])))
+    return frequency, decrement / math.sqrt(4 * math.pi**2 + decrement**2)
+
+
+def metrics(signals: Mapping[str, np.ndarray], target_fraction: float = 0.9) -> dict[str, float]:
+    """The design metrics of one run.
+
+    - ``lift_m``: largest rise of q1 above its start value.
+    - ``time_to_target_s``: from the first opening command (u > 0) until q1 first reaches
+      ``target_fraction`` of that rise.
+    - ``peak_speed_m_s``, ``rms_speed_m_s``: of the rod.
+    - ``overshoot_m``: after the valve first closes following an extension, how far q1
+      rises above the value it settles to by the end of that hold.
+    - ``oscillation_hz``, ``damping_ratio``: of p1 over that hold (see :func:`oscillation`).
+    - ``peak_pressure_pa``, ``min_pressure_pa``: over both chambers.
+    - ``cavitation_s``, ``relief_s``: time with the flag set.
+    - ``supply_energy_j``, ``valve_loss_energy_j``: at the end; ``..._per_m``: per metre of lift.
+    """
+    t, q, v, u = (np.asarray(signals[k], dtype=float) for k in ("t", "q1", "v", "u"))
+    p = np.concatenate([np.asarray(signals["p1"], float), np.asarray(signals["p2"], float)])
+    dt = np.diff(t, append=t[-1])
+    lift = float(np.max(q) - q[0])
+    reached = np.nonzero(q >= q[0] + target_fraction * lift)[0] if lift > 0 else []
+    out = {
+        "duration_s": float(t[-1] - t[0]),
+        "lift_m": lift,
+        "time_to_target_s": float(t[reached[0]] - t[_first_opening(u)]) if len(reached) else math.nan,
+        "peak_speed_m_s": float(np.max(np.abs(v))),
+        "rms_speed_m_s": float(np.sqrt(np.mean(v * v))),
+        "overshoot_m": math.nan,
+        "oscillation_hz": math.nan,
+        "damping_ratio": math.nan,
+        "peak_pressure_pa": float(np.max(p)),
+        "min_pressure_pa": float(np.min(p)),
+        "cavitation_s": float(np.sum(dt[np.asarray(signals["cavitation"], bool)])),
+        "relief_s": float(np.sum(dt[np.asarray(signals["relief_open"], bool)])),
+        "supply_energy_j": float(signals["supply_energy"][-1]),
+        "valve_loss_energy_j": float(signals["valve_loss_energy"][-1]),
+    }
+    out["supply_energy_per_m_j_m"] = out["supply_energy_j"] / lift if lift > 0 else math.nan
+    out["valve_loss_per_m_j_m"] = out["valve_loss_energy_j"] / lift if lift > 0 else math.nan
+    close = _first_close_after_opening(u)
+    if close is not None:
+        hold = _segment_after(u, close)
+        q_hold = q[hold]
+        if len(q_hold) > 4:
+            settled = float(np.median(q_hold[-max(1, len(q_hold) // 4) :]))
+            out["overshoot_m"] = max(0.0, float(np.max(q_hold)) - settled)
+            out["oscillation_hz"], out["damping_ratio"] = oscillation(t[hold], np.asarray(signals["p1"], float)[hold])
+    return out

@@ -1,0 +1,68 @@
+"""Reading the drive's signals back from a recorded bag (folder or single .mcap file)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReader, AnyReaderError
+
+from .errors import BoomHydraulicsError
+
+#: DriveState fields read as signals, and the names they get (those of simulation.OUTPUTS).
+SIGNALS = {
+    "rod_position_m": "q1",
+    "rod_velocity_m_s": "v",
+    "rod_acceleration_m_s2": "a",
+    "boom_angle_rad": "alpha",
+    "piston_pressure_pa": "p1",
+    "rod_pressure_pa": "p2",
+    "hydraulic_force_n": "f_hyd",
+    "load_force_n": "f_load",
+    "valve_command": "u",
+    "valve_opening": "x_v",
+    "supply_power_w": "power",
+    "supply_energy_j": "supply_energy",
+    "valve_loss_energy_j": "valve_loss_energy",
+    "at_end_stop": "at_end_stop",
+    "cavitation": "cavitation",
+    "relief_open": "relief_open",
+}
+DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
+
+
+class BagError(BoomHydraulicsError):
+    """A bag cannot be read or lacks what is asked of it."""
+
+
+def read_drive_states(bag: str | Path) -> dict[str, np.ndarray]:
+    """Every DriveState of ``bag`` as arrays (``t`` in s from the first message), by stamp order."""
+    path = Path(bag)
+    if not path.exists():
+        raise BagError(f"{path}: no such bag folder or file")
+    if path.is_file() and path.read_bytes()[:8] != b"\x89MCAP0\r\n":
+        raise BagError(f"{path}: not an MCAP file (wrong magic bytes)")
+    try:
+        with AnyReader([path]) as reader:
+            connections = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
+            if not connections:
+                topics = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)) or "none"
+                raise BagError(f"{path}: no {DRIVE_STATE} topic in this bag; topics: {topics}")
+            rows = []
+            for connection, _, raw in reader.messages(connections=connections):
+                msg = reader.deserialize(raw, connection.msgtype)
+                stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                rows.append((stamp, *(getattr(msg, field) for field in SIGNALS)))
+    except AnyReaderError as exc:
+        raise BagError(f"{path}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
+    except (OSError, ValueError, KeyError) as exc:
+        raise BagError(f"{path}: cannot read the bag ({exc})") from None
+    if len(rows) < 2:
+        raise BagError(f"{path}: only {len(rows)} DriveState message(s); nothing to analyse")
+    rows.sort(key=lambda r: r[0])
+    table = np.array(rows, dtype=float)
+    out = {"t": table[:, 0] - table[0, 0]}
+    for i, name in enumerate(SIGNALS.values(), start=1):
+        column = table[:, i]
+        out[name] = column.astype(bool) if name in ("at_end_stop", "cavitation", "relief_open") else column
+    return out

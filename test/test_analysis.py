@@ -1,0 +1,129 @@
+"""Reading bags back, run metrics, and boom-analyze's outputs and errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+from rclpy.serialization import serialize_message
+
+from boom_hydraulics import analysis
+from boom_hydraulics.bag_reading import BagError, read_drive_states
+from boom_hydraulics.commands import steps
+from boom_hydraulics.parameters import Parameters
+from boom_hydraulics.recording import BagRecorder, Topic
+from boom_hydraulics.simulation import simulate
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+
+BOOM_ANALYZE = shutil.which("boom-analyze")
+COMMAND = steps([0.0, 1.0, 1.6], [1.0, 0.0, -0.5])
+
+
+def _trajectory():
+    return simulate(Parameters(), 2.5, COMMAND, every=10, jit=False)
+
+
+def _record(folder, tr) -> None:
+    """A bag of the trajectory's DriveStates, as the node writes them."""
+    with BagRecorder(folder, [Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState")]) as rec:
+        for i in range(len(tr)):
+            msg = DriveState()
+            ns = round(tr["t"][i] * 1e9)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+            msg.rod_position_m, msg.rod_velocity_m_s, msg.rod_acceleration_m_s2 = tr["q1"][i], tr["v"][i], tr["a"][i]
+            msg.boom_angle_rad, msg.piston_pressure_pa, msg.rod_pressure_pa = tr["alpha"][i], tr["p1"][i], tr["p2"][i]
+            msg.hydraulic_force_n, msg.load_force_n = tr["f_hyd"][i], tr["f_load"][i]
+            msg.valve_command, msg.valve_opening = tr["u"][i], tr["x_v"][i]
+            msg.supply_power_w, msg.supply_energy_j = tr["power"][i], tr["supply_energy"][i]
+            msg.valve_loss_energy_j = tr["valve_loss_energy"][i]
+            msg.at_end_stop, msg.cavitation = bool(tr["at_end_stop"][i]), bool(tr["cavitation"][i])
+            msg.relief_open = bool(tr["relief_open"][i])
+            rec.write("/drive_state", ns, serialize_message(msg))
+
+
+def test_a_bag_reads_back_to_the_signals_that_were_recorded(tmp_path):
+    tr = _trajectory()
+    _record(tmp_path / "run", tr)
+    for bag in (tmp_path / "run", tmp_path / "run" / "run_0.mcap"):  # folder or single file
+        signals = read_drive_states(bag)
+        for name in ("q1", "p1", "u", "supply_energy"):
+            assert np.array_equal(signals[name], tr[name])
+        assert np.allclose(signals["t"], tr["t"], atol=1e-9)
+
+
+def test_metrics_of_a_lift(tmp_path):
+    tr = _trajectory()
+    m = analysis.metrics(tr.columns)
+    i_top = int(np.argmax(tr["q1"]))
+    assert m["lift_m"] == pytest.approx(tr["q1"][i_top] - tr["q1"][0])
+    reached = np.nonzero(tr["q1"] >= tr["q1"][0] + 0.9 * m["lift_m"])[0][0]
+    assert m["time_to_target_s"] == pytest.approx(tr["t"][reached])  # the valve opens at t = 0
+    assert m["peak_speed_m_s"] == pytest.approx(np.max(np.abs(tr["v"])))
+    assert m["supply_energy_per_m_j_m"] == pytest.approx(tr["supply_energy"][-1] / m["lift_m"])
+    assert m["min_pressure_pa"] >= Parameters().cavitation_pressure_pa
+
+
+def test_oscillation_finds_frequency_and_damping_of_a_decaying_sine():
+    t = np.arange(0, 4, 1e-3)
+    zeta, f = 0.05, 3.0
+    wd = 2 * math.pi * f
+    x = 2.0 + 0.1 * t + np.exp(-zeta * wd / math.sqrt(1 - zeta**2) * t) * np.sin(wd * t)
+    frequency, damping = analysis.oscillation(t, x)
+    assert frequency == pytest.approx(f, abs=0.3)
+    assert damping == pytest.approx(zeta, rel=0.25)
+
+
+@pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
+def test_boom_analyze_writes_signals_metrics_and_plots(tmp_path):
+    tr = _trajectory()
+    _record(tmp_path / "a", tr)
+    _record(tmp_path / "b", tr)
+    out = tmp_path / "results"
+    result = subprocess.run(
+        [BOOM_ANALYZE, tmp_path / "a", tmp_path / "b", "--out", out], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["a.csv", "a.npz", "a.metrics.json", "b.csv", "b.npz", "b.metrics.json", "dynamics.png", "drive.png"]
+    )
+    with (out / "a.csv").open() as handle:
+        header = next(csv.reader(handle))
+    assert header[:3] == ["t [s]", "q1 [m]", "v [m/s]"] and "p1 [Pa]" in header
+    metrics = json.loads((out / "a.metrics.json").read_text())
+    assert metrics["lift_m"] == pytest.approx(analysis.metrics(tr.columns)["lift_m"])
+    for png in ("dynamics.png", "drive.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
+@pytest.mark.parametrize("case", ["missing", "not_mcap", "truncated", "no_drive_state"])
+def test_bad_bags_give_one_line_and_write_nothing(tmp_path, case):
+    if case == "missing":
+        bag, message = tmp_path / "nope", "no such bag folder or file"
+    elif case == "not_mcap":
+        bag, message = tmp_path / "x.mcap", "not an MCAP file"
+        bag.write_text("hello")
+    elif case == "truncated":
+        _record(tmp_path / "run", _trajectory())
+        data = (tmp_path / "run" / "run_0.mcap").read_bytes()
+        bag, message = tmp_path / "cut.mcap", "truncated or not a rosbag2/MCAP bag"
+        bag.write_bytes(data[: len(data) // 2])
+    else:
+        with BagRecorder(tmp_path / "other", [Topic("/valve_command", "boom_hydraulics_msgs/msg/ValveCommand")]) as rec:
+            rec.write("/valve_command", 1, serialize_message(ValveCommand(opening=0.5)))
+        bag, message = tmp_path / "other", "no boom_hydraulics_msgs/msg/DriveState topic"
+    out = tmp_path / "results"
+    result = subprocess.run([BOOM_ANALYZE, bag, "--out", out], capture_output=True, text=True)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
+    assert not out.exists()
+    with pytest.raises(BagError):
+        read_drive_states(bag)
