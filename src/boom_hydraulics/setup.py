@@ -28,6 +28,7 @@ setup(
             "boom-sim = boom_hydraulics.cli:main",
             "boom-demo = boom_hydraulics.demo:main",
             "boom-analyze = boom_hydraulics.analyze:main",
+            "boom-study = boom_hydraulics.study:main",
         ],
     },
 )

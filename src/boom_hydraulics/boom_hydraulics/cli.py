@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from . import commands, config, geometry
+from . import commands, config, studies
 from .errors import BoomHydraulicsError, ConfigError
-from .parameters import GEOMETRY_CLEARANCE_M, Parameters, from_mapping
+from .parameters import Parameters, from_mapping
 from .simulation import OUTPUTS, Simulator
 
 
@@ -113,19 +113,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def statics_table(params: Parameters, diameters_m: Sequence[float], points: int) -> tuple[list[str], np.ndarray]:
     """alpha, phi, static rod force and holding pressure over the open geometric stroke (Figs. 3-5)."""
-    p = params
-    low = abs(p.b_m - p.a_m) + GEOMETRY_CLEARANCE_M
-    high = p.a_m + p.b_m - GEOMETRY_CLEARANCE_M
-    q1 = np.linspace(low, high, points)
-    alpha = geometry.boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m, np)
-    phi = geometry.rod_boom_angle_rad(q1, p.a_m, p.b_m, np)
-    force = geometry.static_rod_force_of(p, q1, np)
+    table = studies.statics(params, diameters_m, points)
     header = ["q1 [m]", "alpha [rad]", "phi [rad]", "static_force [N]"]
-    columns = [q1, alpha, phi, force]
-    for d in diameters_m:
-        header.append(f"holding_pressure_D{d * 1000:g}mm [Pa]")
-        columns.append(geometry.holding_pressure_pa(force, d))
-    return header, np.column_stack(columns)
+    header += [f"{name} [Pa]" for name in table if name.startswith("holding_pressure")]
+    return header, np.column_stack(list(table.values()))
 
 
 def cmd_statics(args: argparse.Namespace) -> int:

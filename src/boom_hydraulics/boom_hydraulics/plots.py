@@ -30,7 +30,7 @@ def _panels(runs: Sequence[Run], rows: list[tuple[str, str, float, float]], titl
     plt.close(fig)
 
 
-def dynamics(runs: Sequence[Run], path: Path) -> None:
+def dynamics(runs: Sequence[Run], path: Path, title: str = "Rod motion and piston-chamber pressure") -> None:
     """Rod displacement, velocity, acceleration and piston-chamber pressure (Figs. 8-10)."""
     _panels(
         runs,
@@ -40,7 +40,7 @@ def dynamics(runs: Sequence[Run], path: Path) -> None:
             ("a", "rod acceleration [m/s²]", 1.0, 0.0),
             ("p1", "piston-chamber pressure p1 [MPa]", 1e-6, 0.0),
         ],
-        "Rod motion and piston-chamber pressure",
+        title,
         path,
     )
 

@@ -70,6 +70,7 @@ class Trajectory:
     """Outputs sampled over a run: one numpy array per name in :data:`OUTPUT_NAMES`."""
 
     columns: dict[str, np.ndarray]
+    stopped: str | None = None  # why the run ended early (run(stop_on_error=True)), else None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -209,13 +210,16 @@ class Simulator:
         """Every output (see :data:`OUTPUTS`) at the current state and command."""
         return self.model.observe(self.t, self.y, self.constants, self.u)
 
-    def run(self, duration_s: float, command: Callable[[float], float], every: int = 1) -> Trajectory:
+    def run(
+        self, duration_s: float, command: Callable[[float], float], every: int = 1, stop_on_error: bool = False
+    ) -> Trajectory:
         """Simulate ``duration_s`` from the current state with valve command ``command(t)``.
 
         The command of a step is ``command`` at the step's middle, held over the step (so a
         step change at T takes effect at the step starting within half a step of T, as the
         node applies stamped commands). Records the outputs at the start and after every
-        ``every`` steps.
+        ``every`` steps. With ``stop_on_error``, a SimulationError ends the run early and the
+        trajectory up to the last finite state is returned, with the reason in ``stopped``.
         """
         if every < 1:
             raise ValueError("every must be >= 1")
@@ -234,12 +238,23 @@ class Simulator:
 
         record(0)
         row = 1
+        stopped = None
         for i in range(1, n_steps + 1):
-            self.step(command(self.t + half))
+            try:
+                self.step(command(self.t + half))
+            except SimulationError as exc:
+                if not stop_on_error:
+                    raise
+                stopped = str(exc)
+                record(row)  # the last finite state
+                row += 1
+                break
             if i % every == 0 or i == n_steps:
                 record(row)
                 row += 1
-        return Trajectory(columns)
+        if stopped is not None:
+            columns = {name: column[:row] for name, column in columns.items()}
+        return Trajectory(columns, stopped)
 
 
 def simulate(
