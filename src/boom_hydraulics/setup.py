@@ -29,6 +29,7 @@ setup(
             "boom-demo = boom_hydraulics.demo:main",
             "boom-analyze = boom_hydraulics.analyze:main",
             "boom-study = boom_hydraulics.study:main",
+            "boom-replay = boom_hydraulics.replay:main",
         ],
     },
 )

@@ -35,13 +35,20 @@ class BagError(BoomHydraulicsError):
     """A bag cannot be read or lacks what is asked of it."""
 
 
+def check_bag_path(path: Path) -> None:
+    """Raise BagError unless ``path`` is a folder or a file that starts like an MCAP file."""
+    if not path.exists():
+        raise BagError(f"{path}: no such bag folder or file")
+    if path.is_file():
+        with path.open("rb") as handle:
+            if handle.read(8) != b"\x89MCAP0\r\n":
+                raise BagError(f"{path}: not an MCAP file (wrong magic bytes)")
+
+
 def read_drive_states(bag: str | Path) -> dict[str, np.ndarray]:
     """Every DriveState of ``bag`` as arrays (``t`` in s from the first message), by stamp order."""
     path = Path(bag)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag folder or file")
-    if path.is_file() and path.read_bytes()[:8] != b"\x89MCAP0\r\n":
-        raise BagError(f"{path}: not an MCAP file (wrong magic bytes)")
+    check_bag_path(path)
     try:
         with AnyReader([path]) as reader:
             connections = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
