@@ -110,7 +110,7 @@ def in_process_rates() -> None:
         rclpy.try_shutdown()
         rclpy.init(args=["--ros-args", "-p", f"jit:={str(jit).lower()}", "-p", "real_time_factor:=0.0"])
         node = BoomSimNode()
-        node.current = 0.3
+        node.drive.current = 0.3
         n = 20_000 if jit else 5_000
         t0 = time.perf_counter()
         node.advance(n)

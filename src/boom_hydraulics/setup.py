@@ -30,6 +30,7 @@ setup(
             "boom-analyze = boom_hydraulics.analyze:main",
             "boom-study = boom_hydraulics.study:main",
             "boom-replay = boom_hydraulics.replay:main",
+            "boom-resim = boom_hydraulics.resim:main",
         ],
     },
 )

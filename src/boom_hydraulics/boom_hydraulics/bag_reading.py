@@ -8,26 +8,8 @@ import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
 
 from .errors import BoomHydraulicsError
+from .messages import DRIVE_STATE_FIELDS, FLAGS
 
-#: DriveState fields read as signals, and the names they get (those of simulation.OUTPUTS).
-SIGNALS = {
-    "rod_position_m": "q1",
-    "rod_velocity_m_s": "v",
-    "rod_acceleration_m_s2": "a",
-    "boom_angle_rad": "alpha",
-    "piston_pressure_pa": "p1",
-    "rod_pressure_pa": "p2",
-    "hydraulic_force_n": "f_hyd",
-    "load_force_n": "f_load",
-    "valve_command": "u",
-    "valve_opening": "x_v",
-    "supply_power_w": "power",
-    "supply_energy_j": "supply_energy",
-    "valve_loss_energy_j": "valve_loss_energy",
-    "at_end_stop": "at_end_stop",
-    "cavitation": "cavitation",
-    "relief_open": "relief_open",
-}
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
 
 
@@ -59,7 +41,7 @@ def read_drive_states(bag: str | Path) -> dict[str, np.ndarray]:
             for connection, _, raw in reader.messages(connections=connections):
                 msg = reader.deserialize(raw, connection.msgtype)
                 stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-                rows.append((stamp, *(getattr(msg, field) for field in SIGNALS)))
+                rows.append((stamp, *(getattr(msg, field) for field in DRIVE_STATE_FIELDS)))
     except AnyReaderError as exc:
         raise BagError(f"{path}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
     except (OSError, ValueError, KeyError) as exc:
@@ -69,7 +51,7 @@ def read_drive_states(bag: str | Path) -> dict[str, np.ndarray]:
     rows.sort(key=lambda r: r[0])
     table = np.array(rows, dtype=float)
     out = {"t": table[:, 0] - table[0, 0]}
-    for i, name in enumerate(SIGNALS.values(), start=1):
+    for i, name in enumerate(DRIVE_STATE_FIELDS.values(), start=1):
         column = table[:, i]
-        out[name] = column.astype(bool) if name in ("at_end_stop", "cavitation", "relief_open") else column
+        out[name] = column.astype(bool) if name in FLAGS else column
     return out

@@ -18,6 +18,18 @@ import heapq
 import itertools
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .simulation import Simulator
+
+
+def valve_opening(opening: float, mode: str) -> float | None:
+    """A received opening as applied: None (ignored) if not finite, else clamped to [-1, 1]
+    ([0, 1] in paper mode, whose valve only connects pump to piston chamber)."""
+    if not math.isfinite(opening):
+        return None
+    return min(1.0, max(0.0 if mode == "paper" else -1.0, opening))
 
 
 class CommandQueue:
@@ -53,3 +65,48 @@ class CommandQueue:
 
     def clear(self) -> None:
         self._heap.clear()
+
+
+class CommandedDrive:
+    """A simulator driven by stamped valve commands, with a spring-centred valve.
+
+    The stepping rule of the node, without ROS: queued commands apply at their times
+    (see the module docstring), and the valve returns to 0 when no command arrived for
+    ``timeout_s`` of simulated time (0: never). The node and ``boom-resim`` both use it.
+    """
+
+    def __init__(self, sim: Simulator, timeout_s: float = 0.0, max_pending: int = 10_000):
+        self.sim = sim
+        self.timeout_s = timeout_s
+        self.queue = CommandQueue(max_pending)
+        self.current = 0.0  # the opening applied now
+        self.last_command_s: float | None = None
+
+    def push(self, at_s: float, opening: float) -> bool:
+        """Queue ``opening`` for simulated time ``at_s`` (now or earlier: the next step)."""
+        return self.queue.push(at_s, opening)
+
+    def reset(self) -> None:
+        self.queue.clear()
+        self.current = 0.0
+        self.last_command_s = None
+
+    def _apply(self, opening: float, at_s: float) -> None:
+        self.current = opening
+        self.last_command_s = at_s
+
+    def advance(self, steps: int) -> None:
+        """Take ``steps`` physics steps; raises SimulationError as Simulator.step does."""
+        dt = self.sim.params.time_step_s
+        while steps > 0:
+            t = self.sim.t
+            self.queue.apply_due(t, dt, self._apply)
+            chunk = self.queue.steps_until_next(t, dt, steps)
+            if self.timeout_s > 0 and self.current != 0.0 and self.last_command_s is not None:
+                deadline = self.last_command_s + self.timeout_s
+                if t + 0.5 * dt >= deadline:
+                    self.current = 0.0
+                else:
+                    chunk = max(1, min(chunk, math.ceil((deadline - t) / dt - 0.5 - 1e-9)))
+            self.sim.step(self.current, chunk)
+            steps -= chunk

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from typing import Any
 
 import rclpy
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
@@ -42,10 +43,11 @@ from std_srvs.srv import SetBool
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
-from .command_queue import CommandQueue
+from .command_queue import CommandedDrive, valve_opening
 from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
-from .parameters import NAMES, describe, from_mapping
+from .messages import drive_state
+from .parameters import NAMES, as_dict, describe, from_mapping
 from .recording import BagRecorder, Topic, new_bag_folder
 from .simulation import Simulator
 
@@ -149,13 +151,11 @@ class BoomSimNode(Node):
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.jit:
             self.sim.step(0.0, 0)  # compile before the clock starts
-        self.commands = CommandQueue()
-        self.current = 0.0  # valve opening applied now
+        self.drive = CommandedDrive(self.sim, self.timeout_s)
         self.lock = threading.RLock()
         self.stopping = threading.Event()
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
-        self.last_command_sim_time: float | None = None
         self.lag_s = 0.0
         self.clock_error_s = 0.0
         self.late_ticks = 0
@@ -171,13 +171,13 @@ class BoomSimNode(Node):
         # best-effort subscriptions accept commands from reliable and best-effort publishers
         self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data)
         self.create_subscription(Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data)
-        self.recorder = self._start_recording() if self.get_parameter("record").value else None
         self.create_service(Reset, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.create_service(Step, "~/step", self.on_step)
         self.add_on_set_parameters_callback(self.on_set_parameters)
 
         self._restart_clock()
+        self.recorder = self._start_recording() if self.get_parameter("record").value else None
         self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -197,7 +197,13 @@ class BoomSimNode(Node):
             Topic(self.resolve_topic_name("valve_command"), _type_name(ValveCommand), reliable=False),
             Topic(self.resolve_topic_name("commands"), _type_name(Float64MultiArray), reliable=False),
         ]
-        recorder = BagRecorder(new_bag_folder(self.get_parameter("record_folder").value), topics)
+        custom = {
+            "parameters": yaml.safe_dump(as_dict(self.sim.params), sort_keys=False),
+            "clock_origin_ns": str(round(self.clock_origin_s * 1e9)),  # stamp of sim time 0
+            "publish_rate_hz": repr(self.rate_hz),
+            "command_timeout_s": repr(self.timeout_s),
+        }
+        recorder = BagRecorder(new_bag_folder(self.get_parameter("record_folder").value), topics, custom_data=custom)
         self.get_logger().info(f"recording to {recorder.folder}")
         return recorder
 
@@ -251,15 +257,14 @@ class BoomSimNode(Node):
         return stamp.sec + stamp.nanosec * 1e-9 - self.clock_origin_s
 
     def _accept(self, opening: float, stamp: Any | None) -> None:
-        if not math.isfinite(opening):
+        u = valve_opening(opening, self.sim.params.mode)
+        if u is None:
             self.get_logger().warning(f"ignored non-finite valve opening {opening}", throttle_duration_sec=1.0)
             return
-        low = 0.0 if self.sim.params.mode == "paper" else -1.0
-        if not low <= opening <= 1.0:
-            self.get_logger().warning(f"valve opening {opening} clamped to [{low:g}, 1]", throttle_duration_sec=1.0)
-            opening = min(1.0, max(low, opening))
+        if u != opening:
+            self.get_logger().warning(f"valve opening {opening} clamped to {u:g}", throttle_duration_sec=1.0)
         at = self._stamp_to_sim_time(stamp) if stamp is not None else None
-        if not self.commands.push(self.sim.t if at is None else at, opening):
+        if not self.drive.push(self.sim.t if at is None else at, u):
             self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
 
     @_locked
@@ -288,10 +293,8 @@ class BoomSimNode(Node):
         except SimulationError as exc:
             response.success, response.message = False, str(exc)
             return response
-        self.commands.clear()
-        self.current = 0.0
+        self.drive.reset()
         self.failure = None
-        self.last_command_sim_time = None
         self._restart_clock()
         response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
         self.publish_state()
@@ -332,27 +335,14 @@ class BoomSimNode(Node):
 
     def advance(self, steps: int) -> None:
         """Take ``steps`` physics steps, applying queued commands at their times."""
-        dt = self.sim.params.time_step_s
-        while steps > 0 and self.failure is None:
-            t = self.sim.t
-            self.commands.apply_due(t, dt, self._set_command)
-            chunk = self.commands.steps_until_next(t, dt, steps)
-            if self.timeout_s > 0 and self.current != 0.0 and self.last_command_sim_time is not None:
-                deadline = self.last_command_sim_time + self.timeout_s  # spring-centred valve
-                if t + 0.5 * dt >= deadline:
-                    self.current = 0.0
-                else:
-                    chunk = max(1, min(chunk, math.ceil((deadline - t) / dt - 0.5 - 1e-9)))
-            try:
-                self.sim.step(self.current, chunk)
-            except SimulationError as exc:
-                self.failure = str(exc)
-                self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
-            steps -= chunk
-
-    def _set_command(self, opening: float, at_s: float) -> None:
-        self.current = opening
-        self.last_command_sim_time = at_s
+        if self.failure is not None:
+            return
+        self.drive.timeout_s = self.timeout_s
+        try:
+            self.drive.advance(steps)
+        except SimulationError as exc:
+            self.failure = str(exc)
+            self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
 
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
@@ -421,28 +411,7 @@ class BoomSimNode(Node):
         stamp = self._stamp()
         if self.publish_clock:
             self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
-        msg = DriveState()
-        msg.header.stamp = stamp
-        msg.header.frame_id = "boom_base"
-        msg.rod_position_m = float(out["q1"])
-        msg.rod_velocity_m_s = float(out["v"])
-        msg.rod_acceleration_m_s2 = float(out["a"])
-        msg.boom_angle_rad = float(out["alpha"])
-        msg.boom_rate_rad_s = float(out["alpha_rate"])
-        msg.piston_pressure_pa = float(out["p1"])
-        msg.rod_pressure_pa = float(out["p2"])
-        msg.piston_flow_m3_s = float(out["q_in1"])
-        msg.rod_flow_m3_s = float(out["q_in2"])
-        msg.hydraulic_force_n = float(out["f_hyd"])
-        msg.load_force_n = float(out["f_load"])
-        msg.valve_command = float(out["u"])
-        msg.valve_opening = float(out["x_v"])
-        msg.supply_power_w = float(out["power"])
-        msg.supply_energy_j = float(out["supply_energy"])
-        msg.valve_loss_energy_j = float(out["valve_loss_energy"])
-        msg.at_end_stop = bool(out["at_end_stop"])
-        msg.cavitation = bool(out["cavitation"])
-        msg.relief_open = bool(out["relief_open"])
+        msg = drive_state(out, stamp)
 
         p = self.sim.params
         lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k

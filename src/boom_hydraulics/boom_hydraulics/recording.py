@@ -28,6 +28,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from .errors import BoomHydraulicsError
 
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 writes in Jazzy
+CUSTOM_DATA_RECORD = "boom_hydraulics"  # name of the MCAP metadata record with the custom data
 _INFINITE = QosTime(sec=9223372036, nsec=854775807)
 
 
@@ -109,7 +110,13 @@ def new_bag_folder(parent: str | Path, name: str = "boom_sim") -> Path:
 class BagRecorder:
     """Writes messages of known topics to a new bag folder; :meth:`close` finishes the bag."""
 
-    def __init__(self, folder: str | Path, topics: list[Topic], chunk_size: int = 1 << 20):
+    def __init__(
+        self,
+        folder: str | Path,
+        topics: list[Topic],
+        chunk_size: int = 1 << 20,
+        custom_data: dict[str, str] | None = None,
+    ):
         self.folder = Path(folder)
         try:
             self.folder.mkdir(parents=True, exist_ok=False)
@@ -121,6 +128,11 @@ class BagRecorder:
         self._stream = self.file.open("wb")
         self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="ros2", library="boom_hydraulics")
+        # custom data (e.g. the run's parameters): in metadata.yaml and, so that a lone
+        # .mcap file carries it too, as an MCAP metadata record
+        self.custom_data = dict(custom_data or {})
+        if self.custom_data:
+            self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
         self.topics = {t.name: t for t in topics}
         self._channels: dict[str, int] = {}
         self.counts: dict[str, int] = {t.name: 0 for t in topics}
@@ -212,7 +224,7 @@ class BagRecorder:
                     "message_count": total,
                 }
             ],
-            "custom_data": {},
+            "custom_data": self.custom_data,
             "ros_distro": "jazzy",
         }
         tmp = self.folder / ".metadata.yaml.partial"
