@@ -31,6 +31,7 @@ setup(
             "boom-study = boom_hydraulics.study:main",
             "boom-replay = boom_hydraulics.replay:main",
             "boom-resim = boom_hydraulics.resim:main",
+            "boom-bag-recover = boom_hydraulics.recovery:main",
         ],
     },
 )

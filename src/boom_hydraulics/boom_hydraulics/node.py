@@ -71,6 +71,7 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, float | None, float | None]] = {
     "jit": (False, "Step with the numba-compiled model (a few seconds to compile at start)", None, None),
     "record": (True, "Record every published topic and received command to a bag (start only)", None, None),
     "record_folder": ("bags", "Folder in which each run's bag folder is created (start only)", None, None),
+    "record_chunk_kib": (1024.0, "MCAP chunk size [KiB]: what a SIGKILL can lose at most (start only)", 1.0, 65536.0),
     "start_paused": (
         False,
         "Start paused (resume with ~/pause data: false), e.g. to queue a scenario first",
@@ -203,7 +204,12 @@ class BoomSimNode(Node):
             "publish_rate_hz": repr(self.rate_hz),
             "command_timeout_s": repr(self.timeout_s),
         }
-        recorder = BagRecorder(new_bag_folder(self.get_parameter("record_folder").value), topics, custom_data=custom)
+        recorder = BagRecorder(
+            new_bag_folder(self.get_parameter("record_folder").value),
+            topics,
+            chunk_size=round(self.get_parameter("record_chunk_kib").value * 1024),
+            custom_data=custom,
+        )
         self.get_logger().info(f"recording to {recorder.folder}")
         return recorder
 

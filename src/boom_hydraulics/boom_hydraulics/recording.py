@@ -191,48 +191,72 @@ class BagRecorder:
         return self.folder
 
     def _write_metadata(self) -> None:
-        start = self.first_ns or 0
-        duration = max(0, self.last_ns - start)
-        total = sum(self.counts.values())
-        info = {
-            "version": ROSBAG2_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": total,
-            "topics_with_message_count": [
-                {
-                    "topic_metadata": {
-                        "name": t.name,
-                        "type": t.msgtype,
-                        "serialization_format": "cdr",
-                        "offered_qos_profiles": qos_profiles(t),
-                        "type_description_hash": type_hash(t.msgtype),
-                    },
-                    "message_count": self.counts[t.name],
-                }
+        write_metadata(
+            self.folder,
+            self.file.name,
+            [
+                (t.name, t.msgtype, qos_profiles(t), type_hash(t.msgtype), self.counts[t.name])
                 for t in self.topics.values()
             ],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.file.name],
-            "files": [
-                {
-                    "path": self.file.name,
-                    "starting_time": {"nanoseconds_since_epoch": start},
-                    "duration": {"nanoseconds": duration},
-                    "message_count": total,
-                }
-            ],
-            "custom_data": self.custom_data,
-            "ros_distro": "jazzy",
-        }
-        tmp = self.folder / ".metadata.yaml.partial"
-        tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
-        tmp.replace(self.folder / "metadata.yaml")
+            self.first_ns or 0,
+            self.last_ns,
+            self.custom_data,
+        )
 
     def __enter__(self) -> BagRecorder:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def write_metadata(
+    folder: Path,
+    file_name: str,
+    topics: list[tuple[str, str, list[dict], str, int]],
+    first_ns: int,
+    last_ns: int,
+    custom_data: dict[str, str],
+) -> None:
+    """rosbag2's metadata.yaml (version 9) for one MCAP file.
+
+    ``topics``: (name, type, offered QoS list, type hash, message count) each.
+    """
+    duration = max(0, last_ns - first_ns)
+    total = sum(t[4] for t in topics)
+    info = {
+        "version": ROSBAG2_VERSION,
+        "storage_identifier": "mcap",
+        "duration": {"nanoseconds": duration},
+        "starting_time": {"nanoseconds_since_epoch": first_ns},
+        "message_count": total,
+        "topics_with_message_count": [
+            {
+                "topic_metadata": {
+                    "name": name,
+                    "type": msgtype,
+                    "serialization_format": "cdr",
+                    "offered_qos_profiles": qos,
+                    "type_description_hash": hash_,
+                },
+                "message_count": count,
+            }
+            for name, msgtype, qos, hash_, count in topics
+        ],
+        "compression_format": "",
+        "compression_mode": "",
+        "relative_file_paths": [file_name],
+        "files": [
+            {
+                "path": file_name,
+                "starting_time": {"nanoseconds_since_epoch": first_ns},
+                "duration": {"nanoseconds": duration},
+                "message_count": total,
+            }
+        ],
+        "custom_data": custom_data,
+        "ros_distro": "jazzy",
+    }
+    tmp = folder / ".metadata.yaml.partial"
+    tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
+    tmp.replace(folder / "metadata.yaml")

@@ -1,0 +1,118 @@
+"""``boom-bag-recover``: finish a bag whose recorder was killed (SIGKILL, power loss).
+
+    boom-bag-recover bags/20261122-044106_boom_sim
+
+A killed recorder leaves an MCAP file without its summary and footer, and no
+metadata.yaml. Every chunk the recorder completed is intact on disk: this reads the file
+record by record up to the first incomplete one, and writes a finished MCAP file with
+those messages (the damaged file is kept beside it as ``<name>.damaged``) and the
+metadata.yaml. What was still in the last, incomplete chunk is lost: at most one chunk
+(node parameter ``record_chunk_kib``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import yaml
+from mcap.exceptions import McapError
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from .bag_reading import BagError
+from .recording import write_metadata
+
+
+def _salvage(path: Path) -> tuple[dict, dict, list[Message], list[Metadata]]:
+    """Schemas, channels, messages and metadata records up to the first incomplete record."""
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    messages: list[Message] = []
+    metadata: list[Metadata] = []
+    with path.open("rb") as handle:
+        try:
+            for record in StreamReader(handle, validate_crcs=True).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    messages.append(record)
+                elif isinstance(record, Metadata):
+                    metadata.append(record)
+        except (McapError, EOFError, ValueError, OSError):
+            pass  # the truncated tail: everything before it is kept
+    return schemas, channels, messages, metadata
+
+
+def recover(bag: Path) -> tuple[Path, int]:
+    """Finish ``bag`` (folder) in place; returns the MCAP file and the number of messages kept."""
+    if not bag.is_dir():
+        raise BagError(f"{bag}: not a bag folder")
+    if (bag / "metadata.yaml").exists():
+        raise BagError(f"{bag}: has a metadata.yaml already, so it was finished; nothing to recover")
+    files = sorted(bag.glob("*.mcap"))
+    if len(files) != 1:
+        raise BagError(f"{bag}: expected one .mcap file, found {len(files)}")
+    damaged = files[0]
+    schemas, channels, messages, metadata = _salvage(damaged)
+    if not channels:
+        raise BagError(f"{damaged}: no channel survived; nothing to recover")
+    messages.sort(key=lambda m: m.log_time)
+    kept = damaged.with_name(f"{damaged.name}.damaged")
+    damaged.rename(kept)
+    counts = {cid: 0 for cid in channels}
+    with damaged.open("wb") as handle:
+        writer = Writer(handle, compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library="boom_hydraulics (recovered)")
+        for record in metadata:
+            writer.add_metadata(record.name, record.metadata)
+        new_schema = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
+        new_channel = {
+            cid: writer.register_channel(c.topic, c.message_encoding, new_schema[c.schema_id], c.metadata)
+            for cid, c in channels.items()
+        }
+        for m in messages:
+            writer.add_message(new_channel[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
+            counts[m.channel_id] += 1
+        writer.finish()
+    custom = next((r.metadata for r in metadata if r.name == "boom_hydraulics"), {})
+    write_metadata(
+        bag,
+        damaged.name,
+        [
+            (
+                c.topic,
+                schemas[c.schema_id].name,
+                yaml.safe_load(c.metadata.get("offered_qos_profiles", "[]")) or [],
+                c.metadata.get("topic_type_hash", ""),
+                counts[cid],
+            )
+            for cid, c in channels.items()
+        ],
+        messages[0].log_time if messages else 0,
+        messages[-1].log_time if messages else 0,
+        dict(custom),
+    )
+    return damaged, len(messages)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="boom-bag-recover", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", type=Path, help="the bag folder of a killed recording")
+    args = parser.parse_args(argv)
+    try:
+        file, count = recover(args.bag)
+    except BagError as exc:
+        print(f"boom-bag-recover: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"boom-bag-recover: {count} messages kept in {file} (the damaged file is {file.name}.damaged)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
