@@ -287,7 +287,8 @@ def test_bad_model_parameter_at_start_is_one_clear_line():
     assert "Traceback" not in out
 
 
-def test_recording_holds_every_published_and_received_message(client, tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_recording_holds_every_published_and_received_message(client, tmp_path, sig):
     from mcap.reader import make_reader
     from rosbags.highlevel import AnyReader
 
@@ -297,7 +298,7 @@ def test_recording_holds_every_published_and_received_message(client, tmp_path):
         client.command(0.5)
         client.spin_for(0.05)
     client.spin_for(0.5)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)  # either signal finishes the bag
     out, _ = proc.communicate(timeout=20)
     assert proc.returncode == 0
     (folder,) = list(tmp_path.iterdir())
