@@ -15,9 +15,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -26,6 +24,7 @@ import numpy as np
 from . import analysis, plots
 from .bag_reading import read_drive_states
 from .errors import BoomHydraulicsError
+from .files import staged_folder
 from .simulation import OUTPUTS
 
 _UNITS = {name: unit for name, unit, _ in OUTPUTS}
@@ -49,22 +48,14 @@ def write_signals(folder: Path, label: str, signals: dict[str, np.ndarray]) -> N
 def analyze(bags: Sequence[Path], out: Path) -> dict[str, dict[str, float]]:
     """Read every bag, then write all results to ``out`` (replaced as a whole at the end)."""
     runs = [(bag_label(bag), read_drive_states(bag)) for bag in bags]  # fails before writing
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        results = {}
+    results = {}
+    with staged_folder(out) as tmp:
         for label, signals in runs:
             write_signals(tmp, label, signals)
             results[label] = analysis.metrics(signals)
             (tmp / f"{label}.metrics.json").write_text(json.dumps(results[label], indent=2) + "\n")
         plots.dynamics(runs, tmp / "dynamics.png")
         plots.drive(runs, tmp / "drive.png")
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return results
 
 

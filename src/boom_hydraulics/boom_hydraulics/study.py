@@ -13,9 +13,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -27,6 +25,7 @@ import numpy as np
 
 from . import config, plots, studies
 from .errors import BoomHydraulicsError
+from .files import staged_folder
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"  # the package's config/ (symlink in src)
 DIAMETERS_M = (0.032, 0.04, 0.05, 0.063, 0.08)
@@ -141,18 +140,10 @@ def solver_figure(out: Path, config_dir: Path) -> None:
 
 def paper(out: Path, duration_s: float) -> None:
     config_dir = _config_dir()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_folder(out) as tmp:
         statics_figures(tmp, config.load(config_dir / "default.yaml"))
         dynamic_figures(tmp, config_dir, duration_s)
         solver_figure(tmp, config_dir)
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
 
 
 def main(argv: Sequence[str] | None = None) -> int:
