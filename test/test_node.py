@@ -330,3 +330,23 @@ def test_recording_holds_every_published_and_received_message(client, tmp_path, 
             assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
             assert "reliability:" in channel.metadata["offered_qos_profiles"]
         assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
+
+
+def test_switching_publish_clock_on_while_recording_records_the_clock(client, tmp_path):
+    from rosbags.highlevel import AnyReader
+
+    proc = start_node(f"record_folder:={tmp_path}", record=True)
+    assert client.spin_until(lambda: len(client.states) > 5)
+    param = Parameter(name="publish_clock", value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True))
+    assert client.call(client.set_params, SetParameters.Request(parameters=[param])).results[0].successful
+    count = len(client.states)
+    assert client.spin_until(lambda: len(client.states) > count + 50)  # still ticking
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=20) == 0
+    (folder,) = list(tmp_path.iterdir())
+    with AnyReader([folder]) as reader:
+        clocks = sum(1 for c in reader.connections if c.topic == "/clock" for _ in reader.messages(connections=[c]))
+        states = sum(
+            1 for c in reader.connections if c.topic == "/drive_state" for _ in reader.messages(connections=[c])
+        )
+    assert clocks > 40 and states > clocks  # /clock recorded from the switch on

@@ -190,9 +190,8 @@ class BoomSimNode(Node):
 
     def _start_recording(self) -> BagRecorder:
         """A bag of every topic this node publishes and every command it receives."""
-        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        if self.publish_clock:
-            pubs.append(self.clock_pub)
+        # /clock always: publish_clock may be switched on while running
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub, self.clock_pub]
         topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
         topics += [
             Topic(self.resolve_topic_name("valve_command"), _type_name(ValveCommand), reliable=False),
@@ -366,11 +365,12 @@ class BoomSimNode(Node):
             try:
                 with self.lock:
                     self.on_tick()
-            except Exception as exc:  # the context went away under us: shutting down
-                if rclpy.ok():
-                    self.get_logger().error(f"tick failed: {exc!r}")
-                    raise
-                return
+            except Exception as exc:
+                if not rclpy.ok():  # the context went away under us: shutting down
+                    return
+                with self.lock:  # anything else stops the simulation, reported like a blow-up
+                    self.failure = f"tick failed: {exc!r}"
+                self.get_logger().error(f"simulation stopped, waiting for ~/reset: {self.failure}")
 
     def on_tick(self) -> None:
         if self.paused or self.failure:

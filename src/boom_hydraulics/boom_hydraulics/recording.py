@@ -162,6 +162,8 @@ class BagRecorder:
 
     def write(self, topic: str, time_ns: int, data: bytes) -> None:
         """Queue one message (log time = publish time = ``time_ns``); returns at once."""
+        if topic not in self._channels:
+            raise RecordingError(f"{self.folder}: topic {topic} was not declared for this bag")
         self._queue.put((topic, time_ns, data))
 
     def _drain(self) -> None:
