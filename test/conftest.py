@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -20,3 +22,16 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 @pytest.fixture
 def python_exe() -> str:
     return sys.executable
+
+
+BOOM_SIM = shutil.which("boom_sim")
+
+
+def start_node(*params: str, config_file: str = "default.yaml", record: bool = False) -> subprocess.Popen:
+    """boom_sim through its real entry point, with ``-p`` parameters; recording off unless asked."""
+    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
+    if not record:
+        args += ["-p", "record:=false"]
+    for p in params:
+        args += ["-p", p]
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import signal
 import subprocess
 import time
@@ -12,7 +11,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from conftest import BOOM_SIM, CONFIG, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -24,22 +23,11 @@ from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics import config  # noqa: E402
 from boom_hydraulics.commands import steps  # noqa: E402
-from boom_hydraulics.parameters import with_updates  # noqa: E402
 from boom_hydraulics.simulation import simulate  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
 
-BOOM_SIM = shutil.which("boom_sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
-
-
-def start_node(*params: str, config_file: str = "default.yaml", record: bool = False) -> subprocess.Popen:
-    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
-    if not record:
-        args += ["-p", "record:=false"]
-    for p in params:
-        args += ["-p", p]
-    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 class Client:
@@ -241,7 +229,7 @@ def test_fast_run_with_clock_equals_the_headless_simulation(client):
     assert wall < 10.0
     stamps = np.array([s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 for s in client.states])
     q_node = np.array([s.rod_position_m for s in client.states])
-    params = with_updates(config.load(CONFIG / "default.yaml"))
+    params = config.load(CONFIG / "default.yaml")
     headless = simulate(params, 10.0, steps([t for t, _ in scenario], [u for _, u in scenario]), jit=False)
     index = np.round(stamps / params.time_step_s).astype(int)
     keep = index <= 10_000

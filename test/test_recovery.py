@@ -8,32 +8,19 @@ import subprocess
 import time
 
 import pytest
-from conftest import CONFIG
+from conftest import BOOM_SIM, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from boom_hydraulics_msgs.msg import DriveState  # noqa: E402
 
-BOOM_SIM, RECOVER = shutil.which("boom_sim"), shutil.which("boom-bag-recover")
+RECOVER = shutil.which("boom-bag-recover")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None or RECOVER is None, reason="run through tools/with-env")
 
 
 def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
-    proc = subprocess.Popen(
-        [
-            BOOM_SIM,
-            "--ros-args",
-            "--params-file",
-            str(CONFIG / "default.yaml"),
-            "-p",
-            f"record_folder:={tmp_path}",
-            "-p",
-            "record_chunk_kib:=16.0",
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    proc = start_node(f"record_folder:={tmp_path}", "record_chunk_kib:=16.0", record=True)
     rclpy.init()
     node = rclpy.create_node("recovery_listener")
     states: list[DriveState] = []

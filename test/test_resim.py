@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from conftest import BOOM_SIM, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from std_srvs.srv import SetBool  # noqa: E402
@@ -17,7 +17,7 @@ from std_srvs.srv import SetBool  # noqa: E402
 from boom_hydraulics.bag_reading import read_drive_states  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
-BOOM_SIM, BOOM_RESIM = shutil.which("boom_sim"), shutil.which("boom-resim")
+BOOM_RESIM = shutil.which("boom-resim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None or BOOM_RESIM is None, reason="run through tools/with-env")
 
 
@@ -25,24 +25,8 @@ pytestmark = pytest.mark.skipif(BOOM_SIM is None or BOOM_RESIM is None, reason="
 def recorded(tmp_path_factory):
     """A node run with /clock: lift, hold, lower, queued while paused, then as fast as possible."""
     folder = tmp_path_factory.mktemp("bags")
-    proc = subprocess.Popen(
-        [
-            BOOM_SIM,
-            "--ros-args",
-            "--params-file",
-            str(CONFIG / "default.yaml"),
-            "-p",
-            "publish_clock:=true",
-            "-p",
-            "real_time_factor:=0.0",
-            "-p",
-            "start_paused:=true",
-            "-p",
-            f"record_folder:={folder}",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
+    proc = start_node(
+        "publish_clock:=true", "real_time_factor:=0.0", "start_paused:=true", f"record_folder:={folder}", record=True
     )
     rclpy.init()
     node = rclpy.create_node("resim_driver")
