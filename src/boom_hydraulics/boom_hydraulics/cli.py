@@ -23,7 +23,7 @@ import numpy as np
 from . import commands, config, studies
 from .errors import BoomHydraulicsError, ConfigError
 from .parameters import Parameters, from_mapping
-from .simulation import JIT_MIN_STEPS, OUTPUTS, Simulator
+from .simulation import OUTPUTS, simulate
 
 
 class _Parser(argparse.ArgumentParser):
@@ -98,8 +98,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration}")
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
-    sim = Simulator(params, jit=args.duration / params.time_step_s >= JIT_MIN_STEPS)  # long runs: compiled
-    trajectory = sim.run(args.duration, commands.from_parameters(params), every=args.every)
+    trajectory = simulate(params, args.duration, commands.from_parameters(params), every=args.every)
     header = [f"{name} [{unit}]" for name, unit, _ in OUTPUTS]
     columns = [trajectory[name] for name, _, _ in OUTPUTS]
     rows = ([_format(col[i]) for col in columns] for i in range(len(trajectory)))
