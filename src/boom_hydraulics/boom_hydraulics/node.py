@@ -24,7 +24,6 @@ from collections.abc import Callable
 from typing import Any
 
 import rclpy
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
@@ -47,8 +46,8 @@ from .command_queue import CommandedDrive, valve_opening
 from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
 from .messages import drive_state
-from .parameters import NAMES, as_dict, describe, from_mapping
-from .recording import BagRecorder, Topic, new_bag_folder
+from .parameters import NAMES, describe, from_mapping
+from .recording import BagRecorder, Topic, new_bag_folder, run_description
 from .simulation import Simulator
 
 #: Parameters of the node itself (not of the model): name -> (default, description, low, high).
@@ -197,12 +196,7 @@ class BoomSimNode(Node):
             Topic(self.resolve_topic_name("valve_command"), _type_name(ValveCommand), reliable=False),
             Topic(self.resolve_topic_name("commands"), _type_name(Float64MultiArray), reliable=False),
         ]
-        custom = {
-            "parameters": yaml.safe_dump(as_dict(self.sim.params), sort_keys=False),
-            "clock_origin_ns": str(round(self.clock_origin_s * 1e9)),  # stamp of sim time 0
-            "publish_rate_hz": repr(self.rate_hz),
-            "command_timeout_s": repr(self.timeout_s),
-        }
+        custom = run_description(self.sim.params, round(self.clock_origin_s * 1e9), self.rate_hz, self.timeout_s)
         recorder = BagRecorder(
             new_bag_folder(self.get_parameter("record_folder").value),
             topics,

@@ -26,6 +26,7 @@ from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from .errors import BoomHydraulicsError
+from .parameters import Parameters, as_dict
 
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 writes in Jazzy
 CUSTOM_DATA_RECORD = "boom_hydraulics"  # name of the MCAP metadata record with the custom data
@@ -94,6 +95,20 @@ def qos_profiles(topic: Topic) -> list[dict]:
         avoid_ros_namespace_conventions=False,
     )
     return dump_qos_v9([qos])
+
+
+def run_description(
+    params: Parameters, clock_origin_ns: int, publish_rate_hz: float, command_timeout_s: float, **extra: str
+) -> dict[str, str]:
+    """The custom data a bag carries so that its run can be simulated again (boom-resim):
+    the parameters, the stamp of simulated time 0, the publish rate and the command timeout."""
+    return {
+        "parameters": yaml.safe_dump(as_dict(params), sort_keys=False),
+        "clock_origin_ns": str(clock_origin_ns),
+        "publish_rate_hz": repr(publish_rate_hz),
+        "command_timeout_s": repr(command_timeout_s),
+        **extra,
+    }
 
 
 def new_bag_folder(parent: str | Path, name: str = "boom_sim") -> Path:

@@ -33,8 +33,8 @@ from .bag_reading import BagError, check_bag_path
 from .command_queue import CommandedDrive, valve_opening
 from .errors import BoomHydraulicsError, SimulationError
 from .messages import drive_state
-from .parameters import as_dict, from_mapping
-from .recording import CUSTOM_DATA_RECORD, BagRecorder, Topic
+from .parameters import from_mapping
+from .recording import CUSTOM_DATA_RECORD, BagRecorder, Topic, run_description
 from .simulation import Simulator
 
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
@@ -115,13 +115,9 @@ def resimulate(bag: Path, out: Path, config_file: Path | None = None, overrides:
     n_ticks = int((run.end_ns - run.clock_origin_ns) * 1e-9 / tick_s)
     topics = [Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState")]
     topics += [Topic(t, m, reliable=False) for t, m in sorted({(c[1], c[2]) for c in run.commands})]
-    custom = {
-        "parameters": yaml.safe_dump(as_dict(params), sort_keys=False),
-        "clock_origin_ns": str(run.clock_origin_ns),
-        "publish_rate_hz": repr(run.publish_rate_hz),
-        "command_timeout_s": repr(run.command_timeout_s),
-        "resimulated_from": str(bag),
-    }
+    custom = run_description(
+        params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
+    )
     stopped = None
     pending = list(run.commands)
     with BagRecorder(out, topics, custom_data=custom) as recorder:
