@@ -338,3 +338,11 @@ def test_switching_publish_clock_on_while_recording_records_the_clock(client, tm
             1 for c in reader.connections if c.topic == "/drive_state" for _ in reader.messages(connections=[c])
         )
     assert clocks > 40 and states > clocks  # /clock recorded from the switch on
+
+
+def test_command_timeout_changed_at_run_time_takes_effect(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5)
+    assert client.set_parameter("command_timeout_s", 0.0).successful  # never close by itself
+    client.spin_for(0.3, opening=0.6)
+    client.spin_for(1.0)  # no commands for twice the start value of 0.5 s
+    assert client.last().valve_command == pytest.approx(0.6)

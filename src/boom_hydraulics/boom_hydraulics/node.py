@@ -245,6 +245,7 @@ class BoomSimNode(Node):
             self.get_logger().info(f"node parameters changed: {node_changes}")
             for name, value in node_changes.items():  # rclpy stores them after this returns
                 setattr(self, _NODE_ATTRIBUTES[name], type(NODE_PARAMETERS[name][0])(value))
+            self.drive.timeout_s = self.timeout_s  # the drive applies it
             self._restart_clock()
         return SetParametersResult(successful=True)
 
@@ -336,7 +337,6 @@ class BoomSimNode(Node):
         """Take ``steps`` physics steps, applying queued commands at their times."""
         if self.failure is not None:
             return
-        self.drive.timeout_s = self.timeout_s
         try:
             self.drive.advance(steps)
         except SimulationError as exc:
