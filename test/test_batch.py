@@ -42,3 +42,13 @@ def test_batch_members_must_share_mode_method_and_step():
         simulate_batch([Parameters(), with_updates(Parameters(), time_step_s=2e-3)], 0.1, lambda t: 0.0)
     with pytest.raises(ConfigError, match="fixed-step method"):
         simulate_batch([with_updates(Parameters(), method="rk45")], 0.1, lambda t: 0.0)
+
+
+def test_a_batch_keeps_only_the_outputs_asked_for():
+    params = [Parameters(), with_updates(Parameters(), payload_mass_kg=150.0)]
+    out = simulate_batch(params, 0.2, lambda t: 1.0, every=10, outputs=("t", "q1"))
+    assert set(out) == {"t", "q1", "failed_at_s"}
+    assert out["q1"].shape == (21, 2) and out["t"][-1, 0] == pytest.approx(0.2)
+    assert out["q1"][-1, 0] > out["q1"][-1, 1] > out["q1"][0, 1]  # the heavier load lifts less
+    with pytest.raises(ConfigError, match="unknown outputs"):
+        simulate_batch(params, 0.1, lambda t: 0.0, outputs=("q1", "speed"))

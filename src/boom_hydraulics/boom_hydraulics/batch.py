@@ -44,15 +44,21 @@ def simulate_batch(
     duration_s: float,
     command: Callable[[float], float | np.ndarray],
     every: int = 1,
+    outputs: Sequence[str] = OUTPUT_NAMES,
 ) -> dict[str, np.ndarray]:
     """Integrate every parameter set over ``duration_s`` with the valve command ``command(t)``.
 
-    Returns each output of :data:`simulation.OUTPUT_NAMES` as an array of shape
-    (samples, sets), sampled at the start and every ``every`` steps. A set whose state
-    turns non-finite is frozen at its last finite state from then on and reported in
-    ``failed_at_s`` (NaN where the set ran through).
+    Returns each of ``outputs`` (names of :data:`simulation.OUTPUT_NAMES`) as an array of
+    shape (samples, sets), sampled at the start and every ``every`` steps. A set whose
+    state turns non-finite is frozen at its last finite state from then on and reported
+    in ``failed_at_s`` (NaN where the set ran through).
     """
     _check_shared(params)
+    unknown = sorted(set(outputs) - set(OUTPUT_NAMES))
+    if unknown:
+        raise ConfigError(f"unknown outputs {unknown}; choose from {', '.join(OUTPUT_NAMES)}")
+    if every < 1:
+        raise ConfigError(f"every must be >= 1, got {every}")
     model = MODELS[params[0].mode]
     c = stacked_constants(params)
     n_sets = len(params)
@@ -61,9 +67,18 @@ def simulate_batch(
     step = integrators.rk4_step if params[0].method == "rk4" else integrators.euler_step
     failed_at = np.full(n_sets, np.nan)
     n_steps = round(duration_s / dt)
+    n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
     t = 0.0
     half = 0.5 * dt  # the command of a step is taken at its middle, as in Simulator.run
-    samples = [model.observe(t, y, c, _as_array(command(t + half), n_sets), np)]
+    first = model.observe(t, y, c, _as_array(command(t + half), n_sets), np)
+    columns = {name: np.empty((n_rows, n_sets), dtype=np.asarray(first[name]).dtype) for name in outputs}
+
+    def record(row: int, values: dict) -> None:
+        for name in outputs:
+            columns[name][row] = values[name]
+
+    record(0, first)
+    row = 1
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for i in range(1, n_steps + 1):
             u = _as_array(command(t + half), n_sets)
@@ -81,8 +96,9 @@ def simulate_batch(
                 y = y_new
             t = i * dt
             if i % every == 0 or i == n_steps:
-                samples.append(model.observe(t, y, c, _as_array(command(t + half), n_sets), np))
-    out = {name: np.array([np.broadcast_to(s[name], (n_sets,)) for s in samples]) for name in OUTPUT_NAMES}
+                record(row, model.observe(t, y, c, _as_array(command(t + half), n_sets), np))
+                row += 1
+    out = dict(columns)
     out["failed_at_s"] = failed_at
     return out
 
