@@ -127,3 +127,25 @@ def test_bad_bags_give_one_line_and_write_nothing(tmp_path, case):
     assert not out.exists()
     with pytest.raises(BagError):
         read_drive_states(bag)
+
+
+def test_lift_through_an_angle_is_timed_and_costed_between_samples():
+    t = np.arange(0.0, 2.0, 0.1)
+    u = np.where(t >= 0.2, 1.0, 0.0)
+    alpha = 0.3 + np.radians(10.0) * np.clip(t - 0.2, 0.0, None)  # 10 deg/s from t = 0.2 s
+    energy = 1000.0 * t
+    signals = {"t": t, "alpha": alpha, "u": u, "supply_energy": energy, "valve_loss_energy": 0.5 * energy}
+    m = analysis.lift_metrics(signals, lift_angle_deg=12.5)
+    assert m["lift_completed"] == 1.0
+    assert m["lift_time_s"] == pytest.approx(1.25)  # reached at t = 1.45 s, between two samples
+    assert m["lift_energy_j"] == pytest.approx(1450.0)
+    assert m["lift_valve_loss_j"] == pytest.approx(725.0)
+    assert m["rise_deg"] == pytest.approx(17.0)
+    short = analysis.lift_metrics(signals, lift_angle_deg=30.0)
+    assert short["lift_completed"] == 0.0 and math.isnan(short["lift_time_s"]) and math.isnan(short["lift_energy_j"])
+
+
+def test_a_settling_hump_is_not_an_oscillation():
+    t = np.arange(0, 2, 1e-3)
+    frequency, damping = analysis.oscillation(t, 1.0 - np.exp(-3 * t) + 0.3 * np.exp(-((t - 0.5) ** 2) / 0.02))
+    assert math.isnan(frequency) and math.isnan(damping)

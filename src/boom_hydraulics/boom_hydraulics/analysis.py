@@ -10,6 +10,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
+#: The boom rise (degrees) a lift has to achieve, unless the caller names another.
+DEFAULT_LIFT_ANGLE_DEG = 20.0
+
 
 def _first_opening(u: np.ndarray) -> int:
     opened = np.nonzero(u > 0.0)[0]
@@ -34,30 +37,85 @@ def _segment_after(u: np.ndarray, start: int) -> slice:
 def oscillation(t: np.ndarray, x: np.ndarray) -> tuple[float, float]:
     """Dominant frequency (Hz) and damping ratio of the oscillation in ``x``.
 
-    Frequency: the highest peak of the spectrum of ``x`` minus its linear trend.
-    Damping: from the logarithmic decrement of successive positive peaks of the
-    detrended signal, zeta = d / sqrt(4 pi^2 + d^2). NaN where there is no oscillation.
+    Frequency: the highest peak of the spectrum of ``x`` minus its linear trend, from two
+    cycles per window up. Damping: from the logarithmic decrement of successive positive
+    peaks of the detrended signal, zeta = d / sqrt(4 pi^2 + d^2). Both NaN where there is
+    no oscillation (fewer than two positive peaks).
     """
     if len(t) < 16:
         return math.nan, math.nan
     detrended = x - np.polyval(np.polyfit(t, x, 1), t)
     if np.ptp(detrended) <= 1e-12 * max(1.0, np.max(np.abs(x))):
         return math.nan, math.nan
-    dt = float(np.median(np.diff(t)))
-    spectrum = np.abs(np.fft.rfft(detrended * np.hanning(len(detrended))))
-    freqs = np.fft.rfftfreq(len(detrended), dt)
-    k = int(np.argmax(spectrum[1:]) + 1)
-    frequency = float(freqs[k])
     inner = detrended[1:-1]
     peaks = np.nonzero((inner > detrended[:-2]) & (inner >= detrended[2:]) & (inner > 0))[0] + 1
     if len(peaks) < 2:
-        return frequency, math.nan
+        return math.nan, math.nan  # a single hump is a settling motion, not an oscillation
+    dt = float(np.median(np.diff(t)))
+    spectrum = np.abs(np.fft.rfft(detrended * np.hanning(len(detrended))))
+    freqs = np.fft.rfftfreq(len(detrended), dt)
+    # from two cycles per window up: the lowest bins hold what is left of a slow settling
+    k = int(np.argmax(spectrum[2:]) + 2)
+    frequency = float(freqs[k])
     amplitudes = detrended[peaks]
     decrement = float(np.mean(np.log(amplitudes[:-1] / amplitudes[1:])))
     return frequency, decrement / math.sqrt(4 * math.pi**2 + decrement**2)
 
 
-def metrics(signals: Mapping[str, np.ndarray], target_fraction: float = 0.9) -> dict[str, float]:
+def _crossing(t: np.ndarray, x: np.ndarray, level: float, start: int) -> tuple[float, int] | None:
+    """Time at which ``x`` first reaches ``level`` at or after index ``start``, linearly
+    interpolated between samples, and the index of the sample before the crossing."""
+    above = np.nonzero(x[start:] >= level)[0]
+    if not len(above):
+        return None
+    k = start + int(above[0])
+    if k == start or x[k] == x[k - 1]:
+        return float(t[k]), k
+    w = (level - x[k - 1]) / (x[k] - x[k - 1])
+    return float(t[k - 1] + w * (t[k] - t[k - 1])), k - 1
+
+
+def _at(t: np.ndarray, y: np.ndarray, time: float, k: int) -> float:
+    """``y`` at ``time`` (between samples k and k + 1), linearly interpolated."""
+    if k + 1 >= len(t) or t[k + 1] == t[k]:
+        return float(y[k])
+    w = (time - t[k]) / (t[k + 1] - t[k])
+    return float(y[k] + w * (y[k + 1] - y[k]))
+
+
+def lift_metrics(signals: Mapping[str, np.ndarray], lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG) -> dict[str, float]:
+    """How the boom lifts through ``lift_angle_deg`` of rise above its start elevation.
+
+    - ``rise_deg``: largest rise of the boom elevation alpha above its start value.
+    - ``lift_completed``: 1.0 if the boom rose through the angle, else 0.0.
+    - ``lift_time_s``: from the first opening command (u > 0) until alpha first reaches
+      the start value plus the angle (interpolated between samples); NaN if it does not.
+    - ``lift_energy_j``, ``lift_valve_loss_j``: energy drawn from the supply and dissipated
+      in the valve (and relief valves) from the start until that moment: the energy of the lift.
+    """
+    t, alpha, u = (np.asarray(signals[k], dtype=float) for k in ("t", "alpha", "u"))
+    rise = alpha - alpha[0]
+    out = {
+        "rise_deg": float(np.degrees(np.max(rise))),
+        "lift_completed": 0.0,
+        "lift_time_s": math.nan,
+        "lift_energy_j": math.nan,
+        "lift_valve_loss_j": math.nan,
+    }
+    opening = _first_opening(u)
+    crossing = _crossing(t, rise, math.radians(lift_angle_deg), opening)
+    if crossing is not None:
+        time, k = crossing
+        out["lift_completed"] = 1.0
+        out["lift_time_s"] = time - float(t[opening])
+        out["lift_energy_j"] = _at(t, np.asarray(signals["supply_energy"], float), time, k)
+        out["lift_valve_loss_j"] = _at(t, np.asarray(signals["valve_loss_energy"], float), time, k)
+    return out
+
+
+def metrics(
+    signals: Mapping[str, np.ndarray], target_fraction: float = 0.9, lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG
+) -> dict[str, float]:
     """The design metrics of one run.
 
     - ``lift_m``: largest rise of q1 above its start value.
@@ -70,6 +128,7 @@ def metrics(signals: Mapping[str, np.ndarray], target_fraction: float = 0.9) -> 
     - ``peak_pressure_pa``, ``min_pressure_pa``: over both chambers.
     - ``cavitation_s``, ``relief_s``: time with the flag set.
     - ``supply_energy_j``, ``valve_loss_energy_j``: at the end; ``..._per_m``: per metre of lift.
+    - with the boom elevation ``alpha`` among the signals, those of :func:`lift_metrics`.
     """
     t, q, v, u = (np.asarray(signals[k], dtype=float) for k in ("t", "q1", "v", "u"))
     p = np.concatenate([np.asarray(signals["p1"], float), np.asarray(signals["p2"], float)])
@@ -102,4 +161,6 @@ def metrics(signals: Mapping[str, np.ndarray], target_fraction: float = 0.9) -> 
             settled = float(np.median(q_hold[-max(1, len(q_hold) // 4) :]))
             out["overshoot_m"] = max(0.0, float(np.max(q_hold)) - settled)
             out["oscillation_hz"], out["damping_ratio"] = oscillation(t[hold], np.asarray(signals["p1"], float)[hold])
+    if "alpha" in signals:
+        out.update(lift_metrics(signals, lift_angle_deg))
     return out
