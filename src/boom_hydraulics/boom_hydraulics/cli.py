@@ -11,7 +11,6 @@ Errors in arguments, configs or the run print one line and exit non-zero.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import sys
 from collections.abc import Sequence
@@ -22,6 +21,7 @@ import numpy as np
 
 from . import commands, config, studies
 from .errors import BoomHydraulicsError, ConfigError
+from .files import write_csv
 from .parameters import Parameters, from_mapping
 from .simulation import OUTPUTS, simulate
 
@@ -33,39 +33,11 @@ class _Parser(argparse.ArgumentParser):
         raise ConfigError(f"{self.prog}: {message}")
 
 
-def parse_profile(text: str) -> dict[str, Any]:
-    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
-    -> the command_* parameters."""
-    kind, _, body = text.partition(":")
-    try:
-        if kind == "constant":
-            return {"command_profile": "constant", "command_value": float(body)}
-        if kind in ("steps", "ramp"):
-            pairs = [item.split("=") for item in body.split(",") if item]
-            times = [float(t) for t, _ in pairs]
-            values = [float(u) for _, u in pairs]
-            return {"command_profile": kind, "command_times_s": times, "command_values": values}
-        if kind == "sine":
-            offset, amplitude, frequency = (float(x) for x in body.split(","))
-            return {
-                "command_profile": "sine",
-                "command_offset": offset,
-                "command_amplitude": amplitude,
-                "command_frequency_hz": frequency,
-            }
-    except ValueError:
-        pass
-    raise ConfigError(
-        f"--profile {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
-        "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
-    )
-
-
 def load_parameters(args: argparse.Namespace) -> Parameters:
     """Config file (or defaults) plus --set, --profile, --method and --dt, validated at once."""
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
     if getattr(args, "profile", None):
-        overrides.update(parse_profile(args.profile))
+        overrides.update(commands.parse_profile(args.profile))
     if getattr(args, "method", None):
         overrides["method"] = args.method
     if getattr(args, "dt", None) is not None:
@@ -73,17 +45,6 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
     if args.config:
         return config.load(args.config, overrides)
     return from_mapping(overrides)
-
-
-def _write_csv(path: Path, header: Sequence[str], rows: Any) -> None:
-    """Write to a temporary file first, so that a failed run leaves no half-written CSV."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
-    with tmp.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(header)
-        writer.writerows(rows)
-    tmp.replace(path)
 
 
 def _format(value: Any) -> str:
@@ -102,7 +63,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     header = [f"{name} [{unit}]" for name, unit, _ in OUTPUTS]
     columns = [trajectory[name] for name, _, _ in OUTPUTS]
     rows = ([_format(col[i]) for col in columns] for i in range(len(trajectory)))
-    _write_csv(Path(args.out), header, rows)
+    write_csv(Path(args.out), header, rows)
     print(
         f"{args.out}: {len(trajectory)} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
         f"q1 {trajectory['q1'][0]:.4f} -> {trajectory['q1'][-1]:.4f} m"
@@ -129,7 +90,7 @@ def cmd_statics(args: argparse.Namespace) -> int:
     if args.points < 2:
         raise ConfigError(f"--points must be >= 2, got {args.points}")
     header, table = statics_table(params, diameters, args.points)
-    _write_csv(Path(args.out), header, ([repr(float(v)) for v in row] for row in table))
+    write_csv(Path(args.out), header, ([repr(float(v)) for v in row] for row in table))
     print(f"{args.out}: {len(table)} positions x {len(diameters)} piston diameters")
     return 0
 

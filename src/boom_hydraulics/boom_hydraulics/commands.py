@@ -5,7 +5,9 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Callable
+from typing import Any
 
+from .errors import ConfigError
 from .parameters import Parameters
 
 CommandProfile = Callable[[float], float]
@@ -55,3 +57,69 @@ def from_parameters(p: Parameters) -> CommandProfile:
     if p.command_profile == "ramp":
         return ramp(list(p.command_times_s), list(p.command_values))
     return sine(p.command_offset, p.command_amplitude, p.command_frequency_hz)
+
+
+def parse_profile(text: str) -> dict[str, Any]:
+    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
+    -> the command_* parameters."""
+    kind, _, body = text.partition(":")
+    try:
+        if kind == "constant":
+            return {"command_profile": "constant", "command_value": float(body)}
+        if kind in ("steps", "ramp"):
+            pairs = [item.split("=") for item in body.split(",") if item]
+            times = [float(t) for t, _ in pairs]
+            values = [float(u) for _, u in pairs]
+            return {"command_profile": kind, "command_times_s": times, "command_values": values}
+        if kind == "sine":
+            offset, amplitude, frequency = (float(x) for x in body.split(","))
+            return {
+                "command_profile": "sine",
+                "command_offset": offset,
+                "command_amplitude": amplitude,
+                "command_frequency_hz": frequency,
+            }
+    except ValueError:
+        pass
+    raise ConfigError(
+        f"valve profile {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
+        "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
+    )
+
+
+#: (start time s, opening): lift, hold, lower, hold; the demo's cycle.
+CYCLE = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
+
+#: Named valve scenarios of the design sweeps (see :func:`scenario`).
+SCENARIOS = ("lift", "cycle", "config")
+
+
+def scenario(text: str, duration_s: float) -> dict[str, Any]:
+    """The command_* parameters of a named scenario or a profile (see :func:`parse_profile`).
+
+    - ``lift``: valve fully open for the first half of the run, then closed (the hold shows
+      overshoot and oscillation); ``lift:T`` opens for T seconds.
+    - ``cycle``: lift, hold, lower, hold (:data:`CYCLE`, 9 s).
+    - ``config``: the command_* parameters of the config file, unchanged ({}).
+    - anything else: a profile such as ``steps:0=1,2=0``.
+    """
+    name, _, arg = text.partition(":")
+    if name == "config" and not arg:
+        return {}
+    if name == "cycle" and not arg:
+        times, values = zip(*CYCLE)
+        return {"command_profile": "steps", "command_times_s": list(times), "command_values": list(values)}
+    if name == "lift":
+        try:
+            open_s = float(arg) if arg else 0.5 * duration_s
+        except ValueError:
+            raise ConfigError(f"scenario {text!r}: write lift or lift:T with T the opening time in s") from None
+        if not 0.0 < open_s:
+            raise ConfigError(f"scenario {text!r}: the valve must open for a positive time")
+        return {"command_profile": "steps", "command_times_s": [0.0, open_s], "command_values": [1.0, 0.0]}
+    if name in ("constant", "steps", "ramp", "sine"):
+        return parse_profile(text)
+    raise ConfigError(
+        f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, or a profile "
+        "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ)"
+    )

@@ -24,9 +24,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 from .analyze import main as analyze_main
-
-#: (start time s, opening): lift, hold, lower, hold.
-DEFAULT_SCENARIO = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
+from .commands import CYCLE
 
 
 class ScenarioDriver(Node):
@@ -76,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         cmd += ["--params-file", args.params_file]
     node_proc = subprocess.Popen(cmd, env=os.environ.copy())
     rclpy.init()
-    driver = ScenarioDriver(DEFAULT_SCENARIO)
+    driver = ScenarioDriver(CYCLE)
     try:
         deadline = time.monotonic() + 20.0
         while driver.state is None:  # wait for the node to come up
