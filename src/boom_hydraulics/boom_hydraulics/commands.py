@@ -59,7 +59,7 @@ def from_parameters(p: Parameters) -> CommandProfile:
     return sine(p.command_offset, p.command_amplitude, p.command_frequency_hz)
 
 
-def parse_profile(text: str) -> dict[str, Any]:
+def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
     """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
     -> the command_* parameters."""
     kind, _, body = text.partition(":")
@@ -82,7 +82,7 @@ def parse_profile(text: str) -> dict[str, Any]:
     except ValueError:
         pass
     raise ConfigError(
-        f"valve profile {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
+        f"{option} {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
         "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
     )
 
@@ -118,7 +118,7 @@ def scenario(text: str, duration_s: float) -> dict[str, Any]:
             raise ConfigError(f"scenario {text!r}: the valve must open for a positive time")
         return {"command_profile": "steps", "command_times_s": [0.0, open_s], "command_values": [1.0, 0.0]}
     if name in ("constant", "steps", "ramp", "sine"):
-        return parse_profile(text)
+        return parse_profile(text, "--scenario")
     raise ConfigError(
         f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, or a profile "
         "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ)"
