@@ -32,6 +32,7 @@ setup(
             "boom-replay = boom_hydraulics.replay:main",
             "boom-resim = boom_hydraulics.resim:main",
             "boom-bag-recover = boom_hydraulics.recovery:main",
+            "boom-sweep = boom_hydraulics.sweep_cli:main",
         ],
     },
 )

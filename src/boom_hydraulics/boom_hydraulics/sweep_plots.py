@@ -1,0 +1,119 @@
+"""PNG plots of a sweep table: each metric against each varied parameter, and the trade-off front."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, no display
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .recommend import TRADE_OFF, format_value, trade_off_front
+
+#: Metrics plotted against the varied parameters: (column, label, scale).
+PLOTTED = (
+    ("lift_time_s", "lift time [s]", 1.0),
+    ("lift_energy_j", "lift energy [kJ]", 1e-3),
+    ("lift_valve_loss_j", "valve loss in lift [kJ]", 1e-3),
+    ("peak_speed_m_s", "peak rod speed [m/s]", 1.0),
+    ("rms_speed_m_s", "RMS rod speed [m/s]", 1.0),
+    ("overshoot_m", "overshoot [mm]", 1e3),
+    ("oscillation_hz", "oscillation [Hz]", 1.0),
+    ("damping_ratio", "damping ratio", 1.0),
+    ("peak_pressure_pa", "peak pressure [MPa]", 1e-6),
+    ("min_pressure_pa", "min pressure [MPa]", 1e-6),
+    ("cavitation_s", "cavitation [s]", 1.0),
+    ("relief_s", "relief open [s]", 1.0),
+)
+
+
+def _numeric(column: np.ndarray) -> bool:
+    return np.asarray(column).dtype.kind in "fiu"
+
+
+def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: str | None, path: Path) -> None:
+    """A panel per metric of :data:`PLOTTED` against ``parameter``; ok designs coloured by
+    ``color_by`` (numeric or categorical), the others grey."""
+    x = np.asarray(table[parameter])
+    ok = np.asarray(table["status"]) == "ok"
+    fig, axes = plt.subplots(3, 4, figsize=(15, 9.5), constrained_layout=True)
+    colours, mapper = _colours(table, color_by, ok)
+    for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
+        y = np.asarray(table[name], dtype=float) * scale
+        ax.scatter(x[~ok], y[~ok], s=10, marker="x", color="0.7", linewidth=0.8, label="not ok")
+        ax.scatter(x[ok], y[ok], s=12, c=colours, cmap="viridis" if mapper else None, norm=mapper)
+        ax.set_xlabel(parameter)
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    if mapper is not None and color_by is not None:
+        fig.colorbar(plt.cm.ScalarMappable(norm=mapper, cmap="viridis"), ax=axes, label=color_by, shrink=0.6)
+    fig.suptitle(
+        f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
+        + (f" by {color_by}" if color_by else "")
+        + f", {int((~ok).sum())} others (x)"
+    )
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray):
+    """Colours of the ok points and the norm of a colour bar (None for categories)."""
+    if color_by is None:
+        return "tab:blue", None
+    values = np.asarray(table[color_by])[ok]
+    if _numeric(values):
+        values = values.astype(float)
+        low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
+        return values, matplotlib.colors.Normalize(low, high if high > low else low + 1.0)
+    categories = sorted(set(values.tolist()))
+    palette = plt.get_cmap("tab10")
+    return [palette(categories.index(v) % 10) for v in values], None
+
+
+def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], path: Path) -> None:
+    """Lift time against lift energy and against peak pressure; the front of all three ringed."""
+    ok = np.asarray(table["status"]) == "ok"
+    front = trade_off_front(table)
+    time_s, energy_kj, pressure_mpa = (
+        np.asarray(table[m], dtype=float) * s for m, s in zip(TRADE_OFF, (1.0, 1e-3, 1e-6))
+    )
+    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5), constrained_layout=True)
+    panels = ((left, energy_kj, "lift energy [kJ]", pressure_mpa, "peak pressure [MPa]"),
+              (right, pressure_mpa, "peak pressure [MPa]", energy_kj, "lift energy [kJ]"))  # fmt: skip
+    for ax, y, ylabel, colour, clabel in panels:
+        points = ax.scatter(time_s[ok], y[ok], c=colour[ok], s=14, cmap="viridis")
+        ax.scatter(time_s[front], y[front], s=70, facecolors="none", edgecolors="tab:red", label="non-dominated")
+        fig.colorbar(points, ax=ax, label=clabel)
+        ax.set_xlabel("lift time [s]")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+    if label_columns:  # name a few front designs by their parameter values
+        for row in np.nonzero(front)[0][:12]:
+            text = ", ".join(format_value(table[c][row]) for c in label_columns)
+            left.annotate(text, (time_s[row], energy_kj[row]), fontsize=6, xytext=(4, 4), textcoords="offset points")
+        left.set_title(f"front designs labelled ({', '.join(label_columns)})", fontsize="small")
+    fig.suptitle(
+        f"Trade-off: {int(front.sum())} non-dominated of {int(ok.sum())} ok designs "
+        "(lower lift time, energy and peak pressure are better)"
+    )
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
+    """Every sweep plot into ``folder``; returns the files written."""
+    written = []
+    varied = [c for c in point_columns if _numeric(table[c]) and len(np.unique(table[c])) > 1]
+    for parameter in varied:
+        others = [c for c in point_columns if c != parameter and len(np.unique(table[c])) > 1]
+        path = folder / f"metrics_vs_{parameter}.png"
+        metrics_against(table, parameter, others[0] if others else None, path)
+        written.append(path)
+    path = folder / "trade_off.png"
+    trade_off(table, point_columns, path)
+    written.append(path)
+    return written

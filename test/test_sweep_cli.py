@@ -1,0 +1,168 @@
+"""boom-sweep as a user runs it: outputs, Dask against local, resuming, interrupting, bad input."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+BOOM_SWEEP = shutil.which("boom-sweep")
+pytestmark = pytest.mark.skipif(BOOM_SWEEP is None, reason="boom-sweep not on PATH (run through tools/with-env)")
+
+FOUR_POINTS = ["--vary", "piston_diameter=0.04,0.06", "--vary", "payload=0,150", "--duration", "1.5"]
+FOUR_POINTS += ["--lift-angle-deg", "8", "--no-plots"]
+
+
+def _sweep(*args: object, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([BOOM_SWEEP, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def _load(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path) as data:
+        return {name: data[name] for name in data.files}
+
+
+def _assert_tables_equal(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
+    assert list(a) == list(b)
+    for name in a:
+        if a[name].dtype.kind == "f":
+            assert np.array_equal(a[name], b[name], equal_nan=True), name
+        else:
+            assert (a[name] == b[name]).all(), name
+
+
+def test_a_sweep_writes_its_table_plots_and_recommendation(tmp_path):
+    out = tmp_path / "sweep"
+    args = ["--config", CONFIG / "default.yaml", *FOUR_POINTS[:-1], "--out", out]
+    result = _sweep(*args, "--recommend", "--max-pressure-pa", "30e6", "--require", "lift_time_s<=5")
+    assert result.returncode == 0, result.stderr
+    with (out / "results.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [(float(r["piston_diameter_m"]), float(r["payload_mass_kg"])) for r in rows] == [
+        (0.04, 0.0),
+        (0.04, 150.0),
+        (0.06, 0.0),
+        (0.06, 150.0),
+    ]
+    assert {r["status"] for r in rows} == {"ok"}
+    times = [float(r["lift_time_s"]) for r in rows]
+    assert times[0] < times[2] and times[0] < times[1]  # the small bore lifts the light load fastest
+    for png in ("metrics_vs_piston_diameter_m.png", "metrics_vs_payload_mass_kg.png", "trade_off.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = (out / "recommendation.txt").read_text()
+    assert "peak_pressure_pa <= 3e+07" in text and "lift_time_s <= 5" in text
+    assert "4 of 4 designs meet every constraint" in text
+    ranked = _load(out / "recommendation.npz")
+    assert np.all(np.diff(ranked["lift_energy_j"]) >= 0)
+    assert text in result.stdout
+
+    # all batches done: a new question re-ranks the stored results without running anything
+    worst_40mm, worst_60mm = max(times[:2]), max(times[2:])
+    assert worst_40mm < worst_60mm
+    again = _sweep(*args, "--resume", "--across", "payload", "--max-lift-time-s", worst_40mm)
+    assert again.returncode == 0, again.stderr
+    assert "1 done before, 0 to run" in again.stderr
+    text = (out / "recommendation.txt").read_text()
+    assert "1 of 2 designs meet every constraint" in text  # 40 mm lifts both payloads in time, 60 mm not
+    designs = _load(out / "recommendation.npz")
+    assert designs["piston_diameter_m"].tolist() == [0.04] and designs["points"].tolist() == [2]
+
+
+def test_a_local_dask_cluster_gives_the_same_table_as_this_process(tmp_path):
+    local = _sweep(*FOUR_POINTS, "--batch-size", "3", "--out", tmp_path / "local")
+    assert local.returncode == 0, local.stderr
+    dask = _sweep(*FOUR_POINTS, "--batch-size", "1", "--workers", "2", "--out", tmp_path / "dask")
+    assert dask.returncode == 0, dask.stderr
+    assert "on a local Dask cluster of 2 processes" in dask.stderr
+    _assert_tables_equal(_load(tmp_path / "local" / "results.npz"), _load(tmp_path / "dask" / "results.npz"))
+
+
+def test_resume_reuses_finished_batches_and_runs_only_the_rest(tmp_path):
+    out = tmp_path / "sweep"
+    first = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out)
+    assert first.returncode == 0, first.stderr
+    complete = _load(out / "results.npz")
+    batches = sorted((out / "batches").glob("*.npz"))
+    assert len(batches) == 4
+    for path in batches[2:]:
+        path.unlink()
+    marked = _load(batches[0])  # a stored batch is taken as it is, not computed again
+    marked["lift_time_s"] = np.array([123.0])
+    np.savez(batches[0], **marked)
+
+    again = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out)
+    assert again.returncode == 2 and "pass --resume" in again.stderr
+
+    resumed = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert "2 done before, 2 to run" in resumed.stderr
+    table = _load(out / "results.npz")
+    point0 = int(marked["point"][0])
+    assert table["lift_time_s"][point0] == 123.0
+    others = [i for i in range(4) if i != point0]
+    assert np.array_equal(table["lift_time_s"][others], complete["lift_time_s"][others])
+
+    changed = _sweep(
+        *FOUR_POINTS[:-3], "--lift-angle-deg", 9, "--no-plots", "--batch-size", 1, "--out", out, "--resume"
+    )
+    assert changed.returncode == 2 and "differs in: lift_angle_deg" in changed.stderr
+
+
+def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(tmp_path):
+    out = tmp_path / "sweep"
+    args = ["--vary", "payload=0:200:8", "--duration", "2", "--batch-size", "1", "--no-plots", "--out", out]
+    process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list((out / "batches").glob("*.npz")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    kept = list((out / "batches").glob("*.npz"))
+    assert 1 <= len(kept) < 8
+    assert "--resume" in stderr and str(out) in stderr
+    assert not (out / "results.csv").exists()
+    resumed = _sweep(*args, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"{len(kept)} done before, {8 - len(kept)} to run" in resumed.stderr
+    assert len(_load(out / "results.npz")["point"]) == 8
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--vary", "piston_diamter=0.04,0.06"], "did you mean piston_diameter_m"),
+        (["--vary", "payload=0:200"], "range without a count"),
+        (["--config", "nosuch.yaml"], "nosuch.yaml"),
+        (["--scenario", "hover"], "unknown scenario 'hover'"),
+        (["--require", "peak<=1"], "unknown metric 'peak'"),
+        (["--duration", "nan"], "--duration must be a finite number"),
+        (["--workers", "2", "--scheduler", "tcp://localhost:8786"], "not allowed with argument"),
+    ],
+)
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
+    result = _sweep(*args, "--out", tmp_path / "sweep")
+    assert result.returncode == 2
+    assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr
+    assert not (tmp_path / "sweep").exists()
+
+
+def test_an_unreachable_scheduler_is_named_and_leaves_no_folder(tmp_path):
+    result = _sweep("--vary", "payload=0", "--scheduler", "tcp://127.0.0.1:9", "--out", tmp_path / "s")
+    assert result.returncode == 2
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_folder_that_is_not_a_sweep_is_not_touched(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    result = _sweep("--vary", "payload=0", "--out", tmp_path)
+    assert result.returncode == 2 and "is not a sweep folder" in result.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
