@@ -20,17 +20,11 @@ from typing import Any
 import numpy as np
 
 from . import commands, config, studies
-from .errors import BoomHydraulicsError, ConfigError
+from .command_line import RaisingParser, run_main
+from .errors import ConfigError
 from .files import write_csv
 from .parameters import Parameters, from_mapping
 from .simulation import OUTPUTS, simulate
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises instead of exiting, so every error ends as one line."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise ConfigError(f"{self.prog}: {message}")
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -96,8 +90,8 @@ def cmd_statics(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = RaisingParser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=RaisingParser)
 
     def common(p: argparse.ArgumentParser) -> None:
         p.add_argument("--config", help="ROS 2 params YAML (boom_sim: ros__parameters: ...)")
@@ -130,17 +124,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:
+    def body() -> int:
         args = build_parser().parse_args(argv)
         return args.handler(args)
-    except BoomHydraulicsError as exc:
-        print(f"boom-sim: error: {exc}", file=sys.stderr)
-        return 2 if isinstance(exc, ConfigError) else 1
-    except OSError as exc:
-        print(f"boom-sim: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+
+    return run_main("boom-sim", body)
 
 
 if __name__ == "__main__":

@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 
 from . import config, recommend, sweep
-from .errors import BoomHydraulicsError, ConfigError
+from .command_line import RaisingParser, run_main
+from .errors import ConfigError
 from .executors import DaskExecutor, LocalExecutor
 from .files import write_csv
 from .parameters import Parameters, from_mapping
@@ -50,15 +51,8 @@ BATCH_SIZE = 1000
 UNITS = {name: unit for name, unit, _ in sweep.METRICS}
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises instead of exiting, so every error ends as one line."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise ConfigError(f"{self.prog}: {message}")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
+    parser = RaisingParser(
         prog="boom-sweep",
         description="Sweep cylinder designs through one valve scenario and rank them.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
@@ -283,22 +277,17 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = build_parser().parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+
+    def body() -> int:
+        args = build_parser().parse_args(words)
         for name in ("duration", "lift_angle_deg", "max_pressure_pa", "max_lift_time_s"):
             value = getattr(args, name)
             if value is not None and not math.isfinite(value):
                 raise ConfigError(f"--{name.replace('_', '-')} must be a finite number, got {value}")
-        return run(args, argv)
-    except BoomHydraulicsError as exc:
-        print(f"boom-sweep: error: {exc}", file=sys.stderr)
-        return 2 if isinstance(exc, ConfigError) else 1
-    except OSError as exc:
-        print(f"boom-sweep: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+        return run(args, words)
+
+    return run_main("boom-sweep", body)
 
 
 if __name__ == "__main__":
