@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from tables import best_of, table
 
 from boom_hydraulics import accelerate, config, physical
 from boom_hydraulics.batch import simulate_batch
@@ -24,24 +25,6 @@ from boom_hydraulics.simulation import Simulator, simulate
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 FIG8 = config.load(CONFIG / "paper_fig8.yaml")
 PHYSICAL = Parameters()
-
-
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    print(f"\n{title}")
-    print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
-    print("  ".join("-" * w for w in widths))
-    for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths)))
-
-
-def best_of(fn, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def step_cost() -> None:

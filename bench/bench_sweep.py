@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from tables import table
 
 from boom_hydraulics import accelerate, analysis, commands, physical, sweep
 from boom_hydraulics.executors import DaskExecutor, LocalExecutor
@@ -29,15 +30,6 @@ from boom_hydraulics.simulation import simulate
 DURATION_S = 5.0
 OPEN_S = 2.5  # the lift scenario: valve open for the first half, then closed
 AXES = [parse_axis("piston_diameter=0.032:0.1:40"), parse_axis("payload=0:200:25")]  # 1000 points
-
-
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    print(f"\n{title}")
-    print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
-    print("  ".join("-" * w for w in widths))
-    for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths)))
 
 
 def sweep_plan(points: int, batch_size: int) -> sweep.Plan:
