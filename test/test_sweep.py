@@ -2,16 +2,26 @@
 
 from __future__ import annotations
 
+import functools
 import math
+import operator
 
 import numpy as np
 import pytest
 from conftest import CONFIG
 
 from boom_hydraulics import analysis, commands, config, sweep
-from boom_hydraulics.errors import ConfigError
+from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
+from boom_hydraulics.executors import DaskExecutor, LocalExecutor
 from boom_hydraulics.parameters import Parameters
-from boom_hydraulics.recommend import Constraint, non_dominated, parse_constraint, recommend, trade_off_front
+from boom_hydraulics.recommend import (
+    Constraint,
+    format_value,
+    non_dominated,
+    parse_constraint,
+    recommend,
+    trade_off_front,
+)
 from boom_hydraulics.sampling import parse_axis
 from boom_hydraulics.simulation import simulate
 
@@ -210,3 +220,21 @@ def test_named_scenarios_are_command_profiles():
     assert commands.scenario("ramp:0=0,1=1", 2.0)["command_profile"] == "ramp"
     with pytest.raises(ConfigError, match="opening time"):
         commands.scenario("lift:soon", 5.0)
+
+
+def test_table_cells_keep_whole_numbers_whole():
+    assert format_value(np.int64(12345)) == "12345"
+    assert format_value(0.0660000001) == "0.066"
+    assert format_value(np.nan) == "-"
+    assert format_value(np.str_("paper_fig8")) == "paper_fig8"
+
+
+def test_a_task_that_fails_on_a_worker_is_named_and_the_finished_ones_are_delivered():
+    invert = functools.partial(operator.truediv, 1.0)
+    assert list(LocalExecutor().map(invert, [2.0])) == [(2.0, 0.5)]
+    delivered = []
+    with DaskExecutor(workers=1) as executor:
+        with pytest.raises(BoomHydraulicsError, match=r"a task failed on a local Dask cluster .*ZeroDivisionError"):
+            for item, result in executor.map(invert, [2.0, 0.0]):
+                delivered.append((item, result))
+    assert delivered in ([], [(2.0, 0.5)])  # whatever finished first was handed over

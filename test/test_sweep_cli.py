@@ -100,7 +100,7 @@ def test_resume_reuses_finished_batches_and_runs_only_the_rest(tmp_path):
     again = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out)
     assert again.returncode == 2 and "pass --resume" in again.stderr
 
-    resumed = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out, "--resume")
+    resumed = _sweep(*FOUR_POINTS, "--out", out, "--resume")  # in the batches it began with
     assert resumed.returncode == 0, resumed.stderr
     assert "2 done before, 2 to run" in resumed.stderr
     table = _load(out / "results.npz")
@@ -144,6 +144,7 @@ def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(
         (["--scenario", "hover"], "unknown scenario 'hover'"),
         (["--require", "peak<=1"], "unknown metric 'peak'"),
         (["--duration", "nan"], "--duration must be a finite number"),
+        (["--vary", "payload=0,100", "--across", "bulk_modulus"], "--across bulk_modulus_pa: not a varied parameter"),
         (["--workers", "2", "--scheduler", "tcp://localhost:8786"], "not allowed with argument"),
     ],
 )

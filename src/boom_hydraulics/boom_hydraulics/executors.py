@@ -11,7 +11,7 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
-from .errors import ConfigError
+from .errors import BoomHydraulicsError, ConfigError
 
 Item = TypeVar("Item")
 
@@ -87,6 +87,13 @@ class DaskExecutor:
         }
         try:
             for future in as_completed(futures):
-                yield futures[future], future.result()
+                try:
+                    result = future.result()
+                except Exception as exc:  # raised on a worker: name it, keep what is stored
+                    raise BoomHydraulicsError(
+                        f"a task failed {self.description}: {type(exc).__name__}: {exc} "
+                        "(workers need boom_hydraulics installed, the same version as here)"
+                    ) from exc
+                yield futures[future], result
         finally:
             self.client.cancel(list(futures))

@@ -111,8 +111,11 @@ def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -
     A NaN (a lift that did not complete) is the worst value of all.
     """
     keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(table["point"])
-    designs = list(dict.fromkeys(keys))
-    members = [np.array([i for i, k in enumerate(keys) if k == d]) for d in designs]
+    groups: dict[tuple, list[int]] = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
+    designs = list(groups)
+    members = [np.array(rows) for rows in groups.values()]
     out: dict[str, np.ndarray] = {"design": np.arange(len(designs))}
     for j, column in enumerate(design_columns):
         out[column] = np.array([d[j] for d in designs], dtype=np.asarray(table[column]).dtype)
@@ -125,6 +128,14 @@ def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -
         pick = np.min if name in LOWER_IS_WORSE else np.max
         out[name] = np.array([pick(column[m]) if np.isfinite(column[m]).all() else np.nan for m in members])
     return out
+
+
+def check_across(across: Sequence[str], point_columns: Sequence[str]) -> None:
+    """Raise ConfigError unless every name in ``across`` is one of the point columns."""
+    missing = sorted(set(across) - set(point_columns))
+    if missing:
+        choices = ", ".join(point_columns) or "none: nothing is varied"
+        raise ConfigError(f"--across {', '.join(missing)}: not a varied parameter; choose from {choices}")
 
 
 @dataclass(frozen=True)
@@ -156,10 +167,7 @@ def recommend(
     meets = status_ok & np.isfinite(energy)
     for column in holds.values():
         meets &= column
-    missing = sorted(set(across) - set(point_columns))
-    if missing:
-        choices = ", ".join(point_columns) or "none: nothing is varied"
-        raise ConfigError(f"--across {', '.join(missing)}: not a varied parameter; choose from {choices}")
+    check_across(across, point_columns)
     if not across:
         rows = np.nonzero(meets)[0]
         passing = {"status ok": int(status_ok.sum()), **{k: int(v.sum()) for k, v in holds.items()}}
@@ -229,5 +237,7 @@ def format_value(value: object) -> str:
     """A table cell for people: text as it is, numbers to 4 significant digits, NaN as '-'."""
     if isinstance(value, (str, np.str_)):
         return str(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
     v = float(value)  # type: ignore[arg-type]
     return "-" if math.isnan(v) else f"{v:.4g}"

@@ -42,7 +42,7 @@ from .executors import DaskExecutor, LocalExecutor
 from .files import write_csv
 from .parameters import Parameters, from_mapping
 from .sampling import SAMPLES, parse_axis, resolve_name
-from .sweep_store import SweepStore
+from .sweep_store import SweepStore, stored_request
 
 #: Points integrated together unless --batch-size says otherwise: larger batches spend
 #: less of their time in numpy's per-call overhead (bench/bench_sweep.py).
@@ -200,16 +200,22 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
             batch_size=batch_size,
         )
 
-    plan = make_plan(args.batch_size or BATCH_SIZE)
-    if args.batch_size is None and args.workers:  # a batch for every worker
-        share = math.ceil((plan.size - len(plan.invalid)) / args.workers)
-        if 0 < share < BATCH_SIZE:
-            plan = make_plan(share)
+    out = args.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
+    stored = stored_request(out) if args.resume else None
+    if args.batch_size is None and stored and isinstance(stored.get("batch_size"), int):
+        plan = make_plan(stored["batch_size"])  # resume in the batches it began with, wherever it runs now
+    else:
+        plan = make_plan(args.batch_size or BATCH_SIZE)
+        if args.batch_size is None and args.workers:  # a batch for every worker
+            share = math.ceil((plan.size - len(plan.invalid)) / args.workers)
+            if 0 < share < BATCH_SIZE:
+                plan = make_plan(share)
     table_columns = [*plan.columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES]
     constraints = constraints_of(args, table_columns)
+    across = [resolve_name(name) for name in args.across]
+    recommend.check_across(across, plan.columns)  # before the work, not after it
     if args.top < 1:
         raise ConfigError(f"--top must be >= 1, got {args.top}")
-    out = args.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
     store = SweepStore(out, plan.request, args.resume)
     parts = []
     done = store.done()
@@ -267,7 +273,6 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns))
     if args.recommend or constraints or args.across:
-        across = [resolve_name(name) for name in args.across]
         rec = recommend.recommend(table, constraints, plan.columns, across)
         text = recommend.format_table(rec, args.top)
         (out / "recommendation.txt").write_text(text, encoding="utf-8")

@@ -29,6 +29,14 @@ def _normal(request: dict[str, Any]) -> Any:
     return json.loads(json.dumps(request))
 
 
+def stored_request(folder: Path) -> dict[str, Any] | None:
+    """The request of the sweep stored in ``folder``, or None if there is none (or it is unreadable)."""
+    try:
+        return json.loads((folder / MANIFEST).read_text(encoding="utf-8")).get("request")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
 class SweepStore:
     """The folder of one sweep; see the module docstring."""
 
