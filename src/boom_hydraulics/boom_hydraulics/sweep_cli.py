@@ -2,7 +2,7 @@
 
     boom-sweep --config config/default.yaml --vary piston_diameter=0.032:0.1:15 \\
         --vary payload=0:200:5 --scenario lift --out sweeps/diameter --across payload \\
-        --max-pressure-pa 18e6 --max-lift-time-s 2 --no-cavitation
+        --max-pressure-pa 18e6 --max-lift-time-s 2.5 --no-cavitation
 
 Every point runs the same valve scenario; the points are integrated together in
 batches (numpy-vectorised), in this process, on local worker processes (``--workers``)
