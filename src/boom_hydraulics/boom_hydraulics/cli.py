@@ -22,7 +22,7 @@ import numpy as np
 from . import commands, config, studies
 from .command_line import RaisingParser, run_main
 from .errors import ConfigError
-from .files import write_csv
+from .files import csv_cell, write_csv
 from .parameters import Parameters, from_mapping
 from .simulation import OUTPUTS, simulate
 
@@ -41,12 +41,6 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
     return from_mapping(overrides)
 
 
-def _format(value: Any) -> str:
-    if isinstance(value, (bool, np.bool_)):
-        return "1" if value else "0"
-    return repr(float(value))
-
-
 def cmd_run(args: argparse.Namespace) -> int:
     params = load_parameters(args)
     if not (args.duration > 0 and math.isfinite(args.duration)):
@@ -56,7 +50,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     trajectory = simulate(params, args.duration, commands.from_parameters(params), every=args.every)
     header = [f"{name} [{unit}]" for name, unit, _ in OUTPUTS]
     columns = [trajectory[name] for name, _, _ in OUTPUTS]
-    rows = ([_format(col[i]) for col in columns] for i in range(len(trajectory)))
+    rows = ([csv_cell(col[i]) for col in columns] for i in range(len(trajectory)))
     write_csv(Path(args.out), header, rows)
     print(
         f"{args.out}: {len(trajectory)} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "

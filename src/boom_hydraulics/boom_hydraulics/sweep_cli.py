@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import shlex
 import sys
 import time
@@ -39,7 +38,7 @@ from . import config, recommend, sweep
 from .command_line import RaisingParser, run_main
 from .errors import ConfigError
 from .executors import DaskExecutor, LocalExecutor
-from .files import write_csv
+from .files import csv_cell, write_bytes, write_csv, write_npz
 from .parameters import Parameters, from_mapping
 from .sampling import SAMPLES, parse_axis, resolve_name
 from .sweep_store import SweepStore, stored_request
@@ -151,22 +150,12 @@ def _resume_command(argv: Sequence[str], out: Path, args: argparse.Namespace) ->
     return shlex.join(words)
 
 
-def _cell(value: Any) -> str:
-    if isinstance(value, (str, np.str_)):
-        return str(value)
-    if isinstance(value, (bool, np.bool_, int, np.integer)):
-        return str(int(value))
-    return repr(float(value))
-
-
 def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None) -> None:
     """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
     names = list(table)
     index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
-    write_csv(path_csv, names, ([_cell(table[n][i]) for n in names] for i in index))
-    tmp = path_csv.with_name(f".{path_csv.stem}.partial.npz")
-    np.savez(tmp, **{n: np.asarray(table[n])[index] for n in names})
-    os.replace(tmp, path_csv.with_suffix(".npz"))
+    write_csv(path_csv, names, ([csv_cell(table[n][i]) for n in names] for i in index))
+    write_npz(path_csv.with_suffix(".npz"), {n: np.asarray(table[n])[index] for n in names})
 
 
 def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
@@ -275,7 +264,7 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.recommend or constraints or args.across:
         rec = recommend.recommend(table, constraints, plan.columns, across)
         text = recommend.format_table(rec, args.top)
-        (out / "recommendation.txt").write_text(text, encoding="utf-8")
+        write_bytes(out / "recommendation.txt", text.encode())
         write_table(rec.table, out / "recommendation.csv", rows=rec.rows)
         print(text, end="")
     return 0

@@ -10,7 +10,6 @@ interrupted sweep keeps every batch it finished and a resumed one redoes none of
 from __future__ import annotations
 
 import json
-import os
 import sys
 import zipfile
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError
+from .files import write_bytes, write_npz
 
 MANIFEST = "sweep.json"
 FORMAT = 1
@@ -86,11 +86,9 @@ class SweepStore:
         """Store the rows of batch ``index`` (whole or not at all); the first also stores the request."""
         if self._manifest is not None:
             self.batches.mkdir(parents=True, exist_ok=True)
-            _write_atomic(self.folder / MANIFEST, (json.dumps(self._manifest, indent=1) + "\n").encode())
+            write_bytes(self.folder / MANIFEST, (json.dumps(self._manifest, indent=1) + "\n").encode())
             self._manifest = None
-        tmp = self.batches / f".{index:05d}.partial.npz"
-        np.savez(tmp, **rows)
-        os.replace(tmp, self.path(index))
+        write_npz(self.path(index), rows)
 
     def load(self, index: int) -> dict[str, np.ndarray] | None:
         """The rows of batch ``index``, or None (with a warning) if its file cannot be read."""
@@ -103,10 +101,3 @@ class SweepStore:
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             print(f"boom-sweep: warning: {self.path(index)} is unreadable ({exc}); computing it again", file=sys.stderr)
             return None
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
