@@ -70,7 +70,10 @@ def test_unknown_key_names_the_closest_valid_ones():
         ({"relief_pressure_pa": 10e6}, r"relief_pressure_pa .* at least supply_pressure_pa"),
         ({"command_profile": "steps", "command_times_s": [0, 1], "command_values": [1.0]}, r"equal length"),
         ({"command_profile": "steps", "command_times_s": [1, 0], "command_values": [1, 0]}, r"strictly increasing"),
-        ({"command_value": 1.5}, r"valve opening 1.5 .* outside \[-1, 1\]"),
+        ({"command_value": 1.5}, r"'command_value' is 1.5; it must be <= 1.0"),
+        ({"payload_mass_kg": 1e300}, r"'payload_mass_kg' is 1e\+300 kg; it must be <= 100000.0"),
+        ({"piston_diameter_m": 2.0}, r"'piston_diameter_m' is 2.0 m; it must be <= 1.0"),
+        ({"command_profile": "sine", "command_offset": 0.8, "command_amplitude": 0.5}, r"valve opening 1.3 .* outside"),
         ({"mode": "paper", "command_value": -0.5}, r"outside \[0, 1\] \(paper mode"),
     ],
 )

@@ -67,89 +67,96 @@ class Parameters:
         choices=MODES,
     )
     method: str = _param("rk4", "", "Integrator: euler, rk4 (the paper's) or rk45 (adaptive)", choices=METHODS)
-    time_step_s: float = _param(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0)
-    substeps: int = _param(1, "", "Fixed-step integrator steps per time step", low=1, low_inclusive=True)
-    rtol: float = _param(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0)
+    time_step_s: float = _param(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0, high=0.1)
+    substeps: int = _param(1, "", "Fixed-step integrator steps per time step", low=1, low_inclusive=True, high=10000)
+    rtol: float = _param(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0, high=0.1)
     atol_scale: float = _param(
         1e-8,
         "",
         "Absolute tolerance of rk45 as a fraction of each state's scale (m, m/s, supply pressure, 1, J)",
         low=0.0,
+        high=0.1,
     )
 
     # --- geometry (eq. 1-5) --------------------------------------------------------------
-    a_m: float = _param(0.4, "m", "a: boom pivot O to rod eye K on the boom", low=0.0)
-    b_m: float = _param(1.4, "m", "b: boom pivot O to cylinder base A on the column", low=0.0)
-    boom_length_m: float = _param(2.0, "m", "L1: boom length, pivot to load", low=0.0)
+    a_m: float = _param(0.4, "m", "a: boom pivot O to rod eye K on the boom", low=0.0, high=20.0)
+    b_m: float = _param(1.4, "m", "b: boom pivot O to cylinder base A on the column", low=0.0, high=20.0)
+    boom_length_m: float = _param(2.0, "m", "L1: boom length, pivot to load", low=0.0, high=50.0)
     support_height_m: float = _param(
-        1.307, "m", "h: boom support height (printed 1.307 m; 1.3 m under Fig. 2)", low=0.0
+        1.307, "m", "h: boom support height (printed 1.307 m; 1.3 m under Fig. 2)", low=0.0, high=20.0
     )
-    gravity_m_s2: float = _param(9.81, "m/s^2", "g: acceleration of free fall", low=0.0)
+    gravity_m_s2: float = _param(9.81, "m/s^2", "g: acceleration of free fall", low=0.0, high=30.0)
 
     # --- masses (eq. 6, 8) ---------------------------------------------------------------
-    boom_mass_kg: float = _param(100.0, "kg", "m1: boom mass, concentrated at L1/2", low=0.0)
-    payload_mass_kg: float = _param(50.0, "kg", "mb: payload mass at the boom tip (L1)", low=0.0, low_inclusive=True)
+    boom_mass_kg: float = _param(100.0, "kg", "m1: boom mass, concentrated at L1/2", low=0.0, high=1.0e5)
+    payload_mass_kg: float = _param(
+        50.0, "kg", "mb: payload mass at the boom tip (L1)", low=0.0, low_inclusive=True, high=1.0e5
+    )
 
     # --- cylinder ------------------------------------------------------------------------
-    piston_diameter_m: float = _param(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0)
-    rod_diameter_m: float = _param(0.022, "m", "d: rod diameter (S2 = pi (D^2 - d^2) / 4); physical mode", low=0.0)
+    piston_diameter_m: float = _param(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)
+    rod_diameter_m: float = _param(
+        0.022, "m", "d: rod diameter (S2 = pi (D^2 - d^2) / 4); physical mode", low=0.0, high=1.0
+    )
     cylinder_min_length_m: float = _param(
-        1.05, "m", "Retracted cylinder length (lower end stop), eye to eye; physical mode", low=0.0
+        1.05, "m", "Retracted cylinder length (lower end stop), eye to eye; physical mode", low=0.0, high=40.0
     )
     cylinder_max_length_m: float = _param(
-        1.75, "m", "Extended cylinder length (upper end stop), eye to eye; physical mode", low=0.0
+        1.75, "m", "Extended cylinder length (upper end stop), eye to eye; physical mode", low=0.0, high=40.0
     )
-    initial_length_m: float = _param(1.37, "m", "q1(0): initial cylinder length", low=0.0)
-    initial_velocity_m_s: float = _param(0.0, "m/s", "dq1/dt(0): initial rod velocity")
+    initial_length_m: float = _param(1.37, "m", "q1(0): initial cylinder length", low=0.0, high=40.0)
+    initial_velocity_m_s: float = _param(
+        0.0, "m/s", "dq1/dt(0): initial rod velocity", low=-10.0, low_inclusive=True, high=10.0
+    )
     piston_dead_volume_m3: float = _param(
         1.0e-4,
         "m^3",
         "V1: piston-side volume at full retraction incl. hoses (physical); "
         "the constant V1 of eq. 12 in paper mode (paper: 0.00002)",
         low=0.0,
+        high=0.1,
     )
     rod_dead_volume_m3: float = _param(
-        1.0e-4, "m^3", "V2: rod-side volume at full extension incl. hoses; physical mode", low=0.0
+        1.0e-4, "m^3", "V2: rod-side volume at full extension incl. hoses; physical mode", low=0.0, high=0.1
     )
 
     # --- friction and spring (eq. 11) ----------------------------------------------------
     coulomb_friction_n: float = _param(
-        100.0, "N", "F_mp: Coulomb (semi-dry) friction of piston and rod", low=0.0, low_inclusive=True
+        100.0, "N", "F_mp: Coulomb (semi-dry) friction of piston and rod", low=0.0, low_inclusive=True, high=1.0e6
     )
     static_friction_n: float = _param(
-        150.0, "N", "Breakaway (stiction) friction; physical mode", low=0.0, low_inclusive=True
+        150.0, "N", "Breakaway (stiction) friction; physical mode", low=0.0, low_inclusive=True, high=1.0e6
     )
     stribeck_velocity_m_s: float = _param(
-        0.01, "m/s", "Velocity scale of the fall from stiction to Coulomb friction", low=0.0
+        0.01, "m/s", "Velocity scale of the fall from stiction to Coulomb friction", low=0.0, high=10.0
     )
     friction_smoothing_velocity_m_s: float = _param(
-        0.001, "m/s", "Velocity over which Coulomb friction is smoothed (tanh)", low=0.0
+        0.001, "m/s", "Velocity over which Coulomb friction is smoothed (tanh)", low=0.0, high=1.0
     )
     viscous_friction_n_s_m: float = _param(
-        1000.0, "N s/m", "b_d: viscous friction coefficient", low=0.0, low_inclusive=True
+        1000.0, "N s/m", "b_d: viscous friction coefficient", low=0.0, low_inclusive=True, high=1.0e8
     )
     spring_stiffness_n_m: float = _param(
-        0.0, "N/m", "c: spring stiffness (paper: 2000, on q1 itself)", low=0.0, low_inclusive=True
+        0.0, "N/m", "c: spring stiffness (paper: 2000, on q1 itself)", low=0.0, low_inclusive=True, high=1.0e9
     )
     spring_free_length_m: float = _param(
-        1.4,
-        "m",
-        "Spring free length; physical mode (paper mode uses c * q1)",
-        low=0.0,
-        low_inclusive=True,
+        1.4, "m", "Spring free length; physical mode (paper mode uses c * q1)", low=0.0, low_inclusive=True, high=40.0
     )
 
     # --- end stops (physical mode) -------------------------------------------------------
-    end_stop_stiffness_n_m: float = _param(1.0e9, "N/m", "End-stop contact stiffness", low=0.0)
-    end_stop_damping_n_s_m: float = _param(2.0e6, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True)
+    end_stop_stiffness_n_m: float = _param(1.0e9, "N/m", "End-stop contact stiffness", low=0.0, high=1.0e13)
+    end_stop_damping_n_s_m: float = _param(
+        2.0e6, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True, high=1.0e10
+    )
 
     # --- fluid ---------------------------------------------------------------------------
-    density_kg_m3: float = _param(860.0, "kg/m^3", "rho: oil density", low=0.0)
+    density_kg_m3: float = _param(860.0, "kg/m^3", "rho: oil density", low=0.0, high=5000.0)
     bulk_modulus_pa: float = _param(
         1.0e9,
         "Pa",
         "E: effective bulk modulus of oil, hoses and air (paper prints 1.45 MPa / 14.5 MPa)",
         low=0.0,
+        high=1.0e11,
     )
     cavitation_pressure_pa: float = _param(
         5.0e3,
@@ -157,11 +164,12 @@ class Parameters:
         "Cavitation floor of chamber pressures (absolute); physical mode",
         low=0.0,
         low_inclusive=True,
+        high=1.0e6,
     )
 
     # --- valve (eq. 14, 15, 17) ----------------------------------------------------------
     orifice_diameter_m: float = _param(
-        0.002, "m", "D_dr: throttle diameter at full opening, per flow path (eq. 17)", low=0.0
+        0.002, "m", "D_dr: throttle diameter at full opening, per flow path (eq. 17)", low=0.0, high=0.1
     )
     discharge_coefficient: float = _param(0.62, "", "mu: orifice discharge coefficient", low=0.0, high=1.0)
     transition_pressure_pa: float = _param(
@@ -169,6 +177,7 @@ class Parameters:
         "Pa",
         "Pressure drop below which orifice flow turns laminar (finite dQ/dp); physical mode",
         low=0.0,
+        high=1.0e7,
     )
     valve_leakage_m3_s_pa: float = _param(
         1.0e-13,
@@ -176,24 +185,27 @@ class Parameters:
         "Laminar leakage conductance of each closed valve path; physical mode",
         low=0.0,
         low_inclusive=True,
+        high=1.0e-8,
     )
     spool_time_constant_s: float = _param(
-        0.02, "s", "First-order spool lag (0: none); physical mode", low=0.0, low_inclusive=True
+        0.02, "s", "First-order spool lag (0: none); physical mode", low=0.0, low_inclusive=True, high=10.0
     )
 
     # --- supply ---------------------------------------------------------------------------
-    supply_pressure_pa: float = _param(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0)
+    supply_pressure_pa: float = _param(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0, high=1.0e8)
     tank_pressure_pa: float = _param(
-        1.0e5, "Pa", "p_37: tank/drain pressure (absolute); physical mode", low=0.0, low_inclusive=True
+        1.0e5, "Pa", "p_37: tank/drain pressure (absolute); physical mode", low=0.0, low_inclusive=True, high=1.0e7
     )
     pump_max_flow_m3_s: float = _param(
-        5.0e-4, "m^3/s", "Maximum pump flow; above it the supply pressure drops", low=0.0
+        5.0e-4, "m^3/s", "Maximum pump flow; above it the supply pressure drops", low=0.0, high=0.1
     )
     relief_pressure_pa: float = _param(
-        18.0e6, "Pa", "Cracking pressure of the port relief valves on both chambers", low=0.0
+        18.0e6, "Pa", "Cracking pressure of the port relief valves on both chambers", low=0.0, high=1.0e8
     )
-    relief_range_pa: float = _param(3.0e6, "Pa", "Pressure rise over which a relief valve opens fully", low=0.0)
-    relief_rated_flow_m3_s: float = _param(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0)
+    relief_range_pa: float = _param(
+        3.0e6, "Pa", "Pressure rise over which a relief valve opens fully", low=0.0, high=1.0e8
+    )
+    relief_rated_flow_m3_s: float = _param(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
     # --- valve command profile (the headless scenario) -----------------------------------
     command_profile: str = _param(
@@ -203,12 +215,18 @@ class Parameters:
         "ramp (linear between points) or sine",
         choices=COMMAND_PROFILES,
     )
-    command_value: float = _param(1.0, "", "Opening of the constant profile, in [-1, 1]")
-    command_times_s: list = _param([0.0], "s", "Breakpoint times of steps/ramp (increasing)")  # noqa: RUF009
-    command_values: list = _param([1.0], "", "Openings at command_times_s, in [-1, 1]")  # noqa: RUF009
-    command_offset: float = _param(0.0, "", "Sine profile: mean opening")
-    command_amplitude: float = _param(0.5, "", "Sine profile: amplitude")
-    command_frequency_hz: float = _param(0.5, "Hz", "Sine profile: frequency", low=0.0)
+    command_value: float = _param(
+        1.0, "", "Opening of the constant profile, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
+    )
+    command_times_s: list = _param(  # noqa: RUF009
+        [0.0], "s", "Breakpoint times of steps/ramp (increasing)", low=0.0, low_inclusive=True, high=1.0e6
+    )
+    command_values: list = _param(  # noqa: RUF009
+        [1.0], "", "Openings at command_times_s, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
+    )
+    command_offset: float = _param(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
+    command_amplitude: float = _param(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
+    command_frequency_hz: float = _param(0.5, "Hz", "Sine profile: frequency", low=0.0, high=1000.0)
 
     def __post_init__(self) -> None:
         _check_fields(self)
