@@ -106,8 +106,9 @@ class Simulator:
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
 
     # --- state --------------------------------------------------------------------------
-    def reset(self, initial_length_m: float | None = None) -> None:
-        """Back to rest at ``initial_length_m`` (default q1(0)), t = 0, valve closed."""
+    def reset(self, initial_length_m: float | None = None, keep_time: bool = False) -> None:
+        """Back to rest at ``initial_length_m`` (default q1(0)), valve closed; t = 0 unless
+        ``keep_time`` (a clock that others follow never runs backwards)."""
         p = self.params
         if initial_length_m is not None:
             low, high = (
@@ -120,10 +121,10 @@ class Simulator:
                     f"reset position {initial_length_m} m lies outside the stroke [{low:.4g}, {high:.4g}] m"
                 )
         self.y = self.model.initial_state(p, initial_length_m)
-        self.t = 0.0
+        self.t = self.t if keep_time and hasattr(self, "t") else 0.0
         self.u = 0.0
         self.step_count = 0
-        self._t_base, self._n_base = 0.0, 0  # t = t_base + (step_count - n_base) dt, no drift
+        self._t_base, self._n_base = self.t, 0  # t = t_base + (step_count - n_base) dt, no drift
         self.integrator = make_integrator(p)
 
     def set_parameters(self, params: Parameters) -> None:
@@ -134,7 +135,7 @@ class Simulator:
         mode_changed = params.mode != self.params.mode
         self._install(params)
         if mode_changed:
-            self.reset()
+            self.reset(keep_time=True)
         else:
             self._t_base, self._n_base = self.t, self.step_count
 
@@ -163,7 +164,7 @@ class Simulator:
                 # math.acos/sqrt outside their domain: a stage left the geometry of eq. 1
                 raise SimulationError(
                     f"the model cannot be evaluated near t = {self.t:.6g} s ({self._describe(self.y)}): "
-                    f"{exc}; the rod is about to leave the valid geometry (paper mode has no end stops)"
+                    f"{exc}; {self._likely_cause()}"
                 ) from None
             self._check(y)
             self.y = y
@@ -192,8 +193,18 @@ class Simulator:
             raise SimulationError(
                 f"rod left the valid geometry at t = {self.t:.6g} s: q1 = {q1:.6g} m is outside "
                 f"({abs(p.b_m - p.a_m):.4g}, {p.a_m + p.b_m:.4g}) m where the triangle of eq. 1 "
-                "degenerates (paper mode has no end stops)"
+                f"degenerates; {self._likely_cause()}"
             )
+
+    def _likely_cause(self) -> str:
+        """Why a run leaves the geometry: paper mode has no end stops; in physical mode the
+        end stops hold the rod, so the integration itself diverged."""
+        if self.params.mode == "paper":
+            return "the rod is about to leave the valid geometry (paper mode has no end stops)"
+        return (
+            f"the integration diverged: time_step_s = {self.params.time_step_s:g} s is too large for "
+            "these parameters; try a smaller time_step_s, more substeps or method rk45"
+        )
 
     def _nonfinite_error(self, what: str) -> SimulationError:
         p = self.params
