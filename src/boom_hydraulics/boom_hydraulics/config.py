@@ -2,12 +2,13 @@
 
 A file looks like::
 
-    boom_sim:
+    /**:
       ros__parameters:
         mode: physical
         piston_diameter_m: 0.04
 
-``/**`` (any node) is accepted as the node name too. Nested mappings under
+``/**`` matches the node under any name and namespace (the shipped files use it);
+``boom_sim`` or ``/boom_sim`` are accepted too. Nested mappings under
 ``ros__parameters`` are flattened with dots, as ROS 2 does.
 """
 
