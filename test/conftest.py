@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -35,3 +36,22 @@ def start_node(*params: str, config_file: str = "default.yaml", record: bool = F
     for p in params:
         args += ["-p", p]
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+@pytest.fixture(scope="module")
+def ros_context() -> Iterator[None]:
+    """rclpy initialised for the tests of one module that talk to a node."""
+    rclpy = pytest.importorskip("rclpy")
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+@pytest.fixture
+def client(ros_context):
+    """The test's side of the ROS graph (see ros_client.Client), for the default /boom_sim."""
+    from ros_client import Client
+
+    c = Client()
+    yield c
+    c.node.destroy_node()

@@ -3,103 +3,28 @@
 from __future__ import annotations
 
 import math
-import os
 import signal
 import subprocess
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from conftest import BOOM_SIM, CONFIG, start_node
 
 rclpy = pytest.importorskip("rclpy")
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
-from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
+from rcl_interfaces.srv import GetParameters  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics import config  # noqa: E402
 from boom_hydraulics.commands import steps  # noqa: E402
 from boom_hydraulics.simulation import simulate  # noqa: E402
-from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
 
-pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
-
-
-class Client:
-    """The test's side of the ROS graph: commands out, state in, services."""
-
-    def __init__(self) -> None:
-        self.node = rclpy.create_node(f"test_client_{os.getpid()}")
-        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-        self.pub = self.node.create_publisher(ValveCommand, "valve_command", qos)
-        self.states: list[DriveState] = []
-        self.joints: list[JointState] = []
-        self.pressures: list[FluidPressure] = []
-        self.diagnostics: list[DiagnosticArray] = []
-        self.node.create_subscription(DriveState, "drive_state", self.states.append, qos)
-        self.node.create_subscription(JointState, "joint_states", self.joints.append, qos)
-        self.node.create_subscription(FluidPressure, "piston_pressure", self.pressures.append, qos)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, qos)
-        self.reset = self.node.create_client(Reset, "/boom_sim/reset")
-        self.pause = self.node.create_client(SetBool, "/boom_sim/pause")
-        self.step = self.node.create_client(Step, "/boom_sim/step")
-        self.set_params = self.node.create_client(SetParameters, "/boom_sim/set_parameters")
-        self.get_params = self.node.create_client(GetParameters, "/boom_sim/get_parameters")
-
-    def spin_until(self, predicate: Callable[[], bool], timeout: float = 15.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            rclpy.spin_once(self.node, timeout_sec=0.02)
-        return predicate()
-
-    def spin_for(self, seconds: float, opening: float | None = None) -> None:
-        """Spin, publishing ``opening`` at 50 Hz if given."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            if opening is not None:
-                self.command(opening)
-            rclpy.spin_once(self.node, timeout_sec=0.02)
-
-    def command(self, opening: float, stamp_s: float | None = None) -> None:
-        msg = ValveCommand(opening=opening)
-        if stamp_s is not None:
-            msg.header.stamp.sec = int(stamp_s)
-            msg.header.stamp.nanosec = round((stamp_s - int(stamp_s)) * 1e9)
-        self.pub.publish(msg)
-
-    def call(self, client, request, timeout: float = 10.0):
-        assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
-        future = client.call_async(request)
-        assert self.spin_until(future.done, timeout)
-        return future.result()
-
-    def set_parameter(self, name: str, value: float):
-        param = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
-        return self.call(self.set_params, SetParameters.Request(parameters=[param])).results[0]
-
-    def last(self) -> DriveState:
-        return self.states[-1]
-
-
-@pytest.fixture(scope="module", autouse=True)
-def ros_context() -> Iterator[None]:
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
-@pytest.fixture
-def client() -> Iterator[Client]:
-    c = Client()
-    yield c
-    c.node.destroy_node()
+pytestmark = [
+    pytest.mark.usefixtures("ros_context"),
+    pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)"),
+]
 
 
 @pytest.fixture
@@ -318,26 +243,6 @@ def test_recording_holds_every_published_and_received_message(client, tmp_path, 
             assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
             assert "reliability:" in channel.metadata["offered_qos_profiles"]
         assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
-
-
-def test_switching_publish_clock_on_while_recording_records_the_clock(client, tmp_path):
-    from rosbags.highlevel import AnyReader
-
-    proc = start_node(f"record_folder:={tmp_path}", record=True)
-    assert client.spin_until(lambda: len(client.states) > 5)
-    param = Parameter(name="publish_clock", value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True))
-    assert client.call(client.set_params, SetParameters.Request(parameters=[param])).results[0].successful
-    count = len(client.states)
-    assert client.spin_until(lambda: len(client.states) > count + 50)  # still ticking
-    proc.send_signal(signal.SIGINT)
-    assert proc.wait(timeout=20) == 0
-    (folder,) = list(tmp_path.iterdir())
-    with AnyReader([folder]) as reader:
-        clocks = sum(1 for c in reader.connections if c.topic == "/clock" for _ in reader.messages(connections=[c]))
-        states = sum(
-            1 for c in reader.connections if c.topic == "/drive_state" for _ in reader.messages(connections=[c])
-        )
-    assert clocks > 40 and states > clocks  # /clock recorded from the switch on
 
 
 def test_command_timeout_changed_at_run_time_takes_effect(node, client):

@@ -1,55 +1,77 @@
-"""A recording killed with SIGKILL is recovered up to its last completed chunk."""
+"""boom-bag-recover finishes a killed recording with every message that reached the disk.
+
+The node-level case (a real SIGKILL, a live bag refused) is in test_node_bags.py.
+"""
 
 from __future__ import annotations
 
 import shutil
-import signal
 import subprocess
 import time
 
 import pytest
-from conftest import BOOM_SIM, start_node
 
-rclpy = pytest.importorskip("rclpy")
-from rosbags.highlevel import AnyReader  # noqa: E402
+pytest.importorskip("rclpy")
+from bag_checks import check_bag
+from mcap.reader import make_reader
+from rclpy.serialization import serialize_message
 
-from boom_hydraulics_msgs.msg import DriveState  # noqa: E402
+from boom_hydraulics.bag_reading import BagError, check_bag_path
+from boom_hydraulics.recording import BagRecorder, Topic
+from boom_hydraulics.recovery import recover
+from boom_hydraulics_msgs.msg import DriveState
 
 RECOVER = shutil.which("boom-bag-recover")
-pytestmark = pytest.mark.skipif(BOOM_SIM is None or RECOVER is None, reason="run through tools/with-env")
+STATE = Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState")
 
 
-def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
-    proc = start_node(f"record_folder:={tmp_path}", "record_chunk_kib:=16.0", record=True)
-    rclpy.init()
-    node = rclpy.create_node("recovery_listener")
-    states: list[DriveState] = []
-    node.create_subscription(DriveState, "drive_state", states.append, 100)
-    try:
-        deadline = time.monotonic() + 20
-        while len(states) < 300 and time.monotonic() < deadline:  # 3 s of states
-            rclpy.spin_once(node, timeout_sec=0.05)
-    finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
-        node.destroy_node()
-        rclpy.shutdown()
-    (bag,) = list(tmp_path.iterdir())
-    assert not (bag / "metadata.yaml").exists()  # killed: never finished
-    with pytest.raises(Exception):  # noqa: B017 - whatever the reader raises, it cannot read it
-        with AnyReader([next(bag.glob("*.mcap"))]) as reader:
-            list(reader.messages())
+def _killed_bag(tmp_path, flushed: int, unflushed: int):
+    """What a SIGKILL leaves: a copy of a live recording's file, taken mid-run."""
+    live = BagRecorder(tmp_path / "live", [STATE], custom_data={"clock_origin_ns": "0"}, flush_s=0.2)
+    for i in range(flushed):
+        live.write("/drive_state", i, serialize_message(DriveState(rod_position_m=float(i))))
+    time.sleep(0.6)  # past the flush bound: on disk
+    live.flush_s = 3600.0  # from now on nothing more reaches the disk
+    for i in range(flushed, flushed + unflushed):
+        live.write("/drive_state", i, serialize_message(DriveState(rod_position_m=float(i))))
+    time.sleep(0.2)
+    bag = tmp_path / "killed"
+    bag.mkdir()
+    shutil.copy(live.file, bag / "killed_0.mcap")
+    live.close()
+    return bag
 
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert (bag / "metadata.yaml").is_file() and list(bag.glob("*.mcap.damaged"))
-    with AnyReader([bag]) as reader:
-        counts: dict[str, int] = {}
-        for connection, _, raw in reader.messages():
-            reader.deserialize(raw, connection.msgtype)
-            counts[connection.topic] = counts.get(connection.topic, 0) + 1
-    # 16 KiB chunks hold well under 100 ticks of the six per-tick topics: at most that is lost
-    assert counts["/drive_state"] >= len(states) - 100 > 150
 
-    again = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=60)
-    assert again.returncode == 1 and "nothing to recover" in again.stderr
+def test_every_flushed_message_comes_back_and_the_damaged_file_stays(tmp_path):
+    bag = _killed_bag(tmp_path, flushed=50, unflushed=30)
+    with pytest.raises(BagError, match="run boom-bag-recover"):
+        check_bag_path(bag)
+    damaged_bytes = (bag / "killed_0.mcap").read_bytes()
+    file, count = recover(bag)
+    assert count == 50
+    assert check_bag(bag) == {"/drive_state": 50}
+    assert (bag / "killed_0.mcap.damaged").read_bytes() == damaged_bytes  # kept as it was
+    with file.open("rb") as handle:
+        records = {m.name: m.metadata for m in make_reader(handle).iter_metadata()}
+    assert records["boom_hydraulics"] == {"clock_origin_ns": "0"} and "rosbag2" in records
+
+
+def test_recover_refuses_to_overwrite_and_to_redo(tmp_path):
+    bag = _killed_bag(tmp_path, flushed=5, unflushed=0)
+    (bag / "killed_0.mcap.damaged").write_bytes(b"the user's")
+    with pytest.raises(BagError, match="exists already"):
+        recover(bag)
+    assert (bag / "killed_0.mcap.damaged").read_bytes() == b"the user's"
+    (bag / "killed_0.mcap.damaged").unlink()
+    recover(bag)
+    with pytest.raises(BagError, match="nothing to recover"):
+        recover(bag)
+
+
+@pytest.mark.skipif(RECOVER is None, reason="boom-bag-recover not on PATH")
+def test_the_command_line_says_one_line(tmp_path):
+    result = subprocess.run([RECOVER, tmp_path / "nope"], capture_output=True, text=True, timeout=60)
+    assert (
+        result.returncode == 1
+        and result.stderr.strip() == f"boom-bag-recover: error: {tmp_path / 'nope'}: not a bag folder"
+    )

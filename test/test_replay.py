@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import signal
 import subprocess
 import time
 
@@ -11,8 +12,9 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
 
-from boom_hydraulics.recording import BagRecorder, Topic  # noqa: E402
+from boom_hydraulics.recording import BagRecorder, Topic, offered_qos  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_REPLAY = shutil.which("boom-replay")
@@ -68,13 +70,81 @@ def test_replay_publishes_every_message_in_order_with_its_spacing(tmp_path):
     ("args", "message"),
     [
         (["nope"], "no such bag folder or file"),
+        (["empty"], "not a bag: the folder has no .mcap file"),
         (["BAG", "--topics", "/missing"], "no topic /missing"),
+        (["BAG", "--wait-for-subscribers", "--wait-timeout", "0.5"], "no subscriber appeared within 0.5 s"),
     ],
 )
 def test_replay_errors_are_one_line(tmp_path, args, message):
     _bag(tmp_path / "run")
-    args = [str(tmp_path / "run") if a == "BAG" else str(tmp_path / a) if a == "nope" else a for a in args]
+    (tmp_path / "empty").mkdir()
+    args = [str(tmp_path / "run") if a == "BAG" else str(tmp_path / a) if a in ("nope", "empty") else a for a in args]
     result = subprocess.run([BOOM_REPLAY, *args], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1
     assert message in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def _sparse_bag(folder, clock: bool = False):
+    """Messages 20 s apart; a best-effort command topic; an empty topic; /clock if asked."""
+    topics = [
+        Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState"),
+        Topic("/valve_command", "boom_hydraulics_msgs/msg/ValveCommand", (offered_qos(reliable=False),)),
+        Topic("/never", "boom_hydraulics_msgs/msg/ValveCommand"),  # recorded, but no message
+    ]
+    if clock:
+        topics.append(Topic("/clock", "rosgraph_msgs/msg/Clock"))
+    with BagRecorder(folder, topics) as rec:
+        for i in range(3):
+            rec.write("/drive_state", i * 20_000_000_000, serialize_message(DriveState()))
+            rec.write("/valve_command", i * 20_000_000_000, serialize_message(ValveCommand()))
+            if clock:
+                rec.write("/clock", i * 20_000_000_000, serialize_message(Clock()))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, sig):
+    _sparse_bag(tmp_path / "run")
+    proc = subprocess.Popen([BOOM_REPLAY, tmp_path / "run"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3.0)  # started, published the first messages, waiting 20 s for the next
+    sent = time.monotonic()
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=20)
+    # it waits in 50 ms slices; a bound far below the 20 s gap, loose for a loaded machine
+    assert time.monotonic() - sent < 5.0
+    assert proc.returncode == 0 and "Traceback" not in err
+    assert "published 2 messages" in out
+
+
+def test_replay_offers_the_recorded_qos_and_one_clock(tmp_path):
+    _sparse_bag(tmp_path / "run", clock=True)
+    rclpy.init()
+    node = rclpy.create_node("qos_watcher")
+    proc = subprocess.Popen(
+        [BOOM_REPLAY, tmp_path / "run", "--clock", "--wait-for-subscribers", "--wait-timeout", "20"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        got = []  # subscribers on the topics with messages (not /never): replay starts
+        node.create_subscription(DriveState, "/drive_state", got.append, qos)
+        node.create_subscription(ValveCommand, "/valve_command", got.append, qos)
+        node.create_subscription(Clock, "/clock", got.append, qos)
+        deadline = time.monotonic() + 20
+        while len(got) < 3 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        assert len(got) >= 3, "replay did not start: it waited for /never"
+        offers = {t: [i.qos_profile.reliability for i in node.get_publishers_info_by_topic(t)] for t in TOPICS}
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=20)
+        node.destroy_node()
+        rclpy.shutdown()
+    assert offers["/drive_state"] == [ReliabilityPolicy.RELIABLE]
+    assert offers["/valve_command"] == [ReliabilityPolicy.BEST_EFFORT]  # as its publisher offered
+    assert len(offers["/clock"]) == 1  # the bag's own, not a second one from --clock
+
+
+TOPICS = ("/drive_state", "/valve_command", "/clock")

@@ -12,6 +12,11 @@ import pytest
 from conftest import BOOM_SIM, start_node
 
 rclpy = pytest.importorskip("rclpy")
+from bag_checks import check_bag  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
+from ros_client import Client  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics.bag_reading import read_drive_states  # noqa: E402
@@ -98,5 +103,96 @@ def test_what_if_a_heavier_payload(recorded, tmp_path):
 def test_bad_changes_are_refused_and_nothing_is_written(recorded, tmp_path, args, message):
     out = tmp_path / "never"
     result = subprocess.run([BOOM_RESIM, recorded, *args, "--out", out], capture_output=True, text=True)
-    assert result.returncode == 1 and message in result.stderr and "Traceback" not in result.stderr
+    assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
     assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def namespaced(tmp_path_factory):
+    """A run of /crane1/boom_sim with /clock whose payload is changed while it runs."""
+    folder = tmp_path_factory.mktemp("ns_bags")
+    args = ["-r", "__ns:=/crane1", "-p", f"record_folder:={folder}", "-p", "publish_clock:=true"]
+    args += ["-p", "real_time_factor:=2.0", "-p", "command_timeout_s:=0.0"]
+    proc = subprocess.Popen(
+        [BOOM_SIM, "--ros-args", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    rclpy.init()
+    client = Client("/crane1/boom_sim", namespace="/crane1")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3, timeout=30)
+        client.spin_for(0.5)
+        now = client.last().header.stamp.sec + client.last().header.stamp.nanosec * 1e-9
+        client.command(1.0, stamp_s=now + 1.0)  # ahead of the node's simulated time
+        client.command(0.0, stamp_s=now + 2.0)
+        assert client.spin_until(lambda: client.last().header.stamp.sec >= now + 2.5, timeout=20)
+        changed = Parameter(
+            name="payload_mass_kg", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=180.0)
+        )
+        assert client.call(client.set_params, SetParameters.Request(parameters=[changed])).results[0].successful
+        assert client.spin_until(lambda: client.last().header.stamp.sec >= now + 4.5, timeout=20)
+    finally:
+        client.node.destroy_node()
+        rclpy.shutdown()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=20)
+    (bag,) = list(folder.iterdir())
+    return bag
+
+
+def test_a_parameter_changed_while_running_is_recorded_and_resimulated_at_its_time(namespaced, tmp_path):
+    assert namespaced.name.endswith("_crane1_boom_sim")  # the node's name and namespace in the folder name
+    check_bag(namespaced)
+    result = subprocess.run([BOOM_RESIM, namespaced, "--out", tmp_path / "again"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    check_bag(tmp_path / "again")
+    with AnyReader([tmp_path / "again"]) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert "/crane1/drive_state" in topics and "/drive_state" not in topics  # stays namespaced
+    original, again = read_drive_states(namespaced), read_drive_states(tmp_path / "again")
+    assert np.array_equal(original["t"], again["t"]) and len(original["t"]) > 150  # the same instants
+    assert np.max(np.abs(original["q1"] - again["q1"])) < 1e-12  # commands and change at the same instants
+    assert np.max(np.abs(original["p1"] - again["p1"])) < 1e-6
+    # the heavier payload shows: the holding pressure rose after the change
+    assert again["p1"][-1] > again["p1"][0] * 1.3
+
+
+def test_runs_overlay_on_their_common_origin(namespaced, tmp_path):
+    resim = tmp_path / "heavy"
+    subprocess.run([BOOM_RESIM, namespaced, "--set", "payload_mass_kg=150", "--out", resim], check=True)
+    for align in ("origin", "command"):
+        first_open = [
+            (s := read_drive_states(bag, align))["t"][np.nonzero(s["u"])[0][0]] for bag in (namespaced, resim)
+        ]
+        assert first_open[0] == pytest.approx(first_open[1], abs=1e-9)
+    signals = read_drive_states(namespaced, "origin")
+    commands = read_drive_states(namespaced, "command")
+    opened = np.nonzero(signals["u"])[0][0]
+    assert signals["t"][opened] > 1.0 and commands["t"][opened] == 0.0  # simulated time; the opening
+
+
+def test_resim_refuses_to_write_over_its_input_and_writes_nothing_when_it_fails(namespaced, tmp_path):
+    for out in (namespaced, namespaced.parent):
+        result = subprocess.run([BOOM_RESIM, namespaced, "--out", out], capture_output=True, text=True)
+        assert result.returncode == 2 and "input" in result.stderr
+    check_bag(namespaced)  # untouched
+    stopped = subprocess.run(
+        [BOOM_RESIM, namespaced, "--set", "mode=paper", "--set", "orifice_diameter_m=0.01", "--out", tmp_path / "x"],
+        capture_output=True,
+        text=True,
+    )
+    assert stopped.returncode == 1 and "paper mode has no end stops" in stopped.stderr  # leaves the geometry
+    assert len(stopped.stderr.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []  # no bag, no staging folder left
+
+
+def test_a_truncated_bag_is_one_line(namespaced, tmp_path):
+    data = next(namespaced.glob("*.mcap")).read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    result = subprocess.run(
+        [BOOM_RESIM, tmp_path / "cut.mcap", "--out", tmp_path / "x"], capture_output=True, text=True
+    )
+    assert result.returncode == 1 and "truncated" in result.stderr and "boom-bag-recover" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

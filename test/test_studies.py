@@ -16,7 +16,7 @@ from boom_hydraulics.parameters import Parameters
 def test_statics_cover_the_open_stroke_and_scale_with_the_area():
     s = studies.statics(Parameters(), (0.04, 0.08), points=50)
     assert 1.0 < s["q1"][0] < 1.01 and 1.79 < s["q1"][-1] < 1.8
-    assert np.allclose(s["force"], geometry.static_rod_force_of(Parameters(), s["q1"], np))
+    assert np.allclose(s["static_force"], geometry.static_rod_force_of(Parameters(), s["q1"], np))
     assert np.allclose(s["holding_pressure_D40mm"], 4 * s["holding_pressure_D80mm"])
 
 

@@ -22,13 +22,14 @@ import numpy as np
 from . import commands, config, studies
 from .command_line import RaisingParser, run_main
 from .errors import ConfigError
-from .files import csv_cell, write_csv
+from .files import check_apart, csv_cell, write_csv
 from .parameters import Parameters, from_mapping
 from .simulation import OUTPUTS, simulate
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
     """Config file (or defaults) plus --set, --profile, --method and --dt, validated at once."""
+    check_apart(Path(args.out), [args.config] if args.config else [])
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
     if getattr(args, "profile", None):
         overrides.update(commands.parse_profile(args.profile))
@@ -62,9 +63,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def statics_table(params: Parameters, diameters_m: Sequence[float], points: int) -> tuple[list[str], np.ndarray]:
     """alpha, phi, static rod force and holding pressure over the open geometric stroke (Figs. 3-5)."""
     table = studies.statics(params, diameters_m, points)
-    header = ["q1 [m]", "alpha [rad]", "phi [rad]", "static_force [N]"]
-    header += [f"{name} [Pa]" for name in table if name.startswith("holding_pressure")]
-    return header, np.column_stack(list(table.values()))
+    return studies.statics_header(table), np.column_stack(list(table.values()))
 
 
 def cmd_statics(args: argparse.Namespace) -> int:
@@ -88,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=RaisingParser)
 
     def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--config", help="ROS 2 params YAML (boom_sim: ros__parameters: ...)")
+        p.add_argument("--config", help="ROS 2 params YAML (/**: ros__parameters: ...)")
         p.add_argument(
             "--set",
             action="append",

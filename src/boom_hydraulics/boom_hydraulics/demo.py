@@ -8,7 +8,7 @@ command then analyses (boom-analyze: signals, metrics, plots).
 
 from __future__ import annotations
 
-import argparse
+import math
 import os
 import shutil
 import signal
@@ -24,7 +24,9 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 from .analyze import main as analyze_main
+from .command_line import RaisingParser, run_main, summary
 from .commands import CYCLE
+from .errors import ConfigError
 
 
 class ScenarioDriver(Node):
@@ -58,11 +60,17 @@ class ScenarioDriver(Node):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="boom-demo", description=__doc__.splitlines()[0])
+    return run_main("boom-demo", lambda: demo(argv))
+
+
+def demo(argv: list[str] | None) -> int:
+    parser = RaisingParser(prog="boom-demo", description=summary(__doc__))
     parser.add_argument("--params-file", default=None, help="params YAML for the node")
-    parser.add_argument("--duration", type=float, default=9.0, help="scenario length in s")
-    parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into")
+    parser.add_argument("--duration", type=float, default=9.0, help="scenario length in s (default 9)")
+    parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into (default bags)")
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration:g}")
     before = set(args.bags.glob("*_boom_sim")) if args.bags.is_dir() else set()
 
     node_exe = shutil.which("boom_sim")

@@ -1,6 +1,7 @@
 """ROS 2 node ``boom_sim``: the model core in a loop, driven by valve commands.
 
     ros2 run boom_hydraulics boom_sim --ros-args --params-file config/default.yaml
+    boom_sim --help        # every parameter with its default and unit
 
 Physics runs at ``time_step_s``, several steps per tick of ``publish_rate_hz``; simulated
 time follows the steady clock by elapsed time (times ``real_time_factor``; 0 runs as fast
@@ -10,6 +11,7 @@ wait set in Python, 100 times a second (29 % of a core measured, against about 1
 this way). The executor serves commands, services and parameters; a lock keeps the two
 threads from touching the simulation at once. Commands are applied by their stamps (see :mod:`command_queue`),
 which makes a run depend only on the commands and their times, not on wall-clock jitter.
+Simulated time never runs backwards: a reset puts the drive back to rest and time goes on.
 Topics, services and parameters are listed in the README.
 """
 
@@ -26,14 +28,15 @@ from typing import Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.serialization import serialize_message
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_parameter_events, qos_profile_sensor_data
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.time import Time
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray
@@ -42,68 +45,27 @@ from std_srvs.srv import SetBool
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
+from . import node_parameters as np_
 from .command_queue import CommandedDrive, valve_opening
 from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
 from .messages import drive_state
-from .parameters import NAMES, describe, from_mapping
-from .recording import BagRecorder, Topic, new_bag_folder, run_description
+from .parameters import NAMES, from_mapping
+from .recording import BagRecorder, Topic, new_bag_folder, offered_qos, parameter_event_cdr, run_description
 from .simulation import Simulator
-
-#: Parameters of the node itself (not of the model): name -> (default, description, low, high).
-NODE_PARAMETERS: dict[str, tuple[Any, str, float | None, float | None]] = {
-    "publish_rate_hz": (100.0, "State publish (tick) rate [Hz]", 1.0, 1000.0),
-    "real_time_factor": (1.0, "Simulated seconds per wall second; 0: as fast as possible", 0.0, 1000.0),
-    "publish_clock": (False, "Publish /clock and stamp messages with simulated time", None, None),
-    "command_timeout_s": (
-        0.5,
-        "Valve returns to 0 when no command arrived for this long (simulated s); 0: never",
-        0.0,
-        3600.0,
-    ),
-    "max_catch_up_s": (
-        0.2,
-        "Largest backlog a tick works off before the node gives up real-time lock [s]",
-        0.001,
-        10.0,
-    ),
-    "jit": (False, "Step with the numba-compiled model (a few seconds to compile at start)", None, None),
-    "record": (True, "Record every published topic and received command to a bag (start only)", None, None),
-    "record_folder": ("bags", "Folder in which each run's bag folder is created (start only)", None, None),
-    "record_chunk_kib": (1024.0, "MCAP chunk size [KiB]: what a SIGKILL can lose at most (start only)", 1.0, 65536.0),
-    "start_paused": (
-        False,
-        "Start paused (resume with ~/pause data: false), e.g. to queue a scenario first",
-        None,
-        None,
-    ),
-}
 
 _NODE_ATTRIBUTES = {
     "publish_rate_hz": "rate_hz",
     "real_time_factor": "rtf",
-    "publish_clock": "publish_clock",
     "command_timeout_s": "timeout_s",
     "max_catch_up_s": "max_catch_up_s",
 }
+PARAMETER_EVENTS = "/parameter_events"
 
 
 def _type_name(msg_type: Any) -> str:
     """'pkg/msg/Type' of a generated message class."""
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
-
-
-def check_node_parameter(name: str, value: Any) -> None:
-    """Raise ConfigError unless ``value`` fits node parameter ``name``."""
-    default, _, low, high = NODE_PARAMETERS[name]
-    if isinstance(default, str):
-        if not isinstance(value, str) or not value:
-            raise ConfigError(f"parameter '{name}' must be a non-empty string, got {value!r}")
-    elif isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise ConfigError(f"parameter '{name}' must be true or false, got {value!r}")
-    elif isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
-        raise ConfigError(f"parameter '{name}' must be a number in [{low}, {high}], got {value!r}")
 
 
 def _locked(method: Callable) -> Callable:
@@ -117,22 +79,24 @@ def _locked(method: Callable) -> Callable:
     return wrapper
 
 
-def _descriptor(description: str, low: float | None, high: float | None, kind: str, choices=None):
-    # dynamic typing: a params file may write 50 for 50.0; Parameters validates types itself
-    desc = ParameterDescriptor(description=description, dynamic_typing=True)
-    if kind == "float" and low is not None and high is not None:
-        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high))]
-    if kind == "int" and low is not None:
-        desc.integer_range = [IntegerRange(from_value=int(low), to_value=2**31 - 1, step=1)]
-    if choices:
-        desc.additional_constraints = f"one of: {', '.join(choices)}"
-    return desc
+def _qos_time(duration: Any) -> QosTime:
+    sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
+    return QosTime(sec=sec, nsec=nsec)
 
 
-def _model_descriptor(name: str) -> ParameterDescriptor:
-    meta = describe(name)
-    unit = f" [{meta['unit']}]" if meta["unit"] else ""
-    return _descriptor(f"{meta['description']}{unit}", meta["low"], meta["high"], meta["type"], meta["choices"])
+def offer_of(profile: Any) -> Qos:
+    """A discovered publisher's QoS profile (rclpy) as rosbag2 records it."""
+    return Qos(
+        history=QosHistory(int(profile.history)),
+        depth=profile.depth,
+        reliability=QosReliability(int(profile.reliability)),
+        durability=QosDurability(int(profile.durability)),
+        deadline=_qos_time(profile.deadline),
+        lifespan=_qos_time(profile.lifespan),
+        liveliness=QosLiveliness(int(profile.liveliness)),
+        liveliness_lease_duration=_qos_time(profile.liveliness_lease_duration),
+        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
+    )
 
 
 class BoomSimNode(Node):
@@ -140,14 +104,10 @@ class BoomSimNode(Node):
 
     def __init__(self) -> None:
         super().__init__("boom_sim")
-        for name in NAMES:
-            self.declare_parameter(name, describe(name)["default"], _model_descriptor(name))
-        for name, (default, description, low, high) in NODE_PARAMETERS.items():
-            kind = {float: "float", bool: "bool", str: "str"}[type(default)]
-            self.declare_parameter(name, default, _descriptor(description, low, high, kind))
-            check_node_parameter(name, self.get_parameter(name).value)
+        self._declare_parameters()
         self._read_node_parameters()
-        params = from_mapping({name: self.get_parameter(name).value for name in NAMES})
+        params = from_mapping({name: np_.plain(self.get_parameter(name).value) for name in NAMES})
+        self.publish_clock = bool(self.get_parameter("publish_clock").value)
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.jit:
             self.sim.step(0.0, 0)  # compile before the clock starts
@@ -167,18 +127,27 @@ class BoomSimNode(Node):
         self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
         self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
-        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos)
-        # best-effort subscriptions accept commands from reliable and best-effort publishers
-        self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data)
-        self.create_subscription(Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data)
+        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if self.publish_clock else None
+        # best-effort subscriptions accept commands from reliable and best-effort publishers;
+        # raw: the bytes as received are recorded, and parsed once here
+        self.command_topics = {
+            self.resolve_topic_name("valve_command"): ValveCommand,
+            self.resolve_topic_name("commands"): Float64MultiArray,
+        }
+        self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True)
+        self.create_subscription(
+            Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data, raw=True
+        )
         self.create_service(Reset, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.create_service(Step, "~/step", self.on_step)
+        self.add_pre_set_parameters_callback(self.before_set_parameters)
         self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.after_set_parameters)
 
         self._restart_clock()
         self.recorder = self._start_recording() if self.get_parameter("record").value else None
-        self.diag_timer = self.create_timer(1.0, self.publish_diagnostics)
+        self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
         self.get_logger().info(
@@ -187,55 +156,40 @@ class BoomSimNode(Node):
             f"{'compiled' if self.sim.compiled else 'interpreted'}"
         )
 
-    def _start_recording(self) -> BagRecorder:
-        """A bag of every topic this node publishes and every command it receives."""
-        # /clock always: publish_clock may be switched on while running
-        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub, self.clock_pub]
-        topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
-        topics += [
-            Topic(self.resolve_topic_name("valve_command"), _type_name(ValveCommand), reliable=False),
-            Topic(self.resolve_topic_name("commands"), _type_name(Float64MultiArray), reliable=False),
-        ]
-        custom = run_description(self.sim.params, round(self.clock_origin_s * 1e9), self.rate_hz, self.timeout_s)
-        recorder = BagRecorder(
-            new_bag_folder(self.get_parameter("record_folder").value),
-            topics,
-            chunk_size=round(self.get_parameter("record_chunk_kib").value * 1024),
-            custom_data=custom,
-        )
-        self.get_logger().info(f"recording to {recorder.folder}")
-        return recorder
-
-    def _record(self, topic: str, msg: Any, stamp: Any) -> None:
-        if self.recorder is not None:
-            self.recorder.write(topic, stamp.sec * 1_000_000_000 + stamp.nanosec, serialize_message(msg))
-
-    def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
-        """Publish (publisher, message) pairs, then record them all: a tick cut short by
-        shutdown leaves no partial tick in the bag."""
-        for publisher, msg in messages:
-            publisher.publish(msg)
-        for publisher, msg in messages:
-            self._record(publisher.topic_name, msg, stamp)
-
     # --- parameters -----------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        """Declare every parameter, typed (an integer for a float is taken as that float),
+        after refusing keys for this node that name no parameter."""
+        overrides = self._parameter_overrides  # rclpy: this node's values from files and -p
+        np_.check_known(overrides)
+        for name in overrides:
+            overrides[name] = np_.typed(overrides[name])
+        # our checks first: they name the unit and the fix, where rclpy's range check does not
+        from_mapping({name: np_.plain(p.value) for name, p in overrides.items() if name in NAMES})
+        for name, p in overrides.items():
+            if name in np_.NODE_PARAMETERS:
+                np_.check_node_parameter(name, p.value)
+        for name in np_.all_names():
+            self.declare_parameter(name, np_.default(name), np_.descriptor(name))
+
     def _read_node_parameters(self) -> None:
         self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
         self.rtf = float(self.get_parameter("real_time_factor").value)
-        self.publish_clock = bool(self.get_parameter("publish_clock").value)
         self.timeout_s = float(self.get_parameter("command_timeout_s").value)
         self.max_catch_up_s = float(self.get_parameter("max_catch_up_s").value)
+
+    def before_set_parameters(self, changes: list[Parameter]) -> list[Parameter]:
+        """An integer for a float parameter becomes that float, before rclpy checks the type."""
+        return [np_.typed(p) for p in changes]
 
     @_locked
     def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
-        model_changes = {p.name: p.value for p in changes if p.name in NAMES}
-        node_changes = {p.name: p.value for p in changes if p.name in NODE_PARAMETERS}
+        model_changes = {p.name: np_.plain(p.value) for p in changes if p.name in NAMES}
+        node_changes = {p.name: p.value for p in changes if p.name in np_.NODE_PARAMETERS}
         try:
             for name, value in node_changes.items():
-                if name not in _NODE_ATTRIBUTES:
-                    raise ConfigError(f"parameter '{name}' takes effect at start only; restart the node to change it")
-                check_node_parameter(name, value)
+                np_.check_node_parameter(name, value)
             new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
@@ -244,10 +198,82 @@ class BoomSimNode(Node):
         if node_changes:
             self.get_logger().info(f"node parameters changed: {node_changes}")
             for name, value in node_changes.items():  # rclpy stores them after this returns
-                setattr(self, _NODE_ATTRIBUTES[name], type(NODE_PARAMETERS[name][0])(value))
+                setattr(self, _NODE_ATTRIBUTES[name], float(value))
             self.drive.timeout_s = self.timeout_s  # the drive applies it
-            self._restart_clock()
+        if new_params is not None or node_changes:
+            self._restart_clock()  # pacing starts afresh from the state as it is now
+        # the node-clock time of the simulated instant the change takes effect at
+        self._changed_at_ns = round((self.clock_origin_s + self.sim.t) * 1e9)
         return SetParametersResult(successful=True)
+
+    def after_set_parameters(self, changes: list[Parameter]) -> None:
+        """Record the change as rclpy announces it on /parameter_events, stamped with the
+        node-clock time of the simulated instant it took effect at (boom-resim applies it there)."""
+        if self.recorder is None:
+            return
+        changed = [(p.name, p.type_.value, np_.plain(p.value)) for p in changes]
+        data = parameter_event_cdr(self.get_fully_qualified_name(), self._changed_at_ns, changed)
+        self.recorder.write(PARAMETER_EVENTS, self._now_ns(), data)
+
+    # --- recording ------------------------------------------------------------------------
+    def _start_recording(self) -> BagRecorder:
+        """A bag of every topic this node publishes, its parameter changes, and every command
+        it receives (each command topic once its first publisher shows up)."""
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
+        if self.clock_pub is not None:
+            pubs.append(self.clock_pub)
+        topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
+        events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
+        topics.append(Topic(PARAMETER_EVENTS, _type_name(ParameterEvent), (events_qos,)))
+        recorder = BagRecorder(
+            new_bag_folder(self.get_parameter("record_folder").value, self.get_fully_qualified_name()),
+            topics,
+            chunk_size=round(self.get_parameter("record_chunk_kib").value * 1024),
+            custom_data=run_description(
+                self.sim.params, self._origin_ns(), self.rate_hz, self.timeout_s, node=self.get_fully_qualified_name()
+            ),
+            flush_s=float(self.get_parameter("record_flush_s").value),
+        )
+        self.get_logger().info(f"recording to {recorder.folder}")
+        return recorder
+
+    def _origin_ns(self) -> int:
+        return round(self.clock_origin_s * 1e9)
+
+    def _offers(self, topic: str) -> tuple[Qos, ...]:
+        """What the publishers of ``topic`` offer (as ``ros2 bag record`` records it)."""
+        return tuple(offer_of(info.qos_profile) for info in self.get_publishers_info_by_topic(topic))
+
+    def _watch_command_topics(self) -> None:
+        """Declare a command topic once it has a publisher; keep its offers up to date."""
+        for topic, msg_type in self.command_topics.items():
+            offers = self._offers(topic)
+            if offers and topic not in self.recorder.topics:
+                self.recorder.add_topic(Topic(topic, _type_name(msg_type), offers))
+            self.recorder.add_offers(topic, offers)
+
+    def _record_received(self, topic: str, data: bytes, info: dict) -> None:
+        """Log a received command at its receive time on the node's clock, as rosbag2 does
+        (its header stamp stays inside the message); publish time: when it was sent."""
+        if self.recorder is None:
+            return
+        if topic not in self.recorder.topics:
+            offers = self._offers(topic) or (offered_qos(),)
+            self.recorder.add_topic(Topic(topic, _type_name(self.command_topics[topic]), offers))
+        received = self._now_ns()
+        self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
+
+    def _record_published(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
+        if self.recorder is not None:
+            for publisher, msg in messages:
+                self.recorder.write(publisher.topic_name, stamp_ns, serialize_message(msg))
+
+    def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
+        """Publish (publisher, message) pairs, then record them all: a tick cut short by
+        shutdown leaves no partial tick in the bag."""
+        for publisher, msg in messages:
+            publisher.publish(msg)
+        self._record_published(messages, stamp.sec * 1_000_000_000 + stamp.nanosec)
 
     # --- commands -------------------------------------------------------------------------
     def _stamp_to_sim_time(self, stamp: Any) -> float | None:
@@ -268,16 +294,16 @@ class BoomSimNode(Node):
             self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
 
     @_locked
-    def on_command(self, msg: ValveCommand) -> None:
-        stamp = msg.header.stamp
-        self._record(
-            self.resolve_topic_name("valve_command"), msg, stamp if stamp.sec or stamp.nanosec else self._stamp()
-        )
-        self._accept(msg.opening, stamp)
+    def on_command(self, data: bytes, info: dict) -> None:
+        topic = self.resolve_topic_name("valve_command")
+        self._record_received(topic, data, info)
+        msg = deserialize_message(data, ValveCommand)
+        self._accept(msg.opening, msg.header.stamp)
 
     @_locked
-    def on_command_array(self, msg: Float64MultiArray) -> None:
-        self._record(self.resolve_topic_name("commands"), msg, self._stamp())
+    def on_command_array(self, data: bytes, info: dict) -> None:
+        self._record_received(self.resolve_topic_name("commands"), data, info)
+        msg = deserialize_message(data, Float64MultiArray)
         if len(msg.data) != 1:
             self.get_logger().warning(
                 f"'commands' expects one value (the valve opening), got {len(msg.data)}", throttle_duration_sec=1.0
@@ -289,7 +315,7 @@ class BoomSimNode(Node):
     @_locked
     def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
         try:
-            self.sim.reset(request.rod_position_m if request.use_rod_position else None)
+            self.sim.reset(request.rod_position_m if request.use_rod_position else None, keep_time=True)
         except SimulationError as exc:
             response.success, response.message = False, str(exc)
             return response
@@ -326,7 +352,7 @@ class BoomSimNode(Node):
 
     # --- time and stepping ---------------------------------------------------------------------
     def _restart_clock(self) -> None:
-        """Tie simulated time to the steady clock from now on (start, reset, resume)."""
+        """Tie simulated time to the steady clock from now on (start, reset, resume, changes)."""
         self.wall_origin = time.monotonic()
         self.sim_origin_steps = self.sim.step_count
         # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
@@ -345,6 +371,9 @@ class BoomSimNode(Node):
 
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
+        with self.lock:  # the pacing starts with the loop, not when the node was built
+            self.wall_origin = time.monotonic()
+            self.sim_origin_steps = self.sim.step_count
         deadline = time.monotonic()
         while not self.stopping.is_set():
             if self.rtf == 0:
@@ -399,17 +428,21 @@ class BoomSimNode(Node):
             self.publish_state()
 
     # --- output ------------------------------------------------------------------------------
-    def _stamp(self):
+    def _now_ns(self) -> int:
+        """Now on the node's clock: simulated time when it publishes /clock, ROS time otherwise."""
         if self.publish_clock:
-            return Time(nanoseconds=round(self.sim.t * 1e9)).to_msg()
-        return self.get_clock().now().to_msg()
+            return round(self.sim.t * 1e9)
+        return self.get_clock().now().nanoseconds
+
+    def _stamp(self):
+        return Time(nanoseconds=self._now_ns()).to_msg()
 
     def publish_state(self) -> None:
         out = self.sim.outputs()
         if not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
         stamp = self._stamp()
-        if self.publish_clock:
+        if self.clock_pub is not None:
             self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
         msg = drive_state(out, stamp)
 
@@ -433,6 +466,12 @@ class BoomSimNode(Node):
         tick.append((self.force_pub, wrench))
         self._publish(tick, stamp)
 
+    def on_second(self) -> None:
+        """Once a second: diagnostics, and the command topics' publishers for the bag."""
+        if self.recorder is not None:
+            self._watch_command_topics()
+        self.publish_diagnostics()
+
     @_locked
     def publish_diagnostics(self) -> None:
         out = self.sim.outputs() if self.failure is None else {}
@@ -451,12 +490,14 @@ class BoomSimNode(Node):
         if self.failure:
             array.status.append(status("simulation", DiagnosticStatus.ERROR, f"stopped: {self.failure}"))
         else:
-            flags = [name for name in ("at_end_stop", "cavitation", "relief_open") if out.get(name)]
+            # resting on an end stop is normal; cavitation and an open relief valve are not
+            warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
+            notes = ["at_end_stop"] if out.get("at_end_stop") else []
             array.status.append(
                 status(
                     "drive",
-                    DiagnosticStatus.WARN if flags else DiagnosticStatus.OK,
-                    ", ".join(flags) if flags else "ok",
+                    DiagnosticStatus.WARN if warnings else DiagnosticStatus.OK,
+                    ", ".join(warnings + notes) or "ok",
                     sim_time_s=f"{self.sim.t:.3f}",
                     paused=self.paused,
                 )
@@ -477,17 +518,33 @@ class BoomSimNode(Node):
         self._publish([(self.diag_pub, array)], array.header.stamp)
 
 
+def _fail(message: str) -> None:
+    print(f"boom_sim: error: {message}", flush=True)
+    raise SystemExit(2)
+
+
 def main(args: list[str] | None = None) -> None:
+    argv = sys.argv if args is None else args
+    if any(a in ("-h", "--help") for a in np_.user_args(argv)[1:]):
+        print(np_.usage())
+        return
+    try:
+        for path in np_.params_files(argv):
+            np_.check_params_file(path)
+    except ConfigError as exc:
+        _fail(str(exc))
     # The loop thread must get the GIL soon after its deadline; CPython's default 5 ms
     # switch interval showed as a 16 ms p99 tick period at 100 Hz.
     sys.setswitchinterval(0.0005)
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
+        _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
     try:
         node = BoomSimNode()
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
-        print(f"boom_sim: error: {exc}", flush=True)
         rclpy.try_shutdown()
-        raise SystemExit(2) from None
+        _fail(str(exc))
     node.loop.start()
     try:
         rclpy.spin(node)

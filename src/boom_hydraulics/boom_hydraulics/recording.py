@@ -1,61 +1,103 @@
 """Recording serialized messages to a rosbag2 bag: a folder with ``metadata.yaml`` and one MCAP file.
 
 The MCAP file follows the ``ros2`` profile as rosbag2 (Jazzy) writes it: schema encoding
-``ros2msg`` with the full definition including nested types, message encoding ``cdr``,
-channel metadata ``offered_qos_profiles`` (Jazzy's YAML) and ``topic_type_hash``
-(RIHS01), zstd-compressed chunks with message indexes, and a statistics record. Writing
-happens in a thread of its own behind a queue, so the caller never waits for the disk.
+``ros2msg`` with the ``.msg`` texts of the type and its nested types, comments included;
+message encoding ``cdr``; channel metadata ``offered_qos_profiles`` (Jazzy's YAML) and
+``topic_type_hash`` (RIHS01); zstd-compressed chunks with message indexes; a statistics
+record; and a ``rosbag2`` metadata record with ``serialized_metadata`` (the bag's
+metadata, distro and custom data), so that a ``.mcap`` copied out of its folder keeps them.
 
-No rclpy here: the caller passes CDR bytes (``rclpy.serialization.serialize_message``).
+Safety of the data:
+
+- Log time never decreases within a channel (the MCAP rule): a time earlier than the
+  channel's last one is logged at that last time.
+- The header and the custom data reach the disk at once; the first chunk is written as
+  soon as the first messages arrive, and then a chunk is closed when it is full or when
+  it is ``flush_s`` old, whichever comes first. A SIGKILL therefore loses at most
+  ``flush_s`` seconds or one chunk of messages; ``boom-bag-recover`` finishes the rest.
+- While recording, the recorder holds an exclusive lock (``flock``) on the MCAP file. The
+  operating system frees it when the process dies, so :func:`is_being_recorded` tells a
+  live bag from a killed one.
+
+Writing happens in a thread of its own behind a queue, so the caller never waits for the
+disk. No rclpy here: the caller passes CDR bytes.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import queue
+import re
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import yaml
 from mcap.writer import CompressionType, Writer
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2.metadata import dump_qos_v9
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys import Stores, get_typestore
 
 from .errors import BoomHydraulicsError
+from .files import atomic_path
 from .parameters import Parameters, as_dict
 
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 writes in Jazzy
+ROS_DISTRO = "jazzy"
 CUSTOM_DATA_RECORD = "boom_hydraulics"  # name of the MCAP metadata record with the custom data
+ROSBAG2_RECORD = "rosbag2"  # name of the MCAP metadata record rosbag2_storage_mcap writes
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 _INFINITE = QosTime(sec=9223372036, nsec=854775807)
+_DEFAULT_DEPTH = 10
 
 
 class RecordingError(BoomHydraulicsError):
     """A bag cannot be written (folder exists, unknown message type, disk error)."""
 
 
+def offered_qos(reliable: bool = True, transient_local: bool = False, depth: int = _DEFAULT_DEPTH) -> Qos:
+    """One publisher's QoS offer as rosbag2 records it."""
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=depth,
+        reliability=QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        durability=QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+        deadline=_INFINITE,
+        lifespan=_INFINITE,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=_INFINITE,
+        avoid_ros_namespace_conventions=False,
+    )
+
+
 @dataclass(frozen=True)
 class Topic:
-    """One recorded topic: its resolved name, type and offered QoS."""
+    """One recorded topic: its resolved name, type, and what its publishers offered."""
 
     name: str  # resolved, e.g. /drive_state
     msgtype: str  # e.g. boom_hydraulics_msgs/msg/DriveState
-    reliable: bool = True
-    depth: int = 10
+    offers: tuple[Qos, ...] = field(default_factory=lambda: (offered_qos(),))
+
+    def qos_profiles(self) -> list[dict]:
+        """The offers as rosbag2 (Jazzy, version 9) lists them in metadata.yaml."""
+        return dump_qos_v9(list(self.offers))
 
 
+# --- interface files --------------------------------------------------------------------
 def _share_dirs() -> list[Path]:
     prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
     return [Path(p) / "share" for p in prefixes]
 
 
 def _interface_file(msgtype: str, suffix: str) -> Path:
-    package, kind, name = msgtype.split("/")
+    package, *_, name = msgtype.split("/")
     for share in _share_dirs():
-        candidate = share / package / kind / f"{name}{suffix}"
+        candidate = share / package / "msg" / f"{name}{suffix}"
         if candidate.is_file():
             return candidate
     raise RecordingError(
@@ -72,31 +114,83 @@ def type_hash(msgtype: str) -> str:
     raise RecordingError(f"{msgtype}: no type hash in its type description")
 
 
+# rosbag2_cpp's LocalMessageDefinitionSource: the field types of a .msg text, and the
+# delimiter between concatenated definitions.
+_FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
+_PRIMITIVES = frozenset(
+    "bool byte char float32 float64 int8 uint8 int16 uint16 int32 uint32 int64 uint64 string".split()
+)
+_DELIMITER = "=" * 80 + "\n"
+
+
 def message_definition(msgtype: str) -> str:
-    """The ros2msg definition of ``msgtype`` with every nested type, as rosbag2 stores it."""
+    """The ros2msg definition of ``msgtype`` as rosbag2 stores it: the ``.msg`` text with its
+    comments, then each nested type's text after a ``MSG: pkg/Type`` delimiter."""
+    seen: set[str] = set()
+
+    def full_text(name: str) -> str:
+        package = name.split("/")[0]
+        text = _interface_file(name, ".msg").read_text()
+        dependencies = set()
+        for match in _FIELD_TYPE.finditer(text):
+            kind = match.group(1)
+            if kind not in _PRIMITIVES:
+                dependencies.add(kind if "/" in kind else f"{package}/{kind}")
+        for dependency in sorted(dependencies):
+            if dependency not in seen:
+                seen.add(dependency)
+                text += f"\n{_DELIMITER}MSG: {dependency}\n{full_text(dependency)}"
+        return text
+
+    return full_text(msgtype)
+
+
+# --- parameter events ---------------------------------------------------------------------
+_VALUE_FIELDS = {  # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it
+    1: ("bool_value", None),
+    2: ("integer_value", None),
+    3: ("double_value", None),
+    4: ("string_value", None),
+    5: ("byte_array_value", np.uint8),
+    6: ("bool_array_value", np.bool_),
+    7: ("integer_array_value", np.int64),
+    8: ("double_array_value", np.float64),
+    9: ("string_array_value", list),
+}
+
+
+def parameter_event_cdr(node: str, stamp_ns: int, changed: list[tuple[str, int, Any]]) -> bytes:
+    """CDR of an ``rcl_interfaces/msg/ParameterEvent`` announcing ``changed`` (name, ParameterType,
+    value) parameters of ``node``. Encoded by rosbags: rclpy's serializer leaves trailing padding
+    after the empty 8-byte sequences of ParameterValue, and strict readers refuse that."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    if msgtype not in store.fielddefs:
-        store.register(get_types_from_msg(_interface_file(msgtype, ".msg").read_text(), msgtype))
-    text, _ = store.generate_msgdef(msgtype, ros_version=2)
-    return text
-
-
-def qos_profiles(topic: Topic) -> list[dict]:
-    """Offered QoS of a publisher as rosbag2 (Jazzy, version 9) lists it in metadata.yaml."""
-    qos = Qos(
-        history=QosHistory.KEEP_LAST,
-        depth=topic.depth,
-        reliability=QosReliability.RELIABLE if topic.reliable else QosReliability.BEST_EFFORT,
-        durability=QosDurability.VOLATILE,
-        deadline=_INFINITE,
-        lifespan=_INFINITE,
-        liveliness=QosLiveliness.AUTOMATIC,
-        liveliness_lease_duration=_INFINITE,
-        avoid_ros_namespace_conventions=False,
+    types = store.types
+    empty = {
+        "bool_value": False,
+        "integer_value": 0,
+        "double_value": 0.0,
+        "string_value": "",
+        **{name: [] if kind is list else np.array([], dtype=kind) for name, kind in list(_VALUE_FIELDS.values())[4:]},
+    }
+    parameters = []
+    for name, kind, value in changed:
+        field_name, dtype = _VALUE_FIELDS[kind]
+        fields = dict(empty)
+        fields[field_name] = value if dtype is None else (list(value) if dtype is list else np.array(value, dtype))
+        parameter_value = types["rcl_interfaces/msg/ParameterValue"](type=kind, **fields)
+        parameters.append(types["rcl_interfaces/msg/Parameter"](name=name, value=parameter_value))
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    event = types["rcl_interfaces/msg/ParameterEvent"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+        node=node,
+        new_parameters=[],
+        changed_parameters=parameters,
+        deleted_parameters=[],
     )
-    return dump_qos_v9([qos])
+    return bytes(store.serialize_cdr(event, "rcl_interfaces/msg/ParameterEvent"))
 
 
+# --- bag folders ------------------------------------------------------------------------
 def run_description(
     params: Parameters, clock_origin_ns: int, publish_rate_hz: float, command_timeout_s: float, **extra: str
 ) -> dict[str, str]:
@@ -112,136 +206,46 @@ def run_description(
 
 
 def new_bag_folder(parent: str | Path, name: str = "boom_sim") -> Path:
-    """``parent/<UTC date-time>_<name>``: folders sort by start time."""
+    """``parent/<UTC date-time>_<name>``: folders sort by start time. ``name`` is the node's
+    fully qualified name (``/crane1/boom_sim`` gives ``crane1_boom_sim``)."""
+    label = name.strip("/").replace("/", "_") or "boom_sim"
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-    folder = Path(parent) / f"{stamp}_{name}"
+    folder = Path(parent) / f"{stamp}_{label}"
     n = 1
     while folder.exists():  # two runs in the same second
         n += 1
-        folder = Path(parent) / f"{stamp}-{n}_{name}"
+        folder = Path(parent) / f"{stamp}-{n}_{label}"
     return folder
 
 
-class BagRecorder:
-    """Writes messages of known topics to a new bag folder; :meth:`close` finishes the bag."""
-
-    def __init__(
-        self,
-        folder: str | Path,
-        topics: list[Topic],
-        chunk_size: int = 1 << 20,
-        custom_data: dict[str, str] | None = None,
-    ):
-        self.folder = Path(folder)
-        try:
-            self.folder.mkdir(parents=True, exist_ok=False)
-        except FileExistsError:
-            raise RecordingError(f"{self.folder}: a bag folder of that name exists already") from None
-        except OSError as exc:
-            raise RecordingError(f"{self.folder}: cannot create the bag folder ({exc.strerror})") from None
-        self.file = self.folder / f"{self.folder.name}_0.mcap"
-        self._stream = self.file.open("wb")
-        self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile="ros2", library="boom_hydraulics")
-        # custom data (e.g. the run's parameters): in metadata.yaml and, so that a lone
-        # .mcap file carries it too, as an MCAP metadata record
-        self.custom_data = dict(custom_data or {})
-        if self.custom_data:
-            self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
-        self.topics = {t.name: t for t in topics}
-        self._channels: dict[str, int] = {}
-        self.counts: dict[str, int] = {t.name: 0 for t in topics}
-        schemas: dict[str, int] = {}
-        for topic in topics:
-            if topic.msgtype not in schemas:
-                schemas[topic.msgtype] = self._writer.register_schema(
-                    topic.msgtype, "ros2msg", message_definition(topic.msgtype).encode()
-                )
-            self._channels[topic.name] = self._writer.register_channel(
-                topic.name,
-                "cdr",
-                schemas[topic.msgtype],
-                {
-                    # in the MCAP channel, the same list as a YAML string (as rosbag2 writes it)
-                    "offered_qos_profiles": yaml.safe_dump(qos_profiles(topic), sort_keys=False),
-                    "topic_type_hash": type_hash(topic.msgtype),
-                },
-            )
-        self.first_ns: int | None = None
-        self.last_ns = 0
-        self.error: str | None = None
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._thread = threading.Thread(target=self._drain, name="bag_writer", daemon=True)
-        self._thread.start()
-        self._closed = False
-
-    def write(self, topic: str, time_ns: int, data: bytes) -> None:
-        """Queue one message (log time = publish time = ``time_ns``); returns at once."""
-        if topic not in self._channels:
-            raise RecordingError(f"{self.folder}: topic {topic} was not declared for this bag")
-        self._queue.put((topic, time_ns, data))
-
-    def _drain(self) -> None:
-        while (item := self._queue.get()) is not None:
-            topic, time_ns, data = item
-            if self.error is not None:
-                continue
+def is_being_recorded(mcap_file: Path) -> bool:
+    """True while a live recorder holds the lock on ``mcap_file``."""
+    try:
+        with mcap_file.open("rb") as handle:
             try:
-                self._writer.add_message(self._channels[topic], time_ns, data, time_ns, self.counts[topic])
-            except (OSError, ValueError) as exc:  # disk full, closed stream: keep what was written
-                self.error = f"{self.file}: {exc}"
-                continue
-            self.counts[topic] += 1
-            self.first_ns = time_ns if self.first_ns is None else min(self.first_ns, time_ns)
-            self.last_ns = max(self.last_ns, time_ns)
-
-    def close(self) -> Path:
-        """Write out what is queued, finish the MCAP file and write metadata.yaml. Idempotent."""
-        if self._closed:
-            return self.folder
-        self._closed = True
-        self._queue.put(None)
-        self._thread.join()
-        self._writer.finish()
-        self._stream.close()
-        self._write_metadata()
-        return self.folder
-
-    def _write_metadata(self) -> None:
-        write_metadata(
-            self.folder,
-            self.file.name,
-            [
-                (t.name, t.msgtype, qos_profiles(t), type_hash(t.msgtype), self.counts[t.name])
-                for t in self.topics.values()
-            ],
-            self.first_ns or 0,
-            self.last_ns,
-            self.custom_data,
-        )
-
-    def __enter__(self) -> BagRecorder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+                fcntl.flock(handle.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return True
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+    except OSError:
+        return False
+    return False
 
 
-def write_metadata(
-    folder: Path,
+def bag_info(
     file_name: str,
     topics: list[tuple[str, str, list[dict], str, int]],
     first_ns: int,
     last_ns: int,
     custom_data: dict[str, str],
-) -> None:
-    """rosbag2's metadata.yaml (version 9) for one MCAP file.
+) -> dict[str, Any]:
+    """rosbag2's bag metadata (version 9) for one MCAP file.
 
-    ``topics``: (name, type, offered QoS list, type hash, message count) each.
+    ``topics``: (name, type, offered QoS profiles, type hash, message count) each.
     """
     duration = max(0, last_ns - first_ns)
     total = sum(t[4] for t in topics)
-    info = {
+    return {
         "version": ROSBAG2_VERSION,
         "storage_identifier": "mcap",
         "duration": {"nanoseconds": duration},
@@ -272,8 +276,185 @@ def write_metadata(
             }
         ],
         "custom_data": custom_data,
-        "ros_distro": "jazzy",
+        "ros_distro": ROS_DISTRO,
     }
-    tmp = folder / ".metadata.yaml.partial"
-    tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
-    tmp.replace(folder / "metadata.yaml")
+
+
+def rosbag2_record(info: dict[str, Any]) -> dict[str, str]:
+    """The ``rosbag2`` MCAP metadata record of a bag, as rosbag2_storage_mcap writes it."""
+    return {"serialized_metadata": yaml.safe_dump(info, sort_keys=False)}
+
+
+def write_metadata(folder: Path, info: dict[str, Any]) -> None:
+    """``folder/metadata.yaml`` of ``info`` (see :func:`bag_info`), written whole."""
+    with atomic_path(folder / "metadata.yaml") as tmp:
+        tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
+
+
+_FLUSH_NOW = object()  # queue item: close the chunk in progress now
+
+
+class BagRecorder:
+    """Writes messages to a new bag folder; :meth:`close` finishes the bag.
+
+    Topics are declared at start or later with :meth:`add_topic` (a command topic, once
+    its first publisher shows up); :meth:`add_offers` adds what a topic's new publishers
+    offered, for the metadata written at close.
+    """
+
+    def __init__(
+        self,
+        folder: str | Path,
+        topics: list[Topic],
+        chunk_size: int = 1 << 20,
+        custom_data: dict[str, str] | None = None,
+        flush_s: float = 1.0,
+        file_stem: str | None = None,
+    ):
+        self.folder = Path(folder)
+        try:
+            self.folder.mkdir(parents=True, exist_ok=False)
+        except FileExistsError:
+            raise RecordingError(f"{self.folder}: a folder of that name exists already; name a new one") from None
+        except OSError as exc:
+            raise RecordingError(f"{self.folder}: cannot create the bag folder ({exc.strerror})") from None
+        self.file = self.folder / f"{file_stem or self.folder.name}_0.mcap"
+        self._stream = self.file.open("wb")
+        fcntl.flock(self._stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)  # live until closed or dead
+        self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="boom_hydraulics")
+        # custom data (e.g. the run's parameters): in metadata.yaml and, so that a lone
+        # .mcap file carries it too, as an MCAP metadata record at once
+        self.custom_data = dict(custom_data or {})
+        if self.custom_data:
+            self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
+        self._stream.flush()
+        self.flush_s = flush_s
+        self.topics: dict[str, Topic] = {}
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._hashes: dict[str, str] = {}
+        self._last_log: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+        self.first_ns: int | None = None
+        self.last_ns = 0
+        self.error: str | None = None
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._closed = False
+        for topic in topics:
+            self.add_topic(topic)
+        self._thread = threading.Thread(target=self._drain, name="bag_writer", daemon=True)
+        self._thread.start()
+
+    # --- caller side -----------------------------------------------------------------
+    def add_topic(self, topic: Topic) -> None:
+        """Declare a topic (no-op if declared); its channel is written before its first message."""
+        if topic.name in self.topics:
+            return
+        self._hashes.setdefault(topic.msgtype, type_hash(topic.msgtype))  # fails here, not in the thread
+        self.topics[topic.name] = topic
+        self.counts[topic.name] = 0
+        self._queue.put(topic)
+
+    def add_offers(self, name: str, offers: tuple[Qos, ...]) -> None:
+        """Add what newly seen publishers of topic ``name`` offered to what the bag's
+        metadata will list (the MCAP channel keeps the offers it was created with)."""
+        topic = self.topics.get(name)
+        if topic is not None:
+            new = tuple(offer for offer in offers if offer not in topic.offers)
+            if new:
+                self.topics[name] = replace(topic, offers=topic.offers + new)
+
+    def write(self, topic: str, log_time_ns: int, data: bytes, publish_time_ns: int | None = None) -> None:
+        """Queue one message; returns at once. Log time: when it was received or published."""
+        if topic not in self.topics:
+            raise RecordingError(f"{self.folder}: topic {topic} was not declared for this bag")
+        self._queue.put((topic, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns, data))
+
+    def flush(self) -> None:
+        """Close the chunk in progress now (it reaches the disk), without waiting for it."""
+        self._queue.put(_FLUSH_NOW)
+
+    # --- writer thread ---------------------------------------------------------------
+    def _register(self, topic: Topic) -> None:
+        if topic.msgtype not in self._schemas:
+            self._schemas[topic.msgtype] = self._writer.register_schema(
+                topic.msgtype, "ros2msg", message_definition(topic.msgtype).encode()
+            )
+        self._channels[topic.name] = self._writer.register_channel(
+            topic.name,
+            "cdr",
+            self._schemas[topic.msgtype],
+            {
+                # in the MCAP channel, the offers as a YAML string (as rosbag2 writes them)
+                "offered_qos_profiles": yaml.safe_dump(topic.qos_profiles(), sort_keys=False),
+                "topic_type_hash": self._hashes[topic.msgtype],
+            },
+        )
+
+    def _add(self, topic: str, log_ns: int, publish_ns: int, data: bytes) -> None:
+        log_ns = max(log_ns, self._last_log.get(topic, log_ns))  # never back in time per channel
+        self._writer.add_message(self._channels[topic], log_ns, data, publish_ns, self.counts[topic])
+        self._last_log[topic] = log_ns
+        self.counts[topic] += 1
+        self.first_ns = log_ns if self.first_ns is None else min(self.first_ns, log_ns)
+        self.last_ns = max(self.last_ns, log_ns)
+
+    def _flush_chunk(self) -> None:
+        self._writer.flush()
+        os.fsync(self._stream.fileno())
+
+    def _drain(self) -> None:
+        pending = 0  # messages not on disk yet
+        last_flush = -float("inf")
+        while True:
+            timeout = max(0.01, last_flush + self.flush_s - time.monotonic()) if pending else None
+            try:
+                item = self._queue.get(timeout=timeout)
+            except queue.Empty:
+                item = _FLUSH_NOW
+            if item is None:
+                return
+            if self.error is not None:
+                continue
+            try:
+                if isinstance(item, Topic):
+                    self._register(item)
+                elif item is not _FLUSH_NOW:
+                    self._add(*item)
+                    pending += 1
+                if pending and (item is _FLUSH_NOW or time.monotonic() - last_flush >= self.flush_s):
+                    self._flush_chunk()  # the first messages at once, then at most every flush_s
+                    pending, last_flush = 0, time.monotonic()
+            except (OSError, ValueError, RecordingError) as exc:  # disk full, bad type: keep what was written
+                self.error = f"{self.file}: {exc}"
+
+    # --- finishing -------------------------------------------------------------------
+    def info(self) -> dict[str, Any]:
+        """The bag's metadata for what has been written so far."""
+        topics = [
+            (t.name, t.msgtype, t.qos_profiles(), self._hashes[t.msgtype], self.counts[t.name])
+            for t in self.topics.values()
+        ]
+        return bag_info(self.file.name, topics, self.first_ns or 0, self.last_ns, self.custom_data)
+
+    def close(self) -> Path:
+        """Write out what is queued, finish the MCAP file and write metadata.yaml. Idempotent."""
+        if self._closed:
+            return self.folder
+        self._closed = True
+        self._queue.put(None)
+        self._thread.join()
+        info = self.info()
+        self._writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
+        self._writer.finish()
+        self._stream.flush()
+        write_metadata(self.folder, info)  # before the lock goes: never a live-looking bag without it
+        self._stream.close()
+        return self.folder
+
+    def __enter__(self) -> BagRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -22,11 +22,19 @@ def statics(p: Parameters, diameters_m: Sequence[float], points: int = 161) -> d
         "q1": q1,
         "alpha": geometry.boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m, np),
         "phi": geometry.rod_boom_angle_rad(q1, p.a_m, p.b_m, np),
-        "force": force,
+        "static_force": force,
     }
     for d in diameters_m:
         out[f"holding_pressure_D{d * 1000:g}mm"] = geometry.holding_pressure_pa(force, d)
     return out
+
+
+_STATICS_UNITS = {"q1": "m", "alpha": "rad", "phi": "rad", "static_force": "N"}
+
+
+def statics_header(table: dict[str, np.ndarray]) -> list[str]:
+    """CSV column names with units of a :func:`statics` table (boom-sim statics and boom-study alike)."""
+    return [f"{name} [{_STATICS_UNITS.get(name, 'Pa')}]" for name in table]
 
 
 def dynamic_case(params: Parameters, duration_s: float) -> Trajectory:

@@ -6,11 +6,12 @@ Writes fig3_angles.png, fig4_static_force.png, fig5_holding_pressure.png (static
 the stroke), fig8.png, fig9.png, fig10.png (the three dynamic cases in paper mode, with
 physical mode for the same piston beside them), solver_study.png (error against step size
 for Euler and RK4), and the numbers behind them as statics.csv and solver_study.csv.
+Only these files are written into the folder, each whole or not at all; nothing else in
+it is touched, so the figures can go next to others (docs/figures).
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import sys
@@ -24,8 +25,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from . import config, plots, studies
-from .errors import BoomHydraulicsError
-from .files import staged_folder
+from .command_line import RaisingParser, run_main
+from .errors import BoomHydraulicsError, ConfigError
+from .files import check_apart, results_folder
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"  # the package's config/ (symlink in src)
 DIAMETERS_M = (0.032, 0.04, 0.05, 0.063, 0.08)
@@ -68,7 +70,7 @@ def statics_figures(out: Path, params) -> None:
     )
     _line_figure(
         q1,
-        [(f"m1 = {params.boom_mass_kg:g} kg, mb = {params.payload_mass_kg:g} kg", s["force"] / 1e3)],
+        [(f"m1 = {params.boom_mass_kg:g} kg, mb = {params.payload_mass_kg:g} kg", s["static_force"] / 1e3)],
         "cylinder length q1 [m]",
         "static rod force F [kN]",
         "Fig. 4: static rod force (eq. 6)",
@@ -85,12 +87,7 @@ def statics_figures(out: Path, params) -> None:
     )
     with (out / "statics.csv").open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(
-            [
-                f"{k} [{'m' if k == 'q1' else 'rad' if k in ('alpha', 'phi') else 'N' if k == 'force' else 'Pa'}]"
-                for k in s
-            ]
-        )
+        writer.writerow(studies.statics_header(s))
         writer.writerows(np.column_stack(list(s.values())).tolist())
 
 
@@ -139,27 +136,29 @@ def solver_figure(out: Path, config_dir: Path) -> None:
 
 
 def paper(out: Path, duration_s: float) -> None:
+    if not (math.isfinite(duration_s) and 0 < duration_s <= 60):
+        raise ConfigError(f"--duration must be a number of simulated seconds in (0, 60], got {duration_s:g}")
     config_dir = _config_dir()
-    with staged_folder(out) as tmp:
+    check_apart(out, [config_dir / name for name in ("default.yaml", *CASES.values())])
+    with results_folder(out) as tmp:
         statics_figures(tmp, config.load(config_dir / "default.yaml"))
         dynamic_figures(tmp, config_dir, duration_s)
         solver_figure(tmp, config_dir)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="boom-study", description="Regenerate the paper's studies.")
-    sub = parser.add_subparsers(dest="study", required=True)
-    p = sub.add_parser("paper", help="Figs. 3-5, 8-10 and the solver study")
-    p.add_argument("--out", type=Path, default=Path("out/paper"), help="folder for the figures (default out/paper)")
-    p.add_argument("--duration", type=float, default=3.0, help="simulated seconds of the dynamic cases")
-    args = parser.parse_args(argv)
-    try:
+    def body() -> int:
+        parser = RaisingParser(prog="boom-study", description="Regenerate the paper's studies.")
+        sub = parser.add_subparsers(dest="study", required=True, parser_class=RaisingParser)
+        p = sub.add_parser("paper", help="Figs. 3-5, 8-10 and the solver study")
+        p.add_argument("--out", type=Path, default=Path("out/paper"), help="folder for the figures (default out/paper)")
+        p.add_argument("--duration", type=float, default=3.0, help="simulated seconds of the dynamic cases (default 3)")
+        args = parser.parse_args(argv)
         paper(args.out, args.duration)
-    except BoomHydraulicsError as exc:
-        print(f"boom-study: error: {exc}", file=sys.stderr)
-        return 1
-    print(f"boom-study: figures in {args.out}")
-    return 0
+        print(f"boom-study: figures in {args.out}")
+        return 0
+
+    return run_main("boom-study", body)
 
 
 if __name__ == "__main__":

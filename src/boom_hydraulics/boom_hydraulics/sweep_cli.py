@@ -35,10 +35,10 @@ from typing import Any
 import numpy as np
 
 from . import config, recommend, sweep
-from .command_line import RaisingParser, run_main
+from .command_line import DefaultsFormatter, RaisingParser, run_main
 from .errors import ConfigError
 from .executors import DaskExecutor, LocalExecutor
-from .files import csv_cell, write_bytes, write_csv, write_npz
+from .files import check_apart, csv_cell, write_bytes, write_csv, write_npz
 from .parameters import Parameters, from_mapping
 from .sampling import SAMPLES, parse_axis, resolve_name
 from .sweep_store import SweepStore, stored_request
@@ -54,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = RaisingParser(
         prog="boom-sweep",
         description="Sweep cylinder designs through one valve scenario and rank them.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=DefaultsFormatter,
     )
     what = parser.add_argument_group("what to sweep")
     what.add_argument(
@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="FILE",
-        help="ROS 2 params YAML; repeat to sweep across configs (default: built-in defaults)",
+        help="ROS 2 params YAML; repeat to sweep across configs (default: the built-in values)",
     )
     what.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a parameter")
     what.add_argument(
@@ -190,6 +190,7 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         )
 
     out = args.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
+    check_apart(out, [Path(c) for c in args.config or []])
     stored = stored_request(out) if args.resume else None
     if args.batch_size is None and stored and isinstance(stored.get("batch_size"), int):
         plan = make_plan(stored["batch_size"])  # resume in the batches it began with, wherever it runs now

@@ -1,0 +1,76 @@
+"""The test's side of the ROS graph, shared by the tests that run the node."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import FluidPressure, JointState
+from std_srvs.srv import SetBool
+
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics_msgs.srv import Reset, Step
+
+
+class Client:
+    """The test's side of the ROS graph: commands out, state in, services."""
+
+    def __init__(self, node_name: str = "/boom_sim", namespace: str | None = None) -> None:
+        self.node = rclpy.create_node(f"test_client_{os.getpid()}", namespace=namespace)
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub = self.node.create_publisher(ValveCommand, "valve_command", qos)
+        self.states: list[DriveState] = []
+        self.joints: list[JointState] = []
+        self.pressures: list[FluidPressure] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        self.node.create_subscription(DriveState, "drive_state", self.states.append, qos)
+        self.node.create_subscription(JointState, "joint_states", self.joints.append, qos)
+        self.node.create_subscription(FluidPressure, "piston_pressure", self.pressures.append, qos)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, qos)
+        self.reset = self.node.create_client(Reset, f"{node_name}/reset")
+        self.pause = self.node.create_client(SetBool, f"{node_name}/pause")
+        self.step = self.node.create_client(Step, f"{node_name}/step")
+        self.set_params = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
+        self.get_params = self.node.create_client(GetParameters, f"{node_name}/get_parameters")
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = 15.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+        return predicate()
+
+    def spin_for(self, seconds: float, opening: float | None = None) -> None:
+        """Spin, publishing ``opening`` at 50 Hz if given."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if opening is not None:
+                self.command(opening)
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
+    def command(self, opening: float, stamp_s: float | None = None) -> None:
+        msg = ValveCommand(opening=opening)
+        if stamp_s is not None:
+            msg.header.stamp.sec = int(stamp_s)
+            msg.header.stamp.nanosec = round((stamp_s - int(stamp_s)) * 1e9)
+        self.pub.publish(msg)
+
+    def call(self, client, request, timeout: float = 10.0):
+        assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
+        future = client.call_async(request)
+        assert self.spin_until(future.done, timeout)
+        return future.result()
+
+    def set_parameter(self, name: str, value: float):
+        param = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
+        return self.call(self.set_params, SetParameters.Request(parameters=[param])).results[0]
+
+    def last(self) -> DriveState:
+        return self.states[-1]

@@ -1,0 +1,77 @@
+"""Results are written whole or not at all, and never over what a tool did not write."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import pytest
+
+from boom_hydraulics.errors import ConfigError
+from boom_hydraulics.files import atomic_path, check_apart, results_folder, write_csv
+
+
+def test_results_folder_replaces_only_the_files_it_names(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("the user's")
+    (out / "old.csv").write_text("old result")
+    (out / "keep").mkdir()
+    with results_folder(out) as stage:
+        (stage / "old.csv").write_text("new result")
+        (stage / "new.png").write_bytes(b"png")
+    assert (out / "mine.txt").read_text() == "the user's"
+    assert (out / "keep").is_dir()
+    assert (out / "old.csv").read_text() == "new result"
+    assert sorted(p.name for p in out.iterdir()) == ["keep", "mine.txt", "new.png", "old.csv"]  # no staging left
+
+
+def test_a_failing_run_leaves_the_folder_as_it_was(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.csv").write_text("old result")
+    with pytest.raises(RuntimeError), results_folder(out) as stage:
+        (stage / "old.csv").write_text("half")
+        raise RuntimeError("plotting failed")
+    assert [p.name for p in out.iterdir()] == ["old.csv"]
+    assert (out / "old.csv").read_text() == "old result"
+
+
+def test_a_failing_run_removes_only_the_folders_it_created(tmp_path):
+    out = tmp_path / "a" / "b" / "out"
+    with pytest.raises(RuntimeError), results_folder(out):
+        raise RuntimeError("no")
+    assert list(tmp_path.iterdir()) == []  # a/, a/b/ and out/ were this run's
+    (tmp_path / "user").mkdir()
+    with pytest.raises(RuntimeError), results_folder(tmp_path / "user" / "out"):
+        raise RuntimeError("no")
+    assert [p.name for p in tmp_path.iterdir()] == ["user"]  # the user's folder stays
+
+
+def test_the_output_may_not_be_or_hold_an_input(tmp_path):
+    bag = tmp_path / "run2"
+    bag.mkdir()
+    with pytest.raises(ConfigError, match="is the input"):
+        check_apart(bag, [bag])
+    with pytest.raises(ConfigError, match="holds the input"):
+        check_apart(tmp_path, [bag])
+    with pytest.raises(ConfigError, match="holds the input"):
+        check_apart(tmp_path / ".", [tmp_path / "x" / ".." / "run2"])  # spelled differently, same place
+    check_apart(tmp_path / "run2.analysis", [bag])  # beside it: fine
+    check_apart(bag / "analysis", [bag])  # inside it adds files, holds nothing: fine
+
+
+def test_a_file_is_whole_or_absent_and_gets_the_usual_mode(tmp_path):
+    target = tmp_path / "run.csv"
+    target.write_text("old")
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("disk full")
+    assert target.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["run.csv"]
+    write_csv(target, ["a [m]"], [["1.0"]])
+    assert target.read_text().splitlines() == ["a [m]", "1.0"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # not mkstemp's private 0600
+    with pytest.raises(ConfigError, match="is a folder"):
+        write_csv(tmp_path, ["a"], [])

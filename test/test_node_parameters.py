@@ -1,0 +1,127 @@
+"""The node's parameters as a ROS user meets them: params files, set, describe, dump and load."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+from collections.abc import Iterator
+
+import pytest
+from conftest import BOOM_SIM, CONFIG
+
+rclpy = pytest.importorskip("rclpy")
+from rcl_interfaces.msg import ParameterType  # noqa: E402
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters  # noqa: E402
+from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
+from ros_client import Client  # noqa: E402
+
+from boom_hydraulics.node_parameters import START_ONLY  # noqa: E402
+
+pytestmark = [
+    pytest.mark.usefixtures("ros_context"),
+    pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)"),
+]
+NODE = "/crane1/boom_sim"
+
+
+@pytest.fixture(scope="module")
+def crane1(ros_context) -> Iterator[Client]:
+    """A namespaced node started from a shipped params file (paper mode, fig. 8)."""
+    args = ["-r", "__ns:=/crane1", "--params-file", str(CONFIG / "paper_fig8.yaml"), "-p", "record:=false"]
+    args += ["-p", "payload_mass_kg:=60"]  # an integer for a float, on the command line
+    proc = subprocess.Popen(
+        [BOOM_SIM, "--ros-args", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    client = Client(NODE, namespace="/crane1")
+    client.describe = client.node.create_client(DescribeParameters, f"{NODE}/describe_parameters")
+    client.list = client.node.create_client(ListParameters, f"{NODE}/list_parameters")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3, timeout=30), "no state from /crane1/drive_state"
+        yield client
+    finally:
+        client.node.destroy_node()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=20)
+
+
+def _get(client: Client, *names: str) -> list:
+    return client.call(client.get_params, GetParameters.Request(names=list(names))).values
+
+
+def _set(client: Client, *params: Parameter):
+    request = SetParameters.Request(parameters=[p.to_parameter_msg() for p in params])
+    return client.call(client.set_params, request).results
+
+
+def test_a_namespaced_node_takes_the_shipped_params_file(crane1):
+    mode, diameter, payload = _get(crane1, "mode", "piston_diameter_m", "payload_mass_kg")
+    assert (mode.string_value, diameter.double_value) == ("paper", 0.04)
+    assert (payload.type, payload.double_value) == (ParameterType.PARAMETER_DOUBLE, 60.0)  # -p 60 stays a double
+
+
+def test_integers_for_floats_stay_doubles_and_arrays_can_be_set(crane1):
+    (result,) = _set(crane1, Parameter("payload_mass_kg", Parameter.Type.INTEGER, 120))
+    assert result.successful, result.reason
+    (value,) = _get(crane1, "payload_mass_kg")
+    assert (value.type, value.double_value) == (ParameterType.PARAMETER_DOUBLE, 120.0)
+    (result,) = _set(crane1, Parameter("command_values", Parameter.Type.DOUBLE_ARRAY, [0.5]))
+    assert result.successful, result.reason
+    (result,) = _set(crane1, Parameter("command_times_s", Parameter.Type.INTEGER_ARRAY, [0]))
+    assert result.successful, result.reason
+    values = _get(crane1, "command_values", "command_times_s")
+    assert [list(v.double_array_value) for v in values] == [[0.5], [0.0]]
+
+
+def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
+    (absurd,) = _set(crane1, Parameter("payload_mass_kg", Parameter.Type.DOUBLE, 1e300))
+    assert not absurd.successful and "payload_mass_kg" in absurd.reason
+    (clock,) = _set(crane1, Parameter("publish_clock", Parameter.Type.BOOL, True))
+    assert not clock.successful and "read-only" in clock.reason
+    described = crane1.call(
+        crane1.describe, DescribeParameters.Request(names=["piston_diameter_m", "publish_clock", "record_folder"])
+    ).descriptors
+    diameter, clock_desc, folder = described
+    assert diameter.type == ParameterType.PARAMETER_DOUBLE and not diameter.read_only
+    assert (diameter.floating_point_range[0].from_value, diameter.floating_point_range[0].to_value) == (0.0, 1.0)
+    assert "[m]" in diameter.description
+    assert clock_desc.read_only and folder.read_only and "at start only" in folder.additional_constraints
+
+
+def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1):
+    """What ``ros2 param dump`` then ``ros2 param load`` do, through the same services: the
+    dump is every parameter's value; the load sets each value of the file, as its type reads."""
+    names = crane1.call(crane1.list, ListParameters.Request()).result.names
+    dump = {name: parameter_value_to_python(v) for name, v in zip(names, _get(crane1, *names))}
+    loaded = [Parameter(name, value=list(v) if hasattr(v, "tolist") else v) for name, v in dump.items()]
+    results = _set(crane1, *loaded)
+    failed = {p.name for p, r in zip(loaded, results) if not r.successful}
+    assert failed == set(START_ONLY) | {"start_type_description_service"}  # rclpy refuses read-only ones
+    assert all("read-only" in r.reason for r in results if not r.successful)
+
+
+@pytest.mark.parametrize(
+    ("params_file", "extra", "message"),
+    [
+        ("/**:\n  ros__parameters:\n    payload_mass_kgg: 80.0\n", [], "unknown parameter 'payload_mass_kgg'"),
+        (None, ["-p", "publish_rate:=50.0"], "did you mean 'publish_rate_hz'?"),
+        ("/**:\n  ros__parameters:\n    a_m: [0.4\n", [], "malformed YAML at line"),
+        ("MISSING", [], "no such file"),
+        (None, ["-p", "payload_mass_kg:=1e300"], "'payload_mass_kg'"),
+    ],
+)
+def test_a_bad_start_is_one_line_and_exit_2(tmp_path, params_file, extra, message):
+    args = [BOOM_SIM, "--ros-args", "-p", "record:=false", *extra]
+    if params_file == "MISSING":
+        args += ["--params-file", str(tmp_path / "missing.yaml")]
+    elif params_file:
+        (tmp_path / "p.yaml").write_text(params_file)
+        args += ["--params-file", str(tmp_path / "p.yaml")]
+    result = subprocess.run(args, capture_output=True, text=True, timeout=60)
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert result.returncode == 2, lines
+    assert len(lines) == 1 and lines[0].startswith("boom_sim: error:") and message in lines[0], lines
+    if "kgg" in message:
+        assert "did you mean 'payload_mass_kg'?" in lines[0]

@@ -1,0 +1,123 @@
+"""What the tools write, and what they leave alone: the examples a user lost data with."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+pytest.importorskip("rclpy")
+from rclpy.serialization import serialize_message
+
+from boom_hydraulics.bag_reading import read_drive_states
+from boom_hydraulics.recording import BagRecorder, Topic
+from boom_hydraulics_msgs.msg import DriveState
+
+NAMES = ("boom-analyze", "boom-study", "boom-sim", "boom-sweep", "boom-resim", "boom-replay", "boom-bag-recover")
+TOOLS = {name: shutil.which(name) for name in (*NAMES, "boom-demo")}
+pytestmark = pytest.mark.skipif(None in TOOLS.values(), reason="run through tools/with-env")
+EPOCH_NS = 1_795_398_778_106_328_251  # a real stamp: float seconds since the epoch resolve 238 ns
+
+
+def _bag(folder, n: int = 60) -> None:
+    """DriveStates at 10 ms on the epoch clock, with a lift so that the metrics have a rise."""
+    with BagRecorder(folder, [Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState")]) as rec:
+        for i in range(n):
+            ns = EPOCH_NS + i * 10_000_001  # 10 ms and 1 ns: the nanosecond must survive
+            msg = DriveState(rod_position_m=1.3 + 1e-3 * i, valve_command=1.0 if i > 5 else 0.0)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+            msg.piston_pressure_pa = msg.rod_pressure_pa = 1e5
+            rec.write("/drive_state", ns, serialize_message(msg))
+
+
+def _run(*args, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+def test_analyze_keeps_what_the_user_kept_in_its_folder(tmp_path):
+    _bag(tmp_path / "run1")
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    (out / "run1.csv").write_text("an old result")
+    result = _run(TOOLS["boom-analyze"], tmp_path / "run1", "--out", out)
+    assert result.returncode == 0, result.stderr
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "run1.csv").read_text() != "an old result"  # its own file, replaced
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["notes.txt", "run1.csv", "run1.npz", "run1.metrics.json", "dynamics.png", "drive.png"]
+    )
+
+
+def test_analyze_into_the_current_folder_touches_nothing_else(tmp_path):
+    _bag(tmp_path / "bags" / "run1")
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "thesis.tex").write_text("years of work")
+    (work / "data").mkdir()
+    result = _run(TOOLS["boom-analyze"], tmp_path / "bags" / "run1", "--out", ".", cwd=work)
+    assert result.returncode == 0, result.stderr
+    assert (work / "thesis.tex").read_text() == "years of work" and (work / "data").is_dir()
+    assert (work / "run1.csv").is_file()
+
+
+@pytest.mark.parametrize("out", ["run2", "."])
+def test_an_output_that_is_or_holds_the_input_is_refused(tmp_path, out):
+    _bag(tmp_path / "run2")
+    before = sorted(p.name for p in (tmp_path / "run2").iterdir())
+    result = _run(TOOLS["boom-analyze"], "run2", "--out", out, cwd=tmp_path)
+    assert result.returncode == 2 and "input" in result.stderr and len(result.stderr.splitlines()) == 1
+    assert sorted(p.name for p in (tmp_path / "run2").iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run2"]
+
+
+def test_study_writes_its_figures_beside_others(tmp_path):
+    out = tmp_path / "figures"
+    out.mkdir()
+    (out / "sweep_trade_off.png").write_bytes(b"the README's figure")
+    result = _run(TOOLS["boom-study"], "paper", "--out", out, "--duration", "0.3")
+    assert result.returncode == 0, result.stderr
+    assert (out / "sweep_trade_off.png").read_bytes() == b"the README's figure"
+    assert {"fig3_angles.png", "fig8.png", "solver_study.csv", "statics.csv"} <= {p.name for p in out.iterdir()}
+    with (out / "statics.csv").open() as handle:
+        header = next(csv.reader(handle))
+    assert header[:4] == ["q1 [m]", "alpha [rad]", "phi [rad]", "static_force [N]"]  # as boom-sim statics
+
+
+def test_sim_and_sweep_refuse_to_write_over_their_config(tmp_path):
+    config_file = tmp_path / "mine.yaml"
+    shutil.copy(CONFIG / "default.yaml", config_file)
+    text = config_file.read_text()
+    run = _run(TOOLS["boom-sim"], "run", "--config", config_file, "--duration", "0.1", "--out", config_file)
+    assert run.returncode == 2 and "is the input" in run.stderr
+    sweep = _run(TOOLS["boom-sweep"], "--config", config_file, "--vary", "payload=0,50", "--out", tmp_path)
+    assert sweep.returncode == 2 and "holds the input" in sweep.stderr
+    assert config_file.read_text() == text and sorted(p.name for p in tmp_path.iterdir()) == ["mine.yaml"]
+
+
+def test_csv_time_keeps_every_nanosecond(tmp_path):
+    _bag(tmp_path / "run1")
+    signals = read_drive_states(tmp_path / "run1")  # no recorded origin: t = 0 at the first message
+    expected = np.arange(60) * 10_000_001 * 1e-9
+    assert np.max(np.abs(signals["t"] - expected)) < 1e-12  # epoch floats would be off by ~1e-7
+    assert signals["t"][0] == 0.0
+    command = read_drive_states(tmp_path / "run1", align="command")["t"]
+    assert command[6] == 0.0 and command[0] < 0  # t = 0 where the valve first opens
+
+
+@pytest.mark.parametrize("tool", sorted(TOOLS))
+def test_help_is_plain_text_and_names_each_default_once(tool):
+    result = _run(TOOLS[tool], "--help")
+    assert result.returncode == 0, result.stderr
+    assert "``" not in result.stdout and "usage:" in result.stdout
+    for line in result.stdout.splitlines():
+        assert line.count("default") <= 1, line
+
+
+def test_help_of_boom_sim_needs_no_ros_graph():
+    result = _run(shutil.which("boom_sim"), "-h")
+    assert result.returncode == 0 and "record_folder" in result.stdout
