@@ -66,6 +66,10 @@ def check_bag_path(path: Path) -> None:
 def read_custom_data(bag: Path) -> dict[str, str] | None:
     """The run description a boom_hydraulics recorder stored in ``bag`` (None if there is none)."""
     check_bag_path(bag)
+    return _custom_data(bag)
+
+
+def _custom_data(bag: Path) -> dict[str, str] | None:
     try:
         with mcap_files(bag)[0].open("rb") as handle:
             for record in make_reader(handle).iter_metadata():
@@ -118,7 +122,7 @@ def read_drive_states(bag: str | Path, align: str = "origin") -> dict[str, np.nd
 
 def _origin_ns(path: Path, align: str, stamp_ns: np.ndarray, u: np.ndarray) -> int:
     if align == "origin":
-        custom = read_custom_data(path) or {}
+        custom = _custom_data(path) or {}  # the bag was checked by the caller
         if "clock_origin_ns" in custom:
             return int(custom["clock_origin_ns"])
     if align == "command":

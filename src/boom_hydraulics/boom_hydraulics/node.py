@@ -45,7 +45,7 @@ from std_srvs.srv import SetBool
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
-from . import node_parameters as np_
+from . import node_parameters as ros_parameters
 from .command_queue import CommandedDrive, valve_opening
 from .errors import BoomHydraulicsError, ConfigError, SimulationError
 from .geometry import lever_rad_per_m
@@ -106,7 +106,7 @@ class BoomSimNode(Node):
         super().__init__("boom_sim")
         self._declare_parameters()
         self._read_node_parameters()
-        params = from_mapping({name: np_.plain(self.get_parameter(name).value) for name in NAMES})
+        params = from_mapping({name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES})
         self.publish_clock = bool(self.get_parameter("publish_clock").value)
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.jit:
@@ -161,16 +161,16 @@ class BoomSimNode(Node):
         """Declare every parameter, typed (an integer for a float is taken as that float),
         after refusing keys for this node that name no parameter."""
         overrides = self._parameter_overrides  # rclpy: this node's values from files and -p
-        np_.check_known(overrides)
+        ros_parameters.check_known(overrides)
         for name in overrides:
-            overrides[name] = np_.typed(overrides[name])
+            overrides[name] = ros_parameters.typed(overrides[name])
         # our checks first: they name the unit and the fix, where rclpy's range check does not
-        from_mapping({name: np_.plain(p.value) for name, p in overrides.items() if name in NAMES})
+        from_mapping({name: ros_parameters.plain(p.value) for name, p in overrides.items() if name in NAMES})
         for name, p in overrides.items():
-            if name in np_.NODE_PARAMETERS:
-                np_.check_node_parameter(name, p.value)
-        for name in np_.all_names():
-            self.declare_parameter(name, np_.default(name), np_.descriptor(name))
+            if name in ros_parameters.NODE_PARAMETERS:
+                ros_parameters.check_node_parameter(name, p.value)
+        for name in ros_parameters.all_names():
+            self.declare_parameter(name, ros_parameters.default(name), ros_parameters.descriptor(name))
 
     def _read_node_parameters(self) -> None:
         self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
@@ -180,16 +180,16 @@ class BoomSimNode(Node):
 
     def before_set_parameters(self, changes: list[Parameter]) -> list[Parameter]:
         """An integer for a float parameter becomes that float, before rclpy checks the type."""
-        return [np_.typed(p) for p in changes]
+        return [ros_parameters.typed(p) for p in changes]
 
     @_locked
     def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
-        model_changes = {p.name: np_.plain(p.value) for p in changes if p.name in NAMES}
-        node_changes = {p.name: p.value for p in changes if p.name in np_.NODE_PARAMETERS}
+        model_changes = {p.name: ros_parameters.plain(p.value) for p in changes if p.name in NAMES}
+        node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
         try:
             for name, value in node_changes.items():
-                np_.check_node_parameter(name, value)
+                ros_parameters.check_node_parameter(name, value)
             new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
@@ -211,7 +211,7 @@ class BoomSimNode(Node):
         node-clock time of the simulated instant it took effect at (boom-resim applies it there)."""
         if self.recorder is None:
             return
-        changed = [(p.name, p.type_.value, np_.plain(p.value)) for p in changes]
+        changed = [(p.name, p.type_.value, ros_parameters.plain(p.value)) for p in changes]
         data = parameter_event_cdr(self.get_fully_qualified_name(), self._changed_at_ns, changed)
         self.recorder.write(PARAMETER_EVENTS, self._now_ns(), data)
 
@@ -525,12 +525,12 @@ def _fail(message: str) -> None:
 
 def main(args: list[str] | None = None) -> None:
     argv = sys.argv if args is None else args
-    if any(a in ("-h", "--help") for a in np_.user_args(argv)[1:]):
-        print(np_.usage())
+    if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
+        print(ros_parameters.usage())
         return
     try:
-        for path in np_.params_files(argv):
-            np_.check_params_file(path)
+        for path in ros_parameters.params_files(argv):
+            ros_parameters.check_params_file(path)
     except ConfigError as exc:
         _fail(str(exc))
     # The loop thread must get the GIL soon after its deadline; CPython's default 5 ms

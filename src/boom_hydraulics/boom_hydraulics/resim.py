@@ -23,6 +23,7 @@ import math
 import shutil
 import sys
 import tempfile
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -160,7 +161,7 @@ class _Resimulation:
         self.run, self.overrides = run, dict(overrides)
         self.sim = Simulator(from_mapping(values))
         self.drive = CommandedDrive(self.sim, run.command_timeout_s)
-        self.pending = list(run.parameter_changes)
+        self.pending = deque(run.parameter_changes)
         for command in run.commands:
             self._push(command)
 
@@ -177,7 +178,7 @@ class _Resimulation:
         """Parameter changes due by now (the node applies them between ticks)."""
         half_step = 0.5 * self.sim.params.time_step_s
         while self.pending and self.seconds(self.pending[0].at_ns) <= self.sim.t + half_step:
-            changes = self.pending.pop(0).changes
+            changes = self.pending.popleft().changes
             model = {k: v for k, v in changes.items() if k in NAMES and k not in self.overrides}
             if model:
                 try:
@@ -212,7 +213,7 @@ def resimulate(
     custom = run_description(
         params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
     )
-    recorded = sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns)
+    recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
@@ -226,7 +227,7 @@ def resimulate(
                 resim.drive.advance(steps)  # a SimulationError ends it: nothing is written
                 stamp_ns = run.clock_origin_ns + round(resim.sim.t * 1e9)
                 while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
-                    message = recorded.pop(0)
+                    message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
                 msg = drive_state(resim.sim.outputs(), Time(nanoseconds=stamp_ns).to_msg())
                 recorder.write(run.state_topic, stamp_ns, serialize_message(msg))
