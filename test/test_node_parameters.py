@@ -15,6 +15,7 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters
 from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
 from ros_client import Client  # noqa: E402
 
+from boom_hydraulics import config  # noqa: E402
 from boom_hydraulics.node_parameters import START_ONLY  # noqa: E402
 
 pytestmark = [
@@ -100,6 +101,16 @@ def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1):
     failed = {p.name for p, r in zip(loaded, results) if not r.successful}
     assert failed == set(START_ONLY) | {"start_type_description_service"}  # rclpy refuses read-only ones
     assert all("read-only" in r.reason for r in results if not r.successful)
+
+
+def test_a_shipped_params_file_loads_into_the_running_node(crane1):
+    """``ros2 param load /crane1/boom_sim config/paper_fig9.yaml``: every value, as its YAML type reads."""
+    values = config.read_values(CONFIG / "paper_fig9.yaml")
+    loaded = [Parameter(name, value=value) for name, value in values.items()]
+    results = _set(crane1, *loaded)
+    assert all(r.successful for r in results), [r.reason for r in results if not r.successful]
+    (diameter,) = _get(crane1, "piston_diameter_m")
+    assert diameter.double_value == 0.08
 
 
 @pytest.mark.parametrize(

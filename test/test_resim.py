@@ -98,6 +98,7 @@ def test_what_if_a_heavier_payload(recorded, tmp_path):
     [
         (["--set", "rod_diameter_m=0.05"], "must be smaller than piston_diameter_m"),
         (["--set", "nonsense=1"], "unknown parameter 'nonsense'"),
+        (["--set", "time_step_s=0.5"], "'time_step_s' is 0.5 s; it must be <= 0.1"),
     ],
 )
 def test_bad_changes_are_refused_and_nothing_is_written(recorded, tmp_path, args, message):

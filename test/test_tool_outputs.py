@@ -121,3 +121,18 @@ def test_help_is_plain_text_and_names_each_default_once(tool):
 def test_help_of_boom_sim_needs_no_ros_graph():
     result = _run(shutil.which("boom_sim"), "-h")
     assert result.returncode == 0 and "record_folder" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("tool", "args", "message"),
+    [
+        ("boom-study", ["paper", "--duration", "-1"], "--duration must be a number of simulated seconds"),
+        ("boom-demo", ["--duration", "-5"], "--duration must be a positive number of seconds, got -5"),
+    ],
+)
+def test_bad_durations_are_one_line_before_anything_runs(tmp_path, tool, args, message):
+    result = _run(TOOLS[tool], *args, cwd=tmp_path)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert result.stderr.strip().splitlines() == [f"{tool}: error: {result.stderr.split('error: ', 1)[1].strip()}"]
+    assert message in result.stderr
+    assert list(tmp_path.iterdir()) == []  # no node started, no bag, no figures
