@@ -65,6 +65,13 @@ def test_analyze_into_the_current_folder_touches_nothing_else(tmp_path):
     assert (work / "run1.csv").is_file()
 
 
+def test_analyze_of_the_current_folder_writes_beside_it(tmp_path):
+    _bag(tmp_path / "run1")
+    result = _run(TOOLS["boom-analyze"], ".", cwd=tmp_path / "run1")
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "run1.analysis" / "run1.csv").is_file()
+
+
 @pytest.mark.parametrize("out", ["run2", "."])
 def test_an_output_that_is_or_holds_the_input_is_refused(tmp_path, out):
     _bag(tmp_path / "run2")

@@ -77,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         args = parser.parse_args(argv)
         first = args.bags[0]
-        out = args.out or first.with_name(f"{bag_label(first)}.analysis")
+        out = args.out or first.resolve().with_name(f"{bag_label(first)}.analysis")  # also for '.'
         results = analyze(args.bags, out, args.align)
         for label, m in results.items():
             low, high = m["min_pressure_pa"] / 1e6, m["peak_pressure_pa"] / 1e6
