@@ -17,10 +17,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from tables import best_of, table
 
-from boom_hydraulics import accelerate, config, physical
-from boom_hydraulics.batch import simulate_batch
-from boom_hydraulics.parameters import Parameters, with_updates
-from boom_hydraulics.simulation import Simulator, simulate
+from boom_hydraulics.model import config, physical
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import accelerate
+from boom_hydraulics.solve.batch import simulate_batch
+from boom_hydraulics.solve.simulation import Simulator, simulate
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 FIG8 = config.load(CONFIG / "paper_fig8.yaml")

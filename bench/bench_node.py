@@ -27,7 +27,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from boom_hydraulics.node import BoomSimNode
+from boom_hydraulics.ros.node import BoomSimNode
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "default.yaml"

@@ -25,10 +25,10 @@ import rclpy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
-from boom_hydraulics.messages import drive_state
-from boom_hydraulics.parameters import Parameters
-from boom_hydraulics.recording import BagRecorder, Topic
-from boom_hydraulics.simulation import Simulator
+from boom_hydraulics.bags.recording import BagRecorder, Topic
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.ros.messages import drive_state
+from boom_hydraulics.solve.simulation import Simulator
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "default.yaml"
 

@@ -21,11 +21,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from tables import table
 
-from boom_hydraulics import accelerate, analysis, commands, physical, sweep
-from boom_hydraulics.executors import DaskExecutor, LocalExecutor
-from boom_hydraulics.parameters import Parameters
-from boom_hydraulics.sampling import parse_axis
-from boom_hydraulics.simulation import simulate
+from boom_hydraulics.analysis import metrics as analysis
+from boom_hydraulics.model import physical
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.solve import accelerate, commands
+from boom_hydraulics.solve.simulation import simulate
+from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.executors import DaskExecutor, LocalExecutor
+from boom_hydraulics.sweeps.sampling import parse_axis
 
 DURATION_S = 5.0
 OPEN_S = 2.5  # the lift scenario: valve open for the first half, then closed

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import accelerate, config
-from boom_hydraulics.commands import steps
 from boom_hydraulics.errors import SimulationError
-from boom_hydraulics.parameters import Parameters, with_updates
-from boom_hydraulics.simulation import Simulator, simulate
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import accelerate
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import Simulator, simulate
 
 pytestmark = pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
 

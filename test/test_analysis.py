@@ -14,12 +14,13 @@ import pytest
 pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message
 
-from boom_hydraulics import analysis
-from boom_hydraulics.bag_reading import BagError, read_drive_states
-from boom_hydraulics.commands import steps
-from boom_hydraulics.parameters import Parameters
-from boom_hydraulics.recording import BagRecorder, Topic
-from boom_hydraulics.simulation import simulate
+from boom_hydraulics.analysis import metrics as analysis
+from boom_hydraulics.bags.reading import read_drive_states
+from boom_hydraulics.bags.recording import BagRecorder, Topic
+from boom_hydraulics.errors import BagError
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import simulate
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 BOOM_ANALYZE = shutil.which("boom-analyze")

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import config
-from boom_hydraulics.batch import simulate_batch
-from boom_hydraulics.commands import steps
 from boom_hydraulics.errors import ConfigError
-from boom_hydraulics.parameters import Parameters, with_updates
-from boom_hydraulics.simulation import simulate
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve.batch import simulate_batch
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import simulate
 
 
 def test_batched_results_equal_single_runs():

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from boom_hydraulics.command_queue import CommandQueue
+from boom_hydraulics.solve.command_queue import CommandQueue
 
 
 def test_future_commands_wait_for_their_step_and_apply_in_order():

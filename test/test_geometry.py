@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from boom_hydraulics import geometry
-from boom_hydraulics.parameters import Parameters
+from boom_hydraulics.model import geometry
+from boom_hydraulics.model.parameters import Parameters
 
 P = Parameters()
 A, B, H = P.a_m, P.b_m, P.support_height_m

@@ -7,10 +7,10 @@ import math
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import config
-from boom_hydraulics.commands import steps
-from boom_hydraulics.parameters import Parameters, with_updates
-from boom_hydraulics.simulation import Simulator, simulate
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import Simulator, simulate
 
 PAPER = config.load(CONFIG / "paper_fig8.yaml")
 

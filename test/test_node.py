@@ -16,9 +16,9 @@ rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.srv import GetParameters  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
-from boom_hydraulics import config  # noqa: E402
-from boom_hydraulics.commands import steps  # noqa: E402
-from boom_hydraulics.simulation import simulate  # noqa: E402
+from boom_hydraulics.model import config  # noqa: E402
+from boom_hydraulics.solve.commands import steps  # noqa: E402
+from boom_hydraulics.solve.simulation import simulate  # noqa: E402
 from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
 
 pytestmark = [

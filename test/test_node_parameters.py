@@ -15,8 +15,8 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters
 from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
 from ros_client import Client  # noqa: E402
 
-from boom_hydraulics import config  # noqa: E402
-from boom_hydraulics.node_parameters import START_ONLY  # noqa: E402
+from boom_hydraulics.model import config  # noqa: E402
+from boom_hydraulics.ros.node_parameters import START_ONLY  # noqa: E402
 
 pytestmark = [
     pytest.mark.usefixtures("ros_context"),

@@ -7,8 +7,8 @@ import pytest
 from conftest import CONFIG
 from scipy.integrate import solve_ivp
 
-from boom_hydraulics import config, paper
-from boom_hydraulics.simulation import simulate
+from boom_hydraulics.model import config, paper
+from boom_hydraulics.solve.simulation import simulate
 
 CONFIGS = ("paper_fig8", "paper_fig9", "paper_fig10")
 

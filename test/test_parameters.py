@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import config
 from boom_hydraulics.errors import ConfigError
-from boom_hydraulics.parameters import Parameters, from_mapping, with_updates
-from boom_hydraulics.simulation import Simulator
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.solve.simulation import Simulator
 
 
 def test_default_yaml_spells_out_the_code_defaults():

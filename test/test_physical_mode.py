@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from boom_hydraulics import geometry, hydraulics, integrators, mechanics, physical
-from boom_hydraulics.commands import steps
-from boom_hydraulics.parameters import Parameters, with_updates
-from boom_hydraulics.simulation import Simulator, simulate
+from boom_hydraulics.model import geometry, hydraulics, mechanics, physical
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import integrators
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import Simulator, simulate
 
 P = Parameters()
 J = mechanics.boom_inertia_kgm2(P.boom_mass_kg, P.payload_mass_kg, P.boom_length_m)

@@ -15,7 +15,7 @@ from mcap.records import Message
 from mcap.stream_reader import StreamReader
 from rclpy.serialization import serialize_message
 
-from boom_hydraulics.recording import (
+from boom_hydraulics.bags.recording import (
     BagRecorder,
     Topic,
     is_being_recorded,

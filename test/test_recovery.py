@@ -16,9 +16,10 @@ from bag_checks import check_bag
 from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 
-from boom_hydraulics.bag_reading import BagError, check_bag_path
-from boom_hydraulics.recording import BagRecorder, Topic
-from boom_hydraulics.recovery import recover
+from boom_hydraulics.bags.reading import check_bag_path
+from boom_hydraulics.bags.recording import BagRecorder, Topic
+from boom_hydraulics.bags.recovery import recover
+from boom_hydraulics.errors import BagError
 from boom_hydraulics_msgs.msg import DriveState
 
 RECOVER = shutil.which("boom-bag-recover")

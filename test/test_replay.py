@@ -14,7 +14,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 
-from boom_hydraulics.recording import BagRecorder, Topic, offered_qos  # noqa: E402
+from boom_hydraulics.bags.recording import BagRecorder, Topic, offered_qos  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_REPLAY = shutil.which("boom-replay")

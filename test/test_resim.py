@@ -19,7 +19,7 @@ from ros_client import Client  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
-from boom_hydraulics.bag_reading import read_drive_states  # noqa: E402
+from boom_hydraulics.bags.reading import read_drive_states  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_RESIM = shutil.which("boom-resim")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from boom_hydraulics.errors import ConfigError
-from boom_hydraulics.sampling import parse_axis, resolve_name, sample_points
+from boom_hydraulics.sweeps.sampling import parse_axis, resolve_name, sample_points
 
 
 def test_names_resolve_from_an_unambiguous_beginning():

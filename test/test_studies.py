@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import config, geometry, studies
-from boom_hydraulics.parameters import Parameters
+from boom_hydraulics.analysis import studies
+from boom_hydraulics.model import config, geometry
+from boom_hydraulics.model.parameters import Parameters
 
 
 def test_statics_cover_the_open_stroke_and_scale_with_the_area():

@@ -10,11 +10,15 @@ import numpy as np
 import pytest
 from conftest import CONFIG
 
-from boom_hydraulics import analysis, commands, config, sweep
+from boom_hydraulics.analysis import metrics as analysis
 from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
-from boom_hydraulics.executors import DaskExecutor, LocalExecutor
-from boom_hydraulics.parameters import Parameters
-from boom_hydraulics.recommend import (
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.solve import commands
+from boom_hydraulics.solve.simulation import simulate
+from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.executors import DaskExecutor, LocalExecutor
+from boom_hydraulics.sweeps.recommend import (
     Constraint,
     format_value,
     non_dominated,
@@ -22,8 +26,7 @@ from boom_hydraulics.recommend import (
     recommend,
     trade_off_front,
 )
-from boom_hydraulics.sampling import parse_axis
-from boom_hydraulics.simulation import simulate
+from boom_hydraulics.sweeps.sampling import parse_axis
 
 
 def _table(plan: sweep.Plan) -> dict[str, np.ndarray]:

@@ -13,8 +13,8 @@ from conftest import CONFIG
 pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message
 
-from boom_hydraulics.bag_reading import read_drive_states
-from boom_hydraulics.recording import BagRecorder, Topic
+from boom_hydraulics.bags.reading import read_drive_states
+from boom_hydraulics.bags.recording import BagRecorder, Topic
 from boom_hydraulics_msgs.msg import DriveState
 
 NAMES = ("boom-analyze", "boom-study", "boom-sim", "boom-sweep", "boom-resim", "boom-replay", "boom-bag-recover")

@@ -1,7 +1,17 @@
 """boom_hydraulics: simulator of the hydraulic boom-lifting drive of a crane-manipulator.
 
-The model core (everything but :mod:`boom_hydraulics.node`) imports no rclpy, so the
-ROS node, the headless CLI, tests and parameter studies all drive the same code.
+One sub-package per concern; only :mod:`boom_hydraulics.ros` imports rclpy (a test holds
+this), so the node, the headless tools, tests and studies all drive the same core:
+
+- :mod:`.model`: parameters and params files, the elements (geometry, mechanics,
+  hydraulics, friction, end stops) and the two models, paper and physical;
+- :mod:`.solve`: integrators, the simulator, valve command profiles and the stamp rule,
+  the compiled and the batched paths;
+- :mod:`.bags`: writing, reading and recovering rosbag2/MCAP bags, without ROS;
+- :mod:`.analysis`: run metrics, plots, the paper's studies;
+- :mod:`.sweeps`: design sweeps: sampling, batches, storage, executors, recommendation;
+- :mod:`.ros`: the node, its parameters and messages, replay and the demo;
+- :mod:`.cli`: the command-line tools, one module each.
 """
 
 __version__ = "0.1.0"

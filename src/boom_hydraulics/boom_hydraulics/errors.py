@@ -13,3 +13,11 @@ class ConfigError(BoomHydraulicsError):
 
 class SimulationError(BoomHydraulicsError):
     """The integration cannot go on (state left the valid geometry, NaN state, step failure)."""
+
+
+class BagError(BoomHydraulicsError):
+    """A bag cannot be read, or lacks what is asked of it (truncated, live, no such topic)."""
+
+
+class RecordingError(BoomHydraulicsError):
+    """A bag cannot be written (folder exists, unknown message type, disk error)."""

@@ -1,0 +1,1 @@
+"""What a run shows: metrics, plots and the paper's studies."""

@@ -1,0 +1,110 @@
+"""Messages as CDR bytes without ROS: what the tools write into bags themselves.
+
+Encoded with rosbags' typestore (Jazzy's types plus this package's DriveState, read from
+its installed .msg), so a bag written by a tool needs no rclpy. rosbags writes canonical
+CDR, which every reader takes (rclpy's serializer leaves trailing padding after empty
+8-byte sequences, which strict readers refuse).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
+
+from .recording import interface_file
+
+DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
+
+#: DriveState field -> model output name (simulation.OUTPUTS), in the message's order.
+DRIVE_STATE_FIELDS: dict[str, str] = {
+    "rod_position_m": "q1",
+    "rod_velocity_m_s": "v",
+    "rod_acceleration_m_s2": "a",
+    "boom_angle_rad": "alpha",
+    "boom_rate_rad_s": "alpha_rate",
+    "piston_pressure_pa": "p1",
+    "rod_pressure_pa": "p2",
+    "piston_flow_m3_s": "q_in1",
+    "rod_flow_m3_s": "q_in2",
+    "hydraulic_force_n": "f_hyd",
+    "load_force_n": "f_load",
+    "valve_command": "u",
+    "valve_opening": "x_v",
+    "supply_power_w": "power",
+    "supply_energy_j": "supply_energy",
+    "valve_loss_energy_j": "valve_loss_energy",
+    "at_end_stop": "at_end_stop",
+    "cavitation": "cavitation",
+    "relief_open": "relief_open",
+}
+FLAGS = ("at_end_stop", "cavitation", "relief_open")
+
+
+@functools.cache
+def typestore() -> Typestore:
+    """Jazzy's message types and DriveState (from the workspace's installed .msg)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(interface_file(DRIVE_STATE, ".msg").read_text(), DRIVE_STATE))
+    return store
+
+
+def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = "boom_base") -> bytes:
+    """CDR of a boom_hydraulics_msgs/DriveState of the model outputs ``out``, stamped ``stamp_ns``."""
+    types = typestore().types
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=frame_id
+    )
+    fields = {
+        field: bool(out[name]) if name in FLAGS else float(out[name]) for field, name in DRIVE_STATE_FIELDS.items()
+    }
+    return bytes(typestore().serialize_cdr(types[DRIVE_STATE](header=header, **fields), DRIVE_STATE))
+
+
+_VALUE_FIELDS = {  # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it
+    1: ("bool_value", None),
+    2: ("integer_value", None),
+    3: ("double_value", None),
+    4: ("string_value", None),
+    5: ("byte_array_value", np.uint8),
+    6: ("bool_array_value", np.bool_),
+    7: ("integer_array_value", np.int64),
+    8: ("double_array_value", np.float64),
+    9: ("string_array_value", list),
+}
+
+
+def parameter_event_cdr(node: str, stamp_ns: int, changed: list[tuple[str, int, Any]]) -> bytes:
+    """CDR of an ``rcl_interfaces/msg/ParameterEvent`` announcing ``changed`` (name, ParameterType,
+    value) parameters of ``node``. Encoded by rosbags: rclpy's serializer leaves trailing padding
+    after the empty 8-byte sequences of ParameterValue, and strict readers refuse that."""
+    store = typestore()
+    types = store.types
+    empty = {
+        "bool_value": False,
+        "integer_value": 0,
+        "double_value": 0.0,
+        "string_value": "",
+        **{name: [] if kind is list else np.array([], dtype=kind) for name, kind in list(_VALUE_FIELDS.values())[4:]},
+    }
+    parameters = []
+    for name, kind, value in changed:
+        field_name, dtype = _VALUE_FIELDS[kind]
+        fields = dict(empty)
+        fields[field_name] = value if dtype is None else (list(value) if dtype is list else np.array(value, dtype))
+        parameter_value = types["rcl_interfaces/msg/ParameterValue"](type=kind, **fields)
+        parameters.append(types["rcl_interfaces/msg/Parameter"](name=name, value=parameter_value))
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    event = types["rcl_interfaces/msg/ParameterEvent"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+        node=node,
+        new_parameters=[],
+        changed_parameters=parameters,
+        deleted_parameters=[],
+    )
+    return bytes(store.serialize_cdr(event, "rcl_interfaces/msg/ParameterEvent"))

@@ -1,0 +1,1 @@
+"""The command-line tools, one module each, with one argument parser and one exit-code wrapper."""

@@ -1,0 +1,254 @@
+"""``boom-resim``: a recorded session's valve commands fed into the model again, "what if".
+
+    boom-resim bags/20261122-044106_boom_sim --set piston_diameter_m=0.063 --set rod_diameter_m=0.036 \\
+        --out bags/what_if_63mm
+    boom-resim run.mcap --config config/default.yaml --set payload_mass_kg=150 --out bags/heavy
+
+The bag's own parameters (stored by the node) are the base; --config replaces them, --set
+changes single ones. Parameters changed while the node ran (recorded from its
+/parameter_events) change at the same simulated instants here, with the --set values kept
+on top. Commands apply by the node's rule (command_queue): at their header stamp, or when
+received if unstamped or already passed; with its command timeout. The new bag has a
+DriveState at each instant the node published one (rounded to the steps of a changed
+time_step_s), on the recorded topic (a namespaced run stays namespaced), and the original
+commands and parameter events, so both runs overlay sample for sample. Exact for runs
+recorded with publish_clock; with ROS-time stamps a command's time is known to within one
+publish period, and a run that was reset or paused cannot be replayed this way (the time
+origin moved). A run that cannot be simulated to its end writes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+import tempfile
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from rosbags.highlevel import AnyReader, AnyReaderError
+
+from ..bags.encoding import DRIVE_STATE, drive_state_cdr
+from ..bags.reading import read_custom_data
+from ..bags.recording import BagRecorder, Topic, offered_qos, run_description
+from ..errors import BagError, ConfigError
+from ..files import check_apart
+from ..model import config
+from ..model.parameters import NAMES, from_mapping
+from ..solve.command_queue import CommandedDrive, valve_opening
+from ..solve.simulation import Simulator
+from .common import RaisingParser, run_main, summary
+
+VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
+ARRAY_COMMAND = "std_msgs/msg/Float64MultiArray"
+PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
+#: ParameterValue.type -> the field that holds the value (rcl_interfaces/msg/ParameterType)
+_VALUE_FIELDS = {
+    1: "bool_value",
+    2: "integer_value",
+    3: "double_value",
+    4: "string_value",
+    5: "byte_array_value",
+    6: "bool_array_value",
+    7: "integer_array_value",
+    8: "double_array_value",
+    9: "string_array_value",
+}
+
+
+@dataclass
+class Recorded:
+    """One recorded message to copy into the new bag: when it acts, when it was logged."""
+
+    at_ns: int  # on the node's clock: when it takes effect
+    log_ns: int
+    topic: str
+    raw: bytes
+    opening: float = math.nan  # commands
+    changes: dict[str, Any] = field(default_factory=dict)  # parameter events
+
+
+@dataclass
+class RecordedRun:
+    """What a node recorded about its run, enough to run it again."""
+
+    parameters: dict[str, Any]
+    clock_origin_ns: int
+    publish_rate_hz: float
+    command_timeout_s: float
+    end_ns: int
+    state_topic: str
+    state_ns: list[int]  # the instants the node published DriveState at
+    topics: list[Topic]  # of the commands and parameter events, with their recorded offers
+    commands: list[Recorded]
+    parameter_changes: list[Recorded]
+
+
+def _parameter_value(value: Any) -> Any:
+    field_name = _VALUE_FIELDS.get(value.type)
+    if field_name is None:
+        return None
+    raw = getattr(value, field_name)
+    return [v.item() if hasattr(v, "item") else v for v in raw] if field_name.endswith("array_value") else raw
+
+
+def read_run(bag: Path) -> RecordedRun:
+    """The parameters, time origin, valve commands and parameter changes a boom_sim node recorded."""
+    custom = read_custom_data(bag)
+    if custom is None:
+        raise BagError(f"{bag}: no run description (custom data); was it recorded by boom_sim?")
+    node_name = custom.get("node")
+    try:
+        with AnyReader([bag]) as reader:
+            states = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
+            state_ns = sorted(
+                msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                for c, _, raw in reader.messages(connections=states[:1])
+                if (msg := reader.deserialize(raw, c.msgtype))
+            )
+            wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
+            topics = [
+                Topic(c.topic, c.msgtype, tuple(getattr(c.ext, "offered_qos_profiles", ())) or (offered_qos(),))
+                for c in wanted
+            ]
+            commands, changes = [], []
+            for connection, log_ns, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, connection.msgtype)
+                if connection.msgtype == PARAMETER_EVENT:
+                    if node_name and msg.node != node_name:
+                        continue
+                    values = {p.name: _parameter_value(p.value) for p in msg.changed_parameters}
+                    at_ns = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec
+                    changes.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), changes=values))
+                    continue
+                if connection.msgtype == VALVE_COMMAND:
+                    # the node's rule: at its stamp, or when received if unstamped or already passed
+                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                    opening, at_ns = msg.opening, max(stamp_ns, log_ns)
+                else:
+                    opening, at_ns = (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
+                commands.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening)))
+            end_ns = reader.end_time
+    except AnyReaderError as exc:
+        raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
+    try:
+        return RecordedRun(
+            parameters=yaml.safe_load(custom["parameters"]),
+            clock_origin_ns=int(custom["clock_origin_ns"]),
+            publish_rate_hz=float(custom["publish_rate_hz"]),
+            command_timeout_s=float(custom["command_timeout_s"]),
+            end_ns=end_ns,
+            state_topic=states[0].topic if states else "/drive_state",
+            state_ns=state_ns,
+            topics=topics,
+            commands=commands,
+            parameter_changes=sorted(changes, key=lambda r: r.at_ns),
+        )
+    except (KeyError, ValueError, yaml.YAMLError) as exc:
+        raise BagError(f"{bag}: the recorded run description is unreadable ({exc})") from None
+
+
+class _Resimulation:
+    """The recorded run's commands and parameter changes through a simulator."""
+
+    def __init__(self, run: RecordedRun, values: Mapping[str, Any], overrides: Mapping[str, Any]) -> None:
+        self.run, self.overrides = run, dict(overrides)
+        self.sim = Simulator(from_mapping(values))
+        self.drive = CommandedDrive(self.sim, run.command_timeout_s)
+        self.pending = deque(run.parameter_changes)
+        for command in run.commands:
+            self._push(command)
+
+    def seconds(self, at_ns: int) -> float:
+        """Simulated time of a time on the node's clock."""
+        return (at_ns - self.run.clock_origin_ns) * 1e-9
+
+    def _push(self, command: Recorded) -> None:
+        u = valve_opening(command.opening, self.sim.params.mode)
+        if u is not None:
+            self.drive.push(self.seconds(command.at_ns), u)
+
+    def apply_changes(self) -> None:
+        """Parameter changes due by now (the node applies them between ticks)."""
+        half_step = 0.5 * self.sim.params.time_step_s
+        while self.pending and self.seconds(self.pending[0].at_ns) <= self.sim.t + half_step:
+            changes = self.pending.popleft().changes
+            model = {k: v for k, v in changes.items() if k in NAMES and k not in self.overrides}
+            if model:
+                try:
+                    self.sim.set_parameters(from_mapping(model, base=self.sim.params))
+                except ConfigError as exc:
+                    raise ConfigError(f"a recorded parameter change does not fit the new parameters: {exc}") from None
+            if "command_timeout_s" in changes:
+                self.drive.timeout_s = float(changes["command_timeout_s"])
+
+
+def _grid(run: RecordedRun, time_step_s: float) -> list[int]:
+    """State instants at the recorded publish rate, for a bag without DriveState."""
+    tick_s = max(1, round(1.0 / (run.publish_rate_hz * time_step_s))) * time_step_s
+    n_ticks = int((run.end_ns - run.clock_origin_ns) * 1e-9 / tick_s)
+    return [run.clock_origin_ns + round((k + 1) * tick_s * 1e9) for k in range(n_ticks)]
+
+
+def resimulate(
+    bag: Path, out: Path, config_file: Path | None = None, overrides: Mapping[str, Any] = ()
+) -> tuple[Path, int]:
+    """Write a new bag of the recorded commands through the model with the new parameters;
+    returns the bag and its DriveState count. Raises SimulationError if the run stops early."""
+    check_apart(out, [bag] + ([config_file] if config_file else []))
+    if out.exists():
+        raise ConfigError(f"--out {out} exists already; name a new bag folder")
+    run = read_run(bag)
+    values = dict(run.parameters) if config_file is None else config.read_values(config_file)
+    values.update(dict(overrides))
+    resim = _Resimulation(run, values, overrides)
+    params = resim.sim.params
+    instants = run.state_ns or _grid(run, params.time_step_s)
+    custom = run_description(
+        params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
+    )
+    recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    try:
+        topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
+        with BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder:
+            for at_ns in instants:  # the recorded run's state instants: runs overlay sample for sample
+                steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
+                if steps <= 0:
+                    continue
+                resim.apply_changes()  # the node changes parameters between ticks, at a state instant
+                resim.drive.advance(steps)  # a SimulationError ends it: nothing is written
+                stamp_ns = run.clock_origin_ns + round(resim.sim.t * 1e9)
+                while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
+                    message = recorded.popleft()
+                    recorder.write(message.topic, message.log_ns, message.raw)
+                recorder.write(run.state_topic, stamp_ns, drive_state_cdr(resim.sim.outputs(), stamp_ns))
+        (staging / "bag").rename(out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # created by this run
+    return out, recorder.counts[run.state_topic]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    def body() -> int:
+        parser = RaisingParser(prog="boom-resim", description=summary(__doc__))
+        parser.add_argument("bag", type=Path, help="bag folder or .mcap file recorded by boom_sim")
+        parser.add_argument("--config", type=Path, help="params YAML replacing the recorded parameters")
+        parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="change one parameter")
+        parser.add_argument("--out", type=Path, required=True, help="new bag folder (must not exist)")
+        args = parser.parse_args(argv)
+        overrides = dict(config.parse_assignment(s) for s in args.set)
+        folder, states = resimulate(args.bag, args.out, args.config, overrides)
+        print(f"boom-resim: {states} drive states in {folder}")
+        return 0
+
+    return run_main("boom-resim", body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

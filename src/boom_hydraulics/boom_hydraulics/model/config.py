@@ -1,0 +1,121 @@
+"""Reading parameter files in the ROS 2 params YAML format, shared by the node and the CLI.
+
+A file looks like::
+
+    /**:
+      ros__parameters:
+        mode: physical
+        piston_diameter_m: 0.04
+
+``/**`` matches the node under any name and namespace (the shipped files use it);
+``boom_sim`` or ``/boom_sim`` are accepted too. Nested mappings under
+``ros__parameters`` are flattened with dots, as ROS 2 does.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import ConfigError
+from .parameters import Parameters, from_mapping
+
+NODE_NAME = "boom_sim"
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML loader that types numbers as ROS 2 does: ``1e-06`` and ``16.0e6`` are floats.
+
+    PyYAML follows YAML 1.1, where a float needs a dot and a signed exponent; ROS 2's
+    parameter parser reads any unquoted number. Without this, the node and the CLI
+    would read the same file differently.
+    """
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)(?:[eE][-+]?[0-9]+)?$|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"
+    ),
+    list("-+0123456789."),
+)
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML text with ROS 2 number typing (see :class:`_Loader`)."""
+    return yaml.load(text, Loader=_Loader)
+
+
+def flatten(mapping: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{'a': {'b': 1}}`` -> ``{'a.b': 1}``, as ROS 2 names nested parameters."""
+    flat: dict[str, Any] = {}
+    for key, value in mapping.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, prefix=f"{name}."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def parameters_section(document: Any, source: str, node_name: str = NODE_NAME) -> dict[str, Any]:
+    """The flattened ``ros__parameters`` of ``node_name`` (or ``/**``) in a parsed YAML document."""
+    if not isinstance(document, Mapping):
+        raise ConfigError(f"{source}: expected a mapping '{node_name}: ros__parameters: {{...}}' at top level")
+    for name in (node_name, f"/{node_name}", "/**"):
+        section = document.get(name)
+        if section is None:
+            continue
+        if not isinstance(section, Mapping) or "ros__parameters" not in section:
+            raise ConfigError(f"{source}: '{name}' must contain a 'ros__parameters' mapping")
+        params = section["ros__parameters"]
+        if not isinstance(params, Mapping):
+            raise ConfigError(f"{source}: '{name}.ros__parameters' must be a mapping")
+        return flatten(params)
+    raise ConfigError(f"{source}: no section for node '{node_name}' (or '/**'); found {', '.join(map(str, document))}")
+
+
+def read_values(path: str | Path) -> dict[str, Any]:
+    """The raw parameter values of a params YAML file, not yet validated."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read ({exc})") from None
+    try:
+        document = load_yaml(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"{path}: malformed YAML{where}: {problem}") from None
+    return parameters_section(document, str(path))
+
+
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Parameters:
+    """Validated parameters from a params YAML file, with optional overrides on top."""
+    values = read_values(path)
+    if overrides:
+        values.update(overrides)
+    try:
+        return from_mapping(values)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def parse_assignment(text: str) -> tuple[str, Any]:
+    """``'piston_diameter_m=0.063'`` -> ``('piston_diameter_m', 0.063)``, value read as YAML."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError(f"--set expects key=value, got {text!r}")
+    try:
+        value = load_yaml(raw)
+    except yaml.YAMLError:
+        raise ConfigError(f"--set {key}: cannot read value {raw!r}") from None
+    return key.strip(), value

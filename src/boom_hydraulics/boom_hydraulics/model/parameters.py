@@ -1,0 +1,401 @@
+"""Every parameter of the boom drive, with unit, description, range and validation.
+
+The defaults are the paper's printed values where the paper gives one (its symbol is named
+in the description) and realistic components for what only the physical mode adds. The
+shipped ``config/default.yaml`` spells out the same values; a test keeps the two equal.
+
+One :class:`Parameters` instance is immutable and always valid: :func:`from_mapping` and
+:func:`with_updates` build a new one or raise :class:`ConfigError`, so an error never
+leaves a set half-applied.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import ConfigError
+from ..solve.integrators import METHODS as _METHODS
+
+MODES = ("physical", "paper")
+METHODS = tuple(_METHODS)  # the solver's registry of integration methods
+COMMAND_PROFILES = ("constant", "steps", "ramp", "sine")
+
+#: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
+#: End stops are spring-dampers; the rod may press a little into them.
+GEOMETRY_CLEARANCE_M = 0.005
+
+
+def _param(
+    default: Any,
+    unit: str,
+    description: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_inclusive: bool = False,
+    choices: tuple[str, ...] | None = None,
+) -> Any:
+    """A dataclass field that carries its unit, description and allowed range."""
+    meta = {
+        "unit": unit,
+        "description": description,
+        "low": low,
+        "high": high,
+        "low_inclusive": low_inclusive,
+        "choices": choices,
+    }
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """The full parameter set of one simulation (SI units; pressures absolute in physical mode)."""
+
+    # --- model selection and integration -------------------------------------------------
+    mode: str = _param(
+        "physical",
+        "",
+        "Model: 'physical' (corrected equations, both chambers, valve, end stops) or "
+        "'paper' (the paper's Fig. 7 listing as printed)",
+        choices=MODES,
+    )
+    method: str = _param("rk4", "", "Integrator: euler, rk4 (the paper's) or rk45 (adaptive)", choices=METHODS)
+    time_step_s: float = _param(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0, high=0.1)
+    substeps: int = _param(1, "", "Fixed-step integrator steps per time step", low=1, low_inclusive=True, high=10000)
+    rtol: float = _param(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0, high=0.1)
+    atol_scale: float = _param(
+        1e-8,
+        "",
+        "Absolute tolerance of rk45 as a fraction of each state's scale (m, m/s, supply pressure, 1, J)",
+        low=0.0,
+        high=0.1,
+    )
+
+    # --- geometry (eq. 1-5) --------------------------------------------------------------
+    a_m: float = _param(0.4, "m", "a: boom pivot O to rod eye K on the boom", low=0.0, high=20.0)
+    b_m: float = _param(1.4, "m", "b: boom pivot O to cylinder base A on the column", low=0.0, high=20.0)
+    boom_length_m: float = _param(2.0, "m", "L1: boom length, pivot to load", low=0.0, high=50.0)
+    support_height_m: float = _param(
+        1.307, "m", "h: boom support height (printed 1.307 m; 1.3 m under Fig. 2)", low=0.0, high=20.0
+    )
+    gravity_m_s2: float = _param(9.81, "m/s^2", "g: acceleration of free fall", low=0.0, high=30.0)
+
+    # --- masses (eq. 6, 8) ---------------------------------------------------------------
+    boom_mass_kg: float = _param(100.0, "kg", "m1: boom mass, concentrated at L1/2", low=0.0, high=1.0e5)
+    payload_mass_kg: float = _param(
+        50.0, "kg", "mb: payload mass at the boom tip (L1)", low=0.0, low_inclusive=True, high=1.0e5
+    )
+
+    # --- cylinder ------------------------------------------------------------------------
+    piston_diameter_m: float = _param(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)
+    rod_diameter_m: float = _param(
+        0.022, "m", "d: rod diameter (S2 = pi (D^2 - d^2) / 4); physical mode", low=0.0, high=1.0
+    )
+    cylinder_min_length_m: float = _param(
+        1.05, "m", "Retracted cylinder length (lower end stop), eye to eye; physical mode", low=0.0, high=40.0
+    )
+    cylinder_max_length_m: float = _param(
+        1.75, "m", "Extended cylinder length (upper end stop), eye to eye; physical mode", low=0.0, high=40.0
+    )
+    initial_length_m: float = _param(1.37, "m", "q1(0): initial cylinder length", low=0.0, high=40.0)
+    initial_velocity_m_s: float = _param(
+        0.0, "m/s", "dq1/dt(0): initial rod velocity", low=-10.0, low_inclusive=True, high=10.0
+    )
+    piston_dead_volume_m3: float = _param(
+        1.0e-4,
+        "m^3",
+        "V1: piston-side volume at full retraction incl. hoses (physical); "
+        "the constant V1 of eq. 12 in paper mode (paper: 0.00002)",
+        low=0.0,
+        high=0.1,
+    )
+    rod_dead_volume_m3: float = _param(
+        1.0e-4, "m^3", "V2: rod-side volume at full extension incl. hoses; physical mode", low=0.0, high=0.1
+    )
+
+    # --- friction and spring (eq. 11) ----------------------------------------------------
+    coulomb_friction_n: float = _param(
+        100.0, "N", "F_mp: Coulomb (semi-dry) friction of piston and rod", low=0.0, low_inclusive=True, high=1.0e6
+    )
+    static_friction_n: float = _param(
+        150.0, "N", "Breakaway (stiction) friction; physical mode", low=0.0, low_inclusive=True, high=1.0e6
+    )
+    stribeck_velocity_m_s: float = _param(
+        0.01, "m/s", "Velocity scale of the fall from stiction to Coulomb friction", low=0.0, high=10.0
+    )
+    friction_smoothing_velocity_m_s: float = _param(
+        0.001, "m/s", "Velocity over which Coulomb friction is smoothed (tanh)", low=0.0, high=1.0
+    )
+    viscous_friction_n_s_m: float = _param(
+        1000.0, "N s/m", "b_d: viscous friction coefficient", low=0.0, low_inclusive=True, high=1.0e8
+    )
+    spring_stiffness_n_m: float = _param(
+        0.0, "N/m", "c: spring stiffness (paper: 2000, on q1 itself)", low=0.0, low_inclusive=True, high=1.0e9
+    )
+    spring_free_length_m: float = _param(
+        1.4, "m", "Spring free length; physical mode (paper mode uses c * q1)", low=0.0, low_inclusive=True, high=40.0
+    )
+
+    # --- end stops (physical mode) -------------------------------------------------------
+    end_stop_stiffness_n_m: float = _param(1.0e9, "N/m", "End-stop contact stiffness", low=0.0, high=1.0e13)
+    end_stop_damping_n_s_m: float = _param(
+        2.0e6, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True, high=1.0e10
+    )
+
+    # --- fluid ---------------------------------------------------------------------------
+    density_kg_m3: float = _param(860.0, "kg/m^3", "rho: oil density", low=0.0, high=5000.0)
+    bulk_modulus_pa: float = _param(
+        1.0e9,
+        "Pa",
+        "E: effective bulk modulus of oil, hoses and air (paper prints 1.45 MPa / 14.5 MPa)",
+        low=0.0,
+        high=1.0e11,
+    )
+    cavitation_pressure_pa: float = _param(
+        5.0e3,
+        "Pa",
+        "Cavitation floor of chamber pressures (absolute); physical mode",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e6,
+    )
+
+    # --- valve (eq. 14, 15, 17) ----------------------------------------------------------
+    orifice_diameter_m: float = _param(
+        0.002, "m", "D_dr: throttle diameter at full opening, per flow path (eq. 17)", low=0.0, high=0.1
+    )
+    discharge_coefficient: float = _param(0.62, "", "mu: orifice discharge coefficient", low=0.0, high=1.0)
+    transition_pressure_pa: float = _param(
+        3.0e5,
+        "Pa",
+        "Pressure drop below which orifice flow turns laminar (finite dQ/dp); physical mode",
+        low=0.0,
+        high=1.0e7,
+    )
+    valve_leakage_m3_s_pa: float = _param(
+        1.0e-13,
+        "m^3/(s Pa)",
+        "Laminar leakage conductance of each closed valve path; physical mode",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e-8,
+    )
+    spool_time_constant_s: float = _param(
+        0.02, "s", "First-order spool lag (0: none); physical mode", low=0.0, low_inclusive=True, high=10.0
+    )
+
+    # --- supply ---------------------------------------------------------------------------
+    supply_pressure_pa: float = _param(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0, high=1.0e8)
+    tank_pressure_pa: float = _param(
+        1.0e5, "Pa", "p_37: tank/drain pressure (absolute); physical mode", low=0.0, low_inclusive=True, high=1.0e7
+    )
+    pump_max_flow_m3_s: float = _param(
+        5.0e-4, "m^3/s", "Maximum pump flow; above it the supply pressure drops", low=0.0, high=0.1
+    )
+    relief_pressure_pa: float = _param(
+        18.0e6, "Pa", "Cracking pressure of the port relief valves on both chambers", low=0.0, high=1.0e8
+    )
+    relief_range_pa: float = _param(
+        3.0e6, "Pa", "Pressure rise over which a relief valve opens fully", low=0.0, high=1.0e8
+    )
+    relief_rated_flow_m3_s: float = _param(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
+
+    # --- valve command profile (the headless scenario) -----------------------------------
+    command_profile: str = _param(
+        "constant",
+        "",
+        "Valve command over time: constant, steps (hold each value from its time), "
+        "ramp (linear between points) or sine",
+        choices=COMMAND_PROFILES,
+    )
+    command_value: float = _param(
+        1.0, "", "Opening of the constant profile, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
+    )
+    command_times_s: list = _param(  # noqa: RUF009
+        [0.0], "s", "Breakpoint times of steps/ramp (increasing)", low=0.0, low_inclusive=True, high=1.0e6
+    )
+    command_values: list = _param(  # noqa: RUF009
+        [1.0], "", "Openings at command_times_s, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
+    )
+    command_offset: float = _param(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
+    command_amplitude: float = _param(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
+    command_frequency_hz: float = _param(0.5, "Hz", "Sine profile: frequency", low=0.0, high=1000.0)
+
+    def __post_init__(self) -> None:
+        _check_fields(self)
+        _check_cross_fields(self)
+
+
+#: Parameter names in declaration order.
+NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Parameters))
+_FIELDS = {f.name: f for f in dataclasses.fields(Parameters)}
+
+
+def describe(name: str) -> dict[str, Any]:
+    """Metadata of one parameter: unit, description, low, high, choices, default."""
+    f = _FIELDS[name]
+    default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+    return {**f.metadata, "default": default, "type": _kind(f)}
+
+
+def _kind(f: dataclasses.Field) -> str:
+    return {"str": "str", "int": "int", "float": "float", "list": "list"}[f.type]
+
+
+def _coerce(name: str, value: Any) -> Any:
+    """Return ``value`` as the parameter's type, or raise ConfigError naming what is wrong."""
+    kind = _kind(_FIELDS[name])
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"parameter '{name}' must be a string, got {value!r}")
+        return value
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer():
+                return int(value)
+            raise ConfigError(f"parameter '{name}' must be an integer, got {value!r}")
+        return value
+    if kind == "list":
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value]
+        if not isinstance(value, (list, tuple)) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+        ):
+            raise ConfigError(f"parameter '{name}' must be a list of numbers, got {value!r}")
+        return [float(v) for v in value]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"parameter '{name}' must be a number, got {value!r}")
+    return float(value)
+
+
+def _check_fields(p: Parameters) -> None:
+    for name in NAMES:
+        meta = _FIELDS[name].metadata
+        value = getattr(p, name)
+        if meta["choices"] is not None:
+            if value not in meta["choices"]:
+                raise ConfigError(f"parameter '{name}' is {value!r}; choose one of {', '.join(meta['choices'])}")
+            continue
+        values = value if isinstance(value, list) else [value]
+        for v in values:
+            if not math.isfinite(v):
+                raise ConfigError(f"parameter '{name}' must be finite, got {v!r}")
+            low, high = meta["low"], meta["high"]
+            unit = f" {meta['unit']}" if meta["unit"] else ""
+            if low is not None and (v < low if meta["low_inclusive"] else v <= low):
+                relation = ">=" if meta["low_inclusive"] else ">"
+                raise ConfigError(
+                    f"parameter '{name}' ({meta['description']}) is {v!r}{unit}; it must be {relation} {low!r}"
+                )
+            if high is not None and v > high:
+                raise ConfigError(f"parameter '{name}' is {v!r}{unit}; it must be <= {high!r}")
+
+
+def _check_cross_fields(p: Parameters) -> None:
+    if p.rod_diameter_m >= p.piston_diameter_m:
+        raise ConfigError(
+            f"rod_diameter_m ({p.rod_diameter_m} m) must be smaller than piston_diameter_m "
+            f"({p.piston_diameter_m} m): the rod chamber would have no area"
+        )
+    if p.support_height_m >= p.b_m:
+        raise ConfigError(
+            f"support_height_m ({p.support_height_m} m) must be smaller than b_m ({p.b_m} m): eq. 3 takes arccos(h / b)"
+        )
+    q_low, q_high = abs(p.b_m - p.a_m), p.a_m + p.b_m
+    lo, hi = q_low + GEOMETRY_CLEARANCE_M, q_high - GEOMETRY_CLEARANCE_M
+    if not lo <= p.cylinder_min_length_m < p.cylinder_max_length_m <= hi:
+        raise ConfigError(
+            f"stroke [{p.cylinder_min_length_m}, {p.cylinder_max_length_m}] m must be an "
+            f"increasing interval inside [{lo:.4g}, {hi:.4g}] m: the triangle of eq. 1 "
+            f"degenerates at q1 = |b - a| = {q_low:.4g} m and q1 = a + b = {q_high:.4g} m "
+            f"(sin(phi) = 0, infinite rod force); keep {GEOMETRY_CLEARANCE_M} m clear for "
+            "the end stops; set cylinder_min_length_m / cylinder_max_length_m"
+        )
+    if p.mode == "physical":
+        low_q, high_q = p.cylinder_min_length_m, p.cylinder_max_length_m
+        where = "the stroke [cylinder_min_length_m, cylinder_max_length_m]"
+    else:
+        low_q, high_q = lo, hi
+        where = "the open geometry interval (|b - a|, a + b) minus its clearance"
+    if not low_q <= p.initial_length_m <= high_q:
+        raise ConfigError(
+            f"initial_length_m ({p.initial_length_m} m) lies outside {where} = [{low_q:.4g}, {high_q:.4g}] m"
+        )
+    if p.mode == "physical":
+        if p.supply_pressure_pa <= p.tank_pressure_pa:
+            raise ConfigError(
+                f"supply_pressure_pa ({p.supply_pressure_pa} Pa) must exceed tank_pressure_pa ({p.tank_pressure_pa} Pa)"
+            )
+        if p.relief_pressure_pa < p.supply_pressure_pa:
+            raise ConfigError(
+                f"relief_pressure_pa ({p.relief_pressure_pa} Pa) must be at least "
+                f"supply_pressure_pa ({p.supply_pressure_pa} Pa), or the relief valves "
+                "would drain the supply"
+            )
+        if p.cavitation_pressure_pa >= p.tank_pressure_pa:
+            raise ConfigError(
+                f"cavitation_pressure_pa ({p.cavitation_pressure_pa} Pa) must be below "
+                f"tank_pressure_pa ({p.tank_pressure_pa} Pa); both are absolute"
+            )
+    if p.static_friction_n < p.coulomb_friction_n:
+        raise ConfigError(
+            f"static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "
+            f"({p.coulomb_friction_n} N): breakaway friction is the larger one"
+        )
+    times, values = p.command_times_s, p.command_values
+    if p.command_profile in ("steps", "ramp"):
+        if len(times) != len(values) or not times:
+            raise ConfigError(
+                f"command_times_s ({len(times)} values) and command_values ({len(values)} "
+                "values) must be non-empty and of equal length"
+            )
+        if any(t1 <= t0 for t0, t1 in itertools.pairwise(times)):
+            raise ConfigError(f"command_times_s must be strictly increasing, got {times}")
+    low_u = 0.0 if p.mode == "paper" else -1.0
+    openings = {
+        "constant": [p.command_value],
+        "steps": values,
+        "ramp": values,
+        "sine": [p.command_offset - abs(p.command_amplitude), p.command_offset + abs(p.command_amplitude)],
+    }[p.command_profile]
+    for u in openings:
+        if not low_u <= u <= 1.0:
+            raise ConfigError(
+                f"valve opening {u!r} of command_profile '{p.command_profile}' is outside "
+                f"[{low_u:g}, 1] ({p.mode} mode"
+                + (": the paper's valve only connects pump to piston chamber)" if p.mode == "paper" else ")")
+            )
+
+
+def from_mapping(values: Mapping[str, Any], base: Parameters | None = None) -> Parameters:
+    """Parameters from ``base`` (defaults if None) with ``values`` applied, all validated.
+
+    Raises :class:`ConfigError` naming an unknown key (with the closest valid names), a
+    value of the wrong type or range, or an inconsistent combination.
+    """
+    updates: dict[str, Any] = {}
+    for key, value in values.items():
+        if key not in _FIELDS:
+            close = difflib.get_close_matches(key, NAMES, n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise ConfigError(f"unknown parameter '{key}'{hint} Valid parameters: {', '.join(NAMES)}")
+        updates[key] = _coerce(key, value)
+    return dataclasses.replace(base or Parameters(), **updates)
+
+
+def with_updates(params: Parameters, **updates: Any) -> Parameters:
+    """A validated copy of ``params`` with ``updates`` applied (keyword form of from_mapping)."""
+    return from_mapping(updates, base=params)
+
+
+def as_dict(params: Parameters) -> dict[str, Any]:
+    """All parameters as a plain dict (lists copied)."""
+    return {name: (list(v) if isinstance(v := getattr(params, name), list) else v) for name in NAMES}

@@ -1,0 +1,572 @@
+"""ROS 2 node ``boom_sim``: the model core in a loop, driven by valve commands.
+
+    ros2 run boom_hydraulics boom_sim --ros-args --params-file config/default.yaml
+    boom_sim --help        # every parameter with its default and unit
+
+Physics runs at ``time_step_s``, several steps per tick of ``publish_rate_hz``; simulated
+time follows the steady clock by elapsed time (times ``real_time_factor``; 0 runs as fast
+as possible), so a late tick catches up. The ticks run in a thread of their own that
+sleeps to absolute deadlines: an rclpy timer would wake the executor, which rebuilds its
+wait set in Python, 100 times a second (29 % of a core measured, against about 10 %
+this way). The executor serves commands, services and parameters; a lock keeps the two
+threads from touching the simulation at once. Commands are applied by their stamps (see :mod:`command_queue`),
+which makes a run depend only on the commands and their times, not on wall-clock jitter.
+Simulated time never runs backwards: a reset puts the drive back to rest and time goes on.
+Topics, services and parameters are listed in the README.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import ParameterEvent, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_parameter_events, qos_profile_sensor_data
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.time import Time
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool
+
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics_msgs.srv import Reset, Step
+
+from ..bags.encoding import parameter_event_cdr
+from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
+from ..errors import BoomHydraulicsError, ConfigError, SimulationError
+from ..model.geometry import lever_rad_per_m
+from ..model.parameters import NAMES, from_mapping
+from ..solve.command_queue import CommandedDrive, valve_opening
+from ..solve.simulation import Simulator
+from . import node_parameters as ros_parameters
+from .messages import drive_state
+
+_NODE_ATTRIBUTES = {
+    "publish_rate_hz": "rate_hz",
+    "real_time_factor": "rtf",
+    "command_timeout_s": "timeout_s",
+    "max_catch_up_s": "max_catch_up_s",
+}
+PARAMETER_EVENTS = "/parameter_events"
+
+
+def _type_name(msg_type: Any) -> str:
+    """'pkg/msg/Type' of a generated message class."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+def _locked(method: Callable) -> Callable:
+    """Run an executor callback while holding the node's lock (the loop thread steps too)."""
+
+    @functools.wraps(method)
+    def wrapper(self: BoomSimNode, *args: Any) -> Any:
+        with self.lock:
+            return method(self, *args)
+
+    return wrapper
+
+
+def _qos_time(duration: Any) -> QosTime:
+    sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
+    return QosTime(sec=sec, nsec=nsec)
+
+
+def offer_of(profile: Any) -> Qos:
+    """A discovered publisher's QoS profile (rclpy) as rosbag2 records it."""
+    return Qos(
+        history=QosHistory(int(profile.history)),
+        depth=profile.depth,
+        reliability=QosReliability(int(profile.reliability)),
+        durability=QosDurability(int(profile.durability)),
+        deadline=_qos_time(profile.deadline),
+        lifespan=_qos_time(profile.lifespan),
+        liveliness=QosLiveliness(int(profile.liveliness)),
+        liveliness_lease_duration=_qos_time(profile.liveliness_lease_duration),
+        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
+    )
+
+
+class BoomSimNode(Node):
+    """Thin ROS shell around :class:`Simulator`."""
+
+    def __init__(self) -> None:
+        super().__init__("boom_sim")
+        self._declare_parameters()
+        self._read_node_parameters()
+        params = from_mapping({name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES})
+        self.publish_clock = bool(self.get_parameter("publish_clock").value)
+        self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
+        if self.sim.jit:
+            self.sim.step(0.0, 0)  # compile before the clock starts
+        self.drive = CommandedDrive(self.sim, self.timeout_s)
+        self.lock = threading.RLock()
+        self.stopping = threading.Event()
+        self.paused = bool(self.get_parameter("start_paused").value)
+        self.failure: str | None = None
+        self.lag_s = 0.0
+        self.clock_error_s = 0.0
+        self.late_ticks = 0
+
+        state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.state_pub = self.create_publisher(DriveState, "drive_state", state_qos)
+        self.joint_pub = self.create_publisher(JointState, "joint_states", state_qos)
+        self.p1_pub = self.create_publisher(FluidPressure, "piston_pressure", state_qos)
+        self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
+        self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
+        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if self.publish_clock else None
+        # best-effort subscriptions accept commands from reliable and best-effort publishers;
+        # raw: the bytes as received are recorded, and parsed once here
+        self.command_topics = {
+            self.resolve_topic_name("valve_command"): ValveCommand,
+            self.resolve_topic_name("commands"): Float64MultiArray,
+        }
+        self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True)
+        self.create_subscription(
+            Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data, raw=True
+        )
+        self.create_service(Reset, "~/reset", self.on_reset)
+        self.create_service(SetBool, "~/pause", self.on_pause)
+        self.create_service(Step, "~/step", self.on_step)
+        self.add_pre_set_parameters_callback(self.before_set_parameters)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.after_set_parameters)
+
+        self._restart_clock()
+        self.recorder = self._start_recording() if self.get_parameter("record").value else None
+        self.diag_timer = self.create_timer(1.0, self.on_second)
+        self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
+        p = self.sim.params
+        self.get_logger().info(
+            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, "
+            f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}, "
+            f"{'compiled' if self.sim.compiled else 'interpreted'}"
+        )
+
+    # --- parameters -----------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        """Declare every parameter, typed (an integer for a float is taken as that float),
+        after refusing keys for this node that name no parameter."""
+        overrides = self._parameter_overrides  # rclpy: this node's values from files and -p
+        ros_parameters.check_known(overrides)
+        for name in overrides:
+            overrides[name] = ros_parameters.typed(overrides[name])
+        # our checks first: they name the unit and the fix, where rclpy's range check does not
+        from_mapping({name: ros_parameters.plain(p.value) for name, p in overrides.items() if name in NAMES})
+        for name, p in overrides.items():
+            if name in ros_parameters.NODE_PARAMETERS:
+                ros_parameters.check_node_parameter(name, p.value)
+        for name in ros_parameters.all_names():
+            self.declare_parameter(name, ros_parameters.default(name), ros_parameters.descriptor(name))
+
+    def _read_node_parameters(self) -> None:
+        self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
+        self.rtf = float(self.get_parameter("real_time_factor").value)
+        self.timeout_s = float(self.get_parameter("command_timeout_s").value)
+        self.max_catch_up_s = float(self.get_parameter("max_catch_up_s").value)
+
+    def before_set_parameters(self, changes: list[Parameter]) -> list[Parameter]:
+        """An integer for a float parameter becomes that float, before rclpy checks the type."""
+        return [ros_parameters.typed(p) for p in changes]
+
+    @_locked
+    def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
+        model_changes = {p.name: ros_parameters.plain(p.value) for p in changes if p.name in NAMES}
+        node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
+        try:
+            for name, value in node_changes.items():
+                ros_parameters.check_node_parameter(name, value)
+            new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if new_params is not None:
+            self.sim.set_parameters(new_params)
+        if node_changes:
+            self.get_logger().info(f"node parameters changed: {node_changes}")
+            for name, value in node_changes.items():  # rclpy stores them after this returns
+                setattr(self, _NODE_ATTRIBUTES[name], float(value))
+            self.drive.timeout_s = self.timeout_s  # the drive applies it
+        if new_params is not None or node_changes:
+            self._restart_clock()  # pacing starts afresh from the state as it is now
+        # the node-clock time of the simulated instant the change takes effect at
+        self._changed_at_ns = round((self.clock_origin_s + self.sim.t) * 1e9)
+        return SetParametersResult(successful=True)
+
+    def after_set_parameters(self, changes: list[Parameter]) -> None:
+        """Record the change as rclpy announces it on /parameter_events, stamped with the
+        node-clock time of the simulated instant it took effect at (boom-resim applies it there)."""
+        if self.recorder is None:
+            return
+        changed = [(p.name, p.type_.value, ros_parameters.plain(p.value)) for p in changes]
+        data = parameter_event_cdr(self.get_fully_qualified_name(), self._changed_at_ns, changed)
+        self.recorder.write(PARAMETER_EVENTS, self._now_ns(), data)
+
+    # --- recording ------------------------------------------------------------------------
+    def _start_recording(self) -> BagRecorder:
+        """A bag of every topic this node publishes, its parameter changes, and every command
+        it receives (each command topic once its first publisher shows up)."""
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
+        if self.clock_pub is not None:
+            pubs.append(self.clock_pub)
+        topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
+        events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
+        topics.append(Topic(PARAMETER_EVENTS, _type_name(ParameterEvent), (events_qos,)))
+        recorder = BagRecorder(
+            new_bag_folder(self.get_parameter("record_folder").value, self.get_fully_qualified_name()),
+            topics,
+            chunk_size=round(self.get_parameter("record_chunk_kib").value * 1024),
+            custom_data=run_description(
+                self.sim.params, self._origin_ns(), self.rate_hz, self.timeout_s, node=self.get_fully_qualified_name()
+            ),
+            flush_s=float(self.get_parameter("record_flush_s").value),
+        )
+        self.get_logger().info(f"recording to {recorder.folder}")
+        return recorder
+
+    def _origin_ns(self) -> int:
+        return round(self.clock_origin_s * 1e9)
+
+    def _offers(self, topic: str) -> tuple[Qos, ...]:
+        """What the publishers of ``topic`` offer (as ``ros2 bag record`` records it)."""
+        return tuple(offer_of(info.qos_profile) for info in self.get_publishers_info_by_topic(topic))
+
+    def _watch_command_topics(self) -> None:
+        """Declare a command topic once it has a publisher; keep its offers up to date."""
+        for topic, msg_type in self.command_topics.items():
+            offers = self._offers(topic)
+            if offers and topic not in self.recorder.topics:
+                self.recorder.add_topic(Topic(topic, _type_name(msg_type), offers))
+            self.recorder.add_offers(topic, offers)
+
+    def _record_received(self, topic: str, data: bytes, info: dict) -> None:
+        """Log a received command at its receive time on the node's clock, as rosbag2 does
+        (its header stamp stays inside the message); publish time: when it was sent."""
+        if self.recorder is None:
+            return
+        if topic not in self.recorder.topics:
+            offers = self._offers(topic) or (offered_qos(),)
+            self.recorder.add_topic(Topic(topic, _type_name(self.command_topics[topic]), offers))
+        received = self._now_ns()
+        self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
+
+    def _record_published(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
+        if self.recorder is not None:
+            for publisher, msg in messages:
+                self.recorder.write(publisher.topic_name, stamp_ns, serialize_message(msg))
+
+    def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
+        """Publish (publisher, message) pairs, then record them all: a tick cut short by
+        shutdown leaves no partial tick in the bag."""
+        for publisher, msg in messages:
+            publisher.publish(msg)
+        self._record_published(messages, stamp.sec * 1_000_000_000 + stamp.nanosec)
+
+    # --- commands -------------------------------------------------------------------------
+    def _stamp_to_sim_time(self, stamp: Any) -> float | None:
+        """Simulated time a command stamp means; None for a zero (unset) stamp."""
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            return None
+        return stamp.sec + stamp.nanosec * 1e-9 - self.clock_origin_s
+
+    def _accept(self, opening: float, stamp: Any | None) -> None:
+        u = valve_opening(opening, self.sim.params.mode)
+        if u is None:
+            self.get_logger().warning(f"ignored non-finite valve opening {opening}", throttle_duration_sec=1.0)
+            return
+        if u != opening:
+            self.get_logger().warning(f"valve opening {opening} clamped to {u:g}", throttle_duration_sec=1.0)
+        at = self._stamp_to_sim_time(stamp) if stamp is not None else None
+        if not self.drive.push(self.sim.t if at is None else at, u):
+            self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
+
+    @_locked
+    def on_command(self, data: bytes, info: dict) -> None:
+        topic = self.resolve_topic_name("valve_command")
+        self._record_received(topic, data, info)
+        msg = deserialize_message(data, ValveCommand)
+        self._accept(msg.opening, msg.header.stamp)
+
+    @_locked
+    def on_command_array(self, data: bytes, info: dict) -> None:
+        self._record_received(self.resolve_topic_name("commands"), data, info)
+        msg = deserialize_message(data, Float64MultiArray)
+        if len(msg.data) != 1:
+            self.get_logger().warning(
+                f"'commands' expects one value (the valve opening), got {len(msg.data)}", throttle_duration_sec=1.0
+            )
+            return
+        self._accept(msg.data[0], None)
+
+    # --- services -------------------------------------------------------------------------
+    @_locked
+    def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        try:
+            self.sim.reset(request.rod_position_m if request.use_rod_position else None, keep_time=True)
+        except SimulationError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        self.drive.reset()
+        self.failure = None
+        self._restart_clock()
+        response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
+        self.publish_state()
+        return response
+
+    @_locked
+    def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        if request.data == self.paused:
+            response.success, response.message = True, "already paused" if self.paused else "already running"
+            return response
+        self.paused = request.data
+        if not self.paused:
+            self._restart_clock()
+        response.success, response.message = True, "paused" if self.paused else "resumed"
+        return response
+
+    @_locked
+    def on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
+        if not self.paused:
+            response.success, response.message = False, "step works while paused; call ~/pause with data: true"
+        elif self.failure:
+            response.success, response.message = False, f"simulation stopped: {self.failure}; call ~/reset"
+        else:
+            self.advance(max(1, request.steps))
+            response.success, response.message = self.failure is None, self.failure or "ok"
+            self.publish_state()
+        response.sim_time_s = self.sim.t
+        return response
+
+    # --- time and stepping ---------------------------------------------------------------------
+    def _restart_clock(self) -> None:
+        """Tie simulated time to the steady clock from now on (start, reset, resume, changes)."""
+        self.wall_origin = time.monotonic()
+        self.sim_origin_steps = self.sim.step_count
+        # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
+        now = self.get_clock().now().nanoseconds * 1e-9
+        self.clock_origin_s = 0.0 if self.publish_clock else now - self.sim.t
+
+    def advance(self, steps: int) -> None:
+        """Take ``steps`` physics steps, applying queued commands at their times."""
+        if self.failure is not None:
+            return
+        try:
+            self.drive.advance(steps)
+        except SimulationError as exc:
+            self.failure = str(exc)
+            self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
+
+    def run_loop(self) -> None:
+        """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
+        with self.lock:  # the pacing starts with the loop, not when the node was built
+            self.wall_origin = time.monotonic()
+            self.sim_origin_steps = self.sim.step_count
+        deadline = time.monotonic()
+        while not self.stopping.is_set():
+            if self.rtf == 0:
+                time.sleep(0)  # let the executor thread take commands between ticks
+            else:
+                deadline += 1.0 / self.rate_hz
+                delay = deadline - time.monotonic()
+                if delay > 0:
+                    self.stopping.wait(delay)
+                else:
+                    deadline = time.monotonic()  # a late tick: no burst of ticks to catch up
+            try:
+                with self.lock:
+                    self.on_tick()
+            except Exception as exc:
+                if not rclpy.ok():  # the context went away under us: shutting down
+                    return
+                with self.lock:  # anything else stops the simulation, reported like a blow-up
+                    self.failure = f"tick failed: {exc!r}"
+                self.get_logger().error(f"simulation stopped, waiting for ~/reset: {self.failure}")
+
+    def on_tick(self) -> None:
+        if self.paused or self.failure:
+            return
+        dt = self.sim.params.time_step_s
+        per_tick = max(1, round(1.0 / (self.rate_hz * dt)))
+        elapsed = 0.0
+        if self.rtf == 0:
+            steps = per_tick
+        else:
+            elapsed = (time.monotonic() - self.wall_origin) * self.rtf  # simulated s due by now
+            steps = int(elapsed / dt + 1e-9) - (self.sim.step_count - self.sim_origin_steps)
+            self.lag_s = max(0.0, steps * dt - per_tick * dt) / self.rtf  # backlog beyond one tick
+            max_steps = max(per_tick, round(self.max_catch_up_s * self.rtf / dt))
+            if steps > max_steps:  # cannot keep up: work off what we may, drop the rest
+                self.late_ticks += 1
+                self.get_logger().warning(
+                    f"{steps * dt / self.rtf:.3f} s behind real time; dropping the backlog",
+                    throttle_duration_sec=5.0,
+                )
+                dropped_s = (steps - max_steps) * dt / self.rtf
+                self.wall_origin += dropped_s
+                if not self.publish_clock:
+                    self.clock_origin_s += dropped_s  # ROS-time stamps map to the later sim time
+                steps = max_steps
+        if steps <= 0:
+            return
+        self.advance(steps)
+        if self.rtf > 0:  # how far simulated time trailed the steady clock at this tick, in wall s
+            self.clock_error_s = (elapsed - (self.sim.step_count - self.sim_origin_steps) * dt) / self.rtf
+        if self.failure is None:
+            self.publish_state()
+
+    # --- output ------------------------------------------------------------------------------
+    def _now_ns(self) -> int:
+        """Now on the node's clock: simulated time when it publishes /clock, ROS time otherwise."""
+        if self.publish_clock:
+            return round(self.sim.t * 1e9)
+        return self.get_clock().now().nanoseconds
+
+    def _stamp(self):
+        return Time(nanoseconds=self._now_ns()).to_msg()
+
+    def publish_state(self) -> None:
+        out = self.sim.outputs()
+        if not all(math.isfinite(float(v)) for v in out.values()):
+            return  # a NaN never reaches a topic
+        stamp = self._stamp()
+        if self.clock_pub is not None:
+            self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
+        msg = drive_state(out, stamp)
+
+        p = self.sim.params
+        lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k
+        joints = JointState()
+        joints.header.stamp = stamp
+        joints.name = ["boom_joint", "cylinder_joint"]
+        joints.position = [float(out["alpha"]), float(out["q1"])]
+        joints.velocity = [float(out["alpha_rate"]), float(out["v"])]
+        joints.effort = [float(out["f_hyd"] / lever), float(out["f_hyd"])]
+
+        tick: list[tuple[Any, Any]] = [(self.state_pub, msg), (self.joint_pub, joints)]
+        for pub, frame, value in ((self.p1_pub, "piston_chamber", out["p1"]), (self.p2_pub, "rod_chamber", out["p2"])):
+            fluid = FluidPressure(fluid_pressure=float(value), variance=0.0)
+            fluid.header.stamp, fluid.header.frame_id = stamp, frame
+            tick.append((pub, fluid))
+        wrench = WrenchStamped()
+        wrench.header.stamp, wrench.header.frame_id = stamp, "cylinder_rod"  # x along the rod, extending
+        wrench.wrench.force.x = float(out["f_hyd"])
+        tick.append((self.force_pub, wrench))
+        self._publish(tick, stamp)
+
+    def on_second(self) -> None:
+        """Once a second: diagnostics, and the command topics' publishers for the bag."""
+        if self.recorder is not None:
+            self._watch_command_topics()
+        self.publish_diagnostics()
+
+    @_locked
+    def publish_diagnostics(self) -> None:
+        out = self.sim.outputs() if self.failure is None else {}
+        array = DiagnosticArray()
+        array.header.stamp = self._stamp()
+
+        def status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
+            return DiagnosticStatus(
+                level=level,
+                name=f"boom_sim: {name}",
+                message=message,
+                hardware_id="boom_hydraulics",
+                values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+            )
+
+        if self.failure:
+            array.status.append(status("simulation", DiagnosticStatus.ERROR, f"stopped: {self.failure}"))
+        else:
+            # resting on an end stop is normal; cavitation and an open relief valve are not
+            warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
+            notes = ["at_end_stop"] if out.get("at_end_stop") else []
+            array.status.append(
+                status(
+                    "drive",
+                    DiagnosticStatus.WARN if warnings else DiagnosticStatus.OK,
+                    ", ".join(warnings + notes) or "ok",
+                    sim_time_s=f"{self.sim.t:.3f}",
+                    paused=self.paused,
+                )
+            )
+        behind = self.lag_s > 2.0 / self.rate_hz
+        array.status.append(
+            status(
+                "real-time",
+                DiagnosticStatus.WARN if (behind or self.late_ticks) else DiagnosticStatus.OK,
+                "cannot keep up" if (behind or self.late_ticks) else "ok",
+                lag_s=f"{self.lag_s:.4f}",
+                clock_error_s=f"{self.clock_error_s:.6f}",
+                dropped_backlogs=self.late_ticks,
+                real_time_factor=self.rtf,
+            )
+        )
+        self.late_ticks = 0
+        self._publish([(self.diag_pub, array)], array.header.stamp)
+
+
+def _fail(message: str) -> None:
+    print(f"boom_sim: error: {message}", flush=True)
+    raise SystemExit(2)
+
+
+def main(args: list[str] | None = None) -> None:
+    argv = sys.argv if args is None else args
+    if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
+        print(ros_parameters.usage())
+        return
+    try:
+        for path in ros_parameters.params_files(argv):
+            ros_parameters.check_params_file(path)
+    except ConfigError as exc:
+        _fail(str(exc))
+    # The loop thread must get the GIL soon after its deadline; CPython's default 5 ms
+    # switch interval showed as a 16 ms p99 tick period at 100 Hz.
+    sys.setswitchinterval(0.0005)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
+        _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
+    try:
+        node = BoomSimNode()
+    except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
+        rclpy.try_shutdown()
+        _fail(str(exc))
+    node.loop.start()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        # SIGINT/SIGTERM shut the context down; the executor may then fail building its
+        # wait set (RCLError) instead of raising ExternalShutdownException: that is a
+        # clean shutdown too. Anything else is a real error.
+        if rclpy.ok():
+            raise
+    finally:
+        node.stopping.set()
+        node.loop.join(timeout=5.0)
+        if node.recorder is not None:
+            folder = node.recorder.close()
+            counts = ", ".join(f"{t} {n}" for t, n in node.recorder.counts.items() if n)
+            print(f"boom_sim: bag {folder} ({counts})", flush=True)
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,228 @@
+"""The bridge between the model's parameters and ROS 2 parameters of the ``boom_sim`` node.
+
+- Every model parameter (:mod:`parameters`) and every node parameter below is declared
+  with a descriptor: description with unit, type, range, and ``read_only`` for those that
+  apply at start only. ``ros2 param describe`` shows all of it.
+- Values are typed as the parameter is: an integer given for a float parameter (``ros2
+  param set ... payload_mass_kg 120``, ``-p x:=50``, ``50`` in a params file) is taken as
+  that float, and the parameter stays a double.
+- A key for this node that names no parameter refuses the start, naming the closest one.
+- A params file that is missing or malformed is named in one line before rclpy reads it.
+"""
+
+from __future__ import annotations
+
+import array
+import difflib
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rclpy.parameter import Parameter
+
+from ..errors import ConfigError
+from ..model import config
+from ..model.parameters import NAMES, describe
+
+#: Parameters of the node itself (not of the model): name -> (default, unit, description, low, high).
+NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
+    "publish_rate_hz": (100.0, "Hz", "State publish (tick) rate", 1.0, 1000.0),
+    "real_time_factor": (1.0, "", "Simulated seconds per wall second; 0: as fast as possible", 0.0, 1000.0),
+    "publish_clock": (False, "", "Publish /clock and stamp messages with simulated time", None, None),
+    "command_timeout_s": (
+        0.5,
+        "s",
+        "Valve returns to 0 when no command arrived for this long (simulated time); 0: never",
+        0.0,
+        3600.0,
+    ),
+    "max_catch_up_s": (
+        0.2,
+        "s",
+        "Largest backlog a tick works off before the node gives up real-time lock",
+        0.001,
+        10.0,
+    ),
+    "jit": (False, "", "Step with the numba-compiled model (a few seconds to compile at start)", None, None),
+    "record": (True, "", "Record every published topic and received command to a bag", None, None),
+    "record_folder": ("bags", "", "Folder in which each run's bag folder is created", None, None),
+    "record_chunk_kib": (1024.0, "KiB", "MCAP chunk size: the most a SIGKILL can lose", 1.0, 65536.0),
+    "record_flush_s": (1.0, "s", "A chunk reaches the disk at least this often: the most a SIGKILL loses", 0.05, 60.0),
+    "start_paused": (False, "", "Start paused (resume with ~/pause data: false), e.g. to queue a scenario", None, None),
+}
+
+#: Node parameters that apply at start only: read_only in their descriptors.
+START_ONLY = frozenset(
+    {"publish_clock", "jit", "record", "record_folder", "record_chunk_kib", "record_flush_s", "start_paused"}
+)
+
+#: Parameters every rclpy node has, or may be given, beside ours.
+_STANDARD = frozenset({"use_sim_time", "start_type_description_service"})
+_STANDARD_PREFIXES = ("qos_overrides.",)
+
+
+def _kind(name: str) -> str:
+    """'float', 'int', 'bool', 'str' or 'list' (of floats) of a model or node parameter."""
+    if name in NODE_PARAMETERS:
+        return {float: "float", bool: "bool", str: "str"}[type(NODE_PARAMETERS[name][0])]
+    return describe(name)["type"]
+
+
+def default(name: str) -> Any:
+    return NODE_PARAMETERS[name][0] if name in NODE_PARAMETERS else describe(name)["default"]
+
+
+def descriptor(name: str) -> ParameterDescriptor:
+    """The descriptor of model or node parameter ``name``: type, description with unit, range, read_only."""
+    if name in NODE_PARAMETERS:
+        _, unit, text, low, high = NODE_PARAMETERS[name]
+        choices = None
+    else:
+        meta = describe(name)
+        unit, text, low, high, choices = meta["unit"], meta["description"], meta["low"], meta["high"], meta["choices"]
+    kind = _kind(name)
+    desc = ParameterDescriptor(
+        name=name,
+        type=_ROS_TYPES[kind],
+        description=f"{text} [{unit}]" if unit else text,
+        read_only=name in START_ONLY,
+    )
+    if kind == "float" and low is not None and high is not None:
+        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high))]
+    if kind == "int" and low is not None and high is not None:
+        desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+    constraints = []
+    if choices:
+        constraints.append(f"one of: {', '.join(choices)}")
+    if name in NAMES and low is not None and not describe(name)["low_inclusive"]:
+        constraints.append(f"greater than {low:g}")
+    if name in START_ONLY:
+        constraints.append("at start only: set it in a params file or with -p, then restart")
+    desc.additional_constraints = "; ".join(constraints)
+    return desc
+
+
+_ROS_TYPES = {
+    "float": ParameterType.PARAMETER_DOUBLE,
+    "int": ParameterType.PARAMETER_INTEGER,
+    "bool": ParameterType.PARAMETER_BOOL,
+    "str": ParameterType.PARAMETER_STRING,
+    "list": ParameterType.PARAMETER_DOUBLE_ARRAY,
+}
+
+
+def all_names() -> tuple[str, ...]:
+    return (*NAMES, *NODE_PARAMETERS)
+
+
+def plain(value: Any) -> Any:
+    """A parameter value as Python: rclpy hands arrays over as ``array.array``."""
+    return list(value) if isinstance(value, (array.array, tuple)) else value
+
+
+def typed(parameter: Parameter) -> Parameter:
+    """``parameter`` with an integer turned into the double (or double array) its parameter is."""
+    if parameter.name not in NAMES and parameter.name not in NODE_PARAMETERS:
+        return parameter
+    kind = _kind(parameter.name)
+    value = parameter.value
+    if kind == "float" and parameter.type_ == Parameter.Type.INTEGER:
+        return Parameter(parameter.name, Parameter.Type.DOUBLE, float(value))
+    if kind == "list" and parameter.type_ == Parameter.Type.INTEGER_ARRAY:
+        return Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in value])
+    if kind == "list" and parameter.type_ in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
+        return Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(value)])
+    return parameter
+
+
+def check_known(names: Iterable[str]) -> None:
+    """Raise ConfigError for a key that is none of this node's parameters, naming the closest."""
+    known = all_names()
+    for name in names:
+        if name in known or name in _STANDARD or name.startswith(_STANDARD_PREFIXES):
+            continue
+        close = difflib.get_close_matches(name, known, n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        raise ConfigError(f"unknown parameter '{name}' for boom_sim{hint} (boom_sim --help lists them)")
+
+
+def check_node_parameter(name: str, value: Any) -> None:
+    """Raise ConfigError unless ``value`` fits node parameter ``name``."""
+    value_default, _, _, low, high = NODE_PARAMETERS[name]
+    if isinstance(value_default, str):
+        if not isinstance(value, str) or not value:
+            raise ConfigError(f"parameter '{name}' must be a non-empty string, got {value!r}")
+    elif isinstance(value_default, bool):
+        if not isinstance(value, bool):
+            raise ConfigError(f"parameter '{name}' must be true or false, got {value!r}")
+    elif isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+        raise ConfigError(f"parameter '{name}' must be a number in [{low}, {high}], got {value!r}")
+
+
+def user_args(args: Sequence[str]) -> list[str]:
+    """``args`` without the ``--ros-args ... [--]`` sections (what rclpy's parser would remove)."""
+    kept, in_ros = [], False
+    for arg in args:
+        if arg == "--ros-args":
+            in_ros = True
+        elif in_ros and arg == "--":
+            in_ros = False
+        elif not in_ros:
+            kept.append(arg)
+    return kept
+
+
+def params_files(args: Sequence[str]) -> list[str]:
+    """The files named by ``--params-file`` in the ROS arguments of ``args``."""
+    files, in_ros = [], False
+    for i, arg in enumerate(args):
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--":
+            in_ros = False
+        elif in_ros and arg == "--params-file" and i + 1 < len(args):
+            files.append(args[i + 1])
+    return files
+
+
+def check_params_file(path: str) -> None:
+    """Raise ConfigError, in one line, if ``path`` is missing or not a params YAML mapping."""
+    try:
+        text = open(path, encoding="utf-8").read()
+    except FileNotFoundError:
+        raise ConfigError(f"--params-file {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"--params-file {path}: cannot read it ({exc})") from None
+    try:
+        document = config.load_yaml(text)
+    except Exception as exc:  # yaml.YAMLError and its kin: name the place
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ConfigError(
+            f"--params-file {path}: malformed YAML{where}: {getattr(exc, 'problem', None) or exc}"
+        ) from None
+    if not isinstance(document, dict) or not all(
+        isinstance(v, dict) and isinstance(v.get("ros__parameters"), dict) for v in document.values()
+    ):
+        raise ConfigError(f"--params-file {path}: expected '/**: ros__parameters: {{name: value, ...}}' per node")
+
+
+def usage() -> str:
+    """``boom_sim --help``: how to start it, and every parameter with its default and unit."""
+    lines = [
+        "usage: boom_sim [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r __ns:=/NAMESPACE] ...]",
+        "",
+        "ROS 2 node simulating the hydraulic drive of a crane boom. Subscribes to valve_command",
+        "(boom_hydraulics_msgs/ValveCommand) and commands (std_msgs/Float64MultiArray); publishes",
+        "drive_state, joint_states, piston_pressure, rod_pressure, rod_force and /diagnostics.",
+        "",
+        "Node parameters (* = at start only; read_only once running):",
+    ]
+    for name, (value, unit, text, _, _) in NODE_PARAMETERS.items():
+        star = "*" if name in START_ONLY else " "
+        lines.append(f"  {star} {name:<22} {value!s:<10} {unit:<5} {text}")
+    lines += ["", "Model parameters (config/default.yaml lists them; ros2 param describe gives ranges):"]
+    for name in NAMES:
+        meta = describe(name)
+        lines.append(f"    {name:<32} {meta['default']!s:<10} {meta['unit']}")
+    return "\n".join(lines)

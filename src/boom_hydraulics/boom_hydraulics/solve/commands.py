@@ -1,0 +1,125 @@
+"""Valve command profiles over time: constant, steps, ramp, sine (the headless scenarios)."""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import ConfigError
+from ..model.parameters import Parameters
+
+CommandProfile = Callable[[float], float]
+
+
+def constant(value: float) -> CommandProfile:
+    """u(t) = value."""
+    return lambda t: value
+
+
+def steps(times_s: list[float], values: list[float]) -> CommandProfile:
+    """Piecewise constant: values[i] from times_s[i] until times_s[i + 1]; 0 before times_s[0]."""
+
+    def u(t: float) -> float:
+        i = bisect.bisect_right(times_s, t) - 1
+        return values[i] if i >= 0 else 0.0
+
+    return u
+
+
+def ramp(times_s: list[float], values: list[float]) -> CommandProfile:
+    """Piecewise linear through (times_s[i], values[i]); held flat before the first and after the last."""
+
+    def u(t: float) -> float:
+        if t <= times_s[0]:
+            return values[0]
+        if t >= times_s[-1]:
+            return values[-1]
+        i = bisect.bisect_right(times_s, t) - 1
+        w = (t - times_s[i]) / (times_s[i + 1] - times_s[i])
+        return values[i] + w * (values[i + 1] - values[i])
+
+    return u
+
+
+def sine(offset: float, amplitude: float, frequency_hz: float) -> CommandProfile:
+    """u(t) = offset + amplitude sin(2 pi f t)."""
+    return lambda t: offset + amplitude * math.sin(2.0 * math.pi * frequency_hz * t)
+
+
+def from_parameters(p: Parameters) -> CommandProfile:
+    """The profile that the ``command_*`` parameters describe."""
+    if p.command_profile == "constant":
+        return constant(p.command_value)
+    if p.command_profile == "steps":
+        return steps(list(p.command_times_s), list(p.command_values))
+    if p.command_profile == "ramp":
+        return ramp(list(p.command_times_s), list(p.command_values))
+    return sine(p.command_offset, p.command_amplitude, p.command_frequency_hz)
+
+
+def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
+    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
+    -> the command_* parameters."""
+    kind, _, body = text.partition(":")
+    try:
+        if kind == "constant":
+            return {"command_profile": "constant", "command_value": float(body)}
+        if kind in ("steps", "ramp"):
+            pairs = [item.split("=") for item in body.split(",") if item]
+            times = [float(t) for t, _ in pairs]
+            values = [float(u) for _, u in pairs]
+            return {"command_profile": kind, "command_times_s": times, "command_values": values}
+        if kind == "sine":
+            offset, amplitude, frequency = (float(x) for x in body.split(","))
+            return {
+                "command_profile": "sine",
+                "command_offset": offset,
+                "command_amplitude": amplitude,
+                "command_frequency_hz": frequency,
+            }
+    except ValueError:
+        pass
+    raise ConfigError(
+        f"{option} {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
+        "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
+    )
+
+
+#: (start time s, opening): lift, hold, lower, hold; the demo's cycle.
+CYCLE = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
+
+#: Named valve scenarios of the design sweeps (see :func:`scenario`).
+SCENARIOS = ("lift", "cycle", "config")
+
+
+def scenario(text: str, duration_s: float) -> dict[str, Any]:
+    """The command_* parameters of a named scenario or a profile (see :func:`parse_profile`).
+
+    - ``lift``: valve fully open for the first half of the run, then closed (the hold shows
+      overshoot and oscillation); ``lift:T`` opens for T seconds.
+    - ``cycle``: lift, hold, lower, hold (:data:`CYCLE`, 9 s).
+    - ``config``: the command_* parameters of the config file, unchanged ({}).
+    - anything else: a profile such as ``steps:0=1,2=0``.
+    """
+    name, _, arg = text.partition(":")
+    if name == "config" and not arg:
+        return {}
+    if name == "cycle" and not arg:
+        times, values = zip(*CYCLE)
+        return {"command_profile": "steps", "command_times_s": list(times), "command_values": list(values)}
+    if name == "lift":
+        try:
+            open_s = float(arg) if arg else 0.5 * duration_s
+        except ValueError:
+            raise ConfigError(f"scenario {text!r}: write lift or lift:T with T the opening time in s") from None
+        if not 0.0 < open_s:
+            raise ConfigError(f"scenario {text!r}: the valve must open for a positive time")
+        return {"command_profile": "steps", "command_times_s": [0.0, open_s], "command_values": [1.0, 0.0]}
+    if name in ("constant", "steps", "ramp", "sine"):
+        return parse_profile(text, "--scenario")
+    raise ConfigError(
+        f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, or a profile "
+        "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ)"
+    )

@@ -1,0 +1,183 @@
+"""Time integrators behind one interface: ``advance(fun, t, y, dt) -> y(t + dt)``.
+
+``fun(t, y, *args)`` returns dy/dt as a list (``args`` as in scipy's solve_ivp). A state
+``y`` is a list of components, each a float (one simulation) or a numpy array (a batch
+of simulations integrated together), so the same fixed-step code serves both. Methods:
+
+- ``euler``: explicit Euler, order 1.
+- ``rk4``: classical Runge-Kutta of order 4, the paper's method (Fig. 7).
+- ``rk45``: Dormand-Prince 5(4) with error control and adaptive internal steps (as
+  scipy's RK45), for stiff stretches where a fixed step would need to be tiny; floats only.
+
+Fixed-step methods take ``substeps`` internal steps per ``advance``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from ..errors import SimulationError
+
+Derivative = Callable[..., list]
+
+
+class Integrator(Protocol):
+    """What every method offers."""
+
+    name: str
+
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
+        """The state at ``t + dt``."""
+        ...
+
+
+def euler_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
+    """y + h f(t, y)."""
+    k1 = fun(t, y, *args)
+    return [yi + h * ki for yi, ki in zip(y, k1)]
+
+
+def rk4_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
+    """Classical RK4: y + h/6 (k1 + 2 k2 + 2 k3 + k4) (the listing's rk4Step)."""
+    h2 = 0.5 * h
+    k1 = fun(t, y, *args)
+    k2 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k1)], *args)
+    k3 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k2)], *args)
+    k4 = fun(t + h, [yi + h * ki for yi, ki in zip(y, k3)], *args)
+    h6 = h / 6.0
+    return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
+
+
+class FixedStep:
+    """A fixed-step method with ``substeps`` internal steps per advance."""
+
+    def __init__(self, name: str, step: Callable[..., list], substeps: int = 1):
+        if substeps < 1:
+            raise ValueError("substeps must be >= 1")
+        self.name = name
+        self._step = step
+        self.substeps = substeps
+
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
+        if self.substeps == 1:
+            return self._step(fun, t, y, dt, args)
+        h = dt / self.substeps
+        for i in range(self.substeps):
+            y = self._step(fun, t + i * h, y, h, args)
+        return y
+
+
+# Dormand-Prince 5(4) tableau (as in scipy.integrate.RK45).
+_DP_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0)
+_DP_A = (
+    (),
+    (1 / 5,),
+    (3 / 40, 9 / 40),
+    (44 / 45, -56 / 15, 32 / 9),
+    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+)
+_DP_B = (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84)
+# b (5th order) - b* (4th order), weights of the error estimate, last for the FSAL stage
+_DP_E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
+
+
+class DormandPrince45:
+    """Adaptive Dormand-Prince 5(4) with error control, for one (float) state.
+
+    Internal steps adapt so that each component's local error stays below
+    ``atol_i + rtol |y_i|``; ``advance`` lands exactly on ``t + dt`` and remembers the
+    last accepted step size for the next call.
+    """
+
+    name = "rk45"
+    max_steps_per_advance = 200_000
+
+    def __init__(self, rtol: float, atol: Sequence[float], min_step: float = 1e-12):
+        self.rtol = rtol
+        self.atol = list(atol)
+        self.min_step = min_step
+        self._h: float | None = None
+        self.accepted = 0
+        self.rejected = 0
+
+    def _try_step(self, fun: Derivative, t: float, y: list, h: float, k1: list, args: tuple) -> tuple:
+        ks = [k1]
+        for i in range(1, 6):
+            a = _DP_A[i]
+            yi = [y0 + h * sum(aij * kj[n] for aij, kj in zip(a, ks)) for n, y0 in enumerate(y)]
+            ks.append(fun(t + _DP_C[i] * h, yi, *args))
+        y_new = [y0 + h * sum(bj * kj[n] for bj, kj in zip(_DP_B, ks)) for n, y0 in enumerate(y)]
+        k7 = fun(t + h, y_new, *args)
+        ks.append(k7)
+        err = 0.0
+        for n, (y0, y1) in enumerate(zip(y, y_new)):
+            e = h * sum(ej * kj[n] for ej, kj in zip(_DP_E, ks))
+            scale = self.atol[n] + self.rtol * max(abs(y0), abs(y1))
+            err = max(err, abs(e) / scale)
+        if not all(math.isfinite(v) for v in y_new):
+            err = math.inf  # a NaN or infinite trial state is never accepted
+        return y_new, k7, err
+
+    def advance(self, fun: Derivative, t: float, y: list, dt: float, args: tuple = ()) -> list:
+        t_end = t + dt
+        h_try = self._h or dt
+        k1 = fun(t, y, *args)
+        for _ in range(self.max_steps_per_advance):
+            if t >= t_end - 1e-12 * dt:
+                self._h = h_try
+                return y
+            h = min(h_try, t_end - t)
+            truncated = h < h_try  # shortened to land on t_end: not a measure of the right step
+            y_new, k_new, err = self._try_step(fun, t, y, h, k1, args)
+            if err <= 1.0:
+                t, y, k1 = t + h, y_new, k_new
+                self.accepted += 1
+                grown = h * (5.0 if err == 0.0 else min(5.0, 0.9 * err**-0.2))
+                h_try = max(h_try, grown) if truncated else grown
+            else:
+                self.rejected += 1
+                h_try = h * max(0.2, 0.9 * err**-0.2)
+                if h_try < self.min_step:
+                    raise SimulationError(
+                        f"rk45: step size fell below {self.min_step:g} s at t = {t:.6g} s; "
+                        "the equations are too stiff or the state diverged"
+                    )
+        raise SimulationError(
+            f"rk45: more than {self.max_steps_per_advance} internal steps in one advance at "
+            f"t = {t:.6g} s; loosen rtol/atol_scale or use rk4 with a smaller time_step_s"
+        )
+
+
+@dataclass(frozen=True)
+class Method:
+    """One integration method: its fixed step (None for an adaptive method) and how to build it."""
+
+    name: str
+    step: Callable[..., list] | None
+    description: str
+
+    def build(self, substeps: int, rtol: float, atol: Sequence[float]) -> Integrator:
+        if self.step is not None:
+            return FixedStep(self.name, self.step, substeps)
+        return DormandPrince45(rtol, atol)
+
+
+#: Every integration method, by name (as scipy.integrate's METHODS): the one list of them.
+METHODS: dict[str, Method] = {
+    "euler": Method("euler", euler_step, "explicit Euler, first order"),
+    "rk4": Method("rk4", rk4_step, "classic Runge-Kutta, fourth order (the paper's)"),
+    "rk45": Method("rk45", None, "Dormand-Prince 5(4), adaptive with error control"),
+}
+#: The methods with a fixed step: the compiled and the batched paths run these.
+FIXED_STEP = tuple(name for name, method in METHODS.items() if method.step is not None)
+
+
+def make(name: str, substeps: int = 1, rtol: float = 1e-6, atol: Sequence[float] = (1e-8,)) -> Integrator:
+    """The integrator called ``name`` (one of :data:`METHODS`)."""
+    if name not in METHODS:
+        raise ValueError(f"unknown integration method {name!r}; choose {', '.join(METHODS)}")
+    return METHODS[name].build(substeps, rtol, atol)

@@ -1,0 +1,1 @@
+"""Design sweeps: sampling design points, running them in batches, storing, ranking, plotting."""

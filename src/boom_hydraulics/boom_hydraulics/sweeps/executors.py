@@ -1,0 +1,99 @@
+"""Where the batches of a sweep run: in this process, or on a Dask cluster.
+
+Both offer ``map(fn, items)``, which yields ``(item, fn(item))`` as each finishes (in
+any order), so the caller can store every result as soon as it exists. Leaving the
+``with`` block (also by Ctrl-C) cancels what has not run yet.
+"""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, TypeVar
+
+from ..errors import BoomHydraulicsError, ConfigError
+
+Item = TypeVar("Item")
+
+
+class LocalExecutor:
+    """One item after the other, in this process."""
+
+    description = "in this process"
+
+    def __enter__(self) -> LocalExecutor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def map(self, fn: Callable[[Item], Any], items: Iterable[Item]) -> Iterator[tuple[Item, Any]]:
+        for item in items:
+            yield item, fn(item)
+
+
+class DaskExecutor:
+    """Items as tasks on a Dask cluster: the scheduler at ``scheduler``
+    (``tcp://host:8786``), or a local cluster of ``workers`` processes started here.
+
+    Workers need boom_hydraulics importable (the same installation as here).
+    """
+
+    def __init__(self, scheduler: str | None = None, workers: int | None = None) -> None:
+        if (scheduler is None) == (workers is None):
+            raise ValueError("give a scheduler address or a number of local workers")
+        if workers is not None and workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {workers}")
+        self.scheduler, self.workers = scheduler, workers
+        self.cluster: Any = None
+        self.client: Any = None
+        self.description = (
+            f"on the Dask scheduler at {scheduler}" if scheduler else f"on a local Dask cluster of {workers} processes"
+        )
+
+    def __enter__(self) -> DaskExecutor:
+        from distributed import Client, LocalCluster
+
+        try:
+            if self.scheduler is not None:
+                self.client = Client(self.scheduler, timeout="10s")
+            else:
+                self.cluster = LocalCluster(
+                    n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
+                )
+                self.client = Client(self.cluster)
+        except (OSError, TimeoutError, ValueError) as exc:
+            self.__exit__()
+            where = f"the Dask scheduler at {self.scheduler}" if self.scheduler else "a local Dask cluster"
+            raise ConfigError(
+                f"cannot reach {where}: {exc}; start one with 'dask scheduler' and 'dask worker ADDRESS', "
+                "or leave out --scheduler to run in this process"
+            ) from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        self.client = self.cluster = None
+
+    def map(self, fn: Callable[[Item], Any], items: Iterable[Item]) -> Iterator[tuple[Item, Any]]:
+        from distributed import as_completed
+
+        run = uuid.uuid4().hex[:8]
+        futures = {
+            self.client.submit(fn, item, key=f"boom-sweep-{run}-{n}", pure=False): item for n, item in enumerate(items)
+        }
+        try:
+            for future in as_completed(futures):
+                try:
+                    result = future.result()
+                except Exception as exc:  # raised on a worker: name it, keep what is stored
+                    raise BoomHydraulicsError(
+                        f"a task failed {self.description}: {type(exc).__name__}: {exc} "
+                        "(workers need boom_hydraulics installed, the same version as here)"
+                    ) from exc
+                yield futures[future], result
+        finally:
+            self.client.cancel(list(futures))

@@ -1,0 +1,243 @@
+"""Choosing designs from a sweep table: constraints, the trade-off front, the ranking.
+
+A constraint reads ``METRIC OP VALUE`` with OP one of ``<= < >= > ==``, for example
+``peak_pressure_pa<=20e6`` or ``cavitation_s==0``. A design is recommended when its
+status is ``ok`` (it lifted through the angle and its run did not fail) and it meets
+every constraint; recommendations are ranked by the energy of the lift. A design can
+also be a cylinder that has to serve several conditions (payloads, say): then every
+one of its points must qualify, and its worst case counts (:func:`worst_case`).
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from .sweep import METRIC_NAMES, STATUSES
+
+#: Objectives of the trade-off front, all minimised: fast, frugal, gentle on the hoses.
+TRADE_OFF = ("lift_time_s", "lift_energy_j", "peak_pressure_pa")
+
+#: The ranking of recommended designs.
+RANK_BY = "lift_energy_j"
+
+_OPS: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {
+    "<=": operator.le,
+    ">=": operator.ge,
+    "==": operator.eq,
+    "<": operator.lt,
+    ">": operator.gt,
+}
+_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*$")
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """``metric op value`` over a column of the sweep table."""
+
+    metric: str
+    op: str
+    value: float
+
+    def __str__(self) -> str:
+        return f"{self.metric} {self.op} {self.value:g}"
+
+    def holds(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Per row: the constraint holds (NaN never does)."""
+        column = np.asarray(table[self.metric], dtype=float)
+        with np.errstate(invalid="ignore"):
+            return _OPS[self.op](column, self.value) & np.isfinite(column)
+
+
+def parse_constraint(text: str, columns: Sequence[str] = METRIC_NAMES) -> Constraint:
+    """A :class:`Constraint` from ``METRIC OP VALUE`` over one of ``columns``."""
+    match = _PATTERN.match(text)
+    if not match:
+        raise ConfigError(f"--require {text!r}: write METRIC OP VALUE, e.g. peak_pressure_pa<=20e6")
+    metric, op, value_text = match.groups()
+    if metric not in columns:
+        raise ConfigError(f"--require {text!r}: unknown metric '{metric}'; choose from {', '.join(columns)}")
+    try:
+        value = float(value_text)
+    except ValueError:
+        raise ConfigError(f"--require {text!r}: '{value_text}' is not a number") from None
+    if math.isnan(value):
+        raise ConfigError(f"--require {text!r}: the value must be a number, not NaN")
+    return Constraint(metric, op, value)
+
+
+def non_dominated(objectives: np.ndarray) -> np.ndarray:
+    """Rows of ``objectives`` (n x k, all minimised) that no other row dominates.
+
+    Row j dominates row i when it is no worse in every objective and better in one.
+    Rows with a NaN are never on the front.
+    """
+    objectives = np.asarray(objectives, dtype=float)
+    finite = np.isfinite(objectives).all(axis=1)
+    front = finite.copy()
+    candidates = objectives[finite]
+    index = np.nonzero(finite)[0]
+    for start in range(0, len(candidates), 512):  # chunks keep the n x n comparison small
+        block = candidates[start : start + 512, None, :]
+        no_worse = (candidates[None, :, :] <= block).all(axis=2)
+        better = (candidates[None, :, :] < block).any(axis=2)
+        front[index[start : start + 512]] = ~(no_worse & better).any(axis=1)
+    return front
+
+
+def trade_off_front(table: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Per row: an ``ok`` design on the front of :data:`TRADE_OFF`."""
+    ok = np.asarray(table["status"]) == "ok"
+    objectives = np.column_stack([np.asarray(table[m], dtype=float) for m in TRADE_OFF])
+    objectives[~ok] = np.nan
+    return non_dominated(objectives)
+
+
+#: Metrics where a smaller value is the worse one; for every other metric a larger value is.
+LOWER_IS_WORSE = frozenset({"lift_completed", "rise_deg", "lift_m", "damping_ratio", "min_pressure_pa"})
+
+
+def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -> dict[str, np.ndarray]:
+    """One row per design (a distinct combination of ``design_columns``): over all its points,
+    the worst value of every metric, the worst status, and ``points``, how many it has.
+
+    The other point columns (a payload, say) are the conditions a design has to cope with.
+    A NaN (a lift that did not complete) is the worst value of all.
+    """
+    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(table["point"])
+    groups: dict[tuple, list[int]] = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
+    designs = list(groups)
+    members = [np.array(rows) for rows in groups.values()]
+    out: dict[str, np.ndarray] = {"design": np.arange(len(designs))}
+    for j, column in enumerate(design_columns):
+        out[column] = np.array([d[j] for d in designs], dtype=np.asarray(table[column]).dtype)
+    out["points"] = np.array([len(m) for m in members])
+    rank = {s: k for k, s in enumerate(STATUSES)}
+    status = np.asarray(table["status"])
+    out["status"] = np.array([max(status[m].tolist(), key=rank.__getitem__) for m in members], dtype=str)
+    for name in METRIC_NAMES:
+        column = np.asarray(table[name], dtype=float)
+        pick = np.min if name in LOWER_IS_WORSE else np.max
+        out[name] = np.array([pick(column[m]) if np.isfinite(column[m]).all() else np.nan for m in members])
+    return out
+
+
+def check_across(across: Sequence[str], point_columns: Sequence[str]) -> None:
+    """Raise ConfigError unless every name in ``across`` is one of the point columns."""
+    missing = sorted(set(across) - set(point_columns))
+    if missing:
+        choices = ", ".join(point_columns) or "none: nothing is varied"
+        raise ConfigError(f"--across {', '.join(missing)}: not a varied parameter; choose from {choices}")
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """The designs that meet every constraint, best first, and how each constraint fared."""
+
+    table: Mapping[str, np.ndarray]  # the rows ranked: points, or designs (worst case over conditions)
+    columns: tuple[str, ...]  # the columns that name a row of ``table``
+    rows: np.ndarray  # row indices into ``table``, ranked by RANK_BY
+    constraints: tuple[Constraint, ...]
+    passing: dict[str, int]  # constraint text (and "status ok") -> rows of ``table`` meeting it
+
+
+def recommend(
+    table: Mapping[str, np.ndarray],
+    constraints: Sequence[Constraint],
+    point_columns: Sequence[str] = (),
+    across: Sequence[str] = (),
+) -> Recommendation:
+    """The ``ok`` rows with a finite :data:`RANK_BY` that meet every constraint, ranked by it (ascending).
+
+    With ``across`` (some of ``point_columns``, e.g. the payload), a row is a design: the
+    other point columns. A design qualifies only if every one of its points is ok and
+    meets every constraint, and it is ranked by its largest lift energy.
+    """
+    status_ok = np.asarray(table["status"]) == "ok"
+    holds = {str(c): c.holds(table) for c in constraints}
+    energy = np.asarray(table[RANK_BY], dtype=float)
+    meets = status_ok & np.isfinite(energy)
+    for column in holds.values():
+        meets &= column
+    check_across(across, point_columns)
+    if not across:
+        rows = np.nonzero(meets)[0]
+        passing = {"status ok": int(status_ok.sum()), **{k: int(v.sum()) for k, v in holds.items()}}
+        ranked = rows[np.argsort(energy[rows], kind="stable")]
+        return Recommendation(table, ("point", *point_columns), ranked, tuple(constraints), passing)
+    design_columns = [c for c in point_columns if c not in across]
+    designs = worst_case(table, design_columns)
+    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(status_ok)
+    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    of_design = np.array([index[k] for k in keys])
+
+    def every(flags: np.ndarray) -> np.ndarray:
+        failed = np.zeros(len(index), bool)
+        failed[of_design[~flags]] = True
+        return ~failed
+
+    qualifies = every(meets)
+    passing = {"status ok": int(every(status_ok).sum()), **{k: int(every(v).sum()) for k, v in holds.items()}}
+    rows = np.nonzero(qualifies)[0]
+    ranked = rows[np.argsort(designs[RANK_BY][rows], kind="stable")]
+    return Recommendation(designs, ("design", *design_columns), ranked, tuple(constraints), passing)
+
+
+#: Columns of the readable table: (column, heading, scale).
+SUMMARY = (
+    ("lift_energy_j", "lift energy [kJ]", 1e-3),
+    ("lift_time_s", "lift time [s]", 1.0),
+    ("peak_pressure_pa", "peak p [MPa]", 1e-6),
+    ("min_pressure_pa", "min p [MPa]", 1e-6),
+    ("overshoot_m", "overshoot [mm]", 1e3),
+    ("damping_ratio", "damping", 1.0),
+    ("cavitation_s", "cavitation [s]", 1.0),
+)
+
+
+def format_table(rec: Recommendation, top: int = 10) -> str:
+    """The recommendation as aligned text: the constraints, then the best ``top`` rows."""
+    table, designs = rec.table, rec.columns[0] == "design"
+    what = "designs meeting each at all their points" if designs else "designs meeting each"
+    lines = [f"Constraints ({what}):"]
+    lines += [f"  {name:<32} {count} of {len(table[rec.columns[0]])}" for name, count in rec.passing.items()]
+    if not len(rec.rows):
+        lines.append("No design meets every constraint; relax the tightest one above.")
+        return "\n".join(lines) + "\n"
+    front = trade_off_front(table)
+    shown = rec.rows[:top]
+    worst = " worst-case" if designs else ""
+    lines.append(
+        f"{len(rec.rows)} of {len(table[rec.columns[0]])} designs meet every constraint; "
+        f"the {len(shown)} with the least{worst} lift energy "
+        "(* = on the trade-off front of lift time, energy and peak pressure):"
+    )
+    headings = ["rank", *rec.columns, *(h for _, h, _ in SUMMARY), "front"]
+    body = []
+    for rank, row in enumerate(shown, start=1):
+        cells = [str(rank), *(format_value(table[c][row]) for c in rec.columns)]
+        cells += [format_value(float(table[c][row]) * scale) for c, _, scale in SUMMARY]
+        cells.append("*" if front[row] else "")
+        body.append(cells)
+    widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(headings)]
+    lines.append("  ".join(h.rjust(w) for h, w in zip(headings, widths)))
+    lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in body]
+    return "\n".join(lines) + "\n"
+
+
+def format_value(value: object) -> str:
+    """A table cell for people: text as it is, numbers to 4 significant digits, NaN as '-'."""
+    if isinstance(value, (str, np.str_)):
+        return str(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    v = float(value)  # type: ignore[arg-type]
+    return "-" if math.isnan(v) else f"{v:.4g}"

@@ -1,0 +1,275 @@
+"""Design sweeps: many parameter sets driven through one valve scenario, in batches.
+
+:func:`plan` turns base configs, axes and a scenario into points and batches; every
+batch holds points that can be integrated together (same mode, method, time step,
+substeps and valve command, see :mod:`batch`). :func:`run_batch` integrates one batch
+and returns one table row per point: the metrics of :mod:`analysis` plus a status
+and, where a point did not lift as asked, the reason. A batch is a plain picklable
+value, so it runs the same in this process or on a Dask worker.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from ..analysis import metrics as analysis
+from ..errors import BoomHydraulicsError, ConfigError
+from ..model.parameters import NAMES, Parameters, as_dict, from_mapping
+from ..solve import commands
+from ..solve.batch import SHARED, simulate_batch
+from ..solve.integrators import FIXED_STEP
+from .sampling import Axis, sample_points
+
+#: Model outputs the metrics need.
+SIGNALS = (
+    "t",
+    "q1",
+    "v",
+    "alpha",
+    "p1",
+    "p2",
+    "u",
+    "cavitation",
+    "relief_open",
+    "supply_energy",
+    "valve_loss_energy",
+)
+
+#: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
+METRICS: tuple[tuple[str, str, str], ...] = (
+    ("lift_completed", "1", "1 if the boom rose through the lift angle"),
+    ("lift_time_s", "s", "time to rise through the lift angle"),
+    ("lift_energy_j", "J", "energy drawn from the supply during the lift"),
+    ("lift_valve_loss_j", "J", "energy dissipated in the valve during the lift"),
+    ("rise_deg", "deg", "largest rise of the boom elevation"),
+    ("lift_m", "m", "largest rise of the cylinder length"),
+    ("peak_speed_m_s", "m/s", "peak rod speed"),
+    ("rms_speed_m_s", "m/s", "RMS rod speed"),
+    ("overshoot_m", "m", "rise of q1 above its settled value after the valve closes"),
+    ("oscillation_hz", "Hz", "dominant frequency of p1 after the valve closes"),
+    ("damping_ratio", "1", "damping ratio of that oscillation"),
+    ("peak_pressure_pa", "Pa", "highest chamber pressure"),
+    ("min_pressure_pa", "Pa", "lowest chamber pressure"),
+    ("cavitation_s", "s", "time with a chamber at the cavitation floor"),
+    ("relief_s", "s", "time with a relief valve open"),
+    ("supply_energy_j", "J", "energy drawn from the supply over the whole run"),
+    ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
+)
+METRIC_NAMES = tuple(name for name, _, _ in METRICS)
+
+#: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
+#: failed (the integration diverged or left the model's geometry), invalid (parameters
+#: rejected before running).
+STATUSES = ("ok", "incomplete", "failed", "invalid")
+
+#: Parameters that all points of one batch share: integration and valve command.
+BATCH_KEYS = (*SHARED, *(n for n in NAMES if n.startswith("command_")))
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Points that are integrated together."""
+
+    index: int
+    points: tuple[int, ...]
+    params: tuple[Parameters, ...]
+    duration_s: float
+    every: int
+    lift_angle_deg: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything a sweep will compute, before any of it runs."""
+
+    request: dict[str, Any]  # what was asked, JSON-able (kept with the results for resuming)
+    columns: tuple[str, ...]  # the point-describing columns: config (if several) and the axes
+    points: tuple[dict[str, Any], ...]  # per point, its values of ``columns``
+    invalid: dict[int, str]  # point -> why its parameters were rejected
+    batches: tuple[Batch, ...]
+
+    @property
+    def size(self) -> int:
+        return len(self.points)
+
+
+def plan(
+    configs: Sequence[tuple[str, Parameters]],
+    axes: Sequence[Axis],
+    *,
+    scenario: str = "lift",
+    duration_s: float = 5.0,
+    sample: str = "grid",
+    count: int = 0,
+    seed: int = 0,
+    lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
+    every: int = 1,
+    batch_size: int = 1000,
+) -> Plan:
+    """The points of ``axes`` (sampled by ``sample``) over every base config, driven by ``scenario``.
+
+    ``configs`` are (name, parameters) pairs; with more than one, the config name is a
+    column of the table. Points whose parameters are invalid (a rod wider than its
+    piston, say) are kept with the reason and not run.
+    """
+    if not configs:
+        raise ConfigError("a sweep needs at least one config")
+    if not (duration_s > 0 and math.isfinite(duration_s)):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s}")
+    if not (0 < lift_angle_deg < 180):
+        raise ConfigError(f"--lift-angle-deg must lie in (0, 180), got {lift_angle_deg}")
+    if every < 1 or batch_size < 1:
+        raise ConfigError(f"--every and --batch-size must be >= 1, got {every} and {batch_size}")
+    names = [name for name, _ in configs]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"two configs share the name {names}; give the files different names")
+    drive = commands.scenario(scenario, duration_s)
+    bases = []
+    for name, params in configs:
+        try:
+            bases.append((name, from_mapping(drive, base=params)))
+        except ConfigError as exc:
+            raise ConfigError(f"scenario {scenario!r} does not fit config {name!r}: {exc}") from None
+    for base_name, base in bases:
+        if base.method not in FIXED_STEP:
+            raise ConfigError(
+                f"config {base_name!r} uses method {base.method!r}; sweeps integrate with a fixed step "
+                "(euler or rk4): set method: rk4"
+            )
+    samples = sample_points(axes, sample, count, seed)
+    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
+    points: list[dict[str, Any]] = []
+    invalid: dict[int, str] = {}
+    groups: dict[tuple, list[tuple[int, Parameters]]] = {}
+    for base_name, base in bases:
+        for values in samples:
+            index = len(points)
+            points.append({"config": base_name, **values} if len(configs) > 1 else dict(values))
+            try:
+                params = from_mapping(values, base=base)
+            except ConfigError as exc:
+                invalid[index] = str(exc)
+                continue
+            key = tuple(_hashable(getattr(params, k)) for k in BATCH_KEYS)
+            groups.setdefault(key, []).append((index, params))
+    batches = []
+    for members in groups.values():
+        for start in range(0, len(members), batch_size):
+            chunk = members[start : start + batch_size]
+            batches.append(
+                Batch(
+                    index=len(batches),
+                    points=tuple(i for i, _ in chunk),
+                    params=tuple(p for _, p in chunk),
+                    duration_s=duration_s,
+                    every=every,
+                    lift_angle_deg=lift_angle_deg,
+                )
+            )
+    request = {
+        "configs": {name: as_dict(base) for name, base in bases},
+        "axes": [asdict(a) for a in axes],
+        "sample": sample,
+        "count": count,
+        "seed": seed,
+        "scenario": scenario,
+        "duration_s": duration_s,
+        "lift_angle_deg": lift_angle_deg,
+        "every": every,
+        "batch_size": batch_size,
+    }
+    return Plan(request, columns, tuple(points), invalid, tuple(batches))
+
+
+def _hashable(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value
+
+
+def _failure_reason(p: Parameters, failed_at_s: float, q1_m: float) -> str:
+    low, high = abs(p.b_m - p.a_m), p.a_m + p.b_m
+    if p.mode == "paper" and (q1_m > high - 0.01 or q1_m < low + 0.01):
+        return (
+            f"rod left the valid geometry at t = {failed_at_s:.4g} s (q1 = {q1_m:.4g} m, valid in "
+            f"({low:.4g}, {high:.4g}) m; paper mode has no end stops)"
+        )
+    return (
+        f"state became non-finite at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m); "
+        "try a smaller time_step_s or more substeps"
+    )
+
+
+def run_batch(batch: Batch) -> dict[str, np.ndarray]:
+    """Integrate the points of ``batch`` together; one table row per point.
+
+    Columns: ``point``, ``status``, ``reason``, ``failed_at_s`` and :data:`METRIC_NAMES`.
+    A point that fails is frozen where it failed (see :func:`batch.simulate_batch`); its
+    metrics cover the run up to then.
+    """
+    params = batch.params
+    command = commands.from_parameters(params[0])
+    signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SIGNALS)
+    failed_at = signals["failed_at_s"]
+    n = len(params)
+    rows: dict[str, list] = {"status": [], "reason": []}
+    values = np.full((n, len(METRIC_NAMES)), np.nan)
+    for k in range(n):
+        one = {name: signals[name][:, k] for name in SIGNALS}
+        if math.isfinite(failed_at[k]):
+            keep = one["t"] <= failed_at[k]
+            one = {name: column[keep] for name, column in one.items()}
+        m = analysis.metrics(one, lift_angle_deg=batch.lift_angle_deg)
+        values[k] = [m[name] for name in METRIC_NAMES]
+        if math.isfinite(failed_at[k]):
+            status, reason = "failed", _failure_reason(params[k], float(failed_at[k]), float(one["q1"][-1]))
+        elif not m["lift_completed"]:
+            status = "incomplete"
+            reason = f"rose {m['rise_deg']:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"
+        else:
+            status, reason = "ok", ""
+        rows["status"].append(status)
+        rows["reason"].append(reason)
+    out: dict[str, np.ndarray] = {
+        "point": np.array(batch.points, dtype=np.int64),
+        "status": np.array(rows["status"], dtype=str),
+        "reason": np.array(rows["reason"], dtype=str),
+        "failed_at_s": np.asarray(failed_at, dtype=float),
+    }
+    for j, name in enumerate(METRIC_NAMES):
+        out[name] = values[:, j]
+    return out
+
+
+def invalid_rows(plan: Plan) -> dict[str, np.ndarray]:
+    """Table rows of the points whose parameters were rejected (all metrics NaN)."""
+    points = sorted(plan.invalid)
+    out: dict[str, np.ndarray] = {
+        "point": np.array(points, dtype=np.int64),
+        "status": np.array(["invalid"] * len(points), dtype=str),
+        "reason": np.array([plan.invalid[i] for i in points], dtype=str),
+        "failed_at_s": np.full(len(points), np.nan),
+    }
+    for name in METRIC_NAMES:
+        out[name] = np.full(len(points), np.nan)
+    return out
+
+
+def assemble(plan: Plan, parts: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The whole table, one row per point in point order: point columns, status, metrics."""
+    parts = [*parts, invalid_rows(plan)]
+    merged = {name: np.concatenate([np.asarray(p[name]) for p in parts]) for name in parts[0]}
+    order = np.argsort(merged["point"], kind="stable")
+    if not np.array_equal(merged["point"][order], np.arange(plan.size)):
+        raise BoomHydraulicsError("the sweep's batches do not cover every point once; rerun without --resume")
+    table: dict[str, np.ndarray] = {"point": merged["point"][order]}
+    for column in plan.columns:
+        values = [point[column] for point in plan.points]
+        table[column] = np.array(values, dtype=str if any(isinstance(v, str) for v in values) else float)
+    for name, column in merged.items():
+        if name != "point":
+            table[name] = column[order]
+    return table
