@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import shutil
 import signal
 import subprocess
@@ -127,4 +128,27 @@ def test_startup_is_on_time_and_resting_on_an_end_stop_is_normal(client):
     assert values["dropped_backlogs"] == "0", real_time.message  # the clock started with the loop
     resting = next(s for d in client.diagnostics for s in d.status if "at_end_stop" in s.message)
     assert resting.level == b"\x00"
+    assert "behind real time" not in out
+
+
+def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(client):
+    """The pacing restarts with any parameter change: the step count means another time."""
+    proc = start_node()
+    try:
+        assert client.spin_until(lambda: len(client.states) > 50)  # half a second at 1 ms steps
+        assert client.set_parameter("time_step_s", 0.002).successful
+        client.diagnostics.clear()
+        assert client.spin_until(lambda: len(client.diagnostics) >= 3, timeout=10)
+    finally:
+        out = _stop(proc)
+    sim_times = [
+        float(kv.value)
+        for d in client.diagnostics
+        for s in d.status
+        if s.name.endswith("drive")
+        for kv in s.values
+        if kv.key == "sim_time_s"
+    ]
+    rates = [b - a for a, b in itertools.pairwise(sim_times)]
+    assert rates and all(0.5 < r < 1.5 for r in rates), sim_times  # about a simulated second per second
     assert "behind real time" not in out

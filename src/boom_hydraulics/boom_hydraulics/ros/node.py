@@ -51,6 +51,7 @@ from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.geometry import lever_rad_per_m
 from ..model.parameters import NAMES, from_mapping
 from ..solve.command_queue import CommandedDrive, valve_opening
+from ..solve.pacing import Pacer
 from ..solve.simulation import Simulator
 from . import node_parameters as ros_parameters
 from .messages import drive_state
@@ -117,9 +118,7 @@ class BoomSimNode(Node):
         self.stopping = threading.Event()
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
-        self.lag_s = 0.0
-        self.clock_error_s = 0.0
-        self.late_ticks = 0
+        self.pacer = Pacer(self.rate_hz, self.rtf, self.max_catch_up_s)
 
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.state_pub = self.create_publisher(DriveState, "drive_state", state_qos)
@@ -201,6 +200,8 @@ class BoomSimNode(Node):
             for name, value in node_changes.items():  # rclpy stores them after this returns
                 setattr(self, _NODE_ATTRIBUTES[name], float(value))
             self.drive.timeout_s = self.timeout_s  # the drive applies it
+            self.pacer.rate_hz, self.pacer.real_time_factor = self.rate_hz, self.rtf
+            self.pacer.max_catch_up_s = self.max_catch_up_s
         if new_params is not None or node_changes:
             self._restart_clock()  # pacing starts afresh from the state as it is now
         # the node-clock time of the simulated instant the change takes effect at
@@ -354,8 +355,7 @@ class BoomSimNode(Node):
     # --- time and stepping ---------------------------------------------------------------------
     def _restart_clock(self) -> None:
         """Tie simulated time to the steady clock from now on (start, reset, resume, changes)."""
-        self.wall_origin = time.monotonic()
-        self.sim_origin_steps = self.sim.step_count
+        self.pacer.restart(time.monotonic(), self.sim.step_count)
         # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
         now = self.get_clock().now().nanoseconds * 1e-9
         self.clock_origin_s = 0.0 if self.publish_clock else now - self.sim.t
@@ -373,8 +373,7 @@ class BoomSimNode(Node):
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
         with self.lock:  # the pacing starts with the loop, not when the node was built
-            self.wall_origin = time.monotonic()
-            self.sim_origin_steps = self.sim.step_count
+            self.pacer.restart(time.monotonic(), self.sim.step_count)
         deadline = time.monotonic()
         while not self.stopping.is_set():
             if self.rtf == 0:
@@ -400,31 +399,18 @@ class BoomSimNode(Node):
         if self.paused or self.failure:
             return
         dt = self.sim.params.time_step_s
-        per_tick = max(1, round(1.0 / (self.rate_hz * dt)))
-        elapsed = 0.0
-        if self.rtf == 0:
-            steps = per_tick
-        else:
-            elapsed = (time.monotonic() - self.wall_origin) * self.rtf  # simulated s due by now
-            steps = int(elapsed / dt + 1e-9) - (self.sim.step_count - self.sim_origin_steps)
-            self.lag_s = max(0.0, steps * dt - per_tick * dt) / self.rtf  # backlog beyond one tick
-            max_steps = max(per_tick, round(self.max_catch_up_s * self.rtf / dt))
-            if steps > max_steps:  # cannot keep up: work off what we may, drop the rest
-                self.late_ticks += 1
-                self.get_logger().warning(
-                    f"{steps * dt / self.rtf:.3f} s behind real time; dropping the backlog",
-                    throttle_duration_sec=5.0,
-                )
-                dropped_s = (steps - max_steps) * dt / self.rtf
-                self.wall_origin += dropped_s
-                if not self.publish_clock:
-                    self.clock_origin_s += dropped_s  # ROS-time stamps map to the later sim time
-                steps = max_steps
-        if steps <= 0:
+        tick = self.pacer.due(time.monotonic(), self.sim.step_count, dt)
+        if tick.dropped_s:  # cannot keep up: the pacer gave up the backlog beyond max_catch_up_s
+            behind_s = tick.steps * dt / self.rtf + tick.dropped_s
+            self.get_logger().warning(
+                f"{behind_s:.3f} s behind real time; dropping the backlog", throttle_duration_sec=5.0
+            )
+            if not self.publish_clock:
+                self.clock_origin_s += tick.dropped_s  # ROS-time stamps map to the later sim time
+        if tick.steps <= 0:
             return
-        self.advance(steps)
-        if self.rtf > 0:  # how far simulated time trailed the steady clock at this tick, in wall s
-            self.clock_error_s = (elapsed - (self.sim.step_count - self.sim_origin_steps) * dt) / self.rtf
+        self.advance(tick.steps)
+        self.pacer.settled(self.sim.step_count, dt)
         if self.failure is None:
             self.publish_state()
 
@@ -503,19 +489,20 @@ class BoomSimNode(Node):
                     paused=self.paused,
                 )
             )
-        behind = self.lag_s > 2.0 / self.rate_hz
+        pacer = self.pacer
+        behind = pacer.lag_s > 2.0 / self.rate_hz
         array.status.append(
             status(
                 "real-time",
-                DiagnosticStatus.WARN if (behind or self.late_ticks) else DiagnosticStatus.OK,
-                "cannot keep up" if (behind or self.late_ticks) else "ok",
-                lag_s=f"{self.lag_s:.4f}",
-                clock_error_s=f"{self.clock_error_s:.6f}",
-                dropped_backlogs=self.late_ticks,
+                DiagnosticStatus.WARN if (behind or pacer.late_ticks) else DiagnosticStatus.OK,
+                "cannot keep up" if (behind or pacer.late_ticks) else "ok",
+                lag_s=f"{pacer.lag_s:.4f}",
+                clock_error_s=f"{pacer.clock_error_s:.6f}",
+                dropped_backlogs=pacer.late_ticks,
                 real_time_factor=self.rtf,
             )
         )
-        self.late_ticks = 0
+        pacer.late_ticks = 0
         self._publish([(self.diag_pub, array)], array.header.stamp)
 
 
