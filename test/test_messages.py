@@ -1,4 +1,4 @@
-"""The generated interfaces: import, CDR round-trip, and delivery between two processes."""
+"""The node's messages: each field from its own output, the boom torque, delivery between processes."""
 
 from __future__ import annotations
 
@@ -10,33 +10,56 @@ import time
 import pytest
 
 rclpy = pytest.importorskip("rclpy")
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from builtin_interfaces.msg import Time  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
 
+from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, drive_state_cdr  # noqa: E402
+from boom_hydraulics.model.geometry import boom_angle_rad  # noqa: E402
+from boom_hydraulics.model.parameters import Parameters  # noqa: E402
+from boom_hydraulics.ros import messages  # noqa: E402
+from boom_hydraulics.solve.simulation import OUTPUTS  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
-from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
 
 
-def test_drive_state_round_trips_through_cdr():
-    msg = DriveState()
-    msg.header.frame_id = "boom_base"
-    msg.header.stamp.sec = 12
-    msg.rod_position_m = 1.4321
-    msg.piston_pressure_pa = 3.87e6
-    msg.supply_energy_j = 1234.5
-    msg.cavitation = True
-    data = serialize_message(msg)
-    back = deserialize_message(data, DriveState)
-    assert back == msg
-    assert back.rod_position_m == 1.4321 and back.cavitation is True
+def _distinct_outputs() -> dict:
+    """Every model output with a value no other output has: a swapped field shows."""
+    out = {name: 1000.0 + i + 0.25 for i, (name, _, _) in enumerate(OUTPUTS)}
+    out.update(q1=1.42, at_end_stop=True, cavitation=False, relief_open=True)
+    return out
 
 
-def test_valve_command_and_services_round_trip():
-    cmd = ValveCommand(opening=-0.75)
-    assert deserialize_message(serialize_message(cmd), ValveCommand).opening == -0.75
-    req = Reset.Request(use_rod_position=True, rod_position_m=1.5)
-    assert deserialize_message(serialize_message(req), Reset.Request) == req
-    res = Step.Response(success=True, message="ok", sim_time_s=0.25)
-    assert deserialize_message(serialize_message(res), Step.Response) == res
+def test_every_drive_state_field_carries_its_own_output():
+    out = _distinct_outputs()
+    stamp = Time(sec=12, nanosec=5)
+    msg = messages.drive_state(out, stamp)
+    assert set(DRIVE_STATE_FIELDS) == set(DriveState.get_fields_and_field_types()) - {"header"}
+    for field, name in DRIVE_STATE_FIELDS.items():
+        assert getattr(msg, field) == out[name], field
+    assert msg.header.stamp == stamp and msg.header.frame_id == "boom_base"
+    # the bag tools' encoder (rosbags, no rclpy) writes the same message
+    ns = 12 * 10**9 + 5
+    assert deserialize_message(drive_state_cdr(out, ns), DriveState) == msg
+
+
+def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
+    p = Parameters()
+    out = _distinct_outputs()
+    joints = messages.joint_state(out, Time(), p.a_m, p.b_m)
+    assert joints.name == ["boom_joint", "cylinder_joint"]
+    assert list(joints.position) == [out["alpha"], out["q1"]]
+    assert list(joints.velocity) == [out["alpha_rate"], out["v"]]
+    # virtual work: torque * d(alpha) = force * dq1, with d(alpha)/dq1 by finite differences
+    h = 1e-6
+    k = (
+        boom_angle_rad(out["q1"] + h, p.a_m, p.b_m, p.support_height_m)
+        - boom_angle_rad(out["q1"] - h, p.a_m, p.b_m, p.support_height_m)
+    ) / (2 * h)
+    assert joints.effort[0] == pytest.approx(out["f_hyd"] / k, rel=1e-6)
+    assert joints.effort[1] == out["f_hyd"]
+    piston, rod = messages.chamber_pressures(out, Time())
+    assert (piston.fluid_pressure, piston.header.frame_id) == (out["p1"], "piston_chamber")
+    assert (rod.fluid_pressure, rod.header.frame_id) == (out["p2"], "rod_chamber")
+    assert messages.rod_force(out, Time()).wrench.force.x == out["f_hyd"]
 
 
 PUBLISHER = textwrap.dedent(

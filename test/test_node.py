@@ -139,6 +139,9 @@ def test_fast_run_with_clock_equals_the_headless_simulation(client):
     try:
         scenario = [(0.0, 1.0), (3.0, 0.0), (5.0, -0.7), (8.0, 0.0)]
         assert client.pause.wait_for_service(timeout_sec=15)
+        # the node takes commands best-effort: send them once its subscription is matched
+        assert client.spin_until(lambda: client.pub.get_subscription_count() > 0)
+        client.spin_for(0.5)
         for at, opening in scenario:
             client.command(opening, stamp_s=at if at > 0 else None)
         client.spin_for(0.5)

@@ -162,3 +162,23 @@ def test_reset_returns_to_rest_at_a_given_position():
     assert sim.y[0] == 1.6 and sim.y[1] == 0.0 and sim.t == 0.0
     sim.step(0.0, 300)
     assert abs(sim.y[0] - 1.6) < 1e-3
+
+
+def test_the_orifice_law_through_the_models_constants():
+    """Q = K dp / (dp^2 + p_tr^2)^(1/4), with K = mu (pi D_dr^2 / 4) sqrt(2 / rho) written out
+    here: laminar slope K / sqrt(p_tr) at equal pressures, turbulent K sqrt(dp) far from them."""
+    params = Parameters()
+    c = physical.constants(params)
+    k = params.discharge_coefficient * math.pi * params.orifice_diameter_m**2 / 4 * math.sqrt(2 / params.density_kg_m3)
+    p_tr = params.transition_pressure_pa
+    tank, supply = params.tank_pressure_pa, params.supply_pressure_pa
+
+    def piston_inflow(p1: float) -> float:  # valve fully open P->A, no leakage
+        q_pa, _, _, _ = hydraulics.valve_flows(1.0, supply, tank, p1, tank, c.k_valve, c.transition2, 0.0)
+        return q_pa
+
+    dp = 10.0  # Pa: deep in the laminar region
+    assert piston_inflow(supply - dp) / dp == pytest.approx(k / math.sqrt(p_tr), rel=1e-6)
+    far = 15e6  # Pa: 50 times the transition pressure
+    assert piston_inflow(supply - far) == pytest.approx(k * math.sqrt(far), rel=2e-4)
+    assert piston_inflow(supply) == 0.0 and piston_inflow(supply + dp) < 0  # flow turns with the drop

@@ -28,9 +28,12 @@ def test_a_paper_case_stops_where_the_geometry_ends_and_says_why():
 
 
 def test_solver_study_rk4_beats_euler_by_orders_at_the_same_step():
-    points = studies.solver_study(config.load(CONFIG / "paper_fig8.yaml"), 0.5, {"euler": [1e-3], "rk4": [1e-3]})
-    euler, rk4 = (p for p in points)
-    assert rk4.error < 1e-6 < euler.error and euler.peak_mib > 0
+    study = {"euler": [1e-3, 1e-4], "rk4": [1e-3]}
+    euler, fine_euler, rk4 = studies.solver_study(config.load(CONFIG / "paper_fig8.yaml"), 0.5, study)
+    assert rk4.error < 1e-6 < euler.error
+    assert fine_euler.error < euler.error / 5  # first order: ten times smaller steps, about ten times smaller error
+    # every point is kept: ten times the points (501 -> 5001) take several times the memory
+    assert fine_euler.peak_mib > 3 * euler.peak_mib
 
 
 @pytest.mark.skipif(shutil.which("boom-study") is None, reason="boom-study not on PATH")

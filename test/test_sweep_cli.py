@@ -156,7 +156,9 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
 
 
 def test_an_unreachable_scheduler_is_named_and_leaves_no_folder(tmp_path):
-    result = _sweep("--vary", "payload=0", "--scheduler", "tcp://127.0.0.1:9", "--out", tmp_path / "s")
+    result = _sweep(
+        "--vary", "payload=0", "--scheduler", "tcp://127.0.0.1:9", "--scheduler-timeout", "1", "--out", tmp_path / "s"
+    )
     assert result.returncode == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr
     assert not (tmp_path / "s").exists()

@@ -96,6 +96,13 @@ def build_parser() -> argparse.ArgumentParser:
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://host:8786")
     where.add_argument("--workers", type=int, metavar="N", help="start a local Dask cluster of N processes")
+    run.add_argument(
+        "--scheduler-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="seconds to wait for the --scheduler to answer (default 10)",
+    )
     run.add_argument("--out", type=Path, help="output folder (default: sweeps/sweep-DATE-TIME)")
     run.add_argument("--resume", action="store_true", help="finish the sweep begun in --out")
     run.add_argument("--no-plots", action="store_true", help="write tables only")
@@ -218,7 +225,9 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
             parts.append(rows)
     todo = [b for b in plan.batches if b.index not in done]
     executor = (
-        DaskExecutor(args.scheduler, args.workers) if (args.scheduler or args.workers) is not None else LocalExecutor()
+        DaskExecutor(args.scheduler, args.workers, args.scheduler_timeout)
+        if (args.scheduler or args.workers) is not None
+        else LocalExecutor()
     )
     runnable = plan.size - len(plan.invalid)
     print(

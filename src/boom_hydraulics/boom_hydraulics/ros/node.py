@@ -48,13 +48,12 @@ from boom_hydraulics_msgs.srv import Reset, Step
 from ..bags.encoding import parameter_event_cdr
 from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
-from ..model.geometry import lever_rad_per_m
 from ..model.parameters import NAMES, from_mapping
 from ..solve.command_queue import CommandedDrive, valve_opening
 from ..solve.pacing import Pacer
 from ..solve.simulation import Simulator
+from . import messages
 from . import node_parameters as ros_parameters
-from .messages import drive_state
 
 _NODE_ATTRIBUTES = {
     "publish_rate_hz": "rate_hz",
@@ -431,26 +430,15 @@ class BoomSimNode(Node):
         stamp = self._stamp()
         if self.clock_pub is not None:
             self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
-        msg = drive_state(out, stamp)
-
         p = self.sim.params
-        lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)  # d(alpha)/dq1: boom torque = F / k
-        joints = JointState()
-        joints.header.stamp = stamp
-        joints.name = ["boom_joint", "cylinder_joint"]
-        joints.position = [float(out["alpha"]), float(out["q1"])]
-        joints.velocity = [float(out["alpha_rate"]), float(out["v"])]
-        joints.effort = [float(out["f_hyd"] / lever), float(out["f_hyd"])]
-
-        tick: list[tuple[Any, Any]] = [(self.state_pub, msg), (self.joint_pub, joints)]
-        for pub, frame, value in ((self.p1_pub, "piston_chamber", out["p1"]), (self.p2_pub, "rod_chamber", out["p2"])):
-            fluid = FluidPressure(fluid_pressure=float(value), variance=0.0)
-            fluid.header.stamp, fluid.header.frame_id = stamp, frame
-            tick.append((pub, fluid))
-        wrench = WrenchStamped()
-        wrench.header.stamp, wrench.header.frame_id = stamp, "cylinder_rod"  # x along the rod, extending
-        wrench.wrench.force.x = float(out["f_hyd"])
-        tick.append((self.force_pub, wrench))
+        piston, rod = messages.chamber_pressures(out, stamp)
+        tick: list[tuple[Any, Any]] = [
+            (self.state_pub, messages.drive_state(out, stamp)),
+            (self.joint_pub, messages.joint_state(out, stamp, p.a_m, p.b_m)),
+            (self.p1_pub, piston),
+            (self.p2_pub, rod),
+            (self.force_pub, messages.rod_force(out, stamp)),
+        ]
         self._publish(tick, stamp)
 
     def on_second(self) -> None:

@@ -39,12 +39,14 @@ class DaskExecutor:
     Workers need boom_hydraulics importable (the same installation as here).
     """
 
-    def __init__(self, scheduler: str | None = None, workers: int | None = None) -> None:
+    def __init__(self, scheduler: str | None = None, workers: int | None = None, connect_s: float = 10.0) -> None:
         if (scheduler is None) == (workers is None):
             raise ValueError("give a scheduler address or a number of local workers")
         if workers is not None and workers < 1:
             raise ConfigError(f"--workers must be >= 1, got {workers}")
-        self.scheduler, self.workers = scheduler, workers
+        if not connect_s > 0:
+            raise ConfigError(f"--scheduler-timeout must be > 0 s, got {connect_s}")
+        self.scheduler, self.workers, self.connect_s = scheduler, workers, connect_s
         self.cluster: Any = None
         self.client: Any = None
         self.description = (
@@ -56,7 +58,7 @@ class DaskExecutor:
 
         try:
             if self.scheduler is not None:
-                self.client = Client(self.scheduler, timeout="10s")
+                self.client = Client(self.scheduler, timeout=f"{self.connect_s}s")
             else:
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
