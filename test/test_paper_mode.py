@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from conftest import CONFIG
@@ -86,3 +88,41 @@ def test_80mm_stiff_oil_drives_piston_chamber_below_zero():
     tr = _run("paper_fig10")
     assert tr["p1"].min() < 0.0
     assert tr["cavitation"].any()
+
+
+def _listing(q: float, v: float, p: float, params) -> tuple[float, float]:
+    """acceleration[q, v, p] and dpdt[q, v, p] of the Fig. 7 listing, transcribed as printed."""
+    a, b, h, g = params.a_m, params.b_m, params.support_height_m, params.gravity_m_s2
+    m1, mb, L1 = params.boom_mass_kg, params.payload_mass_kg, params.boom_length_m
+    J1 = m1 * L1**2 / 3 + mb * L1**2  # eq. 8
+    S1 = math.pi * params.piston_diameter_m**2 / 4
+    fdr = math.pi * params.orifice_diameter_m**2 / 4  # eq. 17
+    c_pr, b_pr, F_mp = params.spring_stiffness_n_m, params.viscous_friction_n_s_m, params.coulomb_friction_n
+    xi = (a**2 + b**2 - q**2) / (2 * a * b)
+    Theta = math.acos(h / b) + math.acos(xi)
+    acceleration = (
+        (a**2 * b**2 * (1 - xi**2))
+        / (2 * J1 * q**2)
+        * (
+            p * S1
+            - F_mp
+            - (c_pr + ((0.5 * m1 + mb) * g * L1 * math.sin(Theta)) / (a * b * math.sqrt(1 - xi**2))) * q
+            - (1 - (xi * q**2) / (a * b * (1 - xi**2))) * (J1 * q) / (a**2 * b**2 * (1 - xi**2)) * v**2
+            - b_pr * v
+        )
+    )
+    pn, rho, mu = params.supply_pressure_pa, params.density_kg_m3, params.discharge_coefficient
+    Q = mu * fdr * math.sqrt(2 / rho * abs(pn - p)) * math.copysign(1.0, pn - p)
+    dpdt = params.bulk_modulus_pa / params.piston_dead_volume_m3 * (Q - S1 * v)
+    return acceleration, dpdt
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+@pytest.mark.parametrize(("q", "v", "p"), [(1.37, 0.0, 4e6), (1.5, 0.2, 9e6), (1.2, -0.1, 15.5e6), (1.7, 0.05, 2e6)])
+def test_the_derivative_is_the_listing_as_printed(name, q, v, p):
+    params = config.load(CONFIG / f"{name}.yaml")
+    dq, dv, dp, _, _ = paper.derivative(0.0, [q, v, p, 0.0, 0.0], paper.constants(params), 1.0)
+    acceleration, dpdt = _listing(q, v, p, params)
+    assert dq == v
+    assert dv == pytest.approx(acceleration, rel=1e-12)
+    assert dp == pytest.approx(dpdt, rel=1e-12)

@@ -169,3 +169,33 @@ def test_a_folder_that_is_not_a_sweep_is_not_touched(tmp_path):
     result = _sweep("--vary", "payload=0", "--out", tmp_path)
     assert result.returncode == 2 and "is not a sweep folder" in result.stderr
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+SPREAD = ["--vary", "piston_diameter=0.032,0.06", "--vary", "payload=0,200", "--duration", "3"]
+SPREAD += ["--lift-angle-deg", "8", "--no-plots"]
+
+
+@pytest.mark.parametrize(
+    ("flag", "keeps"),
+    [
+        (["--no-cavitation"], lambda r: r["cavitation_s"] == 0),
+        (["--max-pressure-pa", "1e7"], lambda r: r["peak_pressure_pa"] <= 1e7),
+        (["--max-lift-time-s", "0.6"], lambda r: r["lift_time_s"] <= 0.6),
+        (["--require", "damping_ratio>=0.05"], lambda r: r["damping_ratio"] >= 0.05),  # nan: no ringing, out
+    ],
+)
+def test_each_constraint_flag_keeps_exactly_the_designs_that_meet_it(tmp_path_factory, flag, keeps):
+    """The four points differ in each metric (32 mm cavitates, 60 mm does not; peak pressures
+    8-18 MPa; lift times 0.2-1.3 s; damping nan to 0.1): every flag picks another set."""
+    out = tmp_path_factory.getbasetemp() / "spread"
+    args = ["--config", CONFIG / "default.yaml", *SPREAD, "--out", out]
+    if not (out / "results.npz").exists():
+        assert _sweep(*args).returncode == 0
+    result = _sweep(*args, "--resume", *flag)  # re-ranks the stored points
+    assert result.returncode == 0, result.stderr
+    table = _load(out / "results.npz")
+    rows = [{name: table[name][i] for name in table} for i in range(len(table["status"]))]
+    expected = {(r["piston_diameter_m"], r["payload_mass_kg"]) for r in rows if r["status"] == "ok" and keeps(r)}
+    assert 0 < len(expected) < 4  # the flag matters here
+    ranked = _load(out / "recommendation.npz")
+    assert set(zip(ranked["piston_diameter_m"].tolist(), ranked["payload_mass_kg"].tolist())) == expected

@@ -143,3 +143,18 @@ def test_bad_durations_are_one_line_before_anything_runs(tmp_path, tool, args, m
     assert result.stderr.strip().splitlines() == [f"{tool}: error: {result.stderr.split('error: ', 1)[1].strip()}"]
     assert message in result.stderr
     assert list(tmp_path.iterdir()) == []  # no node started, no bag, no figures
+
+
+@pytest.mark.skipif(shutil.which("boom_sim") is None, reason="run through tools/with-env")
+def test_the_demo_drives_the_node_records_and_analyses_the_run(tmp_path):
+    """make run: the node in its own process, the scenario on valve_command, the bag analysed."""
+    result = _run(TOOLS["boom-demo"], "--params-file", CONFIG / "default.yaml", "--duration", "3", "--bags", tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    table = [line.split() for line in lines if line.strip() and line.split()[0].replace(".", "").isdigit()]
+    assert len(table) >= 5  # the state printed every half second
+    assert float(table[-1][2]) > float(table[0][2]) + 0.1  # q1: the valve opened, the boom rose
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir() and p.name.endswith("_boom_sim")]
+    assert any(line.startswith(f"boom_sim: bag {bag}") for line in lines)
+    assert f"boom-analyze: results in {bag.with_name(bag.name + '.analysis')}" in result.stdout
+    assert (bag.with_name(bag.name + ".analysis") / "dynamics.png").is_file()
