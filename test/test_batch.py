@@ -24,8 +24,14 @@ def test_batched_results_equal_single_runs():
     batch = simulate_batch(params, 2.0, command, every=20)
     for k, p in enumerate(params):
         single = simulate(p, 2.0, command, every=20, jit=False)
-        for name in ("q1", "v", "p1", "p2", "supply_energy", "cavitation"):
-            assert np.array_equal(batch[name][:, k], single[name]), (k, name)
+        # the batch evaluates with numpy, a single run with math: exp, sqrt and pow may differ
+        # in the last bit (1e-16 relative) on some inputs; this damped system keeps such
+        # differences far below 1e-9 over 2000 steps, while a wrong element changes results
+        # by orders of magnitude more
+        for name in ("q1", "v", "p1", "p2", "supply_energy"):
+            scale = np.max(np.abs(single[name]))
+            np.testing.assert_allclose(batch[name][:, k], single[name], rtol=1e-9, atol=1e-12 * scale, err_msg=name)
+        assert np.array_equal(batch["cavitation"][:, k], single["cavitation"])  # flags: the same decisions
     assert np.isnan(batch["failed_at_s"]).all()
 
 

@@ -89,6 +89,8 @@ def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
     assert (diameter.floating_point_range[0].from_value, diameter.floating_point_range[0].to_value) == (0.0, 1.0)
     assert "[m]" in diameter.description
     assert clock_desc.read_only and folder.read_only and "at start only" in folder.additional_constraints
+    (scenario,) = crane1.call(crane1.describe, DescribeParameters.Request(names=["command_values"])).descriptors
+    assert "headless scenario" in scenario.additional_constraints  # not silently ignored
 
 
 def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1):

@@ -93,7 +93,18 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     return [q1, p.initial_velocity_m_s, initial_pressure_pa(p, q1), 0.0, 0.0]
 
 
-def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
+class Terms(NamedTuple):
+    """The intermediate quantities of one evaluation of the listing (SI)."""
+
+    opening: Num  # valve opening, 0..1 (pump to piston chamber only)
+    flow: Num  # flow into the piston chamber, m^3/s (eq. 14)
+    dp1: Num  # piston-chamber pressure rate, Pa/s (eq. 12)
+    acc: Num  # rod acceleration, m/s^2 (eq. 16 as in Fig. 7)
+    power: Num  # p_n Q, W
+    loss: Num  # (p_n - p1) Q, W
+
+
+def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     q1, v, p1 = y[0], y[1], y[2]
     u_open = pos(u)  # the paper's valve connects pump to piston chamber only
     flow = turbulent_orifice_flow(c.k_orifice * u_open, c.p_n - p1, xp)  # eq. 14
@@ -111,13 +122,13 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
         c.h,
         xp,
     )  # eq. 16 as in Fig. 7
-    return u_open, flow, dp1, acc, c.p_n * flow, (c.p_n - p1) * flow
+    return Terms(u_open, flow, dp1, acc, c.p_n * flow, (c.p_n - p1) * flow)
 
 
 def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
     """dy/dt of the listing for valve opening ``u``."""
-    _, _, dp1, acc, power, loss = _terms(y, c, u, xp)
-    return [y[1], acc, dp1, power, loss]
+    terms = _terms(y, c, u, xp)
+    return [y[1], terms.acc, terms.dp1, terms.power, terms.loss]
 
 
 def project(y: list, c: Constants) -> list:
@@ -127,8 +138,8 @@ def project(y: list, c: Constants) -> list:
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
     """Outputs of DriveState at state ``y``; rod-side quantities are 0 (not modelled)."""
-    u_open, flow, _, acc, power, _ = _terms(y, c, u, xp)
-    q1, v = y[0], y[1]
+    terms = _terms(y, c, u, xp)
+    q1, v, acc = y[0], y[1], terms.acc
     zero = 0.0 * q1
     return {
         "t": t,
@@ -139,16 +150,16 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
         "alpha_rate": lever_rad_per_m(q1, c.a, c.b, xp) * v,
         "p1": y[2],
         "p2": zero,
-        "q_in1": flow,
+        "q_in1": terms.flow,
         "q_in2": zero,
         "f_hyd": y[2] * c.s1,
         "f_load": paper_load_force_n(
             q1, v, acc, c.inertia, c.boom_mass, c.payload_mass, c.boom_length, c.g, c.a, c.b, xp
         ),  # eq. 10
         "u": u,
-        "x_v": u_open,
+        "x_v": terms.opening,
         "p_supply": c.p_n + zero,
-        "power": power,
+        "power": terms.power,
         "supply_energy": y[3],
         "valve_loss_energy": y[4],
         "at_end_stop": zero != zero,

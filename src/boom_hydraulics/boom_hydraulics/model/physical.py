@@ -124,7 +124,26 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0]
 
 
-def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
+class Terms(NamedTuple):
+    """The intermediate quantities of one evaluation, shared by derivative and observe (SI)."""
+
+    spool: Num  # spool position seen by the flow paths, -1..1
+    p_supply: Num  # supply pressure after the pump's flow limit, Pa
+    q_in1: Num  # net flow into the piston chamber, m^3/s (eq. 12)
+    q_in2: Num  # net flow into the rod chamber, m^3/s (eq. 13)
+    q_relief1: Num  # port relief flows to tank, m^3/s
+    q_relief2: Num
+    dp1: Num  # chamber pressure rates, Pa/s (eq. 12, 13)
+    dp2: Num
+    f_hyd: Num  # p1 S1 - p2 S2, N
+    f_stop: Num  # end-stop force, N
+    f_friction: Num  # seal friction, N (opposes the motion)
+    acc: Num  # rod acceleration, m/s^2 (eq. 11)
+    power: Num  # power drawn from the supply, W
+    loss: Num  # power dissipated in the valve and the relief valves, W
+
+
+def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     """Every intermediate quantity of one evaluation, shared by derivative and observe."""
     q1, v, p1, p2, x_v = y[0], y[1], y[2], y[3], y[4]
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
@@ -140,12 +159,8 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
     dp2 = hold_at_floor(p2, chamber_pressure_rate(c.bulk_modulus, vol2, q_in2, -c.s2 * v), c.p_cav)  # eq. 13
     f_hyd = p1 * c.s1 - p2 * c.s2
     f_stop = end_stop_force_n(q1, v, c.q_min, c.q_max, c.stop_k, c.stop_c)
-    f_rod = (
-        f_hyd
-        - seal_friction_n(v, c.coulomb, c.static, c.stribeck, c.smoothing, c.viscous, xp)
-        - c.spring * (q1 - c.spring_free)
-        + f_stop
-    )  # right-hand side of eq. 11 without the boom load
+    f_friction = seal_friction_n(v, c.coulomb, c.static, c.stribeck, c.smoothing, c.viscous, xp)
+    f_rod = f_hyd - f_friction - c.spring * (q1 - c.spring_free) + f_stop  # eq. 11 without the boom load
     acc = rod_acceleration(q1, v, f_rod, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp)
     power = (ps - c.p_tank) * (q_pa + q_pb)
     loss = (
@@ -156,13 +171,13 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> tuple:
         + q_r1 * (p1 - c.p_tank)
         + q_r2 * (p2 - c.p_tank)
     )
-    return x, ps, q_in1, q_in2, q_r1, q_r2, dp1, dp2, f_hyd, f_stop, acc, power, loss
+    return Terms(x, ps, q_in1, q_in2, q_r1, q_r2, dp1, dp2, f_hyd, f_stop, f_friction, acc, power, loss)
 
 
 def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
     """dy/dt of the physical model for valve command ``u`` (held over the step)."""
-    _, _, _, _, _, _, dp1, dp2, _, _, acc, power, loss = _terms(y, c, u, xp)
-    return [y[1], acc, dp1, dp2, c.inv_tau * (u - y[4]), power, loss]
+    terms = _terms(y, c, u, xp)
+    return [y[1], terms.acc, terms.dp1, terms.dp2, c.inv_tau * (u - y[4]), terms.power, terms.loss]
 
 
 def project(y: list, c: Constants) -> list:
@@ -174,8 +189,8 @@ def project(y: list, c: Constants) -> list:
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
     """Every output of DriveState at state ``y`` (SI units; see DriveOutputs)."""
-    x, ps, q_in1, q_in2, q_r1, q_r2, _, _, f_hyd, f_stop, acc, power, _ = _terms(y, c, u, xp)
-    q1, v = y[0], y[1]
+    terms = _terms(y, c, u, xp)
+    q1, v, acc = y[0], y[1], terms.acc
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     floor_margin = c.p_cav * 1e-9 + 1e-6
     return {
@@ -187,18 +202,18 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
         "alpha_rate": k * v,
         "p1": y[2],
         "p2": y[3],
-        "q_in1": q_in1,
-        "q_in2": q_in2,
-        "f_hyd": f_hyd,
+        "q_in1": terms.q_in1,
+        "q_in2": terms.q_in2,
+        "f_hyd": terms.f_hyd,
         "f_load": load_force_n(q1, v, acc, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp),
         "u": u,
-        "x_v": x,
-        "p_supply": ps,
-        "power": power,
+        "x_v": terms.spool,
+        "p_supply": terms.p_supply,
+        "power": terms.power,
         "supply_energy": y[5],
         "valve_loss_energy": y[6],
-        "at_end_stop": (q1 < c.q_min) | (q1 > c.q_max) | (f_stop != 0.0),
+        "at_end_stop": (q1 < c.q_min) | (q1 > c.q_max) | (terms.f_stop != 0.0),
         "cavitation": (y[2] <= c.p_cav + floor_margin) | (y[3] <= c.p_cav + floor_margin),
-        "relief_open": (q_r1 > 0.0) | (q_r2 > 0.0),
-        "pump_saturated": ps < c.p_supply,
+        "relief_open": (terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0),
+        "pump_saturated": terms.p_supply < c.p_supply,
     }

@@ -149,6 +149,11 @@ class BoomSimNode(Node):
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
+        if any(getattr(p, name) != ros_parameters.default(name) for name in ros_parameters.SCENARIO):
+            self.get_logger().info(
+                "the command_* parameters describe boom-sim's headless scenario; this node takes "
+                "its valve commands on valve_command and commands"
+            )
         self.get_logger().info(
             f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, "
             f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}, "

@@ -56,6 +56,9 @@ START_ONLY = frozenset(
     {"publish_clock", "jit", "record", "record_folder", "record_chunk_kib", "record_flush_s", "start_paused"}
 )
 
+#: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics.
+SCENARIO = tuple(name for name in NAMES if name.startswith("command_"))
+
 #: Parameters every rclpy node has, or may be given, beside ours.
 _STANDARD = frozenset({"use_sim_time", "start_type_description_service"})
 _STANDARD_PREFIXES = ("qos_overrides.",)
@@ -98,6 +101,10 @@ def descriptor(name: str) -> ParameterDescriptor:
         constraints.append(f"greater than {low:g}")
     if name in START_ONLY:
         constraints.append("at start only: set it in a params file or with -p, then restart")
+    if name in SCENARIO:
+        constraints.append(
+            "the headless scenario of boom-sim and boom-sweep; the node takes valve commands on valve_command"
+        )
     desc.additional_constraints = "; ".join(constraints)
     return desc
 
