@@ -248,3 +248,32 @@ def test_end_stops_dissipate_energy_and_hold_the_rod():
     assert cycle["stop_work"] < -100.0  # J dissipated over two impacts and the pressing
     assert cycle["overshoot_m"] < 2e-3
     assert cycle["peak_pa"] < 19e6
+
+
+def test_a_cavitating_chamber_holds_at_its_floor_for_as_long_as_the_load_overruns():
+    """Valve closed, the boom moving down at 0.2 m/s: the sealed rod chamber expands, falls to
+    the cavitation floor and is held there, not below, until the rod stops. The rod stops on
+    the oil spring of the piston chamber; independently, with the effective mass J k^2, the
+    stiffness E S1^2 / V1 and the force the rod chamber lost, v = v0 cos(wt) + F0/(m w) sin(wt)
+    is zero after atan(|v0| m w / F0) / w (friction left out: a few percent)."""
+    params = with_updates(Parameters(), initial_velocity_m_s=-0.2, time_step_s=1e-4)
+    c = physical.constants(params)
+    sim = Simulator(params)
+    q0, p2_0 = sim.y[0], sim.y[3]
+    at_floor, lowest = 0, math.inf
+    while sim.y[1] < 0.0:  # until the rod stops
+        sim.step(0.0)
+        lowest = min(lowest, sim.y[3])
+        if sim.y[3] <= c.p_cav * (1 + 1e-9):
+            at_floor += 1
+            # at the floor, with the rod chamber still expanding, its pressure rate is held at 0
+            # (not only clipped after the step: every stage of a step sees the floor)
+            assert physical.derivative(sim.t, list(sim.y), c, 0.0)[3] == 0.0
+        assert sim.t < 1.0
+    assert lowest == pytest.approx(c.p_cav, rel=1e-12)  # held at the floor, never below
+    k = geometry.lever_rad_per_m(q0, c.a, c.b)
+    m = c.inertia * k * k
+    w = math.sqrt(c.bulk_modulus * c.s1**2 / (c.v1_dead + c.s1 * (q0 - c.q_min)) / m)
+    f0 = (p2_0 - c.p_cav) * c.s2
+    estimate_s = math.atan(0.2 * m * w / f0) / w
+    assert at_floor * 1e-4 == pytest.approx(estimate_s, rel=0.05)
