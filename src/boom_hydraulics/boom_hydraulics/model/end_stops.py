@@ -1,4 +1,7 @@
-"""End stops of the cylinder stroke as stiff one-sided spring-dampers."""
+"""End stops of the cylinder stroke as stiff one-sided spring-dampers.
+
+Equations and conventions: docs/model.md, section "End stops".
+"""
 
 from __future__ import annotations
 

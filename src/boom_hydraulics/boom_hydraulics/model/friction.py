@@ -1,4 +1,7 @@
-"""Friction of piston and rod seals (the F_mp and b_d terms of eq. 11)."""
+"""Friction of piston and rod seals (the F_mp and b_d terms of eq. 11).
+
+Equations and conventions: docs/model.md, section "Friction".
+"""
 
 from __future__ import annotations
 

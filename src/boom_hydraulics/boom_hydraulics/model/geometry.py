@@ -5,6 +5,8 @@ Triangle AOK: |OK| = a (rod eye K on the boom), |OA| = b (cylinder base A on the
 
 Every function works on floats (``xp=math``) and on numpy arrays (``xp=numpy``): only
 operators and the functions ``acos``, ``sqrt``, ``cos``, ``sin`` that both namespaces have.
+
+Equations and conventions: docs/model.md, section "Geometry".
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Functions work on floats (``xp=math``) and numpy arrays (``xp=numpy``); branches are
 written with operators (``pos(z) = max(z, 0)`` as ``(z + |z|) / 2``) so both share one code.
+
+Equations and conventions: docs/model.md, sections "Chambers; Orifices and the 4/3 valve; Supply and relief valves".
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ m(q1) = J k^2, and Lagrange's equation (eq. 7) reads
 with M_g = (m1 L1/2 + mb L1) g cos(alpha) the weight moment. Eq. 16 and the Fig. 7
 listing carry an extra factor 1/2 on the whole right-hand side (as if the mass were
 2 m(q1)); :func:`paper_acceleration` keeps it, :func:`rod_acceleration` does not.
+
+Equations and conventions: docs/model.md, section "Mechanics".
 """
 
 from __future__ import annotations

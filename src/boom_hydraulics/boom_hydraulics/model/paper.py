@@ -6,6 +6,8 @@ chamber (p2 dropped), constant V1, constant friction F_mp whatever the direction
 spring c * q1 on the absolute cylinder length, the turbulent orifice of eq. 14, and the
 acceleration of eq. 16 with its factor 1/2. A valve opening u in [0, 1] scales the
 orifice area (u = 1 is the paper's case). Pressures are relative to the drain (p_37 = 0).
+
+Equations and conventions: docs/model.md, sections "Mechanics (paper mode) and Orifices".
 """
 
 from __future__ import annotations

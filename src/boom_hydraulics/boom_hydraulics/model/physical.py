@@ -6,6 +6,8 @@ README ("The model"): the Lagrange equation with its m'(q1) q1'^2 / 2 term, both
 with volumes that follow the rod, a laminar-turbulent orifice, spool lag, supply limit,
 reliefs, cavitation floor, seal friction and end stops. Functions work on floats and, for
 batches, on numpy arrays per state component (``xp=numpy`` and array-valued constants).
+
+Equations and conventions: docs/model.md, sections "What physical mode corrects, and why".
 """
 
 from __future__ import annotations
