@@ -90,7 +90,7 @@ def parameter_event_cdr(node: str, stamp_ns: int, changed: list[tuple[str, int, 
         "integer_value": 0,
         "double_value": 0.0,
         "string_value": "",
-        **{name: [] if kind is list else np.array([], dtype=kind) for name, kind in list(_VALUE_FIELDS.values())[4:]},
+        **{name: [] if kind is list else np.array([], dtype=kind) for name, kind in _VALUE_FIELDS.values() if kind},
     }
     parameters = []
     for name, kind, value in changed:
