@@ -78,7 +78,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         args = parser.parse_args(argv)
         first = args.bags[0]
-        out = args.out or first.resolve().with_name(f"{bag_label(first)}.analysis")  # also for '.'
+        named = first if first.name not in ("", ".", "..") else first.resolve()  # '.': the folder's own name
+        out = args.out or named.with_name(f"{bag_label(first)}.analysis")
         results = analyze(args.bags, out, args.align)
         for label, m in results.items():
             low, high = m["min_pressure_pa"] / 1e6, m["peak_pressure_pa"] / 1e6
