@@ -40,19 +40,16 @@ def check_bag_path(path: Path) -> None:
     if not path.exists():
         raise BagError(f"{path}: no such bag folder or file")
     files = mcap_files(path)
-    if path.is_dir():
-        if not files:
-            raise BagError(f"{path}: not a bag: the folder has no .mcap file")
-        if any(is_being_recorded(f) for f in files):
-            raise BagError(f"{path}: is still being recorded; read it once its recorder has finished")
-        if not (path / "metadata.yaml").is_file():
-            raise BagError(
-                f"{path}: has no metadata.yaml: its recorder was killed before finishing it; "
-                f"run boom-bag-recover {path} first"
-            )
+    if path.is_dir() and not files:
+        raise BagError(f"{path}: not a bag: the folder has no .mcap file")
+    if any(is_being_recorded(f) for f in files):
+        raise BagError(f"{path}: is still being recorded; read it once its recorder has finished")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagError(
+            f"{path}: has no metadata.yaml: its recorder was killed before finishing it; "
+            f"run boom-bag-recover {path} first"
+        )
     for file in files:
-        if is_being_recorded(file):
-            raise BagError(f"{file}: is still being recorded; read it once its recorder has finished")
         if _truncated(file):
             fix = f"run boom-bag-recover {path}" if path.is_dir() else "run boom-bag-recover on its bag folder"
             raise BagError(f"{file}: the file is truncated (its recorder was killed?); {fix} first")

@@ -240,7 +240,7 @@ def write_metadata(folder: Path, info: dict[str, Any]) -> None:
         tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
 
 
-_FLUSH_NOW = object()  # queue item: close the chunk in progress now
+_FLUSH_NOW = object()  # the writer's own signal, on a queue timeout: close the chunk in progress
 
 
 class BagRecorder:
@@ -300,7 +300,8 @@ class BagRecorder:
         """Declare a topic (no-op if declared); its channel is written before its first message."""
         if topic.name in self.topics:
             return
-        self._hashes.setdefault(topic.msgtype, type_hash(topic.msgtype))  # fails here, not in the thread
+        if topic.msgtype not in self._hashes:  # read once per type; fails here, not in the thread
+            self._hashes[topic.msgtype] = type_hash(topic.msgtype)
         self.topics[topic.name] = topic
         self.counts[topic.name] = 0
         self._queue.put(topic)
@@ -319,10 +320,6 @@ class BagRecorder:
         if topic not in self.topics:
             raise RecordingError(f"{self.folder}: topic {topic} was not declared for this bag")
         self._queue.put((topic, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns, data))
-
-    def flush(self) -> None:
-        """Close the chunk in progress now (it reaches the disk), without waiting for it."""
-        self._queue.put(_FLUSH_NOW)
 
     # --- writer thread ---------------------------------------------------------------
     def _register(self, topic: Topic) -> None:

@@ -79,8 +79,9 @@ def parameters_section(document: Any, source: str, node_name: str = NODE_NAME) -
     raise ConfigError(f"{source}: no section for node '{node_name}' (or '/**'); found {', '.join(map(str, document))}")
 
 
-def read_values(path: str | Path) -> dict[str, Any]:
-    """The raw parameter values of a params YAML file, not yet validated."""
+def read_document(path: str | Path) -> Any:
+    """A params YAML file parsed with ROS 2 number typing; ConfigError names a missing or
+    unreadable file, or where its YAML is malformed."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -95,7 +96,12 @@ def read_values(path: str | Path) -> dict[str, Any]:
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise ConfigError(f"{path}: malformed YAML{where}: {problem}") from None
-    return parameters_section(document, str(path))
+    return document
+
+
+def read_values(path: str | Path) -> dict[str, Any]:
+    """The raw parameter values of a params YAML file, not yet validated."""
+    return parameters_section(read_document(path), str(path))
 
 
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Parameters:

@@ -195,19 +195,9 @@ def params_files(args: Sequence[str]) -> list[str]:
 def check_params_file(path: str) -> None:
     """Raise ConfigError, in one line, if ``path`` is missing or not a params YAML mapping."""
     try:
-        text = open(path, encoding="utf-8").read()
-    except FileNotFoundError:
-        raise ConfigError(f"--params-file {path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"--params-file {path}: cannot read it ({exc})") from None
-    try:
-        document = config.load_yaml(text)
-    except Exception as exc:  # yaml.YAMLError and its kin: name the place
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ConfigError(
-            f"--params-file {path}: malformed YAML{where}: {getattr(exc, 'problem', None) or exc}"
-        ) from None
+        document = config.read_document(path)
+    except ConfigError as exc:
+        raise ConfigError(f"--params-file {exc}") from None
     if not isinstance(document, dict) or not all(
         isinstance(v, dict) and isinstance(v.get("ros__parameters"), dict) for v in document.values()
     ):
