@@ -1,4 +1,5 @@
-"""Model-core benchmarks: step cost, scipy comparison, batch throughput, Euler vs RK4.
+"""Model-core benchmarks: step cost, scipy comparison, batch throughput, stiff settings
+(RK4 with substeps against ros2), Euler vs RK4.
 
     tools/with-env python bench/bench_model.py          # about two minutes
 
@@ -21,6 +22,7 @@ from boom_hydraulics.model import config, physical
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import accelerate
 from boom_hydraulics.solve.batch import simulate_batch
+from boom_hydraulics.solve.commands import steps as steps_command
 from boom_hydraulics.solve.simulation import Simulator, simulate
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
@@ -55,6 +57,12 @@ def step_cost() -> None:
     )
 
 
+def physical_scales() -> list[float]:
+    """A natural scale of each physical state (m, m/s, Pa, 1, J) for absolute tolerances."""
+    scale = {"length": 1.0, "velocity": 1.0, "pressure": 1e7, "unit": 1.0, "energy": 1e3}
+    return [scale[kind] for kind in physical.STATE_SCALES]
+
+
 def scipy_comparison() -> None:
     """The same 1.5 s physical lift with solve_ivp at the accuracy RK4 reaches at 1 ms."""
     c = physical.constants(PHYSICAL)
@@ -64,9 +72,7 @@ def scipy_comparison() -> None:
     def fun(t, y):
         return physical.derivative(t, list(y), c, 1.0)
 
-    ref = solve_ivp(
-        fun, (0, duration), y0, method="DOP853", rtol=1e-11, atol=[1e-12, 1e-12, 1e-2, 1e-2, 1e-12, 1e-6, 1e-6]
-    )
+    ref = solve_ivp(fun, (0, duration), y0, method="DOP853", rtol=1e-11, atol=[a * 1e-11 for a in physical_scales()])
     q_ref = ref.y[0, -1]
     rk4_time = best_of(lambda: simulate(PHYSICAL, duration, lambda t: 1.0, every=10**9, jit=False), 2)
     rk4_err = abs(simulate(PHYSICAL, duration, lambda t: 1.0, every=10**9, jit=False)["q1"][-1] - q_ref) / q_ref
@@ -77,7 +83,7 @@ def scipy_comparison() -> None:
     for method in ("RK45", "LSODA"):
         chosen = None
         for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
-            atol = [rtol * s for s in (1.0, 1.0, 1e7, 1e7, 1.0, 1e3, 1e3)]
+            atol = [rtol * s for s in physical_scales()]
             sol = solve_ivp(fun, (0, duration), y0, method=method, rtol=rtol, atol=atol)
             err = abs(sol.y[0, -1] - q_ref) / q_ref
             if sol.success and err <= rk4_err:
@@ -109,6 +115,40 @@ def batch_throughput() -> None:
         seconds = best_of(lambda p=params, s=steps: simulate_batch(p, s * 1e-3, lambda t: 1.0, every=10**9), 2)
         rows.append([str(n), str(steps), f"{seconds:.2f}", f"{n * steps / seconds / 1e6:.3f}"])
     table("Batched physical RK4 (numpy over N parameter sets)", ["N", "steps", "wall s", "M state-steps/s"], rows)
+
+
+def stiff_settings() -> None:
+    """The 9 s lift-hold-lower-hold cycle with stiff oil and short hoses: RK4 with the
+    substeps its stability bound asks for, against ros2 at one step per millisecond."""
+    cycle = steps_command([0.0, 3.0, 4.0, 7.0], [1.0, 0.0, -1.0, 0.0])
+    rows = []
+    for label, volume in (("default (100 cm3)", 1e-4), ("10 cm3", 1e-5), ("1 cm3", 1e-6)):
+        base = with_updates(PHYSICAL, bulk_modulus_pa=1.6e9, piston_dead_volume_m3=volume, rod_dead_volume_m3=volume)
+        for method in ("rk4", "ros2"):
+            params = with_updates(base, method=method)
+            for jit in (False, True) if accelerate.available() else (False,):
+                sim = Simulator(params, jit=jit)
+                sim.step(0.0, 1)  # compile / warm up
+                t0 = time.perf_counter()
+                sim.reset()
+                tr = sim.run(9.0, cycle, every=10**9)
+                seconds = time.perf_counter() - t0
+                rows.append(
+                    [
+                        label,
+                        method,
+                        "compiled" if jit else "interpreted",
+                        str(sim.most_substeps),
+                        f"{seconds:.2f}",
+                        f"{tr['q1'][-1]:.6f}",
+                        f"{tr['supply_energy'][-1]:.1f}",
+                    ]
+                )
+    table(
+        "9 s cycle, 1.6 GPa oil, dt = 1 ms: rk4 with its stability substeps vs ros2",
+        ["dead volumes", "method", "path", "most substeps", "wall s", "final q1 m", "supply J"],
+        rows,
+    )
 
 
 def euler_vs_rk4() -> None:
@@ -143,6 +183,7 @@ def main() -> int:
     step_cost()
     scipy_comparison()
     batch_throughput()
+    stiff_settings()
     euler_vs_rk4()
     return 0
 

@@ -79,7 +79,7 @@ def with_solve_ivp(points: int, method: str) -> float:
                 y,
                 method=method,
                 rtol=1e-6,
-                atol=[1e-9, 1e-9, 1.0, 1.0, 1e-9, 1e-3, 1e-3],
+                atol=[1e-9, 1e-9, 1.0, 1.0, 1e-9, 1e-3, 1e-3, 1e-9, 1e-3, 1e-3],
                 t_eval=t_eval,
             )
             y = sol.y[:, -1]

@@ -53,7 +53,7 @@ def test_batch_members_must_share_mode_method_and_step():
 def test_a_batch_keeps_only_the_outputs_asked_for():
     params = [Parameters(), with_updates(Parameters(), payload_mass_kg=150.0)]
     out = simulate_batch(params, 0.2, lambda t: 1.0, every=10, outputs=("t", "q1"))
-    assert set(out) == {"t", "q1", "failed_at_s"}
+    assert set(out) == {"t", "q1", "failed_at_s", "failed_why", "substeps"}
     assert out["q1"].shape == (21, 2) and out["t"][-1, 0] == pytest.approx(0.2)
     assert out["q1"][-1, 0] > out["q1"][-1, 1] > out["q1"][0, 1]  # the heavier load lifts less
     with pytest.raises(ConfigError, match="unknown outputs"):

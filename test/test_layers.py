@@ -9,7 +9,7 @@ import sys
 import boom_hydraulics
 from boom_hydraulics.model import MODELS, Model
 from boom_hydraulics.model.parameters import METHODS, MODES, describe
-from boom_hydraulics.solve.integrators import FIXED_STEP
+from boom_hydraulics.solve.integrators import BATCHED, FIXED_STEP
 from boom_hydraulics.solve.integrators import METHODS as REGISTRY
 
 NON_ROS = sorted(
@@ -48,4 +48,5 @@ def test_every_model_offers_the_model_interface():
 
 def test_the_methods_come_from_one_registry():
     assert METHODS == tuple(REGISTRY) == describe("method")["choices"]
-    assert set(FIXED_STEP) == {"euler", "rk4"}  # rk45 is adaptive: no compiled or batched path
+    assert set(FIXED_STEP) == {"euler", "rk4", "ros2"}  # rk45 is adaptive: no compiled path
+    assert set(BATCHED) == {"euler", "rk4"}  # the explicit ones run on arrays

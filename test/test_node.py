@@ -187,6 +187,49 @@ def test_a_blow_up_stops_the_simulation_until_reset(client):
         assert proc.wait(timeout=10) == 0
 
 
+def test_stiff_settings_are_substepped_and_the_node_says_so(client):
+    """1.6 GPa oil with 10 cm3 hoses: the node keeps its 1 ms step, takes the substeps the
+    stability bound asks for, logs it once and reports it in /diagnostics."""
+    proc = start_node(
+        "bulk_modulus_pa:=1.6e9", "piston_dead_volume_m3:=1e-5", "rod_dead_volume_m3:=1e-5", "command_timeout_s:=0.0"
+    )
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3)
+        client.command(-1.0)  # lower onto the stop: the piston chamber shrinks to its dead volume
+
+        def substeps() -> int:
+            values = [v for d in client.diagnostics for s in d.status for v in s.values if v.key == "substeps_most"]
+            return int(values[-1].value) if values else 0
+
+        assert client.spin_until(lambda: substeps() > 1, timeout=20)
+        assert client.last().rod_position_m < 1.2
+        assert not any(s.level == b"\x02" for d in client.diagnostics for s in d.status)  # still running
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=10)
+    assert proc.returncode == 0
+    assert "stability bound: rk4 takes" in out and "substeps per time step of 0.001 s" in out
+
+
+def test_a_broken_energy_balance_stops_the_node_and_is_reported(client):
+    """Euler at 3 substeps cannot hold the hydraulic oscillation of a lift: the guard stops
+    the simulation and /diagnostics says why, naming the step."""
+    proc = start_node("method:=euler", "substeps:=3", "spool_time_constant_s:=0.0", "command_timeout_s:=0.0")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3)
+        client.spin_for(0.6, opening=1.0)
+        client.command(0.0)  # closing the valve on the moving boom rings the oil springs
+
+        def stopped() -> list[str]:
+            return [s.message for d in client.diagnostics for s in d.status if s.level == b"\x02"]
+
+        assert client.spin_until(lambda: bool(stopped()), timeout=20)
+        assert "energy balance broken" in stopped()[-1] and "step of 0.001 s (euler" in stopped()[-1]
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+
+
 def test_bad_node_parameter_at_start_is_one_clear_line():
     proc = start_node("real_time_factor:=-2.0")
     out, _ = proc.communicate(timeout=30)

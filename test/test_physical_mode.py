@@ -99,11 +99,12 @@ def test_fluid_entering_a_chamber_equals_the_integral_of_its_flow():
     assert inflow == pytest.approx(stored, rel=2e-3)
 
 
-def test_end_stops_are_never_crossed():
+def test_end_stops_hold_the_rod_within_their_compliance():
+    """Full-speed impacts with the pump pushing: the 1e8 N/m stops give about 2 mm."""
     tr = simulate(P, 9.0, command=steps([0.0, 4.0], [1.0, -1.0]), every=5)
     q = tr["q1"]
     assert q.max() > P.cylinder_max_length_m - 1e-3 and q.min() < P.cylinder_min_length_m + 1e-3  # reached both
-    assert q.max() < P.cylinder_max_length_m + 1e-3 and q.min() > P.cylinder_min_length_m - 1e-3
+    assert q.max() < P.cylinder_max_length_m + 2.5e-3 and q.min() > P.cylinder_min_length_m - 2.5e-3
     assert tr["at_end_stop"].any()
 
 
@@ -198,11 +199,11 @@ def _cycle(payload_kg: float) -> dict:
             0.5 * c.inertia * (k * y[1]) ** 2 + c.weight_coeff * height + 0.5 * c.spring * (y[0] - c.spring_free) ** 2
         )
 
-    def powers(y, u):  # friction, end stop, tank-pressure work on the rod area, compression; W
+    def powers(y, u):  # friction, end stop, ambient-minus-tank pressure on the rod area, chambers; W
         t = physical._terms(list(y), c, u, math)
-        vol1, vol2 = c.v1_dead + c.s1 * (y[0] - c.q_min), c.v2_dead + c.s2 * (c.q_max - y[0])
-        compression = (vol1 * (y[2] - c.p_tank) * t.dp1 + vol2 * (y[3] - c.p_tank) * t.dp2) / c.bulk_modulus
-        return np.array([t.f_friction * y[1], t.f_stop * y[1], c.p_tank * (c.s1 - c.s2) * y[1], compression])
+        chambers = (t.p1 - c.p_tank) * (t.q_in1 - c.s1 * y[1]) + (t.p2 - c.p_tank) * (t.q_in2 + c.s2 * y[1])
+        rod = (c.p_ambient - c.p_tank) * (c.s1 - c.s2) * y[1]
+        return np.array([t.f_friction * y[1], t.f_stop * y[1], rod, chambers])
 
     sim = Simulator(p)
     start, work = mechanical(sim.y), np.zeros(4)
@@ -217,10 +218,10 @@ def _cycle(payload_kg: float) -> dict:
         pressure.append(max(out["p1"], out["p2"]))
         cavitation += bool(out["cavitation"])
         relief += bool(out["relief_open"])
-    friction, stop, tank, compression = work
+    friction, stop, rod, chambers = work
     return {
         "supply": sim.y[5],
-        "accounted": sim.y[6] + mechanical(sim.y) - start + friction - stop - tank + compression,
+        "accounted": sim.y[6] + mechanical(sim.y) - start + friction - stop - rod + chambers,
         "stop_work": stop,
         "overshoot_m": max(max(q1) - c.q_max, c.q_min - min(q1)),
         "peak_pa": max(pressure),
@@ -232,8 +233,9 @@ def _cycle(payload_kg: float) -> dict:
 @pytest.mark.parametrize("payload_kg", [0.0, 150.0])
 def test_the_energy_of_a_cycle_balances_through_relief_and_cavitation(payload_kg):
     """Supply energy = valve and relief losses + change of kinetic and potential energy +
-    friction + end-stop dissipation + tank-pressure work + compression energy (0.13-0.26 %
-    measured; the requirement is 1 %)."""
+    friction + end-stop work + the work of ambient minus tank pressure on the rod area + what
+    the chambers took in (compression, and the void while cavitating), each integrated
+    beside the model (the requirement is 1 %)."""
     cycle = _cycle(payload_kg)
     assert cycle["cavitation_steps"] > 0  # the events the balance has to hold through
     assert cycle["relief_steps"] > 0 or payload_kg > 0
@@ -242,11 +244,11 @@ def test_the_energy_of_a_cycle_balances_through_relief_and_cavitation(payload_kg
 
 def test_end_stops_dissipate_energy_and_hold_the_rod():
     """Both stops are hit in the 150 kg cycle: their force takes energy out, never puts it in;
-    the rod presses less than 2 mm into them and the pressure stays under 19 MPa (the port
-    relief valves crack at 18 MPa)."""
+    the rod presses less than 2.5 mm into them (their stiffness is 1e8 N/m) and the pressure
+    stays under 19 MPa (the port relief valves crack at 18 MPa)."""
     cycle = _cycle(150.0)
     assert cycle["stop_work"] < -100.0  # J dissipated over two impacts and the pressing
-    assert cycle["overshoot_m"] < 2e-3
+    assert cycle["overshoot_m"] < 2.5e-3
     assert cycle["peak_pa"] < 19e6
 
 
@@ -256,21 +258,20 @@ def test_a_cavitating_chamber_holds_at_its_floor_for_as_long_as_the_load_overrun
     the oil spring of the piston chamber; independently, with the effective mass J k^2, the
     stiffness E S1^2 / V1 and the force the rod chamber lost, v = v0 cos(wt) + F0/(m w) sin(wt)
     is zero after atan(|v0| m w / F0) / w (friction left out: a few percent)."""
-    params = with_updates(Parameters(), initial_velocity_m_s=-0.2, time_step_s=1e-4)
+    params = with_updates(Parameters(), initial_velocity_m_s=-0.2, time_step_s=1e-4, load_holding_valve="none")
     c = physical.constants(params)
     sim = Simulator(params)
     q0, p2_0 = sim.y[0], sim.y[3]
     at_floor, lowest = 0, math.inf
     while sim.y[1] < 0.0:  # until the rod stops
         sim.step(0.0)
-        lowest = min(lowest, sim.y[3])
-        if sim.y[3] <= c.p_cav * (1 + 1e-9):
+        out = sim.outputs()
+        lowest = min(lowest, out["p2"])
+        if out["void2"] > 0.0:
             at_floor += 1
-            # at the floor, with the rod chamber still expanding, its pressure rate is held at 0
-            # (not only clipped after the step: every stage of a step sees the floor)
-            assert physical.derivative(sim.t, list(sim.y), c, 0.0)[3] == 0.0
+            assert out["p2"] == c.p_cav and out["cavitation"]  # a void stands at the floor pressure
         assert sim.t < 1.0
-    assert lowest == pytest.approx(c.p_cav, rel=1e-12)  # held at the floor, never below
+    assert lowest == c.p_cav  # held at the floor, never below
     k = geometry.lever_rad_per_m(q0, c.a, c.b)
     m = c.inertia * k * k
     w = math.sqrt(c.bulk_modulus * c.s1**2 / (c.v1_dead + c.s1 * (q0 - c.q_min)) / m)

@@ -58,6 +58,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(
         f"{args.out}: {len(trajectory)} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
         f"q1 {trajectory['q1'][0]:.4f} -> {trajectory['q1'][-1]:.4f} m"
+        + (
+            f", up to {trajectory.most_substeps} substeps per step (stability bound)"
+            if trajectory.most_substeps > params.substeps
+            else ""
+        )
     )
     return 0
 

@@ -19,6 +19,7 @@ class Model(Protocol):
 
     STATE_NAMES: tuple[str, ...]  # the components of y, in order
     STATE_SCALES: tuple[str, ...]  # the scale of each component for error control (length, pressure, ...)
+    ENERGY_STATES: tuple[int, int] | None  # indices of W = integral of dH/dt and of |dH/dt|, or None
 
     def constants(self, p: Parameters) -> Any:
         """Everything the derivative needs from the parameters, computed once (a NamedTuple)."""
@@ -32,8 +33,12 @@ class Model(Protocol):
         """dy/dt at time ``t`` with valve command ``u`` (floats, or numpy arrays with xp=numpy)."""
         ...
 
-    def project(self, y: list, c: Any) -> list:
-        """The state after a step brought back onto its constraints (e.g. the cavitation floor)."""
+    def energy(self, y: list, c: Any, xp: ModuleType = math) -> Any:
+        """H, the stored energy whose change the state's W must match (the energy balance), J."""
+        ...
+
+    def stiffness_rate(self, y: list, c: Any, u: Any, dt: float, xp: ModuleType = math) -> Any:
+        """An estimate of the Jacobian's largest eigenvalue magnitude over the next ``dt``, 1/s."""
         ...
 
     def observe(self, t: float, y: list, c: Any, u: Any, xp: ModuleType = math) -> dict[str, Any]:

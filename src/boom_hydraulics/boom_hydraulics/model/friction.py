@@ -1,5 +1,9 @@
 """Friction of piston and rod seals (the F_mp and b_d terms of eq. 11).
 
+Physical mode uses the LuGre model (Canudas de Wit et al., 1995) with one state, the
+bristle deflection: stiction holds (no creep below the breakaway force), sliding follows
+the Stribeck curve, and the damping near rest is the stated sigma1 + b_d.
+
 Equations and conventions: docs/model.md, section "Friction".
 """
 
@@ -17,21 +21,40 @@ def paper_friction_n(velocity_m_s: Num, coulomb_n: Num, viscous_n_s_m: Num) -> N
     return coulomb_n + viscous_n_s_m * velocity_m_s
 
 
+def stribeck_level(velocity_m_s: Num, coulomb_n: Num, static_n: Num, stribeck_m_s: Num, xp: ModuleType = math) -> Num:
+    """g(v) = F_c + (F_s - F_c) exp(-(v / v_st)^2): the sliding friction at speed v, N (Stribeck curve)."""
+    ratio = velocity_m_s / stribeck_m_s
+    return coulomb_n + (static_n - coulomb_n) * xp.exp(-ratio * ratio)
+
+
+def bristle_rate(velocity_m_s: Num, bristle: Num, level_ratio: Num, presliding_m: Num) -> Num:
+    """ds/dt of the LuGre seal model, 1/s, with s = z / z_ba the bristle deflection over the
+    presliding displacement (s = 1 is the breakaway deflection).
+
+    LuGre: dz/dt = v - sigma0 |v| z / g(v), sigma0 = F_s / z_ba; so
+    ds/dt = (v - |v| s / r(v)) / z_ba, r = g(v) / F_s (1 at rest, F_c / F_s when sliding).
+    At rest (v = 0) s does not move: a force below breakaway holds the rod, it never creeps.
+    """
+    return (velocity_m_s - abs(velocity_m_s) * bristle / level_ratio) / presliding_m
+
+
 def seal_friction_n(
     velocity_m_s: Num,
-    coulomb_n: Num,
+    bristle: Num,
+    bristle_rate_1_s: Num,
     static_n: Num,
+    presliding_m: Num,
+    damping_n_s_m: Num,
     stribeck_m_s: Num,
-    smoothing_m_s: Num,
     viscous_n_s_m: Num,
     xp: ModuleType = math,
 ) -> Num:
-    """Friction force opposing motion, N (positive for positive velocity).
+    """LuGre friction force opposing motion, N (positive for positive deflection and velocity).
 
-    F = (F_c + (F_s - F_c) exp(-(v / v_st)^2)) tanh(v / v_sm) + b_d v:
-    Coulomb friction regularised by tanh over v_sm, a Stribeck rise to the breakaway
-    force F_s near rest, and viscous friction.
+    F = sigma0 z + sigma1(v) dz/dt + b_d v = F_s s + sigma1 exp(-(v / v_st)^2) z_ba ds/dt + b_d v.
+    Sliding steadily, s = r(v) sign(v) and F = g(v) sign(v) + b_d v (the Stribeck curve);
+    near rest the seals act as a spring F_s / z_ba in parallel with a damper sigma1 + b_d.
     """
     ratio = velocity_m_s / stribeck_m_s
-    level = coulomb_n + (static_n - coulomb_n) * xp.exp(-ratio * ratio)
-    return level * xp.tanh(velocity_m_s / smoothing_m_s) + viscous_n_s_m * velocity_m_s
+    sigma1 = damping_n_s_m * xp.exp(-ratio * ratio)
+    return static_n * bristle + sigma1 * presliding_m * bristle_rate_1_s + viscous_n_s_m * velocity_m_s

@@ -28,6 +28,11 @@ def smaller(x: Num, y: Num) -> Num:
     return x + (y - x) * (y < x)
 
 
+def larger(x: Num, y: Num) -> Num:
+    """max(x, y) for floats and arrays alike."""
+    return x + pos(y - x)
+
+
 def orifice_coefficient(discharge_coefficient: Num, area_m2: Num, density_kg_m3: Num) -> Num:
     """K = mu f sqrt(2 / rho), so that turbulent flow is Q = K sqrt(dp), m^3/(s Pa^0.5) (eq. 14)."""
     return discharge_coefficient * area_m2 * (2.0 / density_kg_m3) ** 0.5
@@ -67,13 +72,53 @@ def chamber_pressure_rate(bulk_modulus_pa: Num, volume_m3: Num, inflow_m3_s: Num
     return bulk_modulus_pa / volume_m3 * (inflow_m3_s - volume_rate_m3_s)  # eq. 12, 13
 
 
-def hold_at_floor(pressure_pa: Num, rate_pa_s: Num, floor_pa: Num) -> Num:
-    """Cavitation floor: a chamber at or below ``floor_pa`` may not fall further.
+def chamber_pressure_pa(liquid_state_pa: Num, floor_pa: Num) -> Num:
+    """Pressure of a cavitating chamber from its state z: max(z, p_cav), Pa.
 
-    Returns the rate with its falling part removed where the pressure sits at the floor.
+    Above the floor z is the pressure; below it, z measures the void (gas and vapour)
+    volume V_void = (p_cav - z) V / E while the pressure stays at the floor.
     """
-    held = (pressure_pa <= floor_pa) * (rate_pa_s < 0.0)
-    return rate_pa_s - rate_pa_s * held
+    return floor_pa + pos(liquid_state_pa - floor_pa)
+
+
+def chamber_state_rate(
+    bulk_modulus_pa: Num,
+    volume_m3: Num,
+    inflow_m3_s: Num,
+    volume_rate_m3_s: Num,
+    liquid_state_pa: Num,
+    floor_pa: Num,
+) -> Num:
+    """dz/dt of a chamber that cavitates without creating or losing oil, Pa/s.
+
+    Full of liquid (z >= p_cav): dz/dt = E / V (Q_in - dV/dt), eq. 12 / 13.
+    With a void (z < p_cav): the void takes the difference, dV_void/dt = dV/dt - Q_in, and
+    z = p_cav - E V_void / V follows it: dz/dt = E / V (Q_in - dV/dt) + (p_cav - z) (dV/dt) / V.
+    The extra term is zero at the floor, so the rate is continuous. An inflow first refills
+    the void; the pressure rises only once it is gone (mass-conserving, as the cavitating
+    chambers of Simscape Fluids and Hopsan).
+    """
+    void_term = pos(floor_pa - liquid_state_pa) * volume_rate_m3_s / volume_m3
+    return chamber_pressure_rate(bulk_modulus_pa, volume_m3, inflow_m3_s, volume_rate_m3_s) + void_term
+
+
+def void_volume_m3(bulk_modulus_pa: Num, volume_m3: Num, liquid_state_pa: Num, floor_pa: Num) -> Num:
+    """Volume of the void in a cavitating chamber, (p_cav - z) V / E where z < p_cav, m^3."""
+    return pos(floor_pa - liquid_state_pa) * volume_m3 / bulk_modulus_pa
+
+
+def load_holding_flow(
+    port_inflow_m3_s: Num, pilot_opening: Num, chamber_pa: Num, tank_pa: Num, seat_leakage_m3_s_pa: Num
+) -> Num:
+    """Flow into a chamber through a pilot-operated check (load-holding) valve, m^3/s.
+
+    Inflow (from the spool) passes freely; outflow passes in proportion to the pilot
+    opening (0: closed, the chamber is sealed; 1: fully open). The closed seat leaks
+    G_seat (p - p_tank) to tank in parallel.
+    """
+    return (
+        pos(port_inflow_m3_s) - pilot_opening * pos(-port_inflow_m3_s) - seat_leakage_m3_s_pa * (chamber_pa - tank_pa)
+    )
 
 
 def relief_flow(pressure_pa: Num, cracking_pa: Num, conductance_m3_s_pa: Num) -> Num:

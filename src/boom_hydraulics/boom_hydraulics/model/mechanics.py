@@ -53,9 +53,14 @@ def rod_acceleration(
     """
     k = lever_rad_per_m(q1_m, a_m, b_m, xp)
     moment = weight_coeff_nm * cos_boom_angle(q1_m, a_m, b_m, h_m, xp)  # M_g
-    return (rod_force_n - moment * k) / (inertia_kgm2 * k * k) - (
-        lever_derivative(q1_m, a_m, b_m, xp) / k
-    ) * v_m_s * v_m_s
+    return acceleration_at_lever(v_m_s, rod_force_n, inertia_kgm2, moment, k, lever_derivative(q1_m, a_m, b_m, xp))
+
+
+def acceleration_at_lever(
+    v_m_s: Num, rod_force_n: Num, inertia_kgm2: Num, moment_nm: Num, lever: Num, lever_slope: Num
+) -> Num:
+    """:func:`rod_acceleration` from the weight moment M_g, the lever k and dk/dq1 already at hand, m/s^2."""
+    return (rod_force_n - moment_nm * lever) / (inertia_kgm2 * lever * lever) - (lever_slope / lever) * v_m_s * v_m_s
 
 
 def load_force_n(

@@ -26,6 +26,8 @@ Num = Any  # float or numpy.ndarray
 
 STATE_NAMES = ("q1", "v", "p1", "supply_energy", "valve_loss_energy")
 STATE_SCALES = ("length", "velocity", "pressure", "energy", "energy")
+#: The listing conserves no energy (its eq. 16 carries a factor 1/2): no balance to check.
+ENERGY_STATES = None
 
 
 class Constants(NamedTuple):
@@ -133,9 +135,14 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
     return [y[1], terms.acc, terms.dp1, terms.power, terms.loss]
 
 
-def project(y: list, c: Constants) -> list:
-    """Paper mode knows no cavitation floor: the state is left as it is."""
-    return y
+def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
+    """Paper mode checks no energy balance (see ENERGY_STATES)."""
+    return 0.0 * y[0]
+
+
+def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = math) -> Num:
+    """Paper mode steps as the listing does, at the user's step: no stability bound (0)."""
+    return 0.0 * y[0]
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
@@ -155,6 +162,7 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
         "q_in1": terms.flow,
         "q_in2": zero,
         "f_hyd": y[2] * c.s1,
+        "f_friction": paper_friction_n(v, c.coulomb, c.viscous),
         "f_load": paper_load_force_n(
             q1, v, acc, c.inertia, c.boom_mass, c.payload_mass, c.boom_length, c.g, c.a, c.b, xp
         ),  # eq. 10
@@ -164,6 +172,8 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
         "power": terms.power,
         "supply_energy": y[3],
         "valve_loss_energy": y[4],
+        "void1": zero,
+        "void2": zero,
         "at_end_stop": zero != zero,
         "cavitation": y[2] < 0.0,
         "relief_open": zero != zero,

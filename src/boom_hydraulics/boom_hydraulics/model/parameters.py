@@ -67,9 +67,21 @@ class Parameters:
         "'paper' (the paper's Fig. 7 listing as printed)",
         choices=MODES,
     )
-    method: str = _param("rk4", "", "Integrator: euler, rk4 (the paper's) or rk45 (adaptive)", choices=METHODS)
+    method: str = _param(
+        "rk4",
+        "",
+        "Integrator: euler, rk4 (the paper's), rk45 (adaptive) or ros2 (implicit, for stiff settings)",
+        choices=METHODS,
+    )
     time_step_s: float = _param(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0, high=0.1)
-    substeps: int = _param(1, "", "Fixed-step integrator steps per time step", low=1, low_inclusive=True, high=10000)
+    substeps: int = _param(
+        1,
+        "",
+        "Least integrator steps per time step; physical mode adds more where the explicit stability bound asks",
+        low=1,
+        low_inclusive=True,
+        high=10000,
+    )
     rtol: float = _param(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0, high=0.1)
     atol_scale: float = _param(
         1e-8,
@@ -131,8 +143,22 @@ class Parameters:
     stribeck_velocity_m_s: float = _param(
         0.01, "m/s", "Velocity scale of the fall from stiction to Coulomb friction", low=0.0, high=10.0
     )
-    friction_smoothing_velocity_m_s: float = _param(
-        0.001, "m/s", "Velocity over which Coulomb friction is smoothed (tanh)", low=0.0, high=1.0
+    friction_presliding_m: float = _param(
+        3.0e-4,
+        "m",
+        "Presliding displacement of the seals at breakaway: below the breakaway force the rod deflects "
+        "by about this, then slides (LuGre bristle stiffness = static_friction_n / this); physical mode",
+        low=0.0,
+        high=0.1,
+    )
+    friction_presliding_damping_n_s_m: float = _param(
+        2.0e4,
+        "N s/m",
+        "Damping of the seals' presliding (LuGre sigma1): acts near rest only, fading above the Stribeck velocity; "
+        "physical mode",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e9,
     )
     viscous_friction_n_s_m: float = _param(
         1000.0, "N s/m", "b_d: viscous friction coefficient", low=0.0, low_inclusive=True, high=1.0e8
@@ -145,9 +171,17 @@ class Parameters:
     )
 
     # --- end stops (physical mode) -------------------------------------------------------
-    end_stop_stiffness_n_m: float = _param(1.0e9, "N/m", "End-stop contact stiffness", low=0.0, high=1.0e13)
-    end_stop_damping_n_s_m: float = _param(
-        2.0e6, "N s/m", "End-stop contact damping", low=0.0, low_inclusive=True, high=1.0e10
+    end_stop_stiffness_n_m: float = _param(
+        1.0e8, "N/m", "End-stop contact stiffness (cushion, stop and mounts)", low=0.0, high=1.0e13
+    )
+    end_stop_damping_n_s_m2: float = _param(
+        1.0e9,
+        "N s/m^2",
+        "End-stop Hunt-Crossley damping lambda: F = k d + lambda d d' (grows with the penetration d, so the "
+        "contact force starts from zero); restitution about 1 - 2/3 (lambda / k) v at impact speed v",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e15,
     )
 
     # --- fluid ---------------------------------------------------------------------------
@@ -191,11 +225,35 @@ class Parameters:
     spool_time_constant_s: float = _param(
         0.02, "s", "First-order spool lag (0: none); physical mode", low=0.0, low_inclusive=True, high=10.0
     )
+    load_holding_valve: str = _param(
+        "piston_side",
+        "",
+        "Load-holding valve: 'piston_side' (a pilot-operated check valve in the piston-chamber line, "
+        "opened by the lowering command; the closed valve holds the boom) or 'none' (the spool alone holds it, "
+        "and its leakage lets the boom creep down)",
+        choices=("piston_side", "none"),
+    )
+    load_holding_leakage_m3_s_pa: float = _param(
+        2.0e-16,
+        "m^3/(s Pa)",
+        "Seat leakage of the closed load-holding valve (2e-16: about 5 drops/min at 20 MPa); physical mode",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e-8,
+    )
 
     # --- supply ---------------------------------------------------------------------------
     supply_pressure_pa: float = _param(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0, high=1.0e8)
     tank_pressure_pa: float = _param(
         1.0e5, "Pa", "p_37: tank/drain pressure (absolute); physical mode", low=0.0, low_inclusive=True, high=1.0e7
+    )
+    ambient_pressure_pa: float = _param(
+        1.01325e5,
+        "Pa",
+        "Ambient (atmospheric) pressure on the rod's end: it pushes the rod in with p_amb (S1 - S2); physical mode",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e7,
     )
     pump_max_flow_m3_s: float = _param(
         5.0e-4, "m^3/s", "Maximum pump flow; above it the supply pressure drops", low=0.0, high=0.1

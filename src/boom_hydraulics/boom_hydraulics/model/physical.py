@@ -1,11 +1,16 @@
 """Physical mode: the corrected boom drive with both chambers, a 4/3 valve and end stops.
 
-State y = [q1 (m), v (m/s), p1 (Pa), p2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J)].
-Pressures are absolute. What this mode corrects in the paper's equations is listed in the
-README ("The model"): the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
+State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
+s (seal bristle deflection / presliding displacement), W (J), |W| (J)].
+z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
+floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
+change of the stored energy :func:`energy` (|W| its absolute value): the energy balance the
+stepping checks. Pressures are absolute. What this mode corrects in the paper's equations is
+listed in docs/model.md: the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
 with volumes that follow the rod, a laminar-turbulent orifice, spool lag, supply limit,
-reliefs, cavitation floor, seal friction and end stops. Functions work on floats and, for
-batches, on numpy arrays per state component (``xp=numpy`` and array-valued constants).
+reliefs, mass-conserving cavitation, a load-holding valve, LuGre seal friction, ambient
+pressure on the rod and Hunt-Crossley end stops. Functions work on floats and, for batches,
+on numpy arrays per state component (``xp=numpy`` and array-valued constants).
 
 Equations and conventions: docs/model.md, sections "What physical mode corrects, and why".
 """
@@ -16,25 +21,53 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
-from .end_stops import end_stop_force_n
-from .friction import seal_friction_n
-from .geometry import annulus_area_m2, boom_angle_rad, lever_rad_per_m, piston_area_m2, static_rod_force_of
+from .end_stops import end_stop_energy_j, end_stop_force_n
+from .friction import bristle_rate, seal_friction_n, stribeck_level
+from .geometry import (
+    annulus_area_m2,
+    boom_angle_rad,
+    cos_boom_angle,
+    lever_derivative,
+    lever_rad_per_m,
+    piston_area_m2,
+    static_rod_force_of,
+)
 from .hydraulics import (
-    chamber_pressure_rate,
-    hold_at_floor,
+    chamber_pressure_pa,
+    chamber_state_rate,
+    larger,
+    load_holding_flow,
     orifice_coefficient,
     pos,
     relief_flow,
+    smaller,
     supply_pressure,
     valve_flows,
+    void_volume_m3,
 )
-from .mechanics import boom_inertia_kgm2, load_force_n, rod_acceleration
+from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .parameters import Parameters
 
 Num = Any  # float or numpy.ndarray
 
-STATE_NAMES = ("q1", "v", "p1", "p2", "x_v", "supply_energy", "valve_loss_energy")
-STATE_SCALES = ("length", "velocity", "pressure", "pressure", "unit", "energy", "energy")
+STATE_NAMES = (
+    "q1",
+    "v",
+    "p1",
+    "p2",
+    "x_v",
+    "supply_energy",
+    "valve_loss_energy",
+    "bristle",
+    "energy_change",
+    "energy_change_abs",
+)
+STATE_SCALES = ("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy")
+#: Indices of W and |W| in the state: the energy balance that the stepping checks.
+ENERGY_STATES = (8, 9)
+
+#: Spool opening towards lowering at which the pilot has fully opened the load-holding valve.
+PILOT_FULL_OPENING = 0.05
 
 
 class Constants(NamedTuple):
@@ -55,28 +88,34 @@ class Constants(NamedTuple):
     p_cav: Num
     k_valve: Num  # mu f_max sqrt(2/rho) (eq. 14, 17)
     transition2: Num  # p_tr^2, Pa^2
+    k_laminar: Num  # K / sqrt(p_tr): the steepest dQ/dp of a fully open path, m^3/(s Pa)
     leak: Num
+    holding: Num  # 1.0 with a load-holding valve on the piston side, 0.0 without
+    seat_leak: Num  # seat leakage of the closed load-holding valve, m^3/(s Pa)
     lag: Num  # 1.0 with a spool lag, 0.0 without
     inv_tau: Num  # 1 / spool time constant (0 without lag)
     p_supply: Num
     p_tank: Num
+    p_ambient: Num
     pump_max_flow: Num
     p_relief: Num
     g_relief: Num
-    coulomb: Num
-    static: Num
+    coulomb_ratio: Num  # F_c / F_s, at least 1e-3 (1 without stiction)
+    static: Num  # F_s, N
     stribeck: Num
-    smoothing: Num
+    presliding: Num  # z_ba, m
+    presliding_damping: Num  # sigma1, N s/m
     viscous: Num
     spring: Num
     spring_free: Num
     stop_k: Num
-    stop_c: Num
+    stop_damping: Num  # Hunt-Crossley lambda, N s/m^2
 
 
 def constants(p: Parameters) -> Constants:
     """Derived constants of one parameter set."""
     lag = 1.0 if p.spool_time_constant_s > 0.0 else 0.0
+    k_valve = orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3)
     return Constants(
         a=p.a_m,
         b=p.b_m,
@@ -91,102 +130,248 @@ def constants(p: Parameters) -> Constants:
         v2_dead=p.rod_dead_volume_m3,
         bulk_modulus=p.bulk_modulus_pa,
         p_cav=p.cavitation_pressure_pa,
-        k_valve=orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3),
+        k_valve=k_valve,
         transition2=p.transition_pressure_pa**2,
+        k_laminar=k_valve / math.sqrt(p.transition_pressure_pa),
         leak=p.valve_leakage_m3_s_pa,
+        holding=1.0 if p.load_holding_valve == "piston_side" else 0.0,
+        seat_leak=p.load_holding_leakage_m3_s_pa,
         lag=lag,
         inv_tau=lag / p.spool_time_constant_s if lag else 0.0,
         p_supply=p.supply_pressure_pa,
         p_tank=p.tank_pressure_pa,
+        p_ambient=p.ambient_pressure_pa,
         pump_max_flow=p.pump_max_flow_m3_s,
         p_relief=p.relief_pressure_pa,
         g_relief=p.relief_rated_flow_m3_s / p.relief_range_pa,
-        coulomb=p.coulomb_friction_n,
+        coulomb_ratio=max(p.coulomb_friction_n / p.static_friction_n, 1e-3) if p.static_friction_n > 0.0 else 1.0,
         static=p.static_friction_n,
         stribeck=p.stribeck_velocity_m_s,
-        smoothing=p.friction_smoothing_velocity_m_s,
+        presliding=p.friction_presliding_m,
+        presliding_damping=p.friction_presliding_damping_n_s_m,
         viscous=p.viscous_friction_n_s_m,
         spring=p.spring_stiffness_n_m,
         spring_free=p.spring_free_length_m,
         stop_k=p.end_stop_stiffness_n_m,
-        stop_c=p.end_stop_damping_n_s_m,
+        stop_damping=p.end_stop_damping_n_s_m2,
     )
 
 
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
-    """Rod at rest at ``q1_m`` (default q1(0)), valve closed, rod chamber at tank pressure,
-    piston chamber at the pressure that holds the boom statically (eq. 6)."""
+    """Rod at rest at ``q1_m`` (default q1(0)), valve closed, seals relaxed, rod chamber at
+    tank pressure, piston chamber at the pressure that holds the boom statically (eq. 6);
+    at the lower end stop the boom is parked on it, with the piston chamber at tank pressure."""
     q1 = p.initial_length_m if q1_m is None else q1_m
     force = static_rod_force_of(p, q1)
     s1 = piston_area_m2(p.piston_diameter_m)
     s2 = annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
     spring = p.spring_stiffness_n_m * (q1 - p.spring_free_length_m)
     p2 = p.tank_pressure_pa
-    p1 = (force + spring + p2 * s2) / s1
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0]
+    p1 = (force + spring + p2 * s2 + p.ambient_pressure_pa * (s1 - s2)) / s1
+    if q1 <= p.cylinder_min_length_m:
+        p1 = p.tank_pressure_pa  # parked: the stop carries the boom
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
 
 class Terms(NamedTuple):
     """The intermediate quantities of one evaluation, shared by derivative and observe (SI)."""
 
     spool: Num  # spool position seen by the flow paths, -1..1
+    p1: Num  # chamber pressures, Pa (at least the cavitation floor)
+    p2: Num
+    vol1: Num  # chamber volumes, m^3
+    vol2: Num
+    dvol1: Num  # dV/dq1, m^2
+    dvol2: Num
     p_supply: Num  # supply pressure after the pump's flow limit, Pa
     q_in1: Num  # net flow into the piston chamber, m^3/s (eq. 12)
     q_in2: Num  # net flow into the rod chamber, m^3/s (eq. 13)
     q_relief1: Num  # port relief flows to tank, m^3/s
     q_relief2: Num
-    dp1: Num  # chamber pressure rates, Pa/s (eq. 12, 13)
-    dp2: Num
-    f_hyd: Num  # p1 S1 - p2 S2, N
+    dz1: Num  # chamber state rates, Pa/s (eq. 12, 13; see chamber_state_rate)
+    dz2: Num
+    f_hyd: Num  # p1 S1 - p2 S2 - p_amb (S1 - S2), N
     f_stop: Num  # end-stop force, N
+    bristle_rate: Num  # ds/dt of the seals, 1/s
     f_friction: Num  # seal friction, N (opposes the motion)
+    lever: Num  # k = d(alpha)/dq1, rad/m
+    lever_slope: Num  # dk/dq1, rad/m^2
+    cos_alpha: Num
     acc: Num  # rod acceleration, m/s^2 (eq. 11)
     power: Num  # power drawn from the supply, W
-    loss: Num  # power dissipated in the valve and the relief valves, W
+    loss: Num  # power dissipated in the valve, the load-holding valve and the reliefs, W
+
+
+def chamber_volumes(q1: Num, c: Constants, xp: ModuleType = math) -> tuple[Num, Num, Num, Num]:
+    """(V1, V2, dV1/dq1, dV2/dq1): dead plus swept volume of each chamber, m^3 and m^2.
+
+    Within the stroke V = V_dead + S x (x the stroke swept). Pressed a depth d into an end
+    stop, the piston closes in on the cylinder head and the chamber shrinks as
+    V_dead exp(-S d / V_dead): smoothly (dV/dq1 stays continuous, no step in the pressure
+    rate at contact) and never to zero, however far the stop's compliance lets the rod go.
+    """
+    d1 = q1 - c.q_min
+    d2 = c.q_max - q1
+    e1 = xp.exp(-pos(-d1) * c.s1 / c.v1_dead)  # 1 within the stroke
+    e2 = xp.exp(-pos(-d2) * c.s2 / c.v2_dead)
+    return c.v1_dead * e1 + c.s1 * pos(d1), c.v2_dead * e2 + c.s2 * pos(d2), c.s1 * e1, -c.s2 * e2
 
 
 def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     """Every intermediate quantity of one evaluation, shared by derivative and observe."""
-    q1, v, p1, p2, x_v = y[0], y[1], y[2], y[3], y[4]
+    q1, v, x_v, s = y[0], y[1], y[4], y[7]
+    p1 = chamber_pressure_pa(y[2], c.p_cav)
+    p2 = chamber_pressure_pa(y[3], c.p_cav)
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
     ps = supply_pressure(x, c.p_supply, p1, p2, c.k_valve, c.transition2, c.pump_max_flow, xp)
     q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak, xp)
+    # the load-holding valve lets oil out of the piston chamber only when the pilot opens it
+    lowering = smaller(pos(-x) / PILOT_FULL_OPENING, 1.0)
+    pilot = 1.0 - c.holding + c.holding * lowering * lowering * (3.0 - 2.0 * lowering)  # smoothstep: no kink
+    port_a = q_pa - q_at
+    q_a = load_holding_flow(port_a, pilot, p1, c.p_tank, c.holding * c.seat_leak)
+    q_pa = q_pa * (1.0 - (1.0 - pilot) * (port_a < 0.0))  # what the pump delivers through A
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
-    q_in1 = q_pa - q_at - q_r1  # Q_1 into the piston chamber
+    q_in1 = q_a - q_r1  # Q_1 into the piston chamber
     q_in2 = q_pb - q_bt - q_r2  # -Q_2 of eq. 13: into the rod chamber
-    vol1 = c.v1_dead + c.s1 * (q1 - c.q_min)  # dead + swept volume
-    vol2 = c.v2_dead + c.s2 * (c.q_max - q1)
-    dp1 = hold_at_floor(p1, chamber_pressure_rate(c.bulk_modulus, vol1, q_in1, c.s1 * v), c.p_cav)  # eq. 12
-    dp2 = hold_at_floor(p2, chamber_pressure_rate(c.bulk_modulus, vol2, q_in2, -c.s2 * v), c.p_cav)  # eq. 13
-    f_hyd = p1 * c.s1 - p2 * c.s2
-    f_stop = end_stop_force_n(q1, v, c.q_min, c.q_max, c.stop_k, c.stop_c)
-    f_friction = seal_friction_n(v, c.coulomb, c.static, c.stribeck, c.smoothing, c.viscous, xp)
+    vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
+    dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
+    dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
+    f_hyd = p1 * c.s1 - p2 * c.s2 - c.p_ambient * (c.s1 - c.s2)
+    f_stop = end_stop_force_n(q1, v, c.q_min, c.q_max, c.stop_k, c.stop_damping)
+    ratio = stribeck_level(v, c.coulomb_ratio, 1.0, c.stribeck, xp)  # g(v) / F_s
+    ds = bristle_rate(v, s, ratio, c.presliding)
+    f_friction = seal_friction_n(v, s, ds, c.static, c.presliding, c.presliding_damping, c.stribeck, c.viscous, xp)
     f_rod = f_hyd - f_friction - c.spring * (q1 - c.spring_free) + f_stop  # eq. 11 without the boom load
-    acc = rod_acceleration(q1, v, f_rod, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp)
+    k = lever_rad_per_m(q1, c.a, c.b, xp)
+    dk = lever_derivative(q1, c.a, c.b, xp)
+    cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
+    acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     power = (ps - c.p_tank) * (q_pa + q_pb)
-    loss = (
-        q_pa * (ps - p1)
-        + q_at * (p1 - c.p_tank)
-        + q_pb * (ps - p2)
-        + q_bt * (p2 - c.p_tank)
-        + q_r1 * (p1 - c.p_tank)
-        + q_r2 * (p2 - c.p_tank)
+    loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
+    return Terms(
+        x,
+        p1,
+        p2,
+        vol1,
+        vol2,
+        dvol1,
+        dvol2,
+        ps,
+        q_in1,
+        q_in2,
+        q_r1,
+        q_r2,
+        dz1,
+        dz2,
+        f_hyd,
+        f_stop,
+        ds,
+        f_friction,
+        k,
+        dk,
+        cos_alpha,
+        acc,
+        power,
+        loss,
     )
-    return Terms(x, ps, q_in1, q_in2, q_r1, q_r2, dp1, dp2, f_hyd, f_stop, f_friction, acc, power, loss)
+
+
+def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
+    """H: the energy stored in the drive, J: kinetic and potential energy of boom and
+    payload, spring, seal bristles, end stops, and the compression of the oil
+    V (p - p_tank)^2 / (2 E) in each chamber. Its change is checked against W."""
+    q1, v, s = y[0], y[1], y[7]
+    p1 = chamber_pressure_pa(y[2], c.p_cav)
+    p2 = chamber_pressure_pa(y[3], c.p_cav)
+    k = lever_rad_per_m(q1, c.a, c.b, xp)
+    vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
+    return (
+        0.5 * c.inertia * k * k * v * v  # T (eq. 8)
+        + c.weight_coeff * xp.sin(boom_angle_rad(q1, c.a, c.b, c.h, xp))
+        + 0.5 * c.spring * (q1 - c.spring_free) * (q1 - c.spring_free)
+        + 0.5 * c.static * c.presliding * s * s
+        + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
+        + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
+    )
+
+
+def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
+    """dH/dt along the model's own derivative (the chain rule through :func:`energy`), W."""
+    q1, v, s = y[0], y[1], y[7]
+    k = t.lever
+    d_low = pos(c.q_min - q1)
+    d_high = pos(q1 - c.q_max)
+    g1, g2 = t.p1 - c.p_tank, t.p2 - c.p_tank
+    dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
+    dp2 = t.dz2 * (y[3] > c.p_cav)
+    return (
+        c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
+        + c.weight_coeff * t.cos_alpha * k * v
+        + c.spring * (q1 - c.spring_free) * v
+        + c.static * c.presliding * s * t.bristle_rate
+        + c.stop_k * (d_high - d_low) * v
+        + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
+    )
 
 
 def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
     """dy/dt of the physical model for valve command ``u`` (held over the step)."""
     terms = _terms(y, c, u, xp)
-    return [y[1], terms.acc, terms.dp1, terms.dp2, c.inv_tau * (u - y[4]), terms.power, terms.loss]
+    rate = _energy_rate(y, c, terms)
+    return [
+        y[1],
+        terms.acc,
+        terms.dz1,
+        terms.dz2,
+        c.inv_tau * (u - y[4]),
+        terms.power,
+        terms.loss,
+        terms.bristle_rate,
+        rate,
+        abs(rate),
+    ]
 
 
-def project(y: list, c: Constants) -> list:
-    """Keep chamber pressures at or above the cavitation floor after a step."""
-    y[2] = c.p_cav + pos(y[2] - c.p_cav)
-    y[3] = c.p_cav + pos(y[3] - c.p_cav)
-    return y
+def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = math) -> Num:
+    """An estimate of the largest eigenvalue magnitude of the Jacobian over the next ``dt``, 1/s.
+
+    The fastest modes: a chamber against its open orifice in the laminar region
+    (E / V dQ/dp), the oil springs, seals, end stop and spring against the boom's effective
+    mass (sqrt(k / m)), the seal and end-stop damping (c / m), the seals' relaxation when
+    sliding (|v| / (z_ba r)), and the spool lag (1 / tau). An explicit method is stable
+    when dt times this stays inside its stability region (see integrators.Method).
+    """
+    q1, v = y[0], y[1]
+    opening = larger(abs(u), abs(y[4]))  # the spool moves between its position and the command
+    vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
+    slope = c.k_laminar * opening + 2.0 * c.leak
+    # a relief valve counts where the chamber's pressure can reach it within this step
+    stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
+    inflow = c.pump_max_flow  # the most the valve can feed a chamber
+    reach1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
+    reach2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
+    chamber1 = stiff1 * (slope + c.g_relief * reach1)
+    chamber2 = stiff2 * (slope + c.g_relief * reach2)
+    k = lever_rad_per_m(q1, c.a, c.b, xp)
+    mass = c.inertia * k * k  # the boom's inertia at the rod
+    reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
+    contact = (q1 < c.q_min + reach) | (q1 > c.q_max - reach)
+    penetration = pos(c.q_min - q1) + pos(q1 - c.q_max) + reach
+    stiffness = (
+        c.bulk_modulus * (c.s1 * c.s1 / vol1 + c.s2 * c.s2 / vol2)
+        + c.static / c.presliding
+        + c.spring
+        + c.stop_k * contact
+    )
+    damping = (c.presliding_damping + c.viscous + c.stop_damping * penetration * contact) / mass
+    relaxation = abs(v) / (c.presliding * c.coulomb_ratio)
+    rate = larger(chamber1, chamber2)
+    rate = larger(rate, xp.sqrt(stiffness / mass))
+    rate = larger(rate, damping)
+    rate = larger(rate, relaxation)
+    return larger(rate, c.inv_tau + 0.0 * q1)
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
@@ -194,7 +379,8 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
     terms = _terms(y, c, u, xp)
     q1, v, acc = y[0], y[1], terms.acc
     k = lever_rad_per_m(q1, c.a, c.b, xp)
-    floor_margin = c.p_cav * 1e-9 + 1e-6
+    void1 = void_volume_m3(c.bulk_modulus, terms.vol1, y[2], c.p_cav)
+    void2 = void_volume_m3(c.bulk_modulus, terms.vol2, y[3], c.p_cav)
     return {
         "t": t,
         "q1": q1,
@@ -202,20 +388,23 @@ def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> d
         "a": acc,
         "alpha": boom_angle_rad(q1, c.a, c.b, c.h, xp),
         "alpha_rate": k * v,
-        "p1": y[2],
-        "p2": y[3],
+        "p1": terms.p1,
+        "p2": terms.p2,
         "q_in1": terms.q_in1,
         "q_in2": terms.q_in2,
         "f_hyd": terms.f_hyd,
         "f_load": load_force_n(q1, v, acc, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp),
+        "f_friction": terms.f_friction,
         "u": u,
         "x_v": terms.spool,
         "p_supply": terms.p_supply,
         "power": terms.power,
         "supply_energy": y[5],
         "valve_loss_energy": y[6],
-        "at_end_stop": (q1 < c.q_min) | (q1 > c.q_max) | (terms.f_stop != 0.0),
-        "cavitation": (y[2] <= c.p_cav + floor_margin) | (y[3] <= c.p_cav + floor_margin),
+        "void1": void1,
+        "void2": void2,
+        "at_end_stop": (q1 <= c.q_min) | (q1 >= c.q_max),  # in contact (the force starts from zero)
+        "cavitation": (y[2] < c.p_cav) | (y[3] < c.p_cav),
         "relief_open": (terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0),
         "pump_saturated": terms.p_supply < c.p_supply,
     }

@@ -117,6 +117,7 @@ class BoomSimNode(Node):
         self.stopping = threading.Event()
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
+        self._substeps_logged = self.sim.most_substeps  # the substeps the log has told about
         self.pacer = Pacer(self.rate_hz, self.rtf, self.max_catch_up_s)
 
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -373,6 +374,13 @@ class BoomSimNode(Node):
         except SimulationError as exc:
             self.failure = str(exc)
             self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
+        if self.sim.most_substeps > self._substeps_logged:
+            self._substeps_logged = self.sim.most_substeps
+            p = self.sim.params
+            self.get_logger().info(
+                f"stability bound: {p.method} takes {self._substeps_logged} substeps per time step of "
+                f"{p.time_step_s:g} s here (the step and the outputs stay at {p.time_step_s:g} s)"
+            )
 
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
@@ -480,6 +488,8 @@ class BoomSimNode(Node):
                     ", ".join(warnings + notes) or "ok",
                     sim_time_s=f"{self.sim.t:.3f}",
                     paused=self.paused,
+                    substeps_most=self.sim.most_substeps,
+                    energy_residual_j=f"{self.sim.energy_residual():.4g}",
                 )
             )
         pacer = self.pacer

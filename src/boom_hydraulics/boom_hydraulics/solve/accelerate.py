@@ -15,7 +15,6 @@ the interpreted path runs (about 20 times slower per step).
 from __future__ import annotations
 
 import functools
-import math
 import os
 import types
 from collections.abc import Callable
@@ -24,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..model import MODELS, end_stops, friction, geometry, hydraulics, mechanics
-from . import integrators
+from . import integrators, stepping
 
 try:  # numba is optional: the interpreted path gives the same results
     import numba
@@ -55,31 +54,24 @@ def _compiled_namespace(model: types.ModuleType) -> dict[str, Any]:
 
 
 @functools.cache
-def stepper(mode: str, method: str) -> Callable[..., tuple[int, np.ndarray]] | None:
-    """A compiled ``run(t, y, constants, u, dt, substeps, n) -> (steps_done, y)`` or None.
+def stepper(mode: str, method: str) -> Callable[..., tuple[int, int, int, np.ndarray]] | None:
+    """The compiled stepping loop (:func:`stepping.fixed_stepper`) of one model and method, or None.
 
-    It takes ``n`` steps of ``dt`` (each as ``substeps`` steps of ``method``) and projects
-    the state after each (cavitation floor). A step that gives a non-finite state is not
-    taken: the run stops and returns how many steps it completed and the last finite state.
+    ``run(t, y, constants, u, dt, min_substeps, limit, max_substeps, n, energy_index,
+    energy_base) -> (steps taken, outcome, most substeps, y)`` with ``y`` a numpy array.
     """
     if not available() or method not in _STEPS:
         return None
     namespace = _compiled_namespace(MODELS[mode])
-    step, derivative, project = namespace[_STEPS[method]], namespace["derivative"], namespace["project"]
+    loop = numba.njit(
+        stepping.fixed_stepper(
+            namespace[_STEPS[method]], namespace["derivative"], namespace["stiffness_rate"], namespace["energy"]
+        )
+    )
 
     @numba.njit
-    def run(t: float, y0: np.ndarray, c: Any, u: float, dt: float, substeps: int, n: int) -> tuple:
-        y = [v for v in y0]
-        h = dt / substeps
-        for i in range(n):
-            y_new = y
-            for j in range(substeps):
-                y_new = step(derivative, t + i * dt + j * h, y_new, h, (c, u))
-            y_new = project(y_new, c)
-            for v in y_new:
-                if not math.isfinite(v):
-                    return i, np.array(y)
-            y = y_new
-        return n, np.array(y)
+    def run(t: float, y0: np.ndarray, c: Any, u: float, dt: float, *rest: Any) -> tuple:
+        done, outcome, most, y = loop(t, [v for v in y0], c, u, dt, *rest)
+        return done, outcome, most, np.array(y)
 
     return run

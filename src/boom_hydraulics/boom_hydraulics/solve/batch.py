@@ -15,9 +15,9 @@ import numpy as np
 from ..errors import ConfigError
 from ..model import MODELS
 from ..model.parameters import Parameters
-from . import integrators
-from .integrators import FIXED_STEP
-from .simulation import OUTPUT_NAMES
+from . import integrators, stepping
+from .integrators import BATCHED
+from .simulation import MAX_SUBSTEPS, OUTPUT_NAMES
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
 
@@ -37,8 +37,10 @@ def _check_shared(params: Sequence[Parameters]) -> None:
         values = {getattr(p, name) for p in params}
         if len(values) > 1:
             raise ConfigError(f"all parameter sets of a batch must share {name}; got {sorted(map(str, values))}")
-    if first.method not in FIXED_STEP:
-        raise ConfigError(f"batches integrate with a fixed-step method (euler or rk4), not {first.method!r}")
+    if first.method not in BATCHED:
+        raise ConfigError(
+            f"batches integrate with an explicit fixed-step method ({' or '.join(BATCHED)}), not {first.method!r}"
+        )
 
 
 def simulate_batch(
@@ -51,9 +53,14 @@ def simulate_batch(
     """Integrate every parameter set over ``duration_s`` with the valve command ``command(t)``.
 
     Returns each of ``outputs`` (names of :data:`simulation.OUTPUT_NAMES`) as an array of
-    shape (samples, sets), sampled at the start and every ``every`` steps. A set whose
-    state turns non-finite is frozen at its last finite state from then on and reported
-    in ``failed_at_s`` (NaN where the set ran through).
+    shape (samples, sets), sampled at the start and every ``every`` steps. Each time step
+    takes as many substeps as each set's stability bound needs (at least ``substeps``; see
+    stepping.fixed_stepper), as its single run would; the most any set took since the previous
+    sample is reported per sample in ``substeps``. A set whose
+    state turns non-finite, whose energy balance breaks, or that needs more than
+    MAX_SUBSTEPS is frozen at its last good state from then on and reported in
+    ``failed_at_s`` (NaN where the set ran through) and ``failed_why`` (a stepping outcome:
+    NONFINITE, ENERGY or TOO_STIFF; 0 where the set ran through).
     """
     _check_shared(params)
     unknown = sorted(set(outputs) - set(OUTPUT_NAMES))
@@ -65,44 +72,71 @@ def simulate_batch(
     c = stacked_constants(params)
     n_sets = len(params)
     y = [np.array(column, dtype=float) for column in zip(*(model.initial_state(p) for p in params))]
-    dt, substeps = params[0].time_step_s, params[0].substeps
-    step = integrators.rk4_step if params[0].method == "rk4" else integrators.euler_step
+    dt, min_substeps = params[0].time_step_s, params[0].substeps
+    method = integrators.METHODS[params[0].method]
+    step, limit = method.step, method.stability_limit or 0.0
+    energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
     failed_at = np.full(n_sets, np.nan)
+    failed_why = np.zeros(n_sets, dtype=int)
     n_steps = round(duration_s / dt)
     n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
     t = 0.0
     half = 0.5 * dt  # the command of a step is taken at its middle, as in Simulator.run
     first = model.observe(t, y, c, _as_array(command(t + half), n_sets), np)
     columns = {name: np.empty((n_rows, n_sets), dtype=np.asarray(first[name]).dtype) for name in outputs}
+    substeps_column = np.empty(n_rows, dtype=int)
 
-    def record(row: int, values: dict) -> None:
+    def record(row: int, values: dict, substeps: int) -> None:
         for name in outputs:
             columns[name][row] = values[name]
+        substeps_column[row] = substeps
 
-    record(0, first)
-    row = 1
+    record(0, first, min_substeps)
+    row, most = 1, min_substeps
+    base = model.energy(y, c, np) - y[energy_index] if energy_index >= 0 else 0.0
+    running = np.ones(n_sets, dtype=bool)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for i in range(1, n_steps + 1):
             u = _as_array(command(t + half), n_sets)
+            substeps = np.full(n_sets, min_substeps)
+            if limit > 0.0:
+                needed = np.ceil(dt * model.stiffness_rate(y, c, u, dt, np) / limit)
+                _fail(running & (needed > MAX_SUBSTEPS), stepping.TOO_STIFF, t, failed_at, failed_why, running)
+                substeps = np.maximum(substeps, np.where(running, needed, 1).astype(int))
+            most = max(most, int(substeps.max()))
+            h = dt / substeps  # each set steps as its own single run would
             y_new = y
-            h = dt / substeps
-            for j in range(substeps):
-                y_new = step(model.derivative, t + j * h, y_new, h, (c, u, np))
-            y_new = model.project(y_new, c)
-            ok = np.logical_and.reduce([np.isfinite(v) for v in y_new])
-            if not ok.all():
-                newly = ~ok & np.isnan(failed_at)
-                failed_at[newly] = t + dt
-                y = [np.where(ok, new, old) for new, old in zip(y_new, y)]
-            else:
-                y = y_new
+            for j in range(int(substeps.max())):
+                stepped = step(model.derivative, t + j * h, y_new, h, (c, u, np))
+                y_new = (
+                    stepped if j < substeps.min() else [np.where(j < substeps, a, b) for a, b in zip(stepped, y_new)]
+                )
+            finite = np.logical_and.reduce([np.isfinite(v) for v in y_new])
+            _fail(running & ~finite, stepping.NONFINITE, t + dt, failed_at, failed_why, running)
+            if energy_index >= 0:
+                residual = model.energy(y_new, c, np) - y_new[energy_index] - base
+                bound = stepping.ENERGY_TOLERANCE * y_new[energy_index + 1] + stepping.ENERGY_SLACK_J
+                _fail(running & ~(np.abs(residual) <= bound), stepping.ENERGY, t + dt, failed_at, failed_why, running)
+            y = [np.where(running, new, old) for new, old in zip(y_new, y)]
             t = i * dt
             if i % every == 0 or i == n_steps:
-                record(row, model.observe(t, y, c, _as_array(command(t + half), n_sets), np))
+                record(row, model.observe(t, y, c, _as_array(command(t + half), n_sets), np), most)
                 row += 1
+                most = min_substeps
     out = dict(columns)
     out["failed_at_s"] = failed_at
+    out["failed_why"] = failed_why
+    out["substeps"] = substeps_column
     return out
+
+
+def _fail(
+    which: np.ndarray, outcome: int, t: float, failed_at: np.ndarray, failed_why: np.ndarray, running: np.ndarray
+) -> None:
+    """Mark the sets in ``which`` as failed at ``t`` with ``outcome`` and stop them."""
+    failed_at[which] = t
+    failed_why[which] = outcome
+    running &= ~which
 
 
 def _as_array(u: float | np.ndarray, n: int) -> np.ndarray:

@@ -7,9 +7,13 @@ of simulations integrated together), so the same fixed-step code serves both. Me
 - ``euler``: explicit Euler, order 1.
 - ``rk4``: classical Runge-Kutta of order 4, the paper's method (Fig. 7).
 - ``rk45``: Dormand-Prince 5(4) with error control and adaptive internal steps (as
-  scipy's RK45), for stiff stretches where a fixed step would need to be tiny; floats only.
+  scipy's RK45); floats only.
+- ``ros2``: the two-stage Rosenbrock method ROS2 (Verwer et al. 1999), order 2 and
+  L-stable: linearly implicit, with a finite-difference Jacobian. For stiff settings
+  (short hoses, stiff oil) where an explicit method would need tiny steps; floats only.
 
-Fixed-step methods take ``substeps`` internal steps per ``advance``.
+Fixed-step methods take ``substeps`` internal steps per ``advance``; an explicit one is
+stable while its step times the problem's fastest rate stays under its ``stability_limit``.
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
+
+import numpy as np
 
 from ..errors import SimulationError
 
@@ -49,6 +55,31 @@ def rk4_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> 
     k4 = fun(t + h, [yi + h * ki for yi, ki in zip(y, k3)], *args)
     h6 = h / 6.0
     return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
+
+
+#: ROS2's gamma = 1 + 1/sqrt(2): the method is L-stable (its amplification tends to 0 for stiff modes).
+ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
+
+
+def ros2_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
+    """ROS2: (I - g h J) k1 = f(y); (I - g h J) k2 = f(y + h k1) - 2 k1; y + h (3 k1 + k2) / 2.
+
+    J is the Jacobian at y by forward differences; the command is held over the step, so
+    the system is autonomous within it.
+    """
+    n = len(y)
+    f0 = np.array(fun(t, y, *args))
+    matrix = np.empty((n, n))
+    for j in range(n):
+        delta = 1e-7 * max(abs(y[j]), 1e-3)
+        shifted = [y[i] + delta * (i == j) for i in range(n)]
+        column = (np.array(fun(t, shifted, *args)) - f0) / delta
+        for i in range(n):
+            matrix[i, j] = -ROS2_GAMMA * h * column[i] + (i == j)
+    k1 = np.linalg.solve(matrix, f0)
+    stage = [y[i] + h * k1[i] for i in range(n)]
+    k2 = np.linalg.solve(matrix, np.array(fun(t + h, stage, *args)) - 2.0 * k1)
+    return [y[i] + h * (1.5 * k1[i] + 0.5 * k2[i]) for i in range(n)]
 
 
 class FixedStep:
@@ -159,6 +190,11 @@ class Method:
     name: str
     step: Callable[..., list] | None
     description: str
+    #: Largest |h lambda| at which the method is stable for every eigenvalue lambda of the
+    #: problem on the negative real axis and near the imaginary one, with a margin (RK4:
+    #: 2.785 and 2.828; Euler: 2 and none); None for an implicit or adaptive method.
+    stability_limit: float | None = None
+    batched: bool = True  # runs on numpy arrays (one entry per parameter set)
 
     def build(self, substeps: int, rtol: float, atol: Sequence[float]) -> Integrator:
         if self.step is not None:
@@ -168,12 +204,15 @@ class Method:
 
 #: Every integration method, by name (as scipy.integrate's METHODS): the one list of them.
 METHODS: dict[str, Method] = {
-    "euler": Method("euler", euler_step, "explicit Euler, first order"),
-    "rk4": Method("rk4", rk4_step, "classic Runge-Kutta, fourth order (the paper's)"),
-    "rk45": Method("rk45", None, "Dormand-Prince 5(4), adaptive with error control"),
+    "euler": Method("euler", euler_step, "explicit Euler, first order", stability_limit=1.0),
+    "rk4": Method("rk4", rk4_step, "classic Runge-Kutta, fourth order (the paper's)", stability_limit=2.5),
+    "rk45": Method("rk45", None, "Dormand-Prince 5(4), adaptive with error control", batched=False),
+    "ros2": Method("ros2", ros2_step, "Rosenbrock ROS2, second order, L-stable (stiff settings)", batched=False),
 }
-#: The methods with a fixed step: the compiled and the batched paths run these.
+#: The methods with a fixed step: the compiled path runs these.
 FIXED_STEP = tuple(name for name, method in METHODS.items() if method.step is not None)
+#: The methods that integrate a batch of parameter sets at once.
+BATCHED = tuple(name for name, method in METHODS.items() if method.batched)
 
 
 def make(name: str, substeps: int = 1, rtol: float = 1e-6, atol: Sequence[float] = (1e-8,)) -> Integrator:

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..model import MODELS
 from ..model.parameters import Parameters
-from . import accelerate, integrators
+from . import accelerate, integrators, stepping
 
 #: Output names, units and descriptions, in the order of CSV columns.
 OUTPUTS: tuple[tuple[str, str, str], ...] = (
@@ -32,12 +32,15 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("q_in2", "m^3/s", "flow into the rod chamber"),
     ("f_hyd", "N", "hydraulic rod force p1 S1 - p2 S2"),
     ("f_load", "N", "load force of eq. 10"),
+    ("f_friction", "N", "seal friction force, opposing the motion"),
     ("u", "1", "valve command"),
     ("x_v", "1", "spool position applied"),
     ("p_supply", "Pa", "pressure at the valve P port"),
     ("power", "W", "hydraulic power drawn from the supply"),
     ("supply_energy", "J", "energy drawn from the supply"),
     ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),
+    ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
+    ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
     ("at_end_stop", "bool", "rod against an end stop"),
     ("cavitation", "bool", "a chamber at the cavitation floor"),
     ("relief_open", "bool", "a relief valve passes flow"),
@@ -46,6 +49,9 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
 
 _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
+
+#: Most substeps the stability bound may ask for in one time step before a run stops.
+MAX_SUBSTEPS = 10_000
 
 #: Runs of at least this many steps are worth compiling the model for (see accelerate).
 JIT_MIN_STEPS = 100_000
@@ -69,6 +75,7 @@ class Trajectory:
 
     columns: dict[str, np.ndarray]
     stopped: str | None = None  # why the run ended early (run(stop_on_error=True)), else None
+    most_substeps: int = 1  # the most substeps one time step took (the stability bound's doing)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -80,8 +87,11 @@ class Trajectory:
 class Simulator:
     """One boom drive: state, simulated time and integrator for a parameter set.
 
-    ``jit=True`` steps with the numba-compiled model where available (euler and rk4; a
-    few seconds to compile once per process, then about 20 times faster per step).
+    Fixed-step methods split each time step into as many substeps as the model's stability
+    bound needs (at least ``substeps``): ``most_substeps`` tells the most used since the
+    last reset. Every step checks the energy balance (physical mode). ``jit=True`` steps
+    with the numba-compiled model where available (a few seconds to compile once per
+    process, then about 20 times faster per step).
     """
 
     def __init__(self, params: Parameters, jit: bool = False):
@@ -99,8 +109,10 @@ class Simulator:
         self.model = MODELS[params.mode]
         self.constants = self.model.constants(params)
         self.integrator = make_integrator(params)
-        self._derivative = self.model.derivative
-        self._project = self.model.project
+        self._method = integrators.METHODS[params.method]
+        if self._method.step is not None:
+            model = self.model
+            self._run = stepping.fixed_stepper(self._method.step, model.derivative, model.stiffness_rate, model.energy)
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
 
     # --- state --------------------------------------------------------------------------
@@ -122,8 +134,27 @@ class Simulator:
         self.t = self.t if keep_time and hasattr(self, "t") else 0.0
         self.u = 0.0
         self.step_count = 0
+        self.most_substeps = p.substeps
         self._t_base, self._n_base = self.t, 0  # t = t_base + (step_count - n_base) dt, no drift
         self.integrator = make_integrator(p)
+        self._energy_base = self._balance_base(0.0)
+
+    def _balance_base(self, residual_j: float) -> float:
+        """H - W for the current state and constants, so that the balance carries ``residual_j``."""
+        index = self._energy_index
+        if index < 0:
+            return 0.0
+        return self.model.energy(self.y, self.constants) - self.y[index] - residual_j
+
+    @property
+    def _energy_index(self) -> int:
+        return -1 if self.model.ENERGY_STATES is None else self.model.ENERGY_STATES[0]
+
+    def energy_residual(self) -> float:
+        """How far the stored energy's change is from what flowed in and out since reset, J."""
+        if self._energy_index < 0:
+            return 0.0
+        return self.model.energy(self.y, self.constants) - self.y[self._energy_index] - self._energy_base
 
     def set_parameters(self, params: Parameters) -> None:
         """Use ``params`` from the next step on, keeping the state (e.g. a new payload).
@@ -131,11 +162,13 @@ class Simulator:
         A change of ``mode`` changes the state vector, so it resets the simulation.
         """
         mode_changed = params.mode != self.params.mode
+        residual = self.energy_residual()
         self._install(params)
         if mode_changed:
             self.reset(keep_time=True)
         else:
             self._t_base, self._n_base = self.t, self.step_count
+            self._energy_base = self._balance_base(residual)  # H changes with the payload; W does not
 
     def set_payload_mass(self, payload_mass_kg: float) -> None:
         """Change the payload between steps (validated like any parameter)."""
@@ -148,45 +181,56 @@ class Simulator:
         """Advance ``steps`` time steps with the valve command ``u`` held constant."""
         if not math.isfinite(u):
             raise SimulationError(f"valve command must be finite, got {u!r}")
-        if self._compiled is not None:
-            self._step_compiled(u, steps)
+        if self._method.step is None:
+            self._step_adaptive(u, steps)
             return
-        c, derivative, project = self.constants, self._derivative, self._project
-        dt = self.params.time_step_s
-        args = (c, u)
-        advance = self.integrator.advance
+        p = self.params
+        limit = self._method.stability_limit or 0.0
+        args = (self.t, self.y, self.constants, float(u), p.time_step_s, p.substeps, limit, MAX_SUBSTEPS, steps)
+        checks = (self._energy_index, self._energy_base)
+        if self._compiled is not None:
+            done, outcome, most, y = self._compiled(*args[:1], np.array(self.y), *args[2:], *checks)
+            y = y.tolist()
+        else:
+            try:
+                done, outcome, most, y = self._run(*args, *checks)
+            except (ValueError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError) as exc:
+                raise self._evaluation_error(exc) from None
+        self.y = y
+        self.step_count += int(done)
+        self.t = self._t_base + (self.step_count - self._n_base) * p.time_step_s
+        self.u = u
+        if outcome == stepping.TOO_STIFF:
+            raise self._too_stiff_error(int(most))
+        self.most_substeps = max(self.most_substeps, int(most))
+        if outcome == stepping.NONFINITE:
+            raise self._nonfinite_error("the next step")
+        if outcome == stepping.ENERGY:
+            raise self._energy_error()
+        self._check(self.y)
+
+    def _step_adaptive(self, u: float, steps: int) -> None:
+        derivative, dt, args = self.model.derivative, self.params.time_step_s, (self.constants, u)
         for _ in range(steps):
             try:
-                y = project(advance(derivative, self.t, self.y, dt, args), c)
+                y = self.integrator.advance(derivative, self.t, self.y, dt, args)
             except (ValueError, ZeroDivisionError, OverflowError) as exc:
-                # math.acos/sqrt outside their domain: a stage left the geometry of eq. 1
-                raise SimulationError(
-                    f"the model cannot be evaluated near t = {self.t:.6g} s ({self._describe(self.y)}): "
-                    f"{exc}; {self._likely_cause()}"
-                ) from None
-            self._check(y)
+                raise self._evaluation_error(exc) from None
+            if not all(math.isfinite(v) for v in y):
+                raise self._nonfinite_error(self._describe(y))
             self.y = y
             self.step_count += 1
             self.t = self._t_base + (self.step_count - self._n_base) * dt
+            self._check(y)
+            if self._energy_index >= 0:  # the fixed-step loop checks this itself
+                flowed = y[self._energy_index + 1]
+                if abs(self.energy_residual()) > stepping.ENERGY_TOLERANCE * flowed + stepping.ENERGY_SLACK_J:
+                    raise self._energy_error()
         self.u = u
-
-    def _step_compiled(self, u: float, steps: int) -> None:
-        dt = self.params.time_step_s
-        substeps = getattr(self.integrator, "substeps", 1)
-        done, y = self._compiled(self.t, np.array(self.y), self.constants, float(u), dt, substeps, steps)
-        self.y = y.tolist()
-        self.step_count += int(done)
-        self.t = self._t_base + (self.step_count - self._n_base) * dt
-        self.u = u
-        if done < steps:
-            raise self._nonfinite_error("the next step")
-        self._check(self.y)
 
     def _check(self, y: list) -> None:
         p = self.params
         q1 = y[0]
-        if not all(math.isfinite(v) for v in y):
-            raise self._nonfinite_error(self._describe(y))
         if not abs(p.b_m - p.a_m) < q1 < p.a_m + p.b_m:
             raise SimulationError(
                 f"rod left the valid geometry at t = {self.t:.6g} s: q1 = {q1:.6g} m is outside "
@@ -194,26 +238,56 @@ class Simulator:
                 f"degenerates; {self._likely_cause()}"
             )
 
+    def _evaluation_error(self, exc: Exception) -> SimulationError:
+        """math.acos/sqrt outside their domain: a stage left the geometry of eq. 1."""
+        return SimulationError(
+            f"the model cannot be evaluated near t = {self.t:.6g} s ({self._describe(self.y)}): "
+            f"{exc}; {self._likely_cause()}"
+        )
+
     def _likely_cause(self) -> str:
-        """Why a run leaves the geometry: paper mode has no end stops; in physical mode the
-        end stops hold the rod, so the integration itself diverged."""
-        if self.params.mode == "paper":
-            return "the rod is about to leave the valid geometry (paper mode has no end stops)"
+        """Why a run leaves the geometry or blows up: paper mode has no end stops; in physical
+        mode the end stops hold the rod, so the integration itself diverged."""
+        p = self.params
+        if p.mode == "paper":
+            return (
+                f"the rod is about to leave the valid geometry ({abs(p.b_m - p.a_m):.4g}, {p.a_m + p.b_m:.4g}) m "
+                "(paper mode has no end stops)"
+            )
+        return self._step_advice()
+
+    def _step_advice(self) -> str:
+        p = self.params
+        fixes = "a smaller time_step_s or more substeps" + ("" if p.method == "ros2" else ", or method ros2")
         return (
-            f"the integration diverged: time_step_s = {self.params.time_step_s:g} s is too large for "
-            "these parameters; try a smaller time_step_s, more substeps or method rk45"
+            f"the integration diverged: the step of {p.time_step_s:g} s ({p.method}, at least "
+            f"{p.substeps} substeps) is too large for these parameters; try {fixes}"
+        )
+
+    def _energy_error(self) -> SimulationError:
+        tolerance = f"{stepping.ENERGY_TOLERANCE:.0%}"
+        return SimulationError(
+            f"energy balance broken after t = {self.t:.6g} s: the change of the stored energy no longer "
+            f"matches the energy that flowed, by more than {tolerance} ({self._describe(self.y)}); "
+            f"{self._step_advice()}"
+        )
+
+    def _too_stiff_error(self, needed: int) -> SimulationError:
+        p = self.params
+        return SimulationError(
+            f"too stiff at t = {self.t:.6g} s: a stable {p.method} step of {p.time_step_s:g} s needs {needed} "
+            f"substeps, more than {MAX_SUBSTEPS} ({self._describe(self.y)}); use method ros2 (implicit) "
+            "or larger dead volumes, a lower bulk_modulus_pa or a smaller orifice"
         )
 
     def _nonfinite_error(self, what: str) -> SimulationError:
-        p = self.params
         return SimulationError(
             f"state became non-finite after t = {self.t:.6g} s ({what}; last finite state "
-            f"{self._describe(self.y)}; geometry valid in ({abs(p.b_m - p.a_m):.4g}, {p.a_m + p.b_m:.4g}) m); "
-            "try a smaller time_step_s, more substeps or method rk45"
+            f"{self._describe(self.y)}); {self._likely_cause()}"
         )
 
     def _describe(self, y: list) -> str:
-        return ", ".join(f"{n} = {v:.6g}" for n, v in zip(self.model.STATE_NAMES, y))
+        return ", ".join(f"{n} = {v:.6g}" for n, v in zip(self.model.STATE_NAMES[:5], y))
 
     def outputs(self) -> dict[str, float]:
         """Every output (see :data:`OUTPUTS`) at the current state and command."""
@@ -263,7 +337,7 @@ class Simulator:
                 row += 1
         if stopped is not None:
             columns = {name: column[:row] for name, column in columns.items()}
-        return Trajectory(columns, stopped)
+        return Trajectory(columns, stopped, self.most_substeps)
 
 
 def simulate(

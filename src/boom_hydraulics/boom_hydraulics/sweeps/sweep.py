@@ -20,9 +20,10 @@ import numpy as np
 from ..analysis import metrics as analysis
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import NAMES, Parameters, as_dict, from_mapping
-from ..solve import commands
+from ..solve import commands, stepping
 from ..solve.batch import SHARED, simulate_batch
-from ..solve.integrators import FIXED_STEP
+from ..solve.integrators import BATCHED
+from ..solve.simulation import MAX_SUBSTEPS
 from .sampling import Axis, sample_points
 
 #: Model outputs the metrics need.
@@ -136,10 +137,10 @@ def plan(
         except ConfigError as exc:
             raise ConfigError(f"scenario {scenario!r} does not fit config {name!r}: {exc}") from None
     for base_name, base in bases:
-        if base.method not in FIXED_STEP:
+        if base.method not in BATCHED:
             raise ConfigError(
-                f"config {base_name!r} uses method {base.method!r}; sweeps integrate with a fixed step "
-                "(euler or rk4): set method: rk4"
+                f"config {base_name!r} uses method {base.method!r}; sweeps integrate with an explicit "
+                f"fixed step ({' or '.join(BATCHED)}): set method: rk4"
             )
     samples = sample_points(axes, sample, count, seed)
     columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
@@ -190,16 +191,27 @@ def _hashable(value: Any) -> Any:
     return tuple(value) if isinstance(value, list) else value
 
 
-def _failure_reason(p: Parameters, failed_at_s: float, q1_m: float) -> str:
+def _failure_reason(p: Parameters, failed_at_s: float, why: int, q1_m: float) -> str:
     low, high = abs(p.b_m - p.a_m), p.a_m + p.b_m
     if p.mode == "paper" and (q1_m > high - 0.01 or q1_m < low + 0.01):
         return (
             f"rod left the valid geometry at t = {failed_at_s:.4g} s (q1 = {q1_m:.4g} m, valid in "
             f"({low:.4g}, {high:.4g}) m; paper mode has no end stops)"
         )
+    step = f"time_step_s = {p.time_step_s:g} s with {p.method}"
+    if why == stepping.TOO_STIFF:
+        return (
+            f"too stiff at t = {failed_at_s:.4g} s: a stable {step} needs more than "
+            f"{MAX_SUBSTEPS} substeps (last q1 = {q1_m:.4g} m)"
+        )
+    if why == stepping.ENERGY:
+        return (
+            f"energy balance broken at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
+            f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
+        )
     return (
-        f"state became non-finite at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m); "
-        "try a smaller time_step_s or more substeps"
+        f"state became non-finite at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
+        f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
     )
 
 
@@ -225,7 +237,10 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
         m = analysis.metrics(one, lift_angle_deg=batch.lift_angle_deg)
         values[k] = [m[name] for name in METRIC_NAMES]
         if math.isfinite(failed_at[k]):
-            status, reason = "failed", _failure_reason(params[k], float(failed_at[k]), float(one["q1"][-1]))
+            status, reason = (
+                "failed",
+                _failure_reason(params[k], float(failed_at[k]), int(signals["failed_why"][k]), float(one["q1"][-1])),
+            )
         elif not m["lift_completed"]:
             status = "incomplete"
             reason = f"rose {m['rise_deg']:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"

@@ -1,0 +1,84 @@
+"""The fixed-step loop: stability-bound substeps and the energy-balance guard.
+
+The loop that :func:`fixed_stepper` builds takes ``n`` time steps of ``dt`` with a fixed-step method.
+Before each step it asks the model for its fastest rate (``stiffness_rate``) and splits the
+step into as many substeps as the method's stability limit needs (at least ``min_substeps``),
+so that ``dt`` stays the output and command step whatever the parameters. After each step it
+checks that the state is finite and that the stored energy changed by what the model says
+flowed (the energy balance); a step that fails either is not taken.
+
+It is written in the subset of Python that numba compiles, so the interpreted and the
+compiled paths (see accelerate) run this same code.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+#: Outcomes of the stepping loop.
+OK, NONFINITE, ENERGY, TOO_STIFF = 0, 1, 2, 3
+
+#: The energy balance may be off by this fraction of the energy that changed hands ...
+ENERGY_TOLERANCE = 0.01
+#: ... plus this much, J (so that a run at rest never trips on rounding).
+ENERGY_SLACK_J = 1.0
+
+
+def fixed_stepper(
+    step: Callable[..., list],
+    derivative: Callable[..., list],
+    stiffness_rate: Callable[..., float],
+    energy: Callable[..., float],
+) -> Callable[..., tuple[int, int, int, list]]:
+    """The stepping loop of one method and model (a closure, so that numba compiles the
+    four functions into it as constants and inlines them).
+
+    ``run(t0, y, c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base)``
+    takes up to ``n`` steps of ``dt`` from ``y`` at ``t0`` with valve command ``u``.
+    ``limit`` is the method's stability limit on dt * rate (0: no automatic substeps);
+    ``energy_index`` the index of W in the state (-1: no energy check) and ``energy_base``
+    the value of H - W that the balance keeps. It returns (steps taken, outcome, most
+    substeps used in one step, state after the steps taken); on TOO_STIFF the third value
+    is the number of substeps the step would have needed.
+    """
+
+    def run(
+        t0: float,
+        y: list,
+        c: Any,
+        u: float,
+        dt: float,
+        min_substeps: int,
+        limit: float,
+        max_substeps: int,
+        n: int,
+        energy_index: int,
+        energy_base: float,
+    ) -> tuple[int, int, int, list]:
+        most = min_substeps
+        for i in range(n):
+            substeps = min_substeps
+            if limit > 0.0:
+                needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
+                if needed > max_substeps:
+                    return i, TOO_STIFF, needed, y
+                substeps = max(substeps, needed)
+            most = max(most, substeps)
+            h = dt / substeps
+            t = t0 + i * dt
+            y_new = y
+            for j in range(substeps):
+                y_new = step(derivative, t + j * h, y_new, h, (c, u))
+            for value in y_new:
+                if not math.isfinite(value):
+                    return i, NONFINITE, most, y
+            if energy_index >= 0:
+                residual = energy(y_new, c) - y_new[energy_index] - energy_base
+                if abs(residual) > ENERGY_TOLERANCE * y_new[energy_index + 1] + ENERGY_SLACK_J:
+                    return i, ENERGY, most, y
+            y = y_new
+        return n, OK, most, y
+
+    return run
