@@ -20,6 +20,7 @@ class Model(Protocol):
     STATE_NAMES: tuple[str, ...]  # the components of y, in order
     STATE_SCALES: tuple[str, ...]  # the scale of each component for error control (length, pressure, ...)
     ENERGY_STATES: tuple[int, int] | None  # indices of W = integral of dH/dt and of |dH/dt|, or None
+    STABILITY_BOUND: bool  # whether the stepping takes the substeps stiffness_rate asks for
 
     def constants(self, p: Parameters) -> Any:
         """Everything the derivative needs from the parameters, computed once (a NamedTuple)."""

@@ -28,6 +28,8 @@ STATE_NAMES = ("q1", "v", "p1", "supply_energy", "valve_loss_energy")
 STATE_SCALES = ("length", "velocity", "pressure", "energy", "energy")
 #: The listing conserves no energy (its eq. 16 carries a factor 1/2): no balance to check.
 ENERGY_STATES = None
+#: The listing steps at the user's step: no substeps from a stability bound.
+STABILITY_BOUND = False
 
 
 class Constants(NamedTuple):
@@ -141,7 +143,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
 
 
 def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = math) -> Num:
-    """Paper mode steps as the listing does, at the user's step: no stability bound (0)."""
+    """Paper mode steps as the listing does, at the user's step: no stability bound (see STABILITY_BOUND)."""
     return 0.0 * y[0]
 
 

@@ -65,6 +65,8 @@ STATE_NAMES = (
 STATE_SCALES = ("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy")
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
 ENERGY_STATES = (8, 9)
+#: The stepping takes the substeps that :func:`stiffness_rate` asks for.
+STABILITY_BOUND = True
 
 #: Spool opening towards lowering at which the pilot has fully opened the load-holding valve.
 PILOT_FULL_OPENING = 0.05

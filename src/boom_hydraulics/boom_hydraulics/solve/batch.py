@@ -74,7 +74,7 @@ def simulate_batch(
     y = [np.array(column, dtype=float) for column in zip(*(model.initial_state(p) for p in params))]
     dt, min_substeps = params[0].time_step_s, params[0].substeps
     method = integrators.METHODS[params[0].method]
-    step, limit = method.step, method.stability_limit or 0.0
+    step, limit = method.step, (method.stability_limit or 0.0) if model.STABILITY_BOUND else 0.0
     energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
     failed_at = np.full(n_sets, np.nan)
     failed_why = np.zeros(n_sets, dtype=int)

@@ -110,6 +110,7 @@ class Simulator:
         self.constants = self.model.constants(params)
         self.integrator = make_integrator(params)
         self._method = integrators.METHODS[params.method]
+        self._limit = (self._method.stability_limit or 0.0) if self.model.STABILITY_BOUND else 0.0
         if self._method.step is not None:
             model = self.model
             self._run = stepping.fixed_stepper(self._method.step, model.derivative, model.stiffness_rate, model.energy)
@@ -185,8 +186,7 @@ class Simulator:
             self._step_adaptive(u, steps)
             return
         p = self.params
-        limit = self._method.stability_limit or 0.0
-        args = (self.t, self.y, self.constants, float(u), p.time_step_s, p.substeps, limit, MAX_SUBSTEPS, steps)
+        args = (self.t, self.y, self.constants, float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
         checks = (self._energy_index, self._energy_base)
         if self._compiled is not None:
             done, outcome, most, y = self._compiled(*args[:1], np.array(self.y), *args[2:], *checks)
