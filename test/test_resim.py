@@ -20,6 +20,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics.bags.reading import read_drive_states  # noqa: E402
+from boom_hydraulics.cli import resim  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_RESIM = shutil.which("boom-resim")
@@ -91,6 +92,25 @@ def test_what_if_a_heavier_payload(recorded, tmp_path):
     lift = lambda s: s["q1"].max() - s["q1"][0]  # noqa: E731
     assert lift(heavy) < lift(original)  # same commands, slower lift
     assert heavy["p1"].max() > original["p1"][: len(heavy["p1"])].max() - 1.0
+
+
+def test_a_bag_from_an_earlier_model_is_resimulated_without_its_retired_parameters(
+    recorded, tmp_path, monkeypatch, capsys
+):
+    """Bags recorded before the LuGre friction and Hunt-Crossley stops hold
+    friction_smoothing_velocity_m_s and end_stop_damping_n_s_m: they are named and left out."""
+    read_run = resim.read_run
+
+    def older(bag):
+        run = read_run(bag)
+        run.parameters.update(friction_smoothing_velocity_m_s=0.001, end_stop_damping_n_s_m=2e6)
+        return run
+
+    monkeypatch.setattr(resim, "read_run", older)
+    out, count = resim.resimulate(recorded, tmp_path / "again")
+    assert count > 300 and out.exists()
+    note = capsys.readouterr().err
+    assert "end_stop_damping_n_s_m, friction_smoothing_velocity_m_s" in note and "left out" in note
 
 
 @pytest.mark.parametrize(

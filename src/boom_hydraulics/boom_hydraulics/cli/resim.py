@@ -204,6 +204,14 @@ def resimulate(
         raise ConfigError(f"--out {out} exists already; name a new bag folder")
     run = read_run(bag)
     values = dict(run.parameters) if config_file is None else config.read_values(config_file)
+    retired = sorted(name for name in values if name not in NAMES) if config_file is None else []
+    if retired:  # recorded by an earlier version of the model: what it no longer has cannot apply
+        print(
+            f"boom-resim: note: {bag} holds parameters this version no longer has ({', '.join(retired)}); "
+            "they are left out, and the model's defaults stand in for what replaced them",
+            file=sys.stderr,
+        )
+        values = {name: value for name, value in values.items() if name in NAMES}
     values.update(dict(overrides))
     resim = _Resimulation(run, values, overrides)
     params = resim.sim.params
