@@ -30,7 +30,7 @@ try:  # numba is optional: the interpreted path gives the same results
 except ImportError:  # pragma: no cover - exercised on machines without numba
     numba = None
 
-_ELEMENTS = (geometry, hydraulics, friction, end_stops, mechanics, integrators)
+_ELEMENTS = (geometry, hydraulics, friction, end_stops, mechanics, integrators, stepping)
 _STEPS = {name: method.step.__name__ for name, method in integrators.METHODS.items() if method.step is not None}
 
 
@@ -65,7 +65,11 @@ def stepper(mode: str, method: str) -> Callable[..., tuple[int, int, int, np.nda
     namespace = _compiled_namespace(MODELS[mode])
     loop = numba.njit(
         stepping.fixed_stepper(
-            namespace[_STEPS[method]], namespace["derivative"], namespace["stiffness_rate"], namespace["energy"]
+            namespace[_STEPS[method]],
+            namespace["derivative"],
+            namespace["stiffness_rate"],
+            namespace["energy"],
+            namespace["balance_broken"],
         )
     )
 

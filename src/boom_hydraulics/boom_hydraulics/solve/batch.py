@@ -114,9 +114,9 @@ def simulate_batch(
             finite = np.logical_and.reduce([np.isfinite(v) for v in y_new])
             _fail(running & ~finite, stepping.NONFINITE, t + dt, failed_at, failed_why, running)
             if energy_index >= 0:
-                residual = model.energy(y_new, c, np) - y_new[energy_index] - base
-                bound = stepping.ENERGY_TOLERANCE * y_new[energy_index + 1] + stepping.ENERGY_SLACK_J
-                _fail(running & ~(np.abs(residual) <= bound), stepping.ENERGY, t + dt, failed_at, failed_why, running)
+                stored, flowed, flowed_abs = model.energy(y_new, c, np), y_new[energy_index], y_new[energy_index + 1]
+                broken = stepping.balance_broken(stored, flowed, flowed_abs, base) | np.isnan(stored)
+                _fail(running & broken, stepping.ENERGY, t + dt, failed_at, failed_why, running)
             y = [np.where(running, new, old) for new, old in zip(y_new, y)]
             t = i * dt
             if i % every == 0 or i == n_steps:

@@ -26,14 +26,22 @@ ENERGY_TOLERANCE = 0.01
 ENERGY_SLACK_J = 1.0
 
 
+def balance_broken(stored_j: Any, flowed_j: Any, flowed_abs_j: Any, base_j: Any) -> Any:
+    """True where the stored energy H no longer matches H0 + W (floats or arrays alike):
+    |H - W - (H0 - W0)| > ENERGY_TOLERANCE |W| + ENERGY_SLACK_J."""
+    return abs(stored_j - flowed_j - base_j) > ENERGY_TOLERANCE * flowed_abs_j + ENERGY_SLACK_J
+
+
 def fixed_stepper(
     step: Callable[..., list],
     derivative: Callable[..., list],
     stiffness_rate: Callable[..., float],
     energy: Callable[..., float],
+    broken: Callable[..., bool] = balance_broken,
 ) -> Callable[..., tuple[int, int, int, list]]:
     """The stepping loop of one method and model (a closure, so that numba compiles the
-    four functions into it as constants and inlines them).
+    functions into it as constants and inlines them; ``broken`` is :func:`balance_broken`,
+    compiled for the compiled loop).
 
     ``run(t0, y, c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base)``
     takes up to ``n`` steps of ``dt`` from ``y`` at ``t0`` with valve command ``u``.
@@ -74,10 +82,10 @@ def fixed_stepper(
             for value in y_new:
                 if not math.isfinite(value):
                     return i, NONFINITE, most, y
-            if energy_index >= 0:
-                residual = energy(y_new, c) - y_new[energy_index] - energy_base
-                if abs(residual) > ENERGY_TOLERANCE * y_new[energy_index + 1] + ENERGY_SLACK_J:
-                    return i, ENERGY, most, y
+            if energy_index >= 0 and broken(
+                energy(y_new, c), y_new[energy_index], y_new[energy_index + 1], energy_base
+            ):
+                return i, ENERGY, most, y
             y = y_new
         return n, OK, most, y
 
