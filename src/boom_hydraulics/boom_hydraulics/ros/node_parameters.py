@@ -219,7 +219,9 @@ def usage() -> str:
         star = "*" if name in START_ONLY else " "
         lines.append(f"  {star} {name:<22} {value!s:<10} {unit:<5} {text}")
     lines += ["", "Model parameters (config/default.yaml lists them; ros2 param describe gives ranges):"]
+    width = max(map(len, NAMES))
+    defaults = {name: str(describe(name)["default"]) for name in NAMES}
+    value_width = max(map(len, defaults.values()))
     for name in NAMES:
-        meta = describe(name)
-        lines.append(f"    {name:<32} {meta['default']!s:<10} {meta['unit']}")
+        lines.append(f"    {name:<{width}} {defaults[name]:<{value_width}} {describe(name)['unit']}")
     return "\n".join(lines)
