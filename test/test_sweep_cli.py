@@ -89,7 +89,7 @@ def test_resume_reuses_finished_batches_and_runs_only_the_rest(tmp_path):
     first = _sweep(*FOUR_POINTS, "--batch-size", "1", "--out", out)
     assert first.returncode == 0, first.stderr
     complete = _load(out / "results.npz")
-    batches = sorted((out / "batches").glob("*.npz"))
+    batches = sorted((out / "batches").glob("[0-9]*.npz"))
     assert len(batches) == 4
     for path in batches[2:]:
         path.unlink()
@@ -120,12 +120,13 @@ def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(
     args = ["--vary", "payload=0:200:8", "--duration", "2", "--batch-size", "1", "--no-plots", "--out", out]
     process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
-    while not list((out / "batches").glob("*.npz")) and time.monotonic() < deadline:
+    # finished batches only: a batch being written is a hidden .partial.npz until it is whole
+    while not list((out / "batches").glob("[0-9]*.npz")) and time.monotonic() < deadline:
         time.sleep(0.1)
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stderr
-    kept = list((out / "batches").glob("*.npz"))
+    kept = list((out / "batches").glob("[0-9]*.npz"))
     assert 1 <= len(kept) < 8
     assert "--resume" in stderr and str(out) in stderr
     assert not (out / "results.csv").exists()
