@@ -352,10 +352,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     # a relief valve counts where the chamber's pressure can reach it within this step
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
     inflow = c.pump_max_flow  # the most the valve can feed a chamber
-    reach1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
-    reach2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
-    chamber1 = stiff1 * (slope + c.g_relief * reach1)
-    chamber2 = stiff2 * (slope + c.g_relief * reach2)
+    relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
+    relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
+    chamber1 = stiff1 * (slope + c.g_relief * relief_near1)
+    chamber2 = stiff2 * (slope + c.g_relief * relief_near2)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     mass = c.inertia * k * k  # the boom's inertia at the rod
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts

@@ -138,14 +138,8 @@ class Simulator:
         self.most_substeps = p.substeps
         self._t_base, self._n_base = self.t, 0  # t = t_base + (step_count - n_base) dt, no drift
         self.integrator = make_integrator(p)
-        self._energy_base = self._balance_base(0.0)
-
-    def _balance_base(self, residual_j: float) -> float:
-        """H - W for the current state and constants, so that the balance carries ``residual_j``."""
-        index = self._energy_index
-        if index < 0:
-            return 0.0
-        return self.model.energy(self.y, self.constants) - self.y[index] - residual_j
+        self._energy_base = 0.0
+        self._energy_base = self.energy_residual()  # H - W at rest: the balance starts at zero
 
     @property
     def _energy_index(self) -> int:
@@ -169,7 +163,8 @@ class Simulator:
             self.reset(keep_time=True)
         else:
             self._t_base, self._n_base = self.t, self.step_count
-            self._energy_base = self._balance_base(residual)  # H changes with the payload; W does not
+            # H changes with the payload, W does not: the balance carries on from where it was
+            self._energy_base += self.energy_residual() - residual
 
     def set_payload_mass(self, payload_mass_kg: float) -> None:
         """Change the payload between steps (validated like any parameter)."""
@@ -186,14 +181,14 @@ class Simulator:
             self._step_adaptive(u, steps)
             return
         p = self.params
-        args = (self.t, self.y, self.constants, float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
-        checks = (self._energy_index, self._energy_base)
+        rest = (self.constants, float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
+        rest += (self._energy_index, self._energy_base)
         if self._compiled is not None:
-            done, outcome, most, y = self._compiled(*args[:1], np.array(self.y), *args[2:], *checks)
+            done, outcome, most, y = self._compiled(self.t, np.array(self.y), *rest)
             y = y.tolist()
         else:
             try:
-                done, outcome, most, y = self._run(*args, *checks)
+                done, outcome, most, y = self._run(self.t, self.y, *rest)
             except (ValueError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError) as exc:
                 raise self._evaluation_error(exc) from None
         self.y = y
