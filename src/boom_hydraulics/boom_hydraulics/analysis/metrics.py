@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -163,4 +164,52 @@ def metrics(
             out["oscillation_hz"], out["damping_ratio"] = oscillation(t[hold], np.asarray(signals["p1"], float)[hold])
     if "alpha" in signals:
         out.update(lift_metrics(signals, lift_angle_deg))
+    return out
+
+
+def step_response(
+    times_s: np.ndarray, angles_rad: np.ndarray, target_rad: float, start_rad: float, band: float = 0.02
+) -> dict[str, float]:
+    """Figures of a closed-loop move from ``start_rad`` to ``target_rad``:
+
+    - ``settling_s``: from the first sample until the angle stays within +-``band`` of the
+      step around the target (NaN if it is outside at the end);
+    - ``overshoot``: how far it passed the target, as a fraction of the step;
+    - ``final_error_rad``: target minus angle at the last sample.
+    """
+    t, a = np.asarray(times_s, dtype=float), np.asarray(angles_rad, dtype=float)
+    step = target_rad - start_rad
+    error = a - target_rad
+    outside = np.nonzero(np.abs(error) > band * abs(step))[0]
+    if not len(outside):
+        settle = 0.0
+    elif outside[-1] + 1 >= len(t):
+        settle = math.nan
+    else:
+        settle = float(t[outside[-1] + 1] - t[0])
+    past = max(0.0, float(np.max(math.copysign(1.0, step) * error)))
+    return {"settling_s": settle, "overshoot": past / abs(step) if step else 0.0, "final_error_rad": -float(error[-1])}
+
+
+def move_metrics(p: Any, signals: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """The first move of a closed-loop ``angle`` scenario (Parameters ``p``): from its time until
+    the next move's (or the end), with :func:`step_response`'s figures in degrees. NaN for an
+    open-loop scenario."""
+    out = dict.fromkeys(("start_deg", "target_deg", "settling_s", "target_overshoot_deg", "target_error_deg"), math.nan)
+    if p.command_profile != "angle":
+        return out
+    t, alpha = np.asarray(signals["t"], dtype=float), np.asarray(signals["alpha"], dtype=float)
+    end_s = p.command_times_s[1] if len(p.command_times_s) > 1 else math.inf
+    window = (t >= p.command_times_s[0]) & (t < end_s)
+    if not window.any():
+        return out
+    start, target = float(alpha[window][0]), p.command_angles_rad[0]
+    figures = step_response(t[window], alpha[window], target, start)
+    out.update(
+        start_deg=math.degrees(start),
+        target_deg=math.degrees(target),
+        settling_s=figures["settling_s"],
+        target_overshoot_deg=math.degrees(figures["overshoot"] * abs(target - start)),
+        target_error_deg=math.degrees(figures["final_error_rad"]),
+    )
     return out

@@ -3,6 +3,7 @@
     boom-sim run --config config/default.yaml --duration 5 --out run.csv
     boom-sim run --config config/paper_fig8.yaml --duration 1.5 --method euler --dt 1e-4 --out e.csv
     boom-sim run --config config/default.yaml --profile steps:0=1,3=0,4=-1 --duration 7 --out cycle.csv
+    boom-sim run --config config/default.yaml --target-angle-deg 30 --duration 4 --out move.csv
     boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
 
 Errors in arguments, configs or the run print one line and exit non-zero.
@@ -20,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis import studies
+from ..analysis.metrics import move_metrics
 from ..errors import ConfigError
 from ..files import check_apart, csv_cell, write_csv
 from ..model import config
@@ -33,8 +35,14 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
     """Config file (or defaults) plus --set, --profile, --method and --dt, validated at once."""
     check_apart(Path(args.out), [args.config] if args.config else [])
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
+    if getattr(args, "profile", None) and getattr(args, "target_angle_deg", None) is not None:
+        raise ConfigError("give either --profile or --target-angle-deg, not both")
     if getattr(args, "profile", None):
         overrides.update(commands.parse_profile(args.profile))
+    if getattr(args, "target_angle_deg", None) is not None:
+        if not math.isfinite(args.target_angle_deg):
+            raise ConfigError(f"--target-angle-deg must be a finite angle in degrees, got {args.target_angle_deg}")
+        overrides.update(commands.parse_profile(f"angle:0={args.target_angle_deg!r}", "--target-angle-deg"))
     if getattr(args, "method", None):
         overrides["method"] = args.method
     if getattr(args, "dt", None) is not None:
@@ -64,7 +72,20 @@ def cmd_run(args: argparse.Namespace) -> int:
             else ""
         )
     )
+    if params.command_profile == "angle":
+        print(_move_summary(params, trajectory))
     return 0
+
+
+def _move_summary(params: Parameters, trajectory: Any) -> str:
+    """One line on the closed loop's first move: target, settling, overshoot, final error."""
+    m = move_metrics(params, trajectory.columns)
+    settle = m["settling_s"]
+    return (
+        f"closed loop: {m['start_deg']:.2f} -> {m['target_deg']:.2f} deg, "
+        + (f"settled within 2 % in {settle:.3f} s" if math.isfinite(settle) else "not settled within 2 %")
+        + f", overshoot {m['target_overshoot_deg']:.3f} deg, final error {m['target_error_deg']:.3f} deg"
+    )
 
 
 def statics_table(params: Parameters, diameters_m: Sequence[float], points: int) -> tuple[list[str], np.ndarray]:
@@ -111,7 +132,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--dt", type=float, help="time step in s (default: config)")
     run.add_argument("--every", type=int, default=1, help="write every N-th step (default 1)")
     run.add_argument(
-        "--profile", help="valve command: constant:U | steps:T=U,... | ramp:T=U,... | sine:OFFSET,AMPLITUDE,FREQ_HZ"
+        "--profile",
+        help="valve command: constant:U | steps:T=U,... | ramp:T=U,... | sine:OFFSET,AMPLITUDE,FREQ_HZ, or "
+        "closed loop: angle:T=DEG,... (at time T, move the boom to DEG degrees)",
+    )
+    run.add_argument(
+        "--target-angle-deg",
+        type=float,
+        metavar="DEG",
+        help="closed loop: move the boom to DEG degrees at control_max_speed_rad_s and hold it "
+        "(the same as --profile angle:0=DEG)",
     )
     run.set_defaults(handler=cmd_run)
 

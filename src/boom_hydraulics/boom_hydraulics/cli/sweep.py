@@ -80,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     how.add_argument(
         "--scenario",
         default="lift",
-        help="lift (open for half the run, then hold), lift:T, cycle, config, or a profile such as steps:0=1,2=0",
+        help="lift (open for half the run, then hold), lift:T, cycle, config, a profile such as steps:0=1,2=0, "
+        "or a closed-loop move such as angle:0=30 (lift to 30 degrees under position control and hold)",
     )
     how.add_argument("--duration", type=float, default=5.0, help="simulated seconds per point")
     how.add_argument("--lift-angle-deg", type=float, default=20.0, help="boom rise that completes a lift")

@@ -21,10 +21,11 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..solve.integrators import METHODS as _METHODS
+from .geometry import boom_angle_rad
 
 MODES = ("physical", "paper")
 METHODS = tuple(_METHODS)  # the solver's registry of integration methods
-COMMAND_PROFILES = ("constant", "steps", "ramp", "sine")
+COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 
 #: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
 #: End stops are spring-dampers; the rod may press a little into them.
@@ -266,12 +267,43 @@ class Parameters:
     )
     relief_rated_flow_m3_s: float = _param(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
+    # --- closed-loop position control (see model/control.py) ------------------------------
+    control_position_gain_1_rad: float = _param(
+        4.0, "1/rad", "Kp: valve opening per rad of boom-angle error; physical mode", low=0.0, high=1000.0
+    )
+    control_integral_gain_1_rad_s: float = _param(
+        2.0,
+        "1/(rad s)",
+        "Ki: valve opening per rad s of integrated angle error (anti-windup: it grows only within 2 degrees "
+        "of the setpoint and while the valve is not saturated)",
+        low=0.0,
+        low_inclusive=True,
+        high=1000.0,
+    )
+    control_deadband_rad: float = _param(
+        0.002,
+        "rad",
+        "With the setpoint at rest, the valve closes once the angle error is inside this and opens again "
+        "beyond twice it (the load-holding valve holds the boom; no chatter)",
+        low=0.0,
+        low_inclusive=True,
+        high=0.5,
+    )
+    control_max_speed_rad_s: float = _param(
+        0.3,
+        "rad/s",
+        "Peak boom rate of a move to a target angle (MoveBoom default, angle scenario)",
+        low=0.0,
+        high=10.0,
+    )
+
     # --- valve command profile (the headless scenario) -----------------------------------
     command_profile: str = _param(
         "constant",
         "",
         "Valve command over time: constant, steps (hold each value from its time), "
-        "ramp (linear between points) or sine",
+        "ramp (linear between points), sine, or angle (closed loop: move the boom to command_angles_rad "
+        "at command_times_s)",
         choices=COMMAND_PROFILES,
     )
     command_value: float = _param(
@@ -282,6 +314,14 @@ class Parameters:
     )
     command_values: list = _param(  # noqa: RUF009
         [1.0], "", "Openings at command_times_s, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
+    )
+    command_angles_rad: list = _param(  # noqa: RUF009
+        [0.5236],
+        "rad",
+        "Angle profile: boom-angle targets at command_times_s, each reached by a move at up to control_max_speed_rad_s",
+        low=-1.6,
+        low_inclusive=True,
+        high=1.6,
     )
     command_offset: float = _param(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
     command_amplitude: float = _param(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
@@ -409,6 +449,9 @@ def _check_cross_fields(p: Parameters) -> None:
             f"({p.coulomb_friction_n} N): breakaway friction is the larger one"
         )
     times, values = p.command_times_s, p.command_values
+    if p.command_profile == "angle":
+        _check_angle_profile(p)
+        return
     if p.command_profile in ("steps", "ramp"):
         if len(times) != len(values) or not times:
             raise ConfigError(
@@ -430,6 +473,28 @@ def _check_cross_fields(p: Parameters) -> None:
                 f"valve opening {u!r} of command_profile '{p.command_profile}' is outside "
                 f"[{low_u:g}, 1] ({p.mode} mode"
                 + (": the paper's valve only connects pump to piston chamber)" if p.mode == "paper" else ")")
+            )
+
+
+def _check_angle_profile(p: Parameters) -> None:
+    """The closed-loop angle scenario: physical mode, one target per time, targets within the stroke."""
+    times, angles = p.command_times_s, p.command_angles_rad
+    if p.mode != "physical":
+        raise ConfigError("command_profile 'angle' (closed-loop control) needs mode: physical")
+    if len(times) != len(angles) or not times:
+        raise ConfigError(
+            f"command_times_s ({len(times)} values) and command_angles_rad ({len(angles)} values) "
+            "must be non-empty and of equal length"
+        )
+    if any(t1 <= t0 for t0, t1 in itertools.pairwise(times)):
+        raise ConfigError(f"command_times_s must be strictly increasing, got {times}")
+    low = boom_angle_rad(p.cylinder_min_length_m, p.a_m, p.b_m, p.support_height_m)
+    high = boom_angle_rad(p.cylinder_max_length_m, p.a_m, p.b_m, p.support_height_m)
+    for angle in angles:
+        if not low <= angle <= high:
+            raise ConfigError(
+                f"target boom angle {angle:.4g} rad ({math.degrees(angle):.2f} deg) lies outside the stroke's "
+                f"[{low:.4g}, {high:.4g}] rad ([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
             )
 
 

@@ -50,7 +50,8 @@ def simulate_batch(
     every: int = 1,
     outputs: Sequence[str] = OUTPUT_NAMES,
 ) -> dict[str, np.ndarray]:
-    """Integrate every parameter set over ``duration_s`` with the valve command ``command(t)``.
+    """Integrate every parameter set over ``duration_s`` with the valve command ``command(t)``
+    (a feedback command, see :class:`closed_loop.PositionLoop`: ``command(t, y)``).
 
     Returns each of ``outputs`` (names of :data:`simulation.OUTPUT_NAMES`) as an array of
     shape (samples, sets), sampled at the start and every ``every`` steps. Each time step
@@ -82,7 +83,13 @@ def simulate_batch(
     n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
     t = 0.0
     half = 0.5 * dt  # the command of a step is taken at its middle, as in Simulator.run
-    first = model.observe(t, y, c, _as_array(command(t + half), n_sets), np)
+    feedback = getattr(command, "feedback", False)
+
+    def opening(at_s: float) -> np.ndarray:
+        """The command at ``at_s``; a feedback command reads the state of the step's start."""
+        return _as_array(command(at_s, y) if feedback else command(at_s), n_sets)
+
+    first = model.observe(t, y, c, opening(t + half), np)
     columns = {name: np.empty((n_rows, n_sets), dtype=np.asarray(first[name]).dtype) for name in outputs}
     substeps_column = np.empty(n_rows, dtype=int)
 
@@ -97,7 +104,7 @@ def simulate_batch(
     running = np.ones(n_sets, dtype=bool)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for i in range(1, n_steps + 1):
-            u = _as_array(command(t + half), n_sets)
+            u = opening(t + half)
             substeps = np.full(n_sets, min_substeps)
             if limit > 0.0:
                 needed = np.ceil(dt * model.stiffness_rate(y, c, u, dt, np) / limit)
@@ -120,7 +127,7 @@ def simulate_batch(
             y = [np.where(running, new, old) for new, old in zip(y_new, y)]
             t = i * dt
             if i % every == 0 or i == n_steps:
-                record(row, model.observe(t, y, c, _as_array(command(t + half), n_sets), np), most)
+                record(row, model.observe(t, y, c, opening(t + half), np), most)
                 row += 1
                 most = min_substeps
     out = dict(columns)

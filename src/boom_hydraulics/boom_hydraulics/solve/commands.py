@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..errors import ConfigError
@@ -49,7 +49,12 @@ def sine(offset: float, amplitude: float, frequency_hz: float) -> CommandProfile
 
 
 def from_parameters(p: Parameters) -> CommandProfile:
-    """The profile that the ``command_*`` parameters describe."""
+    """The profile that the ``command_*`` parameters describe (the ``angle`` profile: a
+    feedback command, see :class:`closed_loop.PositionLoop`)."""
+    if p.command_profile == "angle":
+        from .closed_loop import PositionLoop
+
+        return PositionLoop.of_parameters([p])
     if p.command_profile == "constant":
         return constant(p.command_value)
     if p.command_profile == "steps":
@@ -59,9 +64,20 @@ def from_parameters(p: Parameters) -> CommandProfile:
     return sine(p.command_offset, p.command_amplitude, p.command_frequency_hz)
 
 
+def for_batch(params: Sequence[Parameters]) -> Callable:
+    """The command of a batch whose sets share their command_* parameters (the ``angle``
+    profile: one controller per set, each from its own initial angle)."""
+    if params[0].command_profile == "angle":
+        from .closed_loop import PositionLoop
+
+        return PositionLoop.of_parameters(params)
+    return from_parameters(params[0])
+
+
 def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
-    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U`` or ``sine:OFFSET,AMPLITUDE,FREQ_HZ``
-    -> the command_* parameters."""
+    """``constant:U``, ``steps:T=U,T=U``, ``ramp:T=U,T=U``, ``sine:OFFSET,AMPLITUDE,FREQ_HZ`` or
+    ``angle:T=DEG,T=DEG`` (closed loop: at time T, move the boom to DEG degrees) -> the
+    command_* parameters."""
     kind, _, body = text.partition(":")
     try:
         if kind == "constant":
@@ -71,6 +87,12 @@ def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
             times = [float(t) for t, _ in pairs]
             values = [float(u) for _, u in pairs]
             return {"command_profile": kind, "command_times_s": times, "command_values": values}
+        if kind == "angle":
+            pairs = [item.split("=") for item in body.split(",") if item]
+            times = [float(t) for t, _ in pairs]
+            angles = [math.radians(float(a)) for _, a in pairs]
+            if times:
+                return {"command_profile": "angle", "command_times_s": times, "command_angles_rad": angles}
         if kind == "sine":
             offset, amplitude, frequency = (float(x) for x in body.split(","))
             return {
@@ -82,8 +104,9 @@ def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
     except ValueError:
         pass
     raise ConfigError(
-        f"{option} {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,... "
-        "or sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1])"
+        f"{option} {text!r}: expected constant:U, steps:T=U,T=U,..., ramp:T=U,T=U,..., "
+        "sine:OFFSET,AMPLITUDE,FREQ_HZ (times in s, openings in [-1, 1]) or angle:T=DEG,... "
+        "(closed loop: boom angles in degrees)"
     )
 
 
@@ -101,7 +124,8 @@ def scenario(text: str, duration_s: float) -> dict[str, Any]:
       overshoot and oscillation); ``lift:T`` opens for T seconds.
     - ``cycle``: lift, hold, lower, hold (:data:`CYCLE`, 9 s).
     - ``config``: the command_* parameters of the config file, unchanged ({}).
-    - anything else: a profile such as ``steps:0=1,2=0``.
+    - anything else: a profile such as ``steps:0=1,2=0``, or ``angle:0=30`` (closed loop:
+      lift to 30 degrees and hold).
     """
     name, _, arg = text.partition(":")
     if name == "config" and not arg:
@@ -117,9 +141,10 @@ def scenario(text: str, duration_s: float) -> dict[str, Any]:
         if not 0.0 < open_s:
             raise ConfigError(f"scenario {text!r}: the valve must open for a positive time")
         return {"command_profile": "steps", "command_times_s": [0.0, open_s], "command_values": [1.0, 0.0]}
-    if name in ("constant", "steps", "ramp", "sine"):
+    if name in ("constant", "steps", "ramp", "sine", "angle"):
         return parse_profile(text, "--scenario")
     raise ConfigError(
         f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, or a profile "
-        "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ)"
+        "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ, or angle:T=DEG,... "
+        "for closed-loop moves)"
     )

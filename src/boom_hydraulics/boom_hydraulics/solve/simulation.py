@@ -292,7 +292,9 @@ class Simulator:
     def run(
         self, duration_s: float, command: Callable[[float], float], every: int = 1, stop_on_error: bool = False
     ) -> Trajectory:
-        """Simulate ``duration_s`` from the current state with valve command ``command(t)``.
+        """Simulate ``duration_s`` from the current state with valve command ``command(t)``
+        (a feedback command, such as the closed-loop :class:`closed_loop.PositionLoop`, is
+        asked ``command(t, y)`` with the state at the step's start).
 
         The command of a step is ``command`` at the step's middle, held over the step (so a
         step change at T takes effect at the step starting within half a step of T, as the
@@ -302,13 +304,14 @@ class Simulator:
         """
         if every < 1:
             raise ValueError("every must be >= 1")
+        opening = feedback_free(command, self)
         n_steps = round(duration_s / self.params.time_step_s)
         half = 0.5 * self.params.time_step_s
         n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
         columns: dict[str, np.ndarray] = {}
 
         def record(row: int) -> None:
-            values = self.model.observe(self.t, self.y, self.constants, command(self.t + half))
+            values = self.model.observe(self.t, self.y, self.constants, opening(self.t + half))
             if not columns:
                 for name in OUTPUT_NAMES:
                     columns[name] = np.empty(n_rows, dtype=bool if isinstance(values[name], bool) else float)
@@ -320,7 +323,7 @@ class Simulator:
         stopped = None
         for i in range(1, n_steps + 1):
             try:
-                self.step(command(self.t + half))
+                self.step(opening(self.t + half))
             except SimulationError as exc:
                 if not stop_on_error:
                     raise
@@ -334,6 +337,13 @@ class Simulator:
         if stopped is not None:
             columns = {name: column[:row] for name, column in columns.items()}
         return Trajectory(columns, stopped, self.most_substeps)
+
+
+def feedback_free(command: Callable, sim: Simulator) -> Callable[[float], float]:
+    """``command`` as a function of time alone: a feedback command reads ``sim``'s state."""
+    if getattr(command, "feedback", False):
+        return lambda t: command(t, sim.y)
+    return command
 
 
 def simulate(

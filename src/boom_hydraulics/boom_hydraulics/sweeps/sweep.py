@@ -58,6 +58,9 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("min_pressure_pa", "Pa", "lowest chamber pressure"),
     ("cavitation_s", "s", "time with a chamber at the cavitation floor"),
     ("relief_s", "s", "time with a relief valve open"),
+    ("settling_s", "s", "closed loop (angle scenario): time from the first move's start into +-2 % of its step"),
+    ("target_overshoot_deg", "deg", "closed loop: how far the boom passed the first move's target"),
+    ("target_error_deg", "deg", "closed loop: target minus boom angle when the first move's hold ends"),
     ("supply_energy_j", "J", "energy drawn from the supply over the whole run"),
     ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
 )
@@ -223,7 +226,7 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     metrics cover the run up to then.
     """
     params = batch.params
-    command = commands.from_parameters(params[0])
+    command = commands.for_batch(params)
     signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SIGNALS)
     failed_at = signals["failed_at_s"]
     n = len(params)
@@ -235,6 +238,7 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
             keep = one["t"] <= failed_at[k]
             one = {name: column[keep] for name, column in one.items()}
         m = analysis.metrics(one, lift_angle_deg=batch.lift_angle_deg)
+        m.update(analysis.move_metrics(params[k], one))
         values[k] = [m[name] for name in METRIC_NAMES]
         if math.isfinite(failed_at[k]):
             status, reason = (

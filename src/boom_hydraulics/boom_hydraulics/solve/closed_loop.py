@@ -1,0 +1,90 @@
+"""A valve command that closes the loop: the position controller following a setpoint path.
+
+:class:`PositionLoop` is a feedback command: ``loop(t, y)`` gives the opening of the step
+whose middle is ``t`` from the state ``y`` at its start, through
+:func:`..model.control.position_command`. The controller's state (integral, dead-band) moves
+on once per step: asking again for the same ``t`` returns the same opening. It works for one
+simulation (floats) and for a batch (one array entry per parameter set).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..model import MODELS
+from ..model.control import ControlState, Gains, gains_of, initial_control_state, position_command
+from ..model.geometry import boom_angle_rad
+from ..model.parameters import Parameters
+from ..model.setpoints import SetpointPath, timed_moves
+
+
+def stroke_angles_rad(p: Parameters) -> tuple[float, float]:
+    """Boom angles at the lower and upper end stops, rad."""
+    return (
+        boom_angle_rad(p.cylinder_min_length_m, p.a_m, p.b_m, p.support_height_m),
+        boom_angle_rad(p.cylinder_max_length_m, p.a_m, p.b_m, p.support_height_m),
+    )
+
+
+class PositionLoop:
+    """The controller of each parameter set following ``path`` (one set: floats in and out)."""
+
+    feedback = True  # called as command(t, y), not command(t)
+
+    def __init__(self, params: Sequence[Parameters], path: SetpointPath, constants: Any = None) -> None:
+        if any(p.mode != "physical" for p in params):
+            raise ConfigError("closed-loop position control needs mode: physical (paper mode's valve only lifts)")
+        self.single = len(params) == 1
+        self.path = path
+        model = MODELS["physical"]
+        if constants is None:
+            constants = model.constants(params[0]) if self.single else _stacked(params)
+        self.constants = constants
+        per_set = [gains_of(p) for p in params]
+        self.gains = per_set[0] if self.single else Gains(*(np.array(c, dtype=float) for c in zip(*per_set)))
+        self.dt_s = params[0].time_step_s
+        self.xp = math if self.single else np
+        self.state: ControlState = initial_control_state(0.0 if self.single else np.zeros(len(params)))
+        self._t: float | None = None
+        self._u: Any = 0.0
+        self.setpoint: tuple[Any, Any] = (0.0, 0.0)  # the last (angle, rate) asked for
+
+    @classmethod
+    def of_parameters(cls, params: Sequence[Parameters]) -> PositionLoop:
+        """The ``angle`` scenario of the command_* parameters: moves to command_angles_rad at
+        command_times_s at up to control_max_speed_rad_s, from the initial angle."""
+        p0 = params[0]
+        start = [boom_angle_rad(p.initial_length_m, p.a_m, p.b_m, p.support_height_m) for p in params]
+        speed = [p.control_max_speed_rad_s for p in params]
+        path = timed_moves(start, p0.command_times_s, p0.command_angles_rad, speed)
+        return cls(params, path)
+
+    def __call__(self, t_s: float, y: Sequence[Any]) -> Any:
+        if t_s == self._t:
+            return self._u
+        ref, rate = self.path.evaluate(t_s)
+        if self.single:
+            ref, rate = float(ref[0]), float(rate[0])
+        self.setpoint = (ref, rate)
+        self._u, self.state = position_command(
+            self.gains, self.state, y[0], self.constants, ref, rate, self.dt_s, self.xp
+        )
+        self._t = t_s
+        return self._u
+
+    def restart(self, path: SetpointPath) -> None:
+        """Follow ``path`` from now on; the integral and dead-band start afresh."""
+        self.path = path
+        self.state = initial_control_state(self.state.integral * 0.0)
+        self._t = None
+
+
+def _stacked(params: Sequence[Parameters]) -> Any:
+    from .batch import stacked_constants
+
+    return stacked_constants(params)
