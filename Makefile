@@ -9,18 +9,21 @@ WITH_ENV := tools/with-env
 DEPS_STAMP := $(VENV)/.boom-deps-stamp
 BUILD_STAMP := install/.boom-build-stamp
 BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name package.xml -o \
-	-name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name setup.py -o \
-	-name setup.cfg -o -name '*.launch.py' \) -print) $(wildcard config/*.yaml) \
+	-name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name '*.action' -o -name setup.py -o \
+	-name setup.cfg -o -name '*.launch.py' -o -name '*.urdf' -o -name '*.rviz' -o -name '*.json' \) -print) \
+	$(wildcard config/*.yaml) \
 	tools/build tools/cmake/drop_missing_include_dirs.cmake
 
 .PHONY: setup run node test lint bench clean
 
 setup: $(BUILD_STAMP)
 
-$(DEPS_STAMP): requirements.txt constraints.txt
+$(DEPS_STAMP): requirements.txt requirements-nodeps.txt constraints.txt
 	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --disable-pip-version-check -q \
 		-r requirements.txt -c constraints.txt
+	$(VENV)/bin/python -m pip install --disable-pip-version-check -q --no-deps \
+		-r requirements-nodeps.txt
 	@touch $@
 
 $(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)

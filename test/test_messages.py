@@ -35,7 +35,7 @@ def test_every_drive_state_field_carries_its_own_output():
     assert set(DRIVE_STATE_FIELDS) == set(DriveState.get_fields_and_field_types()) - {"header"}
     for field, name in DRIVE_STATE_FIELDS.items():
         assert getattr(msg, field) == out[name], field
-    assert msg.header.stamp == stamp and msg.header.frame_id == "boom_base"
+    assert msg.header.stamp == stamp and msg.header.frame_id == "base_link"
     # the bag tools' encoder (rosbags, no rclpy) writes the same message
     ns = 12 * 10**9 + 5
     assert deserialize_message(drive_state_cdr(out, ns), DriveState) == msg
@@ -44,10 +44,10 @@ def test_every_drive_state_field_carries_its_own_output():
 def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
     p = Parameters()
     out = _distinct_outputs()
-    joints = messages.joint_state(out, Time(), p.a_m, p.b_m)
-    assert joints.name == ["boom_joint", "cylinder_joint"]
-    assert list(joints.position) == [out["alpha"], out["q1"]]
-    assert list(joints.velocity) == [out["alpha_rate"], out["v"]]
+    joints = messages.joint_state(out, Time(), p)
+    assert joints.name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
+    assert [joints.position[0], joints.position[2]] == [out["alpha"], out["q1"]]
+    assert [joints.velocity[0], joints.velocity[2]] == [out["alpha_rate"], out["v"]]
     # virtual work: torque * d(alpha) = force * dq1, with d(alpha)/dq1 by finite differences
     h = 1e-6
     k = (
@@ -55,7 +55,7 @@ def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
         - boom_angle_rad(out["q1"] - h, p.a_m, p.b_m, p.support_height_m)
     ) / (2 * h)
     assert joints.effort[0] == pytest.approx(out["f_hyd"] / k, rel=1e-6)
-    assert joints.effort[1] == out["f_hyd"]
+    assert joints.effort[2] == out["f_hyd"]
     piston, rod = messages.chamber_pressures(out, Time())
     assert (piston.fluid_pressure, piston.header.frame_id) == (out["p1"], "piston_chamber")
     assert (rod.fluid_pressure, rod.header.frame_id) == (out["p2"], "rod_chamber")

@@ -50,7 +50,7 @@ def test_openings_hold_extend_and_retract(node, client):
     client.spin_for(1.0, opening=-1.0)
     down = client.last()
     assert down.rod_position_m < up.rod_position_m - 0.05
-    assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_joint"]
+    assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
     # the FluidPressure of a tick carries the same value and stamp as that tick's DriveState
     by_stamp = {(s.header.stamp.sec, s.header.stamp.nanosec): s.piston_pressure_pa for s in client.states}
     matched = [

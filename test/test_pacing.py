@@ -39,6 +39,17 @@ def test_a_backlog_beyond_the_catch_up_limit_is_dropped_and_counted():
     assert pacer.due(1.010, 200, DT).steps == 10
 
 
+def test_on_a_shared_clock_a_backlog_is_worked_off_never_dropped():
+    pacer = Pacer(100.0, 1.0, 0.2, drop_backlog=False)
+    pacer.restart(0.0, 0)
+    tick = pacer.due(1.0, 0, DT)  # a second behind the shared clock
+    assert (tick.steps, tick.dropped_s) == (200, 0.0)
+    assert pacer.late_ticks == 1
+    assert pacer.due(1.0, 200, DT).steps == 200  # the rest is still due: simulated time stays the clock's
+    assert pacer.due(1.0, 800, DT).steps == 200
+    assert pacer.due(1.0, 1000, DT).steps == 0
+
+
 def test_a_restart_ties_the_clock_to_the_state_as_it_is():
     """After a change of the time step, a step count means another simulated time."""
     pacer = Pacer(100.0, 1.0, 0.2)

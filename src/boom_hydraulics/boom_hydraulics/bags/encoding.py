@@ -16,6 +16,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from ..model.robot_description import BASE_FRAME
 from .recording import interface_file
 
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
@@ -53,7 +54,7 @@ def typestore() -> Typestore:
     return store
 
 
-def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = "boom_base") -> bytes:
+def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = BASE_FRAME) -> bytes:
     """CDR of a boom_hydraulics_msgs/DriveState of the model outputs ``out``, stamped ``stamp_ns``."""
     types = typestore().types
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)

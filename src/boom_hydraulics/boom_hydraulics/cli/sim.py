@@ -5,6 +5,7 @@
     boom-sim run --config config/default.yaml --profile steps:0=1,3=0,4=-1 --duration 7 --out cycle.csv
     boom-sim run --config config/default.yaml --target-angle-deg 30 --duration 4 --out move.csv
     boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
+    boom-sim urdf --config config/default.yaml --out boom_crane.urdf
 
 Errors in arguments, configs or the run print one line and exit non-zero.
 """
@@ -23,9 +24,10 @@ import numpy as np
 from ..analysis import studies
 from ..analysis.metrics import move_metrics
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, write_csv
+from ..files import check_apart, csv_cell, write_bytes, write_csv
 from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
+from ..model.robot_description import JOINTS, urdf
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, simulate
 from .common import RaisingParser, run_main
@@ -110,11 +112,18 @@ def cmd_statics(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_urdf(args: argparse.Namespace) -> int:
+    params = load_parameters(args)
+    write_bytes(Path(args.out), urdf(params).encode())
+    print(f"{args.out}: URDF of the crane ({', '.join(JOINTS)}) with the config's dimensions")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = RaisingParser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=RaisingParser)
 
-    def common(p: argparse.ArgumentParser) -> None:
+    def common(p: argparse.ArgumentParser, out_help: str = "CSV file to write") -> None:
         p.add_argument("--config", help="ROS 2 params YAML (/**: ros__parameters: ...)")
         p.add_argument(
             "--set",
@@ -123,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
             metavar="KEY=VALUE",
             help="override one parameter (repeatable), e.g. --set piston_diameter_m=0.063",
         )
-        p.add_argument("--out", required=True, help="CSV file to write")
+        p.add_argument("--out", required=True, help=out_help)
 
     run = sub.add_parser("run", help="integrate over time and write one CSV row per step")
     common(run)
@@ -150,6 +159,10 @@ def build_parser() -> argparse.ArgumentParser:
     statics.add_argument("--diameters", default="0.04,0.063,0.08", help="piston diameters in m")
     statics.add_argument("--points", type=int, default=161, help="positions over the stroke")
     statics.set_defaults(handler=cmd_statics)
+
+    description = sub.add_parser("urdf", help="the crane's URDF (as the node publishes it on robot_description)")
+    common(description, "URDF file to write")
+    description.set_defaults(handler=cmd_urdf)
     return parser
 
 

@@ -17,13 +17,14 @@ from boom_hydraulics_msgs.msg import DriveState
 
 from ..bags.encoding import DRIVE_STATE_FIELDS, FLAGS
 from ..model.geometry import lever_rad_per_m
+from ..model.kinematics import chain
+from ..model.robot_description import BASE_FRAME, JOINTS
 
-JOINTS = ("boom_joint", "cylinder_joint")
 CHAMBER_FRAMES = {"p1": "piston_chamber", "p2": "rod_chamber"}
 ROD_FRAME = "cylinder_rod"  # x along the rod, positive extending
 
 
-def drive_state(out: Mapping[str, Any], stamp: Any, frame_id: str = "boom_base") -> DriveState:
+def drive_state(out: Mapping[str, Any], stamp: Any, frame_id: str = BASE_FRAME) -> DriveState:
     """A boom_hydraulics_msgs/DriveState of the outputs ``out``."""
     msg = DriveState()
     msg.header.stamp = stamp
@@ -33,16 +34,19 @@ def drive_state(out: Mapping[str, Any], stamp: Any, frame_id: str = "boom_base")
     return msg
 
 
-def joint_state(out: Mapping[str, Any], stamp: Any, a_m: float, b_m: float) -> JointState:
-    """boom_joint (rad, rad/s, N m) and cylinder_joint (m, m/s, N). The boom's torque is the rod
-    force over the lever k = d(alpha)/dq1 (virtual work: T d(alpha) = F dq1)."""
-    lever = lever_rad_per_m(out["q1"], a_m, b_m)
+def joint_state(out: Mapping[str, Any], stamp: Any, p: Any) -> JointState:
+    """The three joints of the URDF, consistent with each other (see model.kinematics):
+    boom_joint (rad, rad/s, N m), cylinder_barrel_joint (rad, rad/s; a free pivot, effort 0)
+    and cylinder_joint (m, m/s, N). The boom's torque is the rod force over the lever
+    k = d(alpha)/dq1 (virtual work: T d(alpha) = F dq1)."""
+    lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)
+    c = chain(p, float(out["q1"]), float(out["v"]))
     msg = JointState()
     msg.header.stamp = stamp
     msg.name = list(JOINTS)
-    msg.position = [float(out["alpha"]), float(out["q1"])]
-    msg.velocity = [float(out["alpha_rate"]), float(out["v"])]
-    msg.effort = [float(out["f_hyd"] / lever), float(out["f_hyd"])]
+    msg.position = [float(out["alpha"]), c.barrel_rad, float(out["q1"])]
+    msg.velocity = [float(out["alpha_rate"]), c.barrel_rate_rad_s, float(out["v"])]
+    msg.effort = [float(out["f_hyd"] / lever), 0.0, float(out["f_hyd"])]
     return msg
 
 

@@ -5,7 +5,9 @@
 
 Physics runs at ``time_step_s``, several steps per tick of ``publish_rate_hz``; simulated
 time follows the steady clock by elapsed time (times ``real_time_factor``; 0 runs as fast
-as possible), so a late tick catches up. The ticks run in a thread of their own that
+as possible), so a late tick catches up. With ``use_sim_time`` it follows the ROS clock
+(/clock, whoever publishes it) instead: half-speed /clock, half-speed physics; a stopped
+/clock, stopped physics; a clock that jumps back resets the drive to rest. The ticks run in a thread of their own that
 sleeps to absolute deadlines: an rclpy timer would wake the executor, which rebuilds its
 wait set in Python, 100 times a second (29 % of a core measured, against about 10 %
 this way). The executor serves commands, services and parameters; a lock keeps the two
@@ -30,17 +32,24 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_parameter_events, qos_profile_sensor_data
+from rclpy.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_parameter_events,
+    qos_profile_sensor_data,
+)
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.time import Time
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool
+from visualization_msgs.msg import MarkerArray
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
@@ -49,11 +58,14 @@ from ..bags.encoding import parameter_event_cdr
 from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
+from ..model.robot_description import urdf
 from ..solve.command_queue import CommandedDrive, valve_opening
 from ..solve.pacing import Pacer
 from ..solve.simulation import Simulator
 from . import messages
 from . import node_parameters as ros_parameters
+from .markers import crane_markers
+from .motion import Motion
 
 _NODE_ATTRIBUTES = {
     "publish_rate_hz": "rate_hz",
@@ -62,6 +74,10 @@ _NODE_ATTRIBUTES = {
     "max_catch_up_s": "max_catch_up_s",
 }
 PARAMETER_EVENTS = "/parameter_events"
+#: Markers go out at most this often (they are for eyes, not for control).
+MARKERS_HZ = 20.0
+#: A ROS clock that steps back by more than this is a jump back (a world reset), s.
+CLOCK_JUMP_S = 1e-3
 
 
 def _type_name(msg_type: Any) -> str:
@@ -109,6 +125,12 @@ class BoomSimNode(Node):
         self._read_node_parameters()
         params = from_mapping({name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES})
         self.publish_clock = bool(self.get_parameter("publish_clock").value)
+        self.follow_clock = bool(self.get_parameter("use_sim_time").value)
+        if self.follow_clock and self.publish_clock:
+            raise ConfigError(
+                "use_sim_time and publish_clock are both true: this node either follows /clock (use_sim_time, "
+                "another node publishes it) or publishes it (publish_clock); set one of them to false"
+            )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.jit:
             self.sim.step(0.0, 0)  # compile before the clock starts
@@ -118,7 +140,8 @@ class BoomSimNode(Node):
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
         self._substeps_logged = self.sim.most_substeps  # the substeps the log has told about
-        self.pacer = Pacer(self.rate_hz, self.rtf, self.max_catch_up_s)
+        # on a shared clock the backlog is worked off, never dropped: simulated time stays the clock's
+        self.pacer = Pacer(self.rate_hz, self._pace_factor(), self.max_catch_up_s, drop_backlog=not self.follow_clock)
 
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.state_pub = self.create_publisher(DriveState, "drive_state", state_qos)
@@ -126,6 +149,19 @@ class BoomSimNode(Node):
         self.p1_pub = self.create_publisher(FluidPressure, "piston_pressure", state_qos)
         self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
         self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
+        self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
+        latched = QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        self.description_pub = (
+            self.create_publisher(String, "robot_description", latched)
+            if self.get_parameter("publish_robot_description").value
+            else None
+        )
+        self._markers_every = max(1, round(self.rate_hz / MARKERS_HZ))
+        self._ticks = 0
+        self._clock_seen_s = 0.0  # the latest ROS time the loop saw (use_sim_time)
+        self._description_due = False  # a parameter change asks for robot_description again
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
         self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if self.publish_clock else None
         # best-effort subscriptions accept commands from reliable and best-effort publishers;
@@ -144,9 +180,11 @@ class BoomSimNode(Node):
         self.add_pre_set_parameters_callback(self.before_set_parameters)
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.after_set_parameters)
+        self.motion = Motion(self)
 
         self._restart_clock()
         self.recorder = self._start_recording() if self.get_parameter("record").value else None
+        self.publish_description()
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -155,9 +193,13 @@ class BoomSimNode(Node):
                 "the command_* parameters describe boom-sim's headless scenario; this node takes "
                 "its valve commands on valve_command and commands"
             )
+        pace = (
+            "following the ROS clock (use_sim_time)"
+            if self.follow_clock
+            else f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}"
+        )
         self.get_logger().info(
-            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, "
-            f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}, "
+            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, {pace}, "
             f"{'compiled' if self.sim.compiled else 'interpreted'}"
         )
 
@@ -200,12 +242,15 @@ class BoomSimNode(Node):
             return SetParametersResult(successful=False, reason=str(exc))
         if new_params is not None:
             self.sim.set_parameters(new_params)
+            self.drive.parameters_changed()
+            self._description_due = True
         if node_changes:
             self.get_logger().info(f"node parameters changed: {node_changes}")
             for name, value in node_changes.items():  # rclpy stores them after this returns
                 setattr(self, _NODE_ATTRIBUTES[name], float(value))
             self.drive.timeout_s = self.timeout_s  # the drive applies it
-            self.pacer.rate_hz, self.pacer.real_time_factor = self.rate_hz, self.rtf
+            self.pacer.rate_hz, self.pacer.real_time_factor = self.rate_hz, self._pace_factor()
+            self._markers_every = max(1, round(self.rate_hz / MARKERS_HZ))
             self.pacer.max_catch_up_s = self.max_catch_up_s
         if new_params is not None or node_changes:
             self._restart_clock()  # pacing starts afresh from the state as it is now
@@ -215,7 +260,11 @@ class BoomSimNode(Node):
 
     def after_set_parameters(self, changes: list[Parameter]) -> None:
         """Record the change as rclpy announces it on /parameter_events, stamped with the
-        node-clock time of the simulated instant it took effect at (boom-resim applies it there)."""
+        node-clock time of the simulated instant it took effect at (boom-resim applies it there);
+        publish the robot description again when a dimension changed."""
+        if self._description_due:
+            self._description_due = False
+            self.publish_description()
         if self.recorder is None:
             return
         changed = [(p.name, p.type_.value, ros_parameters.plain(p.value)) for p in changes]
@@ -227,9 +276,9 @@ class BoomSimNode(Node):
         """A bag of every topic this node publishes, its parameter changes, and every command
         it receives (each command topic once its first publisher shows up)."""
         pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        if self.clock_pub is not None:
-            pubs.append(self.clock_pub)
-        topics = [Topic(p.topic_name, _type_name(p.msg_type)) for p in pubs]
+        pubs.append(self.markers_pub)
+        pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
+        topics = [Topic(p.topic_name, _type_name(p.msg_type), (offer_of(p.qos_profile),)) for p in pubs]
         events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
         topics.append(Topic(PARAMETER_EVENTS, _type_name(ParameterEvent), (events_qos,)))
         recorder = BagRecorder(
@@ -283,7 +332,7 @@ class BoomSimNode(Node):
         self._record_published(messages, stamp.sec * 1_000_000_000 + stamp.nanosec)
 
     # --- commands -------------------------------------------------------------------------
-    def _stamp_to_sim_time(self, stamp: Any) -> float | None:
+    def stamp_to_sim_time(self, stamp: Any) -> float | None:
         """Simulated time a command stamp means; None for a zero (unset) stamp."""
         if stamp.sec == 0 and stamp.nanosec == 0:
             return None
@@ -296,7 +345,7 @@ class BoomSimNode(Node):
             return
         if u != opening:
             self.get_logger().warning(f"valve opening {opening} clamped to {u:g}", throttle_duration_sec=1.0)
-        at = self._stamp_to_sim_time(stamp) if stamp is not None else None
+        at = self.stamp_to_sim_time(stamp) if stamp is not None else None
         if not self.drive.push(self.sim.t if at is None else at, u):
             self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
 
@@ -326,6 +375,7 @@ class BoomSimNode(Node):
         except SimulationError as exc:
             response.success, response.message = False, str(exc)
             return response
+        self.motion.stop("reset (~/reset)")
         self.drive.reset()
         self.failure = None
         self._restart_clock()
@@ -358,12 +408,46 @@ class BoomSimNode(Node):
         return response
 
     # --- time and stepping ---------------------------------------------------------------------
+    def _pace_factor(self) -> float:
+        """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
+        return 1.0 if self.follow_clock else self.rtf
+
+    def _pace_clock_s(self) -> float:
+        """The clock simulated time follows: the ROS clock (use_sim_time) or the steady clock."""
+        if self.follow_clock:
+            return self.get_clock().now().nanoseconds * 1e-9
+        return time.monotonic()
+
     def _restart_clock(self) -> None:
-        """Tie simulated time to the steady clock from now on (start, reset, resume, changes)."""
-        self.pacer.restart(time.monotonic(), self.sim.step_count)
+        """Tie simulated time to the clock from now on (start, reset, resume, changes)."""
+        self.pacer.restart(self._pace_clock_s(), self.sim.step_count)
         # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
         now = self.get_clock().now().nanoseconds * 1e-9
         self.clock_origin_s = 0.0 if self.publish_clock else now - self.sim.t
+        self._clock_seen_s = now
+
+    def _follow_ros_clock(self) -> bool:
+        """use_sim_time: whether the loop may step now. No /clock yet: wait. A jump back (a
+        world reset): the drive goes back to rest, as ~/reset does, and follows the clock from there."""
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if now <= 0.0:
+            return False
+        if self._clock_seen_s <= 0.0:  # the first /clock
+            self._restart_clock()
+            return True
+        if now < self._clock_seen_s - CLOCK_JUMP_S:
+            self.get_logger().warning(
+                f"the ROS clock jumped back from {self._clock_seen_s:.3f} s to {now:.3f} s: "
+                "the drive is reset to rest, as ~/reset does (simulated time runs on)"
+            )
+            self.motion.stop("the ROS clock jumped back")
+            self.sim.reset(keep_time=True)
+            self.drive.reset()
+            self.failure = None
+            self._restart_clock()
+            return True
+        self._clock_seen_s = max(self._clock_seen_s, now)
+        return True
 
     def advance(self, steps: int) -> None:
         """Take ``steps`` physics steps, applying queued commands at their times."""
@@ -374,6 +458,7 @@ class BoomSimNode(Node):
         except SimulationError as exc:
             self.failure = str(exc)
             self.get_logger().error(f"simulation stopped, waiting for ~/reset: {exc}")
+        self.motion.after_steps()
         if self.sim.most_substeps > self._substeps_logged:
             self._substeps_logged = self.sim.most_substeps
             p = self.sim.params
@@ -385,10 +470,10 @@ class BoomSimNode(Node):
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
         with self.lock:  # the pacing starts with the loop, not when the node was built
-            self.pacer.restart(time.monotonic(), self.sim.step_count)
+            self.pacer.restart(self._pace_clock_s(), self.sim.step_count)
         deadline = time.monotonic()
         while not self.stopping.is_set():
-            if self.rtf == 0:
+            if self.rtf == 0 and not self.follow_clock:
                 time.sleep(0)  # let the executor thread take commands between ticks
             else:
                 deadline += 1.0 / self.rate_hz
@@ -410,12 +495,16 @@ class BoomSimNode(Node):
     def on_tick(self) -> None:
         if self.paused or self.failure:
             return
+        if self.follow_clock and not self._follow_ros_clock():
+            return
         dt = self.sim.params.time_step_s
-        tick = self.pacer.due(time.monotonic(), self.sim.step_count, dt)
+        tick = self.pacer.due(self._pace_clock_s(), self.sim.step_count, dt)
         if tick.dropped_s:  # cannot keep up: the pacer gave up the backlog beyond max_catch_up_s
-            behind_s = tick.steps * dt / self.rtf + tick.dropped_s
+            behind_s = tick.steps * dt / self.pacer.real_time_factor + tick.dropped_s
             self.get_logger().warning(
-                f"{behind_s:.3f} s behind real time; dropping the backlog", throttle_duration_sec=5.0
+                f"{behind_s:.3f} s behind {'the ROS clock' if self.follow_clock else 'real time'}; "
+                "dropping the backlog",
+                throttle_duration_sec=5.0,
             )
             if not self.publish_clock:
                 self.clock_origin_s += tick.dropped_s  # ROS-time stamps map to the later sim time
@@ -447,12 +536,20 @@ class BoomSimNode(Node):
         piston, rod = messages.chamber_pressures(out, stamp)
         tick: list[tuple[Any, Any]] = [
             (self.state_pub, messages.drive_state(out, stamp)),
-            (self.joint_pub, messages.joint_state(out, stamp, p.a_m, p.b_m)),
+            (self.joint_pub, messages.joint_state(out, stamp, p)),
             (self.p1_pub, piston),
             (self.p2_pub, rod),
             (self.force_pub, messages.rod_force(out, stamp)),
         ]
+        self._ticks += 1
+        if self._ticks % self._markers_every == 0:
+            tick.append((self.markers_pub, crane_markers(out, stamp, p)))
         self._publish(tick, stamp)
+
+    def publish_description(self) -> None:
+        """The URDF of the current parameters on robot_description (transient local)."""
+        if self.description_pub is not None:
+            self._publish([(self.description_pub, String(data=urdf(self.sim.params)))], self._stamp())
 
     def on_second(self) -> None:
         """Once a second: diagnostics, and the command topics' publishers for the bag."""
@@ -537,8 +634,9 @@ def main(args: list[str] | None = None) -> None:
         rclpy.try_shutdown()
         _fail(str(exc))
     node.loop.start()
+    executor = MultiThreadedExecutor(num_threads=3)  # a MoveBoom goal waits in a thread of its own
     try:
-        rclpy.spin(node)
+        rclpy.spin(node, executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:

@@ -49,11 +49,27 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
     "record_chunk_kib": (1024.0, "KiB", "MCAP chunk size: the most a SIGKILL can lose", 1.0, 65536.0),
     "record_flush_s": (1.0, "s", "A chunk reaches the disk at least this often: the most a SIGKILL loses", 0.05, 60.0),
     "start_paused": (False, "", "Start paused (resume with ~/pause data: false), e.g. to queue a scenario", None, None),
+    "publish_robot_description": (
+        True,
+        "",
+        "Publish the crane's URDF on robot_description (transient local); false where robot_state_publisher does",
+        None,
+        None,
+    ),
 }
 
 #: Node parameters that apply at start only: read_only in their descriptors.
 START_ONLY = frozenset(
-    {"publish_clock", "jit", "record", "record_folder", "record_chunk_kib", "record_flush_s", "start_paused"}
+    {
+        "publish_clock",
+        "jit",
+        "record",
+        "record_folder",
+        "record_chunk_kib",
+        "record_flush_s",
+        "start_paused",
+        "publish_robot_description",
+    }
 )
 
 #: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics.
@@ -210,8 +226,11 @@ def usage() -> str:
         "usage: boom_sim [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r __ns:=/NAMESPACE] ...]",
         "",
         "ROS 2 node simulating the hydraulic drive of a crane boom. Subscribes to valve_command",
-        "(boom_hydraulics_msgs/ValveCommand) and commands (std_msgs/Float64MultiArray); publishes",
-        "drive_state, joint_states, piston_pressure, rod_pressure, rod_force and /diagnostics.",
+        "(boom_hydraulics_msgs/ValveCommand), commands (std_msgs/Float64MultiArray) and",
+        "~/joint_trajectory (trajectory_msgs/JointTrajectory, boom_joint); serves the action",
+        "~/move_boom (boom_hydraulics_msgs/MoveBoom); publishes drive_state, joint_states,",
+        "piston_pressure, rod_pressure, rod_force, robot_description, ~/markers and /diagnostics.",
+        "With use_sim_time:=true (rclpy's standard parameter) it follows /clock.",
         "",
         "Node parameters (* = at start only; read_only once running):",
     ]

@@ -20,7 +20,10 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from .closed_loop import PositionLoop
+
 if TYPE_CHECKING:
+    from ..model.setpoints import SetpointPath
     from .simulation import Simulator
 
 
@@ -68,11 +71,17 @@ class CommandQueue:
 
 
 class CommandedDrive:
-    """A simulator driven by stamped valve commands, with a spring-centred valve.
+    """A simulator driven by stamped valve commands, with a spring-centred valve, or by the
+    position controller following a setpoint path.
 
     The stepping rule of the node, without ROS: queued commands apply at their times
     (see the module docstring), and the valve returns to 0 when no command arrived for
     ``timeout_s`` of simulated time (0: never). The node and ``boom-resim`` both use it.
+
+    :meth:`follow` hands the valve to the position controller (closed loop, one step at a
+    time); it holds the path's last angle after its end. A valve command that applies while
+    the controller drives takes over (operator override): the controller lets go and
+    ``on_override`` is called.
     """
 
     def __init__(self, sim: Simulator, timeout_s: float = 0.0, max_pending: int = 10_000):
@@ -81,6 +90,8 @@ class CommandedDrive:
         self.queue = CommandQueue(max_pending)
         self.current = 0.0  # the opening applied now
         self.last_command_s: float | None = None
+        self.loop: PositionLoop | None = None  # the controller, while it drives the valve
+        self.on_override: Callable[[], None] = lambda: None
 
     def push(self, at_s: float, opening: float) -> bool:
         """Queue ``opening`` for simulated time ``at_s`` (now or earlier: the next step)."""
@@ -90,10 +101,40 @@ class CommandedDrive:
         self.queue.clear()
         self.current = 0.0
         self.last_command_s = None
+        self.loop = None
+
+    def follow(self, path: SetpointPath) -> None:
+        """Drive the valve with the position controller along ``path`` (times in simulated s)."""
+        if self.loop is None:
+            self.loop = PositionLoop([self.sim.params], path, self.sim.constants)
+        else:
+            self.loop.restart(path)
+        self.queue.clear()  # manual commands waiting for later would take over: the move replaces them
+        self.last_command_s = None
+
+    def let_go(self) -> None:
+        """The controller stops driving: the valve closes (the load-holding valve holds the boom)."""
+        self.loop = None
+        self.current = 0.0
+
+    def setpoint(self) -> tuple[float, float]:
+        """The controller's setpoint (angle rad, rate rad/s) now; the boom angle at rest when not following."""
+        if self.loop is not None:
+            return self.loop.path.at(self.sim.t)
+        return float(self.sim.outputs()["alpha"]), 0.0
 
     def _apply(self, opening: float, at_s: float) -> None:
         self.current = opening
         self.last_command_s = at_s
+        if self.loop is not None:
+            self.loop = None
+            self.on_override()
+
+    def parameters_changed(self) -> None:
+        """The simulator's parameters changed: the controller takes their gains and constants."""
+        if self.loop is not None:
+            path = self.loop.path
+            self.loop = PositionLoop([self.sim.params], path, self.sim.constants)
 
     def advance(self, steps: int) -> None:
         """Take ``steps`` physics steps; raises SimulationError as Simulator.step does."""
@@ -101,6 +142,11 @@ class CommandedDrive:
         while steps > 0:
             t = self.sim.t
             self.queue.apply_due(t, dt, self._apply)
+            if self.loop is not None:  # closed loop: a new opening every step
+                self.current = self.loop(t + 0.5 * dt, self.sim.y)
+                self.sim.step(self.current, 1)
+                steps -= 1
+                continue
             chunk = self.queue.steps_until_next(t, dt, steps)
             if self.timeout_s > 0 and self.current != 0.0 and self.last_command_s is not None:
                 deadline = self.last_command_s + self.timeout_s

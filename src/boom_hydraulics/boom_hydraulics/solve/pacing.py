@@ -7,6 +7,10 @@ real-time factor); a late tick therefore catches up. A backlog larger than
 reported, so the node stays responsive instead of running ever later. At real-time factor
 0 every tick takes one tick's worth of steps, as fast as the caller ticks.
 
+Following a clock that other nodes share (``drop_backlog=False``), a backlog is never given
+up: simulated time must stay the clock's. A tick still takes at most ``max_catch_up_s``
+worth of steps, and the rest waits for the next ticks.
+
 :meth:`Pacer.restart` ties the clock afresh to the state as it is: at start, after a
 reset, a resume and any parameter change (a new time step changes what a step count means).
 """
@@ -27,8 +31,11 @@ class Tick:
 class Pacer:
     """How many steps each tick takes to follow a steady clock (``wall_s``: e.g. time.monotonic())."""
 
-    def __init__(self, rate_hz: float, real_time_factor: float, max_catch_up_s: float) -> None:
+    def __init__(
+        self, rate_hz: float, real_time_factor: float, max_catch_up_s: float, drop_backlog: bool = True
+    ) -> None:
         self.rate_hz = rate_hz
+        self.drop_backlog = drop_backlog
         self.real_time_factor = real_time_factor
         self.max_catch_up_s = max_catch_up_s
         self.wall_origin_s = 0.0
@@ -59,7 +66,9 @@ class Pacer:
         max_steps = max(per_tick, round(self.max_catch_up_s * rtf / dt_s))
         if steps <= max_steps:
             return Tick(steps)
-        self.late_ticks += 1  # cannot keep up: work off what we may, drop the rest
+        self.late_ticks += 1  # cannot keep up: work off what we may, drop the rest (or keep it)
+        if not self.drop_backlog:
+            return Tick(max_steps)
         dropped_s = (steps - max_steps) * dt_s / rtf
         self.wall_origin_s += dropped_s
         return Tick(max_steps, dropped_s)

@@ -1,0 +1,281 @@
+"""Position goals for the node: the MoveBoom action and the ~/joint_trajectory topic.
+
+Both hand the valve to the position controller (:meth:`CommandedDrive.follow`), as
+ros2_control's joint_trajectory_controller drives a joint:
+
+- ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory) for ``boom_joint``: the boom
+  follows its points (positions with times from start; linear between them, or cubic where
+  every point has a velocity), starting from where it is, at the header stamp (zero: now).
+  After the last point it holds the last position. An empty trajectory holds the boom where
+  it is. A new trajectory replaces the running one, and preempts a MoveBoom goal.
+- ``~/move_boom`` (boom_hydraulics_msgs/MoveBoom): a quintic move to the target at up to the
+  goal's speed; the goal succeeds once the move has ended and the controller's dead-band
+  holds the boom, and the boom stays held. A new goal preempts the running one; cancel
+  stops the boom and closes the valve; a goal outside the stroke is rejected, with the
+  reason in the node's log.
+- A valve command that applies while either runs takes over (operator override): the goal
+  is aborted with that reason, a trajectory is dropped with a warning.
+
+The executor takes goals and trajectories; the node's loop thread calls
+:meth:`Motion.after_steps` after every batch of steps, which finishes goals. A goal's execute
+callback waits for that in an executor thread of its own (the action's callback group is
+reentrant, and the node spins a multi-threaded executor): rclpy's coroutine callbacks would
+poll while they wait.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from trajectory_msgs.msg import JointTrajectory
+
+from boom_hydraulics_msgs.action import MoveBoom
+
+from ..model.setpoints import SetpointPath, move
+from ..solve.closed_loop import stroke_angles_rad
+
+if TYPE_CHECKING:
+    from .node import BoomSimNode
+
+#: A goal that has not settled this long after its planned end is aborted (MoveBoom timeout_s = 0).
+DEFAULT_TIMEOUT_S = 5.0
+#: Feedback of a running goal, in ticks of the node's loop (every 10 ms by default: 10 Hz).
+FEEDBACK_EVERY_TICKS = 10
+
+SUCCEEDED, ABORTED, CANCELED = "succeeded", "aborted", "canceled"
+
+
+@dataclass
+class Goal:
+    """A MoveBoom goal the node is working on."""
+
+    handle: ServerGoalHandle
+    target_rad: float
+    started_s: float  # simulated time at acceptance
+    end_s: float  # the planned move's end, simulated time
+    deadline_s: float
+    energy_j: float  # supply energy at acceptance
+    done: threading.Event = field(default_factory=threading.Event)
+    outcome: tuple[str, Any] | None = None  # (SUCCEEDED/ABORTED/CANCELED, MoveBoom.Result) once done
+    ticks: int = 0
+
+
+class Motion:
+    """The node's position interfaces (see the module docstring)."""
+
+    def __init__(self, node: BoomSimNode) -> None:
+        self.node = node
+        self.goal: Goal | None = None  # the goal that drives the valve
+        self._accepted: dict[int, Goal] = {}  # by id of the goal handle, until its execute callback takes it
+        self.trajectory = False  # a ~/joint_trajectory drives the valve
+        node.drive.on_override = self._on_override
+        self.server = ActionServer(
+            node,
+            MoveBoom,
+            "~/move_boom",
+            execute_callback=self._execute,
+            goal_callback=self._on_goal,
+            handle_accepted_callback=self._on_accepted,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+            callback_group=ReentrantCallbackGroup(),
+        )
+        node.create_subscription(
+            JointTrajectory,
+            "~/joint_trajectory",
+            self._on_trajectory,
+            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
+        )
+
+    # --- goals ----------------------------------------------------------------------------
+    def _refusal(self, target_rad: float, speed_rad_s: float, timeout_s: float) -> str | None:
+        """Why a goal cannot be taken, or None."""
+        p = self.node.sim.params
+        if p.mode != "physical":
+            return "position control needs mode: physical (paper mode's valve only lifts)"
+        if self.node.failure:
+            return f"the simulation stopped ({self.node.failure}); call ~/reset first"
+        if not all(math.isfinite(x) for x in (target_rad, speed_rad_s, timeout_s)):
+            return "target_angle_rad, max_speed_rad_s and timeout_s must be finite"
+        if speed_rad_s < 0.0 or timeout_s < 0.0:
+            return "max_speed_rad_s and timeout_s must not be negative"
+        low, high = stroke_angles_rad(p)
+        if not low <= target_rad <= high:
+            return (
+                f"target {target_rad:.4f} rad ({math.degrees(target_rad):.2f} deg) lies outside the stroke's "
+                f"[{low:.4f}, {high:.4f}] rad ([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
+            )
+        return None
+
+    def _on_goal(self, request: MoveBoom.Goal) -> GoalResponse:
+        with self.node.lock:
+            why = self._refusal(request.target_angle_rad, request.max_speed_rad_s, request.timeout_s)
+        if why is not None:
+            self.node.get_logger().warning(f"MoveBoom goal rejected: {why}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_accepted(self, handle: ServerGoalHandle) -> None:
+        node = self.node
+        request = handle.request
+        with node.lock:
+            self._finish(ABORTED, "preempted by a newer MoveBoom goal")
+            self._drop_trajectory("preempted by a MoveBoom goal")
+            p, sim = node.sim.params, node.sim
+            speed = request.max_speed_rad_s or p.control_max_speed_rad_s
+            angle, rate = node.drive.setpoint()
+            path = move(sim.t, angle, rate, request.target_angle_rad, speed)
+            node.drive.follow(path)
+            end_s = float(path.end_s[0])
+            timeout = request.timeout_s or DEFAULT_TIMEOUT_S
+            self.goal = Goal(
+                handle, request.target_angle_rad, sim.t, end_s, end_s + timeout, node.sim.outputs()["supply_energy"]
+            )
+            self._accepted[id(handle)] = self.goal
+            node.get_logger().info(
+                f"MoveBoom: {math.degrees(angle):.2f} -> {math.degrees(request.target_angle_rad):.2f} deg "
+                f"at up to {speed:g} rad/s, planned {end_s - sim.t:.2f} s"
+            )
+        handle.execute()
+
+    def _execute(self, handle: ServerGoalHandle) -> MoveBoom.Result:
+        """Wait (in an executor thread) until the loop finishes the goal; report how it ended."""
+        with self.node.lock:
+            goal = self._accepted.pop(id(handle))
+        while not goal.done.wait(0.5):
+            if self.node.stopping.is_set():
+                with self.node.lock:
+                    if self.goal is goal:
+                        self._finish(ABORTED, "the node is shutting down")
+        outcome, result = goal.outcome
+        {SUCCEEDED: handle.succeed, ABORTED: handle.abort, CANCELED: handle.canceled}[outcome]()
+        return result
+
+    def _finish(self, outcome: str, message: str) -> None:
+        """End the running goal (caller holds the node's lock)."""
+        goal, self.goal = self.goal, None
+        if goal is None:
+            return
+        out = self.node.sim.outputs() if self.node.failure is None else None
+        result = MoveBoom.Result(message=message, duration_s=self.node.sim.t - goal.started_s)
+        if out is not None:
+            result.final_error_rad = goal.target_rad - float(out["alpha"])
+            result.supply_energy_j = float(out["supply_energy"]) - goal.energy_j
+        text = f"MoveBoom {outcome}: {message} (error {math.degrees(result.final_error_rad):.3f} deg)"
+        if outcome == SUCCEEDED:  # (rclpy fixes a call site's severity: one call per level)
+            self.node.get_logger().info(text)
+        else:
+            self.node.get_logger().warning(text)
+        goal.outcome = (outcome, result)
+        goal.done.set()
+
+    # --- trajectories ---------------------------------------------------------------------
+    def _on_trajectory(self, msg: JointTrajectory) -> None:
+        node = self.node
+        with node.lock:
+            why, path = self._plan_trajectory(msg)
+            if why is not None:
+                node.get_logger().warning(f"joint trajectory ignored: {why}")
+                return
+            self._finish(ABORTED, "preempted by a joint trajectory")
+            node.drive.follow(path)
+            self.trajectory = True
+
+    def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None]:
+        node = self.node
+        p, sim = node.sim.params, node.sim
+        if p.mode != "physical":
+            return "position control needs mode: physical", None
+        if node.failure:
+            return f"the simulation stopped ({node.failure}); call ~/reset first", None
+        angle, rate = node.drive.setpoint()
+        if not msg.points:  # JTC: an empty trajectory stops where the boom is
+            return None, SetpointPath.of([sim.t], [float(node.sim.outputs()["alpha"])])
+        if "boom_joint" not in msg.joint_names:
+            return f"it names {list(msg.joint_names)}; this node drives boom_joint", None
+        j = list(msg.joint_names).index("boom_joint")
+        stamp = msg.header.stamp
+        start = node.stamp_to_sim_time(stamp)
+        start = sim.t if start is None else max(start, sim.t)
+        times = [start + pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
+        try:
+            positions = [float(pt.positions[j]) for pt in msg.points]
+        except IndexError:
+            return "a point has fewer positions than joint_names", None
+        with_rates = all(len(pt.velocities) == len(msg.joint_names) for pt in msg.points)
+        rates = [float(pt.velocities[j]) for pt in msg.points] if with_rates else None
+        if not all(math.isfinite(x) for x in positions + (rates or [])):
+            return "positions and velocities must be finite", None
+        if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < start:
+            return "time_from_start must be non-negative and strictly increasing", None
+        low, high = stroke_angles_rad(p)
+        outside = [x for x in positions if not low <= x <= high]
+        if outside:
+            return (
+                f"position {outside[0]:.4f} rad lies outside the stroke's [{low:.4f}, {high:.4f}] rad "
+                f"([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
+            ), None
+        if times[0] > sim.t:  # from where the setpoint is now to the first point
+            times, positions = [sim.t, *times], [angle, *positions]
+            rates = [rate, *rates] if rates is not None else None
+        node.get_logger().info(
+            f"joint trajectory: {len(msg.points)} points over {times[-1] - sim.t:.2f} s "
+            f"({'cubic' if rates is not None else 'linear'})"
+        )
+        return None, SetpointPath.of(times, positions, rates)
+
+    def _drop_trajectory(self, why: str) -> None:
+        if self.trajectory:
+            self.trajectory = False
+            self.node.get_logger().warning(f"joint trajectory aborted: {why}")
+
+    # --- from the drive and the loop ------------------------------------------------------
+    def _on_override(self) -> None:
+        """A valve command took the valve from the controller (caller holds the lock)."""
+        self._finish(ABORTED, "operator override: a valve command arrived on valve_command")
+        self._drop_trajectory("operator override: a valve command arrived on valve_command")
+
+    def stop(self, why: str) -> None:
+        """Reset, failure or shutdown: end what runs (caller holds the lock)."""
+        self._finish(ABORTED, why)
+        self._drop_trajectory(why)
+
+    def after_steps(self) -> None:
+        """After the loop's steps (caller holds the lock): feedback, cancel, success, timeout."""
+        goal, node = self.goal, self.node
+        if goal is None:
+            return
+        if node.failure is not None:
+            self.stop(f"the simulation stopped: {node.failure}")
+            return
+        if goal.handle.is_cancel_requested:
+            node.drive.let_go()
+            self._finish(CANCELED, "canceled: the valve is closed and the load-holding valve holds the boom")
+            return
+        t = node.sim.t
+        loop = node.drive.loop
+        if loop is None:  # (the override already finished it)
+            return
+        if t >= goal.end_s and float(loop.state.holding) == 1.0:
+            self._finish(SUCCEEDED, "settled: the boom holds the target")
+            return
+        if t > goal.deadline_s:
+            self._finish(ABORTED, f"not settled {goal.deadline_s - goal.end_s:g} s after the planned end of the move")
+            return
+        goal.ticks += 1
+        if goal.ticks % FEEDBACK_EVERY_TICKS == 0:
+            alpha = float(node.sim.outputs()["alpha"])
+            feedback = MoveBoom.Feedback(
+                angle_rad=alpha, setpoint_rad=loop.setpoint[0], error_rad=goal.target_rad - alpha
+            )
+            goal.handle.publish_feedback(feedback)
+
+    def any_active(self) -> Any:
+        return self.goal is not None or self.trajectory

@@ -1,0 +1,139 @@
+"""The node on a shared clock: use_sim_time:=true with /clock from a separate process."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import BOOM_SIM, start_node
+
+rclpy = pytest.importorskip("rclpy")
+
+pytestmark = [
+    pytest.mark.usefixtures("ros_context"),
+    pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)"),
+]
+
+CLOCK_SOURCE = Path(__file__).with_name("clock_source.py")
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return proc.stdout.read() if proc.stdout and not proc.stdout.closed else ""
+
+
+def _stamp_s(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def _sim_time(diagnostic) -> float:
+    drive = next(s for s in diagnostic.status if s.name == "boom_sim: drive")
+    return float(next(kv.value for kv in drive.values if kv.key == "sim_time_s"))
+
+
+def _wall_stamps(client, seconds: float) -> list[tuple[float, float]]:
+    """(wall s, stamp s) of every drive_state received over ``seconds`` of wall time."""
+    seen: list[tuple[float, float]] = []
+    start = len(client.states)
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        rclpy.spin_once(client.node, timeout_sec=0.01)
+        now = time.monotonic()
+        seen += [(now, _stamp_s(m)) for m in client.states[start:]]
+        start = len(client.states)
+    return seen
+
+
+def _rate(samples: list[tuple[float, float]]) -> float:
+    """Stamp seconds per wall second over ``samples``."""
+    (w0, s0), (w1, s1) = samples[0], samples[-1]
+    return (s1 - s0) / (w1 - w0)
+
+
+def _phases(output: str) -> dict[str, float]:
+    """The clock source's phase starts: {'0.5': clock s, '0.0': ..., 'end': ...}."""
+    starts = {}
+    for line in output.splitlines():
+        words = line.split()
+        if words and words[0] == "phase":
+            starts[str(float(words[1]))] = float(words[3])
+        elif words and words[0] == "end":
+            starts["end"] = float(words[1])
+    return starts
+
+
+def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stops_with_it(client):
+    node = start_node("use_sim_time:=true", "command_timeout_s:=0")
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    source = subprocess.Popen(
+        [sys.executable, str(CLOCK_SOURCE), "100.0", "0.5:4", "0:3", "2.0:3"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        samples = _wall_stamps(client, 11.0)
+        phases = _phases(source.communicate(timeout=10)[0])
+    finally:
+        _stop(source)
+        log = _stop(node)
+    pause_s, double_s = phases["0.0"], phases["2.0"]
+    half = [(w, s) for w, s in samples if 100.3 < s < pause_s - 0.1]
+    double = [(w, s) for w, s in samples if double_s + 0.3 < s < phases["end"] - 0.1]
+    # stamps are the ROS clock's: the external clock's 100 s and on, not wall time and not zero
+    assert min(s for _, s in samples) >= 100.0 and max(s for _, s in samples) <= phases["end"] + 0.01
+    assert len(half) > 50 and _rate(half) == pytest.approx(0.5, abs=0.08)
+    assert len(double) > 50 and _rate(double) == pytest.approx(2.0, abs=0.25)
+    # a stopped clock stops the physics: nothing is published for the 3 s it stands still
+    before = max(w for w, s in samples if s <= pause_s + 1e-3)
+    after = min(w for w, s in samples if s > pause_s + 1e-3)
+    assert after - before > 2.5
+    # simulated time advanced as the clock did: diagnostics (every second of ROS time) agree
+    pairs = [
+        (_stamp_s(d), _sim_time(d)) for d in client.diagnostics if any(s.name == "boom_sim: drive" for s in d.status)
+    ]
+    assert len(pairs) >= 4
+    offsets = [stamp - sim for stamp, sim in pairs]
+    assert max(offsets) - min(offsets) < 0.05, offsets
+    assert "following the ROS clock" in log
+
+
+def test_a_clock_that_jumps_back_resets_the_drive(client):
+    node = start_node("use_sim_time:=true", "command_timeout_s:=0")
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    source = subprocess.Popen(
+        [sys.executable, str(CLOCK_SOURCE), "50.0", "1.0:5", "jump:10.0", "1.0:3"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert client.spin_until(lambda: len(client.states) > 5, timeout=20)
+        client.spin_for(1.0, opening=1.0)  # lift: the rod leaves its initial length
+        lifted = client.last()
+        assert client.spin_until(lambda: _stamp_s(client.last()) < 20.0, timeout=10), "no state after the jump"
+        client.spin_for(0.5)
+        after = client.last()
+    finally:
+        _stop(source)
+        log = _stop(node)
+    assert lifted.rod_position_m > 1.4 and _stamp_s(lifted) > 50.0, log
+    assert 10.0 < _stamp_s(after) < 15.0, log
+    assert after.rod_position_m == pytest.approx(1.37, abs=2e-3), log  # back at rest, at its initial length
+    assert "the ROS clock jumped back" in log
+
+
+def test_use_sim_time_and_publish_clock_together_are_refused_in_one_line():
+    node = start_node("use_sim_time:=true", "publish_clock:=true")
+    out, _ = node.communicate(timeout=60)
+    assert node.returncode == 2
+    assert out.strip().splitlines()[-1].startswith("boom_sim: error: use_sim_time and publish_clock are both true")

@@ -1,0 +1,188 @@
+"""Position goals for the node in its own process: MoveBoom, ~/joint_trajectory, override."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import signal
+import subprocess
+from collections.abc import Iterator
+
+import pytest
+from conftest import BOOM_SIM, start_node
+
+rclpy = pytest.importorskip("rclpy")
+from action_msgs.msg import GoalStatus  # noqa: E402
+from builtin_interfaces.msg import Duration  # noqa: E402
+from rcl_interfaces.msg import Log  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+from boom_hydraulics_msgs.action import MoveBoom  # noqa: E402
+
+pytestmark = [
+    pytest.mark.usefixtures("ros_context"),
+    pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)"),
+]
+
+#: The controller's dead-band (config/default.yaml): a settled boom is within twice it.
+DEADBAND = 0.002
+
+
+@pytest.fixture
+def node() -> Iterator[subprocess.Popen]:
+    proc = start_node("command_timeout_s:=0.5")
+    yield proc
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+class Mover:
+    """The test's action client and trajectory publisher."""
+
+    def __init__(self, client) -> None:
+        self.client = client
+        self.action = ActionClient(client.node, MoveBoom, "/boom_sim/move_boom")
+        self.trajectories = client.node.create_publisher(
+            JointTrajectory, "/boom_sim/joint_trajectory", QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        )
+        self.feedback: list[MoveBoom.Feedback] = []
+        self.logs: list[Log] = []
+        rosout_qos = QoSProfile(
+            depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        client.node.create_subscription(Log, "/rosout", self.logs.append, rosout_qos)
+        assert self.action.wait_for_server(timeout_sec=20), "no MoveBoom action server"
+        assert client.spin_until(lambda: len(client.states) > 5), "no drive_state"
+
+    def send(self, target_rad: float, max_speed: float = 0.0):
+        """Send a goal; the goal handle once the server answered."""
+        future = self.action.send_goal_async(
+            MoveBoom.Goal(target_angle_rad=target_rad, max_speed_rad_s=max_speed),
+            feedback_callback=lambda m: self.feedback.append(m.feedback),
+        )
+        assert self.client.spin_until(future.done, 10)
+        return future.result()
+
+    def result(self, handle, timeout: float = 20.0):
+        future = handle.get_result_async()
+        assert self.client.spin_until(future.done, timeout), "no result"
+        return future.result()
+
+    def logged(self, text: str) -> bool:
+        return any(text in entry.msg for entry in self.logs)
+
+
+@pytest.fixture
+def mover(node, client) -> Mover:
+    return Mover(client)
+
+
+def test_move_boom_reaches_30_degrees_and_holds_it(mover, client):
+    target = math.radians(30.0)
+    handle = mover.send(target)
+    assert handle.accepted
+    answer = mover.result(handle)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, answer.result.message
+    result = answer.result
+    assert abs(result.final_error_rad) <= 2 * DEADBAND
+    assert 1.0 < result.duration_s < 6.0 and result.supply_energy_j > 100.0
+    assert len(mover.feedback) >= 5 and all(abs(f.error_rad) < 0.5 for f in mover.feedback)
+    client.spin_for(2.0)  # it holds: the valve stays closed and the boom where it is
+    recent = client.states[-100:]
+    assert all(abs(s.boom_angle_rad - target) <= 2 * DEADBAND + 5e-4 for s in recent)
+    assert all(s.valve_command == 0.0 for s in recent)
+
+
+def test_cancel_stops_the_boom_and_closes_the_valve(mover, client):
+    handle = mover.send(math.radians(60.0))
+    client.spin_for(1.0)
+    moving = client.last()
+    assert moving.boom_rate_rad_s > 0.1
+    cancel = handle.cancel_goal_async()
+    assert client.spin_until(cancel.done, 10)
+    answer = mover.result(handle)
+    assert answer.status == GoalStatus.STATUS_CANCELED
+    client.spin_for(1.0)  # the closed valve stops the boom (after a short ring on the oil's spring)
+    stopped = client.last()
+    assert stopped.valve_command == 0.0 and abs(stopped.boom_rate_rad_s) < 0.01
+    client.spin_for(1.0)
+    assert abs(client.last().boom_angle_rad - stopped.boom_angle_rad) < 1e-3
+
+
+def test_a_second_goal_preempts_the_first(mover, client):
+    first = mover.send(math.radians(50.0))
+    client.spin_for(0.7)
+    second = mover.send(math.radians(15.0))
+    assert second.accepted
+    answer = mover.result(first)
+    assert answer.status == GoalStatus.STATUS_ABORTED and "preempted" in answer.result.message
+    answer = mover.result(second)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED
+    assert abs(client.last().boom_angle_rad - math.radians(15.0)) <= 2 * DEADBAND + 5e-4
+
+
+def test_a_goal_outside_the_stroke_is_rejected_with_a_reason(mover, client):
+    handle = mover.send(math.radians(85.0))
+    assert not handle.accepted
+    assert client.spin_until(lambda: mover.logged("MoveBoom goal rejected"), 5)
+    assert mover.logged("lies outside the stroke's")
+
+
+def test_a_valve_command_overrides_and_aborts_the_goal(mover, client):
+    handle = mover.send(math.radians(50.0))
+    client.spin_for(0.5)
+    client.spin_for(0.6, opening=-0.5)  # the operator lowers the boom
+    answer = mover.result(handle)
+    assert answer.status == GoalStatus.STATUS_ABORTED and "operator override" in answer.result.message
+    assert client.last().valve_command == -0.5 and client.last().boom_rate_rad_s < 0.0
+
+
+def _trajectory(points: list[tuple[float, float]]) -> JointTrajectory:
+    msg = JointTrajectory(joint_names=["boom_joint"])
+    for t, angle in points:
+        sec = int(t)
+        msg.points.append(
+            JointTrajectoryPoint(positions=[angle], time_from_start=Duration(sec=sec, nanosec=round((t - sec) * 1e9)))
+        )
+    return msg
+
+
+def test_a_joint_trajectory_is_followed_within_a_degree(mover, client):
+    """Positions only: linear between points, as joint_trajectory_controller does. Tolerance:
+    1 degree while moving at up to 0.2 rad/s, 2 x dead-band at the end."""
+    start = client.last().boom_angle_rad
+    points = [(1.0, 0.3), (2.5, 0.6), (4.0, 0.4)]
+    received = len(client.states)
+    mover.trajectories.publish(_trajectory(points))
+    client.spin_for(5.5)
+    states = client.states[received:]
+    t0 = next(s for s in states if s.valve_command != 0.0)  # the trajectory's start, give or take a step
+    begin = t0.header.stamp.sec + t0.header.stamp.nanosec * 1e-9
+    knots = [(0.0, start), *points]
+
+    def expected(t: float) -> float:
+        for (ta, a), (tb, b) in itertools.pairwise(knots):
+            if t <= tb:
+                return a + (b - a) * max(0.0, t - ta) / (tb - ta)
+        return knots[-1][1]
+
+    errors = [
+        abs(s.boom_angle_rad - expected(s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 - begin)) for s in states
+    ]
+    assert max(errors) < math.radians(1.0), max(errors)
+    assert abs(states[-1].boom_angle_rad - 0.4) <= 2 * DEADBAND + 5e-4
+    assert mover.logged("joint trajectory: 3 points over")
+
+
+def test_a_valve_command_overrides_a_trajectory(mover, client):
+    mover.trajectories.publish(_trajectory([(3.0, 0.9)]))
+    client.spin_for(1.0)
+    client.spin_for(0.6, opening=-0.4)
+    assert client.spin_until(lambda: mover.logged("joint trajectory aborted: operator override"), 5)
+    assert client.last().valve_command == -0.4 and client.last().boom_rate_rad_s < 0.0
