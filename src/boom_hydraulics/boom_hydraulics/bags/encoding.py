@@ -67,6 +67,25 @@ def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = BASE_
     return bytes(typestore().serialize_cdr(types[DRIVE_STATE](header=header, **fields), DRIVE_STATE))
 
 
+def setpoint_cdr(joint: str, angle_rad: float, rate_rad_s: float, stamp_ns: int) -> bytes:
+    """CDR of the sensor_msgs/JointState of a position setpoint (no effort). Encoded by rosbags:
+    rclpy's serializer pads after an empty trailing float64 sequence, and strict readers
+    (rosbags) refuse such a message."""
+    types = typestore().types
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
+    )
+    msg = types["sensor_msgs/msg/JointState"](
+        header=header,
+        name=[joint],
+        position=np.array([angle_rad], dtype=np.float64),
+        velocity=np.array([rate_rad_s], dtype=np.float64),
+        effort=np.array([], dtype=np.float64),
+    )
+    return bytes(typestore().serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+
+
 _VALUE_FIELDS = {  # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it
     1: ("bool_value", None),
     2: ("integer_value", None),

@@ -15,6 +15,13 @@ commands and parameter events, so both runs overlay sample for sample. Exact for
 recorded with publish_clock; with ROS-time stamps a command's time is known to within one
 publish period, and a run that was reset or paused cannot be replayed this way (the time
 origin moved). A run that cannot be simulated to its end writes nothing.
+
+Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
+the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
+setpoints here too (cubic between ticks, from where the boom was when control began), with
+the new parameters' gains and cylinder; it lets go where the recording shows it let go. The
+setpoint between two ticks is interpolated, so such a run matches its recording closely but
+not to the last bit.
 """
 
 from __future__ import annotations
@@ -39,11 +46,13 @@ from ..errors import BagError, ConfigError
 from ..files import check_apart
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
+from ..model.setpoints import SetpointPath
 from ..solve.command_queue import CommandedDrive, valve_opening
 from ..solve.simulation import Simulator
 from .common import RaisingParser, run_main, summary
 
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
+JOINT_STATE = "sensor_msgs/msg/JointState"
 ARRAY_COMMAND = "std_msgs/msg/Float64MultiArray"
 PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
 #: ParameterValue.type -> the field that holds the value (rcl_interfaces/msg/ParameterType)
@@ -86,6 +95,7 @@ class RecordedRun:
     topics: list[Topic]  # of the commands and parameter events, with their recorded offers
     commands: list[Recorded]
     parameter_changes: list[Recorded]
+    setpoints: list[tuple[int, float, float]] = field(default_factory=list)  # (stamp ns, rad, rad/s)
 
 
 def _parameter_value(value: Any) -> Any:
@@ -115,6 +125,14 @@ def read_run(bag: Path) -> RecordedRun:
                 Topic(c.topic, c.msgtype, tuple(getattr(c.ext, "offered_qos_profiles", ())) or (offered_qos(),))
                 for c in wanted
             ]
+            setpoint_topics = [
+                c for c in reader.connections if c.msgtype == JOINT_STATE and c.topic.endswith("/setpoint")
+            ]
+            setpoints = sorted(
+                (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg.position[0], msg.velocity[0])
+                for c, _, raw in reader.messages(connections=setpoint_topics[:1])
+                if (msg := reader.deserialize(raw, c.msgtype))
+            )
             commands, changes = [], []
             for connection, log_ns, raw in reader.messages(connections=wanted):
                 msg = reader.deserialize(raw, connection.msgtype)
@@ -147,6 +165,7 @@ def read_run(bag: Path) -> RecordedRun:
             topics=topics,
             commands=commands,
             parameter_changes=sorted(changes, key=lambda r: r.at_ns),
+            setpoints=setpoints,
         )
     except (KeyError, ValueError, yaml.YAMLError) as exc:
         raise BagError(f"{bag}: the recorded run description is unreadable ({exc})") from None
@@ -172,6 +191,14 @@ class _Resimulation:
         if u is not None:
             self.drive.push(self.seconds(command.at_ns), u)
 
+    def take_over(self, control: Control) -> None:
+        """The controller drives from now along the recorded setpoints (from where the boom is)."""
+        angle, rate = self.drive.setpoint()
+        times = [self.sim.t] + [self.seconds(ns) for ns, _, _ in control.samples]
+        angles = [angle] + [a for _, a, _ in control.samples]
+        rates = [rate] + [r for _, _, r in control.samples]
+        self.drive.follow(SetpointPath.of(times, angles, rates))
+
     def apply_changes(self) -> None:
         """Parameter changes due by now (the node applies them between ticks)."""
         half_step = 0.5 * self.sim.params.time_step_s
@@ -185,6 +212,39 @@ class _Resimulation:
                     raise ConfigError(f"a recorded parameter change does not fit the new parameters: {exc}") from None
             if "command_timeout_s" in changes:
                 self.drive.timeout_s = float(changes["command_timeout_s"])
+
+
+@dataclass(frozen=True)
+class Control:
+    """A stretch of the run in which the position controller drove the valve."""
+
+    start_ns: int  # the state instant at which it took over (the one before its first setpoint)
+    samples: list[tuple[int, float, float]]  # the recorded setpoints
+    release_ns: int  # the state instant of its last setpoint: the controller had let go there, unless
+    # the recording ends there
+
+
+def control_stretches(setpoints: Sequence[tuple[int, float, float]], instants: Sequence[int]) -> list[Control]:
+    """The recorded setpoints cut into stretches of consecutive ticks, each placed on the state
+    instants: control began at the instant before its first setpoint, and the node publishes a
+    setpoint for every tick in which the controller drove, so it had let go (canceled, or taken
+    over by a valve command) by the instant of the last one."""
+    position = {ns: k for k, ns in enumerate(instants)}
+    stretches: list[list[tuple[int, float, float]]] = []
+    for sample in setpoints:
+        k = position.get(sample[0])
+        if k is None:
+            continue
+        if stretches and position[stretches[-1][-1][0]] == k - 1:
+            stretches[-1].append(sample)
+        else:
+            stretches.append([sample])
+    out = []
+    for samples in stretches:
+        first = position[samples[0][0]]
+        start = instants[first - 1] if first > 0 else samples[0][0]
+        out.append(Control(start, samples, samples[-1][0]))
+    return out
 
 
 def _grid(run: RecordedRun, time_step_s: float) -> list[int]:
@@ -220,6 +280,10 @@ def resimulate(
         params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
     )
     recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
+    stretches = control_stretches(run.setpoints, instants)
+    starts = {c.start_ns: c for c in stretches}
+    releases = {c.release_ns for c in stretches if c.release_ns != instants[-1]}
+    now_ns = run.clock_origin_ns
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
@@ -230,7 +294,12 @@ def resimulate(
                 if steps <= 0:
                     continue
                 resim.apply_changes()  # the node changes parameters between ticks, at a state instant
+                if now_ns in starts:  # a goal or trajectory was taken between these instants
+                    resim.take_over(starts[now_ns])
                 resim.drive.advance(steps)  # a SimulationError ends it: nothing is written
+                if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
+                    resim.drive.let_go()
+                now_ns = at_ns
                 stamp_ns = run.clock_origin_ns + round(resim.sim.t * 1e9)
                 while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
                     message = recorded.popleft()

@@ -54,11 +54,11 @@ from visualization_msgs.msg import MarkerArray
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
-from ..bags.encoding import parameter_event_cdr
+from ..bags.encoding import parameter_event_cdr, setpoint_cdr
 from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
-from ..model.robot_description import urdf
+from ..model.robot_description import JOINTS, urdf
 from ..solve.command_queue import CommandedDrive, valve_opening
 from ..solve.pacing import Pacer
 from ..solve.simulation import Simulator
@@ -150,6 +150,7 @@ class BoomSimNode(Node):
         self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
         self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
+        self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -276,7 +277,7 @@ class BoomSimNode(Node):
         """A bag of every topic this node publishes, its parameter changes, and every command
         it receives (each command topic once its first publisher shows up)."""
         pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        pubs.append(self.markers_pub)
+        pubs += [self.markers_pub, self.setpoint_pub]
         pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
         topics = [Topic(p.topic_name, _type_name(p.msg_type), (offer_of(p.qos_profile),)) for p in pubs]
         events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
@@ -322,11 +323,13 @@ class BoomSimNode(Node):
     def _record_published(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
         if self.recorder is not None:
             for publisher, msg in messages:
-                self.recorder.write(publisher.topic_name, stamp_ns, serialize_message(msg))
+                data = msg if isinstance(msg, bytes) else serialize_message(msg)
+                self.recorder.write(publisher.topic_name, stamp_ns, data)
 
     def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
         """Publish (publisher, message) pairs, then record them all: a tick cut short by
-        shutdown leaves no partial tick in the bag."""
+        shutdown leaves no partial tick in the bag. A message given as CDR bytes is published
+        and recorded as those bytes."""
         for publisher, msg in messages:
             publisher.publish(msg)
         self._record_published(messages, stamp.sec * 1_000_000_000 + stamp.nanosec)
@@ -541,6 +544,10 @@ class BoomSimNode(Node):
             (self.p2_pub, rod),
             (self.force_pub, messages.rod_force(out, stamp)),
         ]
+        if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
+            stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+            data = setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)
+            tick.append((self.setpoint_pub, data))
         self._ticks += 1
         if self._ticks % self._markers_every == 0:
             tick.append((self.markers_pub, crane_markers(out, stamp, p)))

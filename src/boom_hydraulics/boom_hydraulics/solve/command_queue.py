@@ -92,6 +92,7 @@ class CommandedDrive:
         self.last_command_s: float | None = None
         self.loop: PositionLoop | None = None  # the controller, while it drives the valve
         self.on_override: Callable[[], None] = lambda: None
+        self.followed: SetpointPath | None = None  # the path the controller followed in the last advance()
 
     def push(self, at_s: float, opening: float) -> bool:
         """Queue ``opening`` for simulated time ``at_s`` (now or earlier: the next step)."""
@@ -139,10 +140,12 @@ class CommandedDrive:
     def advance(self, steps: int) -> None:
         """Take ``steps`` physics steps; raises SimulationError as Simulator.step does."""
         dt = self.sim.params.time_step_s
+        self.followed = None
         while steps > 0:
             t = self.sim.t
             self.queue.apply_due(t, dt, self._apply)
             if self.loop is not None:  # closed loop: a new opening every step
+                self.followed = self.loop.path
                 self.current = self.loop(t + 0.5 * dt, self.sim.y)
                 self.sim.step(self.current, 1)
                 steps -= 1
