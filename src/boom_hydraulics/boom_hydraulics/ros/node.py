@@ -242,6 +242,8 @@ class BoomSimNode(Node):
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         if new_params is not None:
+            if new_params.mode != "physical":
+                self.motion.stop("mode changed to paper, which has no position control")
             self.sim.set_parameters(new_params)
             self.drive.parameters_changed()
             self._description_due = True

@@ -132,7 +132,10 @@ class CommandedDrive:
             self.on_override()
 
     def parameters_changed(self) -> None:
-        """The simulator's parameters changed: the controller takes their gains and constants."""
+        """The simulator's parameters changed: the controller takes their gains and constants
+        (paper mode has no position control: the controller lets go)."""
+        if self.loop is not None and self.sim.params.mode != "physical":
+            self.let_go()
         if self.loop is not None:
             path = self.loop.path
             self.loop = PositionLoop([self.sim.params], path, self.sim.constants)
