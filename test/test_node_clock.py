@@ -137,3 +137,36 @@ def test_use_sim_time_and_publish_clock_together_are_refused_in_one_line():
     out, _ = node.communicate(timeout=60)
     assert node.returncode == 2
     assert out.strip().splitlines()[-1].startswith("boom_sim: error: use_sim_time and publish_clock are both true")
+
+
+def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(client, tmp_path):
+    """The bag starts at the first /clock (its time origin), its times are the clock's, and it
+    has diagnostics; a command sent before the clock runs is recorded at its start."""
+    from bag_checks import check_bag
+
+    from boom_hydraulics.bags.reading import read_drive_states
+
+    node = start_node("use_sim_time:=true", f"record_folder:={tmp_path}", "command_timeout_s:=0", record=True)
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    assert client.spin_until(lambda: client.pub.get_subscription_count() > 0, timeout=10)
+    client.spin_for(0.5)
+    client.command(0.6)  # before any /clock: it waits for the first step
+    client.spin_for(0.3)
+    source = subprocess.Popen(
+        [sys.executable, str(CLOCK_SOURCE), "200.0", "1.0:3.5"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
+    try:
+        source.communicate(timeout=20)
+        # the clock stands at 203.5 s now; a loaded machine may still be working off its backlog
+        assert client.spin_until(lambda: client.states and _stamp_s(client.last()) > 203.4, timeout=60)
+    finally:
+        _stop(source)
+        log = _stop(node)
+    (bag,) = list(tmp_path.iterdir())
+    counts = check_bag(bag)
+    states = read_drive_states(bag)  # t from the recorded origin: the first /clock
+    assert counts["/drive_state"] > 300 and counts["/diagnostics"] >= 2 and counts["/valve_command"] == 1, counts
+    assert counts["/robot_description"] == 1
+    assert 0.0 < states["t"][0] < 0.1 and 3.3 < states["t"][-1] < 3.6
+    assert states["u"][0] == 0.6 and states["q1"][-1] > states["q1"][0] + 0.05
+    assert "boom_sim: bag" in log

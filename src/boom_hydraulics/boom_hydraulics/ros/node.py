@@ -32,7 +32,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (
@@ -184,7 +184,12 @@ class BoomSimNode(Node):
         self.motion = Motion(self)
 
         self._restart_clock()
-        self.recorder = self._start_recording() if self.get_parameter("record").value else None
+        # on a shared clock, simulated time 0 is the first /clock: the bag starts there (its
+        # time origin); commands received before it are kept for it
+        record = bool(self.get_parameter("record").value)
+        self.recorder = self._start_recording() if record and not self.follow_clock else None
+        self.record_pending = record and self.follow_clock
+        self._early_commands: list[tuple[str, bytes, dict]] = []
         self.publish_description()
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
@@ -314,6 +319,9 @@ class BoomSimNode(Node):
     def _record_received(self, topic: str, data: bytes, info: dict) -> None:
         """Log a received command at its receive time on the node's clock, as rosbag2 does
         (its header stamp stays inside the message); publish time: when it was sent."""
+        if self.record_pending:
+            self._early_commands.append((topic, data, info))
+            return
         if self.recorder is None:
             return
         if topic not in self.recorder.topics:
@@ -439,6 +447,13 @@ class BoomSimNode(Node):
             return False
         if self._clock_seen_s <= 0.0:  # the first /clock
             self._restart_clock()
+            if self.record_pending:
+                self.record_pending = False
+                self.recorder = self._start_recording()
+                self.publish_description()  # (transient local: published again, so the bag has it)
+                for topic, data, info in self._early_commands:
+                    self._record_received(topic, data, info)
+                self._early_commands.clear()
             return True
         if now < self._clock_seen_s - CLOCK_JUMP_S:
             self.get_logger().warning(
@@ -643,9 +658,9 @@ def main(args: list[str] | None = None) -> None:
         rclpy.try_shutdown()
         _fail(str(exc))
     node.loop.start()
-    executor = MultiThreadedExecutor(num_threads=3)  # a MoveBoom goal waits in a thread of its own
+    node.motion.spin_in_background()
     try:
-        rclpy.spin(node, executor)
+        rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -657,10 +672,13 @@ def main(args: list[str] | None = None) -> None:
     finally:
         node.stopping.set()
         node.loop.join(timeout=5.0)
+        if node.record_pending:
+            print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
         if node.recorder is not None:
             folder = node.recorder.close()
             counts = ", ".join(f"{t} {n}" for t, n in node.recorder.counts.items() if n)
             print(f"boom_sim: bag {folder} ({counts})", flush=True)
+        node.motion.destroy()
         node.destroy_node()
         rclpy.try_shutdown()
 
