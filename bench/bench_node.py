@@ -9,6 +9,10 @@
 2. The node's stepping in this process, without DDS: simulated seconds per wall second
    of ``advance`` alone (no publishing) and of the as-fast-as-possible tick (advance +
    publish), interpreted and compiled.
+3. Where a tick's time goes (recording on, as by default): stepping, the model's outputs,
+   building each message, serialising, publishing and recording, per tick of 10 steps.
+
+Bags go to a temporary folder and are removed.
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
+from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +34,14 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
+from boom_hydraulics.ros import messages
+from boom_hydraulics.ros import node as node_module
 from boom_hydraulics.ros.node import BoomSimNode
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "default.yaml"
+BAGS = Path(tempfile.mkdtemp(prefix="bench_node_bags."))  # removed at the end
+ARGS = ["--ros-args", "-p", f"record_folder:={BAGS}"]
 
 
 def cpu_seconds(pid: int) -> float:
@@ -50,6 +61,8 @@ def real_time_run(seconds: float, jit: bool) -> None:
             "command_timeout_s:=0.0",
             "-p",
             f"jit:={str(jit).lower()}",
+            "-p",
+            f"record_folder:={BAGS}",
         ],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -108,7 +121,7 @@ def in_process_rates() -> None:
     print("  path         advance only   tick (advance + publish every 10 ms sim)")
     for jit in (False, True):
         rclpy.try_shutdown()
-        rclpy.init(args=["--ros-args", "-p", f"jit:={str(jit).lower()}", "-p", "real_time_factor:=0.0"])
+        rclpy.init(args=[*ARGS, "-p", f"jit:={str(jit).lower()}", "-p", "real_time_factor:=0.0"])
         node = BoomSimNode()
         node.drive.current = 0.3
         n = 20_000 if jit else 5_000
@@ -125,6 +138,55 @@ def in_process_rates() -> None:
         node.destroy_node()
 
 
+def _timed(owner: object, name: str, label: str, spent: dict[str, float]) -> None:
+    """Wrap ``owner.name`` so that its time adds up under ``label``."""
+    original: Callable = getattr(owner, name)
+
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            spent[label] += time.perf_counter() - t0
+
+    setattr(owner, name, wrapper)
+
+
+def tick_breakdown() -> None:
+    """Time per tick by stage: each stage's own functions wrapped with a timer."""
+    print("\nWhere a tick goes (10 steps and a publish, recording on), us per tick")
+    rows = []
+    for jit in (False, True):
+        rclpy.try_shutdown()
+        rclpy.init(args=[*ARGS, "-p", f"jit:={str(jit).lower()}", "-p", "real_time_factor:=0.0"])
+        node = BoomSimNode()
+        node.drive.current = 0.3
+        spent: dict[str, float] = defaultdict(float)
+        _timed(node, "advance", "stepping (advance)", spent)
+        _timed(node.sim, "outputs", "model outputs", spent)
+        for name in ("drive_state", "joint_state", "chamber_pressures", "rod_force"):
+            _timed(messages, name, "building messages", spent)
+        _timed(node_module, "crane_markers", "building markers (every 5th tick)", spent)
+        _timed(node_module, "serialize_message", "serialising", spent)
+        for publisher in (node.state_pub, node.joint_pub, node.p1_pub, node.p2_pub, node.force_pub, node.markers_pub):
+            _timed(publisher, "publish", "publishing", spent)
+        _timed(node.recorder, "write", "recording", spent)
+        ticks = 2000 if jit else 300
+        t0 = time.perf_counter()
+        for _ in range(ticks):
+            node.on_tick()
+        total = time.perf_counter() - t0
+        spent["rest (tick logic, locks, pacing)"] = max(0.0, total - sum(spent.values()))
+        rows.append(("compiled" if jit else "interpreted", total / ticks, dict(spent)))
+        node.destroy_node()
+    labels = list(rows[0][2])
+    print(f"  {'stage':<36} {'interpreted':>12} {'compiled':>10}")
+    for label in labels:
+        values = [f"{r[2].get(label, 0.0) / (2000 if r[0] == 'compiled' else 300) * 1e6:.0f}" for r in rows]
+        print(f"  {label:<36} {values[0]:>12} {values[1]:>10}")
+    print(f"  {'whole tick':<36} {rows[0][1] * 1e6:>12.0f} {rows[1][1] * 1e6:>10.0f}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the real-time run")
@@ -133,7 +195,9 @@ def main() -> int:
     real_time_run(args.seconds, jit=False)
     real_time_run(args.seconds, jit=True)
     in_process_rates()
+    tick_breakdown()
     rclpy.try_shutdown()
+    shutil.rmtree(BAGS, ignore_errors=True)  # created by this run
     return 0
 
 

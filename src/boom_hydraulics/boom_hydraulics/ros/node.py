@@ -330,19 +330,23 @@ class BoomSimNode(Node):
         received = self._now_ns()
         self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
 
-    def _record_published(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
-        if self.recorder is not None:
-            for publisher, msg in messages:
-                data = msg if isinstance(msg, bytes) else serialize_message(msg)
-                self.recorder.write(publisher.topic_name, stamp_ns, data)
-
     def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
         """Publish (publisher, message) pairs, then record them all: a tick cut short by
-        shutdown leaves no partial tick in the bag. A message given as CDR bytes is published
-        and recorded as those bytes."""
-        for publisher, msg in messages:
-            publisher.publish(msg)
-        self._record_published(messages, stamp.sec * 1_000_000_000 + stamp.nanosec)
+        shutdown leaves no partial tick in the bag. While recording, each message is
+        serialised once, and the bytes published are the bytes recorded. A message given as
+        CDR bytes is published and recorded as those bytes."""
+        if self.recorder is None:
+            for publisher, msg in messages:
+                publisher.publish(msg)
+            return
+        serialised = [
+            (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
+        ]
+        for publisher, data in serialised:
+            publisher.publish(data)
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        for publisher, data in serialised:
+            self.recorder.write(publisher.topic_name, stamp_ns, data)
 
     # --- commands -------------------------------------------------------------------------
     def stamp_to_sim_time(self, stamp: Any) -> float | None:
