@@ -16,6 +16,7 @@ Knots may differ per parameter set: every array has shape (knots, sets).
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -66,34 +67,52 @@ class SetpointPath:
         index = np.clip((times <= t_s).sum(axis=0) - 1, 0, k - 2)[None, :]
         t0, t1 = np.take_along_axis(times, index, 0)[0], np.take_along_axis(times, index + 1, 0)[0]
         a0, a1 = np.take_along_axis(angles, index, 0)[0], np.take_along_axis(angles, index + 1, 0)[0]
+        r0, r1 = np.take_along_axis(rates, index, 0)[0], np.take_along_axis(rates, index + 1, 0)[0]
         span = t1 - t0
         inside = (t_s > times[0]) & (t_s < times[-1]) & (span > 0.0)
         span = np.where(span > 0.0, span, 1.0)
         w = np.clip((t_s - t0) / span, 0.0, 1.0)
-        if self.order != LINEAR:
-            r0, r1 = np.take_along_axis(rates, index, 0)[0], np.take_along_axis(rates, index + 1, 0)[0]
-            w2, w3 = w * w, w * w * w
-            if self.order == CUBIC:  # Hermite basis on w in [0, 1], and its derivatives
-                h00, h10, h01, h11 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
-                d00, d10, d01, d11 = 6 * w2 - 6 * w, 3 * w2 - 4 * w + 1, -6 * w2 + 6 * w, 3 * w2 - 2 * w
-            else:  # quintic Hermite with zero end accelerations
-                w4, w5 = w3 * w, w3 * w2
-                h01 = 10 * w3 - 15 * w4 + 6 * w5
-                h00, h10, h11 = 1 - h01, w - 6 * w3 + 8 * w4 - 3 * w5, -4 * w3 + 7 * w4 - 3 * w5
-                d01 = 30 * w2 - 60 * w3 + 30 * w4
-                d00, d10, d11 = -d01, 1 - 18 * w2 + 32 * w3 - 15 * w4, -12 * w2 + 28 * w3 - 15 * w4
-            angle = h00 * a0 + h10 * span * r0 + h01 * a1 + h11 * span * r1
-            rate = (d00 * a0 + d01 * a1) / span + d10 * r0 + d11 * r1
-        else:
-            angle = a0 + w * (a1 - a0)
-            rate = (a1 - a0) / span
+        angle, rate = _segment(self.order, w, span, a0, a1, r0, r1)
         last = np.where(t_s >= times[-1], angles[-1], angles[0])
         return np.where(inside, angle, last), np.where(inside, rate, 0.0)
 
     def at(self, t_s: float) -> tuple[float, float]:
-        """Setpoint angle and rate at ``t_s`` of a single-set path, as floats."""
-        angle, rate = self.evaluate(t_s)
-        return float(angle[0]), float(rate[0])
+        """Setpoint angle and rate at ``t_s`` of a single-set path, as floats (without numpy:
+        the node and the closed loop ask once per physics step)."""
+        times, angles, rates = self._knots()
+        if t_s <= times[0] or len(times) == 1:
+            return angles[0], 0.0
+        if t_s >= times[-1]:
+            return angles[-1], 0.0
+        i = bisect.bisect_right(times, t_s) - 1
+        span = times[i + 1] - times[i]
+        return _segment(self.order, (t_s - times[i]) / span, span, angles[i], angles[i + 1], rates[i], rates[i + 1])
+
+    def _knots(self) -> tuple[list[float], list[float], list[float]]:
+        """The first set's knots as lists (cached)."""
+        cached = self.__dict__.get("_lists")
+        if cached is None:
+            cached = (self.times_s[:, 0].tolist(), self.angles_rad[:, 0].tolist(), self.rates_rad_s[:, 0].tolist())
+            object.__setattr__(self, "_lists", cached)
+        return cached
+
+
+def _segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -> tuple[Any, Any]:
+    """Angle and rate at fraction ``w`` of a segment of duration ``span`` from (a0, r0) to
+    (a1, r1): linear, cubic Hermite, or quintic Hermite with zero end accelerations."""
+    if order == LINEAR:
+        return a0 + w * (a1 - a0), (a1 - a0) / span
+    w2, w3 = w * w, w * w * w
+    if order == CUBIC:  # Hermite basis on w in [0, 1], and its derivatives
+        h00, h10, h01, h11 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
+        d00, d10, d01, d11 = 6 * w2 - 6 * w, 3 * w2 - 4 * w + 1, -6 * w2 + 6 * w, 3 * w2 - 2 * w
+    else:  # quintic Hermite with zero end accelerations
+        w4, w5 = w3 * w, w3 * w2
+        h01 = 10 * w3 - 15 * w4 + 6 * w5
+        h00, h10, h11 = 1 - h01, w - 6 * w3 + 8 * w4 - 3 * w5, -4 * w3 + 7 * w4 - 3 * w5
+        d01 = 30 * w2 - 60 * w3 + 30 * w4
+        d00, d10, d11 = -d01, 1 - 18 * w2 + 32 * w3 - 15 * w4, -12 * w2 + 28 * w3 - 15 * w4
+    return h00 * a0 + h10 * span * r0 + h01 * a1 + h11 * span * r1, (d00 * a0 + d01 * a1) / span + d10 * r0 + d11 * r1
 
 
 def move_duration_s(start_rad: Any, target_rad: Any, max_speed_rad_s: Any) -> np.ndarray:

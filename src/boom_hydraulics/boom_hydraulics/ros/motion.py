@@ -159,6 +159,14 @@ class Motion:
             self._finish(ABORTED, "preempted by a newer MoveBoom goal")
             self._drop_trajectory("preempted by a MoveBoom goal")
             p, sim = node.sim.params, node.sim
+            why = self._refusal(request.target_angle_rad, request.max_speed_rad_s, request.timeout_s)
+            if why is not None:  # things changed since the goal was accepted (a failure, a new mode)
+                energy = 0.0 if node.failure else float(sim.outputs()["supply_energy"])
+                self.goal = Goal(handle, request.target_angle_rad, sim.t, sim.t, sim.t, energy)
+                self._accepted[id(handle)] = self.goal
+                self._finish(ABORTED, why)
+                handle.execute()
+                return
             speed = request.max_speed_rad_s or p.control_max_speed_rad_s
             angle, rate = node.drive.setpoint()
             path = move(sim.t, angle, rate, request.target_angle_rad, speed)
@@ -306,6 +314,3 @@ class Motion:
                 angle_rad=alpha, setpoint_rad=loop.setpoint[0], error_rad=goal.target_rad - alpha
             )
             goal.handle.publish_feedback(feedback)
-
-    def any_active(self) -> Any:
-        return self.goal is not None or self.trajectory

@@ -67,9 +67,7 @@ class PositionLoop:
     def __call__(self, t_s: float, y: Sequence[Any]) -> Any:
         if t_s == self._t:
             return self._u
-        ref, rate = self.path.evaluate(t_s)
-        if self.single:
-            ref, rate = float(ref[0]), float(rate[0])
+        ref, rate = self.path.at(t_s) if self.single else self.path.evaluate(t_s)
         self.setpoint = (ref, rate)
         self._u, self.state = position_command(
             self.gains, self.state, y[0], self.constants, ref, rate, self.dt_s, self.xp

@@ -103,6 +103,7 @@ class CommandedDrive:
         self.current = 0.0
         self.last_command_s = None
         self.loop = None
+        self.followed = None
 
     def follow(self, path: SetpointPath) -> None:
         """Drive the valve with the position controller along ``path`` (times in simulated s)."""
