@@ -1,4 +1,4 @@
-"""ROS 2 node ``boom_sim``: the model core in a loop, driven by valve commands.
+"""ROS 2 node ``boom_sim``: the model core in a loop, driven by valve commands or position goals.
 
     ros2 run boom_hydraulics boom_sim --ros-args --params-file config/default.yaml
     boom_sim --help        # every parameter with its default and unit
@@ -7,14 +7,18 @@ Physics runs at ``time_step_s``, several steps per tick of ``publish_rate_hz``; 
 time follows the steady clock by elapsed time (times ``real_time_factor``; 0 runs as fast
 as possible), so a late tick catches up. With ``use_sim_time`` it follows the ROS clock
 (/clock, whoever publishes it) instead: half-speed /clock, half-speed physics; a stopped
-/clock, stopped physics; a clock that jumps back resets the drive to rest. The ticks run in a thread of their own that
-sleeps to absolute deadlines: an rclpy timer would wake the executor, which rebuilds its
-wait set in Python, 100 times a second (29 % of a core measured, against about 10 %
-this way). The executor serves commands, services and parameters; a lock keeps the two
-threads from touching the simulation at once. Commands are applied by their stamps (see :mod:`command_queue`),
-which makes a run depend only on the commands and their times, not on wall-clock jitter.
-Simulated time never runs backwards: a reset puts the drive back to rest and time goes on.
-Topics, services and parameters are listed in the README.
+/clock, stopped physics; a clock that jumps back resets the drive to rest.
+
+The ticks run in a thread of their own that sleeps to absolute deadlines: an rclpy timer
+would wake the executor, which rebuilds its wait set in Python, 100 times a second (29 % of
+a core measured, against about 10 % this way). The executor serves commands, trajectories,
+services and parameters; a lock keeps the two threads from touching the simulation at
+once. Commands are applied by their stamps (see :mod:`command_queue`), which makes a run
+depend only on the commands and their times, not on wall-clock jitter. Position goals
+(MoveBoom, ~/joint_trajectory; see :mod:`motion`) hand the valve to the model core's
+position controller. Simulated time never runs backwards: a reset puts the drive back to
+rest and time goes on. The node publishes its URDF on robot_description and the crane as
+markers. Topics, services, the action and parameters are listed in the README.
 """
 
 from __future__ import annotations
