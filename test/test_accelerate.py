@@ -41,3 +41,45 @@ def test_compiled_path_reports_leaving_the_geometry():
     with pytest.raises(SimulationError, match=r"non-finite.*valid geometry \(1, 1.8\) m"):
         sim.step(1.0, 3000)
     assert 1.7 < sim.y[0] < 1.8  # the last finite state is kept
+
+
+_COMPILED_RUN = """
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.solve import accelerate
+from boom_hydraulics.solve.simulation import Simulator
+sim = Simulator(Parameters(), jit=True)
+sim.step(0.5, 300)
+stats = accelerate.stepper("physical", "rk4").stats
+print(repr(sim.y[0]), sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), stats.cache_path)
+"""
+
+
+def _compiled_run(env: dict) -> tuple[str, int, int, str]:
+    import os
+    import subprocess
+    import sys
+
+    result = subprocess.run(
+        [sys.executable, "-c", _COMPILED_RUN], env={**os.environ, **env}, capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 0, result.stderr
+    q1, hits, misses, path = result.stdout.split()
+    return q1, int(hits), int(misses), path
+
+
+def test_the_compiled_model_is_cached_on_disk_and_a_new_process_loads_it(tmp_path):
+    first = _compiled_run({"BOOM_HYDRAULICS_CACHE": str(tmp_path)})
+    again = _compiled_run({"BOOM_HYDRAULICS_CACHE": str(tmp_path)})
+    assert (first[1], first[2]) == (0, 1)  # compiled, and written
+    assert (again[1], again[2]) == (1, 0)  # loaded, not compiled
+    assert first[0] == again[0]  # bit for bit the same step
+    (module,) = tmp_path.glob("boom_compiled_physical_rk4_*.py")  # keyed on a hash of its source
+    assert "do not edit" in module.read_text() and list((tmp_path / "__pycache__").glob("*.nbi"))
+
+
+def test_an_unwritable_cache_folder_falls_back_and_still_compiles(tmp_path):
+    blocked = tmp_path / "a_file"
+    blocked.write_text("")  # a folder cannot be made under a file, whoever runs this
+    q1, hits, misses, path = _compiled_run({"BOOM_HYDRAULICS_CACHE": str(blocked / "cache")})
+    assert float(q1) > 1.37 and hits + misses == 1
+    assert not path.startswith(str(blocked))

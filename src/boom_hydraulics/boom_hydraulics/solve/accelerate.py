@@ -1,24 +1,38 @@
-"""Optional compilation of the scalar model with numba: the same source, compiled.
+"""Optional compilation of the scalar model with numba: the same source, compiled and cached.
 
 numba compiles the element functions exactly as they are written (their ``xp`` argument
-defaults to :mod:`math`, which numba supports). Each function of the model's modules is
-copied into one namespace per model in which every name refers to the compiled copy, so
-compiled code calls compiled code; nothing is written twice. A test holds the compiled
-and the interpreted trajectories equal.
+defaults to :mod:`math`, which numba supports). For each model and method, the source of
+the element modules, the model and the stepping loop is put together into one real module
+(:func:`module_source`): relative imports dropped, every function under
+``njit(cache=True)``, and the loop's ``step``, ``derivative``, ... bound by name, so that
+compiled code calls compiled code and numba can cache it on disk. Nothing is written twice:
+the module is generated from the package's own source, and a test holds the compiled and
+the interpreted trajectories equal.
 
-Compiling takes a few seconds once per process (numba cannot cache these copies on disk,
-as they do not live in a module), so callers compile only for long runs. Without numba,
-or with ``BOOM_HYDRAULICS_JIT=0`` in the environment, :func:`stepper` returns None and
-the interpreted path runs (about 20 times slower per step).
+The module's file name carries a hash of its source (and of the numba and Python
+versions): numba checks a cache only against its defining file, so a changed model gets a
+new file and a fresh cache. Files go to ``$BOOM_HYDRAULICS_CACHE``, else
+``$XDG_CACHE_HOME/boom_hydraulics/numba`` (``~/.cache/...``); where that cannot be written
+(a read-only home), to a folder in the temporary directory; where neither can, it compiles
+without caching. The first compile takes a few seconds; a later process loads from the
+cache. Without numba, or with ``BOOM_HYDRAULICS_JIT=0`` in the environment, :func:`stepper`
+returns None and the interpreted path runs (about 20 times slower per step).
 """
 
 from __future__ import annotations
 
+import ast
 import functools
+import hashlib
+import importlib.util
+import inspect
 import os
+import sys
+import tempfile
+import textwrap
 import types
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
 
 import numpy as np
 
@@ -39,18 +53,122 @@ def available() -> bool:
     return numba is not None and os.environ.get("BOOM_HYDRAULICS_JIT", "1") != "0"
 
 
-def _compiled_namespace(model: types.ModuleType) -> dict[str, Any]:
-    """Every function of the elements and ``model``, compiled, in one shared namespace."""
-    namespace: dict[str, Any] = {}
-    modules = (*_ELEMENTS, model)
-    for module in modules:
-        namespace.update({k: v for k, v in vars(module).items() if not k.startswith("__")})
-    for module in modules:
-        for name, obj in vars(module).items():
-            if isinstance(obj, types.FunctionType) and obj.__module__ == module.__name__:
-                copy = types.FunctionType(obj.__code__, namespace, name, obj.__defaults__, obj.__closure__)
-                namespace[name] = numba.njit(copy)
-    return namespace
+def _without_relative_imports(module: types.ModuleType) -> str:
+    """The source of ``module`` without its docstring, ``from __future__`` and relative imports."""
+    tree = ast.parse(inspect.getsource(module))
+    body = [
+        node
+        for node in tree.body
+        if not (isinstance(node, ast.ImportFrom) and (node.level > 0 or node.module == "__future__"))
+        and not (isinstance(node, ast.Expr) and isinstance(getattr(node, "value", None), ast.Constant))
+    ]
+    return ast.unparse(ast.Module(body=body, type_ignores=[]))
+
+
+class _CallByName(ast.NodeTransformer):
+    """``fun(...)`` -> ``derivative(...)`` and ``step(derivative, ...)`` -> ``step(...)``: numba
+    caches a function that calls another by name, not one that is handed a function."""
+
+    def visit_Name(self, node: ast.Name) -> ast.Name:
+        return ast.Name(id="derivative", ctx=node.ctx) if node.id == "fun" else node
+
+    def visit_Call(self, node: ast.Call) -> ast.Call:
+        self.generic_visit(node)
+        if isinstance(node.func, ast.Name) and node.func.id == "step" and node.args:
+            node.args = node.args[1:]
+        return node
+
+
+def _function_source(function: Callable, name: str) -> ast.FunctionDef:
+    definition = ast.parse(textwrap.dedent(inspect.getsource(function))).body[0]
+    definition.name = name
+    return definition
+
+
+def _bound_step_source(method: str) -> str:
+    """The method's step as ``step(t, y, h, args)``, calling the model's ``derivative`` by name."""
+    definition = _function_source(integrators.METHODS[method].step, "step")
+    definition.args.args = definition.args.args[1:]  # (fun, t, y, h, args) -> (t, y, h, args)
+    return ast.unparse(_CallByName().visit(definition))
+
+
+def _loop_source() -> str:
+    """The stepping loop of :func:`stepping.fixed_stepper` as a top-level function ``_loop``
+    that calls ``step``, ``stiffness_rate``, ``energy`` and ``broken`` by name."""
+    factory = _function_source(stepping.fixed_stepper, "fixed_stepper")
+    (run,) = [node for node in factory.body if isinstance(node, ast.FunctionDef) and node.name == "run"]
+    run.name = "_loop"
+    return ast.unparse(_CallByName().visit(run))
+
+
+def module_source(mode: str, method: str) -> str:
+    """One module with the elements, the model ``mode`` and the loop of ``method``, every
+    function under ``njit(cache=...)``."""
+    model = MODELS[mode]
+    parts = [
+        f"# generated by boom_hydraulics.solve.accelerate for mode {mode!r}, method {method!r}; do not edit",
+        "from __future__ import annotations",
+        "import types as _types",
+        "import numpy as _np",
+        "from numba import njit as _njit",
+    ]
+    parts += [f"# --- {module.__name__}\n{_without_relative_imports(module)}" for module in (*_ELEMENTS, model)]
+    parts += [
+        "# --- the stepping loop, bound by name",
+        _bound_step_source(method),
+        "broken = balance_broken",
+        _loop_source(),
+        "def run(t, y0, c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base):",
+        "    done, outcome, most, y = _loop(",
+        "        t, [v for v in y0], c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base",
+        "    )",
+        "    return done, outcome, most, _np.array(y)",
+        "for _name, _object in list(globals().items()):",
+        "    if isinstance(_object, _types.FunctionType) and _object.__module__ == __name__:",
+        "        globals()[_name] = _njit(cache=CACHE)(_object)",
+    ]
+    return "\n\n".join(parts) + "\n"
+
+
+def cache_folder() -> Path | None:
+    """A writable folder for the generated modules and numba's cache, or None."""
+    configured = os.environ.get("BOOM_HYDRAULICS_CACHE")
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    candidates = [Path(configured)] if configured else [Path(base) / "boom_hydraulics" / "numba"]
+    candidates.append(Path(tempfile.gettempdir()) / f"boom_hydraulics-numba-{os.getuid()}")
+    for folder in candidates:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            probe = folder / f".probe-{os.getpid()}"
+            probe.write_text("")
+            probe.unlink()
+            return folder
+        except OSError:
+            continue
+    return None
+
+
+def _load(mode: str, method: str) -> types.ModuleType:
+    """The generated module of ``mode`` and ``method``, imported from the cache folder (written
+    there once per source; where no folder can be written, from a private temporary one, uncached)."""
+    source = module_source(mode, method)
+    key = hashlib.sha256(f"{source}{numba.__version__}{sys.version}".encode()).hexdigest()[:16]
+    name = f"boom_compiled_{mode}_{method}_{key}"
+    folder = cache_folder()
+    cache = folder is not None
+    if folder is None:
+        folder = Path(tempfile.mkdtemp(prefix="boom_hydraulics-numba-"))
+    path = folder / f"{name}.py"
+    if not path.exists():
+        staging = folder / f".{name}.{os.getpid()}.partial"
+        staging.write_text(source)
+        os.replace(staging, path)  # whole or absent, also when two processes race
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    module.CACHE = cache
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 @functools.cache
@@ -62,20 +180,4 @@ def stepper(mode: str, method: str) -> Callable[..., tuple[int, int, int, np.nda
     """
     if not available() or method not in _STEPS:
         return None
-    namespace = _compiled_namespace(MODELS[mode])
-    loop = numba.njit(
-        stepping.fixed_stepper(
-            namespace[_STEPS[method]],
-            namespace["derivative"],
-            namespace["stiffness_rate"],
-            namespace["energy"],
-            namespace["balance_broken"],
-        )
-    )
-
-    @numba.njit
-    def run(t: float, y0: np.ndarray, c: Any, u: float, dt: float, *rest: Any) -> tuple:
-        done, outcome, most, y = loop(t, [v for v in y0], c, u, dt, *rest)
-        return done, outcome, most, np.array(y)
-
-    return run
+    return _load(mode, method).run

@@ -90,8 +90,8 @@ class Simulator:
     Fixed-step methods split each time step into as many substeps as the model's stability
     bound needs (at least ``substeps``): ``most_substeps`` tells the most used since the
     last reset. Every step checks the energy balance (physical mode). ``jit=True`` steps
-    with the numba-compiled model where available (a few seconds to compile once per
-    process, then about 20 times faster per step).
+    with the numba-compiled model where available (compiled once and cached on disk, see
+    accelerate; then about 20 times faster per step).
     """
 
     def __init__(self, params: Parameters, jit: bool = False):
