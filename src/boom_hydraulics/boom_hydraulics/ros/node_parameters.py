@@ -44,9 +44,10 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
         10.0,
     ),
     "jit": (
-        False,
+        True,
         "",
-        "Step with the numba-compiled model (about 4 s to compile the first time, then from the disk cache)",
+        "Step with the numba-compiled model where numba is available (about 4 s to compile the first time, "
+        "then loaded from the disk cache); false: interpreted",
         None,
         None,
     ),

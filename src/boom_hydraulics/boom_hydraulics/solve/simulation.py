@@ -53,8 +53,6 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 #: Most substeps the stability bound may ask for in one time step before a run stops.
 MAX_SUBSTEPS = 10_000
 
-#: Runs of at least this many steps are worth compiling the model for (see accelerate).
-JIT_MIN_STEPS = 100_000
 
 
 def absolute_tolerances(p: Parameters) -> list[float]:
@@ -89,13 +87,14 @@ class Simulator:
 
     Fixed-step methods split each time step into as many substeps as the model's stability
     bound needs (at least ``substeps``): ``most_substeps`` tells the most used since the
-    last reset. Every step checks the energy balance (physical mode). ``jit=True`` steps
-    with the numba-compiled model where available (compiled once and cached on disk, see
-    accelerate; then about 20 times faster per step).
+    last reset. Every step checks the energy balance (physical mode). Steps run through the
+    numba-compiled model where numba is available (compiled once and cached on disk, see
+    accelerate; about 20 times faster per step), unless ``jit=False``; ``jit=True`` asks for
+    it, ``jit=None`` (the default) takes it where available. Both give the same trajectory.
     """
 
-    def __init__(self, params: Parameters, jit: bool = False):
-        self.jit = jit
+    def __init__(self, params: Parameters, jit: bool | None = None):
+        self.jit = accelerate.available() if jit is None else jit
         self._install(params)
         self.reset()
 
@@ -355,11 +354,9 @@ def simulate(
 ) -> Trajectory:
     """Run a fresh simulation of ``params`` for ``duration_s`` (command from the parameters by default).
 
-    ``jit=None`` compiles the model for runs of at least :data:`JIT_MIN_STEPS` steps.
+    ``jit=None`` steps with the compiled model where numba is available (see :class:`Simulator`).
     """
     from .commands import from_parameters
 
-    if jit is None:
-        jit = duration_s / params.time_step_s >= JIT_MIN_STEPS
     sim = Simulator(params, jit=jit)
     return sim.run(duration_s, command or from_parameters(params), every)
