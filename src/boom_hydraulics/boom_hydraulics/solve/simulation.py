@@ -54,7 +54,6 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 MAX_SUBSTEPS = 10_000
 
 
-
 def absolute_tolerances(p: Parameters) -> list[float]:
     """rk45 absolute tolerance per state: atol_scale times the state's natural scale."""
     model = MODELS[p.mode]
