@@ -144,7 +144,7 @@ def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(client, tmp_
     has diagnostics; a command sent before the clock runs is recorded at its start."""
     from bag_checks import check_bag
 
-    from boom_hydraulics.bags.reading import read_drive_states
+    from boom_hydraulics.bags.reading import read_custom_data, read_drive_states
 
     node = start_node("use_sim_time:=true", f"record_folder:={tmp_path}", "command_timeout_s:=0", record=True)
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
@@ -164,10 +164,13 @@ def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(client, tmp_
         log = _stop(node)
     (bag,) = list(tmp_path.iterdir())
     counts = check_bag(bag)
-    states = read_drive_states(bag)  # t from the recorded origin: the first /clock
+    states = read_drive_states(bag)  # t from the recorded origin: the first /clock the node saw
+    origin_s = int(read_custom_data(bag)["clock_origin_ns"]) * 1e-9
     # (a loaded machine catches up with longer ticks: fewer states than 100 per second)
-    assert counts["/drive_state"] > 50 and counts["/diagnostics"] >= 2 and counts["/valve_command"] == 1, counts
+    assert counts["/drive_state"] > 50 and counts["/diagnostics"] >= 1 and counts["/valve_command"] == 1, counts
     assert counts["/robot_description"] == 1
-    assert 0.0 < states["t"][0] < 0.1 and 3.3 < states["t"][-1] < 3.6
+    # the node meets the new clock's publisher after discovery, a fraction of a second in
+    assert 200.0 <= origin_s < 201.0 and 0.0 < states["t"][0] < 0.1
+    assert 203.4 < origin_s + states["t"][-1] <= 203.5 + 1e-3  # and ran to where the clock stopped
     assert states["u"][0] == 0.6 and states["q1"][-1] > states["q1"][0] + 0.05
     assert "boom_sim: bag" in log

@@ -103,6 +103,25 @@ def static_rod_force_of(p: Any, q1_m: Num, xp: ModuleType = math) -> Num:
     )
 
 
+def stroke_angles_rad(p: Any) -> tuple[float, float]:
+    """Boom angles at the lower and upper end stops of a Parameters set ``p``, rad (eq. 4)."""
+    return (
+        boom_angle_rad(p.cylinder_min_length_m, p.a_m, p.b_m, p.support_height_m),
+        boom_angle_rad(p.cylinder_max_length_m, p.a_m, p.b_m, p.support_height_m),
+    )
+
+
+def outside_stroke(p: Any, angle_rad: float, what: str = "target") -> str | None:
+    """Why boom angle ``angle_rad`` cannot be reached within the stroke of ``p``, or None."""
+    low, high = stroke_angles_rad(p)
+    if low <= angle_rad <= high:
+        return None
+    return (
+        f"{what} {angle_rad:.4f} rad ({math.degrees(angle_rad):.2f} deg) lies outside the stroke's "
+        f"[{low:.4f}, {high:.4f}] rad ([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
+    )
+
+
 def piston_area_m2(diameter_m: Num) -> Num:
     """S1 = pi D^2 / 4 (also eq. 17 for the throttle area)."""
     return math.pi * diameter_m * diameter_m / 4.0

@@ -21,7 +21,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..solve.integrators import METHODS as _METHODS
-from .geometry import boom_angle_rad
+from .geometry import outside_stroke
 
 MODES = ("physical", "paper")
 METHODS = tuple(_METHODS)  # the solver's registry of integration methods
@@ -488,14 +488,10 @@ def _check_angle_profile(p: Parameters) -> None:
         )
     if any(t1 <= t0 for t0, t1 in itertools.pairwise(times)):
         raise ConfigError(f"command_times_s must be strictly increasing, got {times}")
-    low = boom_angle_rad(p.cylinder_min_length_m, p.a_m, p.b_m, p.support_height_m)
-    high = boom_angle_rad(p.cylinder_max_length_m, p.a_m, p.b_m, p.support_height_m)
     for angle in angles:
-        if not low <= angle <= high:
-            raise ConfigError(
-                f"target boom angle {angle:.4g} rad ({math.degrees(angle):.2f} deg) lies outside the stroke's "
-                f"[{low:.4g}, {high:.4g}] rad ([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
-            )
+        why = outside_stroke(p, angle, "target boom angle")
+        if why is not None:
+            raise ConfigError(why)
 
 
 def from_mapping(values: Mapping[str, Any], base: Parameters | None = None) -> Parameters:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .geometry import boom_angle_rad
+from .geometry import stroke_angles_rad
 from .kinematics import base_xz, chain, pivot_height_m
 
 ROBOT_NAME = "boom_crane"
@@ -69,8 +69,7 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, limits: tupl
 def urdf(p: Any) -> str:
     """The URDF of the crane with the dimensions of Parameters ``p``."""
     q_min, q_max = p.cylinder_min_length_m, p.cylinder_max_length_m
-    alpha_min = boom_angle_rad(q_min, p.a_m, p.b_m, p.support_height_m)
-    alpha_max = boom_angle_rad(q_max, p.a_m, p.b_m, p.support_height_m)
+    alpha_min, alpha_max = stroke_angles_rad(p)
     beta_min, beta_max = sorted((chain(p, q_min, 0.0).barrel_rad, chain(p, q_max, 0.0).barrel_rad))
     height = pivot_height_m(p)
     ax, az = base_xz(p)

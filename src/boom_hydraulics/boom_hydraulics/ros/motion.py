@@ -44,8 +44,8 @@ from trajectory_msgs.msg import JointTrajectory
 
 from boom_hydraulics_msgs.action import MoveBoom
 
+from ..model.geometry import outside_stroke
 from ..model.setpoints import SetpointPath, move
-from ..solve.closed_loop import stroke_angles_rad
 
 if TYPE_CHECKING:
     from .node import BoomSimNode
@@ -136,13 +136,7 @@ class Motion:
             return "target_angle_rad, max_speed_rad_s and timeout_s must be finite"
         if speed_rad_s < 0.0 or timeout_s < 0.0:
             return "max_speed_rad_s and timeout_s must not be negative"
-        low, high = stroke_angles_rad(p)
-        if not low <= target_rad <= high:
-            return (
-                f"target {target_rad:.4f} rad ({math.degrees(target_rad):.2f} deg) lies outside the stroke's "
-                f"[{low:.4f}, {high:.4f}] rad ([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
-            )
-        return None
+        return outside_stroke(p, target_rad)
 
     def _on_goal(self, request: MoveBoom.Goal) -> GoalResponse:
         with self.node.lock:
@@ -253,13 +247,9 @@ class Motion:
             return "positions and velocities must be finite", None
         if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < start:
             return "time_from_start must be non-negative and strictly increasing", None
-        low, high = stroke_angles_rad(p)
-        outside = [x for x in positions if not low <= x <= high]
+        outside = [why for x in positions if (why := outside_stroke(p, x, "position")) is not None]
         if outside:
-            return (
-                f"position {outside[0]:.4f} rad lies outside the stroke's [{low:.4f}, {high:.4f}] rad "
-                f"([{math.degrees(low):.2f}, {math.degrees(high):.2f}] deg)"
-            ), None
+            return outside[0], None
         if times[0] > sim.t:  # from where the setpoint is now to the first point
             times, positions = [sim.t, *times], [angle, *positions]
             rates = [rate, *rates] if rates is not None else None

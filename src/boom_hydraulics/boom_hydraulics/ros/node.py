@@ -392,14 +392,10 @@ class BoomSimNode(Node):
     @_locked
     def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
         try:
-            self.sim.reset(request.rod_position_m if request.use_rod_position else None, keep_time=True)
+            self._back_to_rest("reset (~/reset)", request.rod_position_m if request.use_rod_position else None)
         except SimulationError as exc:
             response.success, response.message = False, str(exc)
             return response
-        self.motion.stop("reset (~/reset)")
-        self.drive.reset()
-        self.failure = None
-        self._restart_clock()
         response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
         self.publish_state()
         return response
@@ -429,6 +425,15 @@ class BoomSimNode(Node):
         return response
 
     # --- time and stepping ---------------------------------------------------------------------
+    def _back_to_rest(self, why: str, rod_position_m: float | None = None) -> None:
+        """The drive at rest (at ``rod_position_m``, default q1(0)), valve closed, goals ended
+        with ``why``; simulated time runs on. Raises SimulationError for a position outside the stroke."""
+        self.sim.reset(rod_position_m, keep_time=True)
+        self.motion.stop(why)
+        self.drive.reset()
+        self.failure = None
+        self._restart_clock()
+
     def _pace_factor(self) -> float:
         """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
         return 1.0 if self.follow_clock else self.rtf
@@ -468,11 +473,7 @@ class BoomSimNode(Node):
                 f"the ROS clock jumped back from {self._clock_seen_s:.3f} s to {now:.3f} s: "
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
-            self.motion.stop("the ROS clock jumped back")
-            self.sim.reset(keep_time=True)
-            self.drive.reset()
-            self.failure = None
-            self._restart_clock()
+            self._back_to_rest("the ROS clock jumped back")
             return True
         self._clock_seen_s = max(self._clock_seen_s, now)
         return True

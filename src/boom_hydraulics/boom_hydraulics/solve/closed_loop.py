@@ -23,14 +23,6 @@ from ..model.parameters import Parameters
 from ..model.setpoints import SetpointPath, timed_moves
 
 
-def stroke_angles_rad(p: Parameters) -> tuple[float, float]:
-    """Boom angles at the lower and upper end stops, rad."""
-    return (
-        boom_angle_rad(p.cylinder_min_length_m, p.a_m, p.b_m, p.support_height_m),
-        boom_angle_rad(p.cylinder_max_length_m, p.a_m, p.b_m, p.support_height_m),
-    )
-
-
 class PositionLoop:
     """The controller of each parameter set following ``path`` (one set: floats in and out)."""
 
