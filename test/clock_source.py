@@ -2,9 +2,10 @@
 
     python clock_source.py START_S FACTOR:WALL_S [FACTOR:WALL_S ...] [jump:TO_S ...]
 
-Publishes at 200 Hz of wall time from START_S: each FACTOR:WALL_S phase advances the clock
-FACTOR simulated seconds per wall second for WALL_S wall seconds (0: paused, still
-publishing); jump:TO_S sets the clock to TO_S. Prints each phase's start time and exits.
+Waits until a subscriber has matched /clock, then publishes at 200 Hz of wall time from
+START_S: each FACTOR:WALL_S phase advances the clock FACTOR simulated seconds per wall
+second for WALL_S wall seconds (0: paused, still publishing); jump:TO_S sets the clock to
+TO_S. Prints each phase's start time and exits.
 """
 
 from __future__ import annotations
@@ -23,6 +24,9 @@ def main() -> None:
     node = rclpy.create_node("clock_source")
     pub = node.create_publisher(Clock, "/clock", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
     period = 1.0 / 200.0
+    deadline = time.monotonic() + 20.0  # the clock starts once a subscriber has found it (DDS discovery)
+    while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
     for phase in sys.argv[2:]:
         kind, _, value = phase.partition(":")
         if kind == "jump":
