@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -36,6 +37,26 @@ def start_node(*params: str, config_file: str = "default.yaml", record: bool = F
     for p in params:
         args += ["-p", p]
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def stop_process(proc: subprocess.Popen) -> str:
+    """SIGINT (as Ctrl-C), a kill if it has not ended within 10 s; what it printed, if piped."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.stdout.read() if proc.stdout and not proc.stdout.closed else ""
+
+
+@pytest.fixture
+def node() -> Iterator[subprocess.Popen]:
+    """boom_sim (default config, 0.5 s command timeout, no recording), stopped after the test."""
+    proc = start_node("command_timeout_s:=0.5")
+    yield proc
+    stop_process(proc)
 
 
 @pytest.fixture(scope="module")

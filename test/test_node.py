@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import math
 import signal
-import subprocess
 import time
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -25,18 +23,6 @@ pytestmark = [
     pytest.mark.usefixtures("ros_context"),
     pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)"),
 ]
-
-
-@pytest.fixture
-def node() -> Iterator[subprocess.Popen]:
-    proc = start_node("command_timeout_s:=0.5")
-    yield proc
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
 
 
 def test_openings_hold_extend_and_retract(node, client):

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
-from conftest import BOOM_SIM, start_node
+from conftest import BOOM_SIM, start_node, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -21,14 +20,11 @@ pytestmark = [
 CLOCK_SOURCE = Path(__file__).with_name("clock_source.py")
 
 
-def _stop(proc: subprocess.Popen) -> str:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-    return proc.stdout.read() if proc.stdout and not proc.stdout.closed else ""
+def _clock_source(*phases: str) -> subprocess.Popen:
+    """clock_source.py in a process of its own (see there for the phases)."""
+    return subprocess.Popen(
+        [sys.executable, str(CLOCK_SOURCE), *phases], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
 
 
 def _stamp_s(msg) -> float:
@@ -77,18 +73,13 @@ def _phases(output: str) -> dict[str, float]:
 def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stops_with_it(client):
     node = start_node("use_sim_time:=true", "command_timeout_s:=0")
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
-    source = subprocess.Popen(
-        [sys.executable, str(CLOCK_SOURCE), "100.0", "0.5:4", "0:3", "2.0:3"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    source = _clock_source("100.0", "0.5:4", "0:3", "2.0:3")
     try:
         samples = _wall_stamps(client, 40.0, until=source)
         phases = _phases(source.communicate(timeout=10)[0])
     finally:
-        _stop(source)
-        log = _stop(node)
+        stop_process(source)
+        log = stop_process(node)
     pause_s, double_s = phases["0.0"], phases["2.0"]
     half = [(w, s) for w, s in samples if 100.3 < s < pause_s - 0.1]
     double = [(w, s) for w, s in samples if double_s + 0.3 < s < phases["end"] - 0.1]
@@ -113,12 +104,7 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
 def test_a_clock_that_jumps_back_resets_the_drive(client):
     node = start_node("use_sim_time:=true", "command_timeout_s:=0")
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
-    source = subprocess.Popen(
-        [sys.executable, str(CLOCK_SOURCE), "50.0", "1.0:5", "jump:10.0", "1.0:3"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    source = _clock_source("50.0", "1.0:5", "jump:10.0", "1.0:3")
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=20)
         client.spin_for(1.0, opening=1.0)  # lift: the rod leaves its initial length
@@ -127,8 +113,8 @@ def test_a_clock_that_jumps_back_resets_the_drive(client):
         client.spin_for(0.5)
         after = client.last()
     finally:
-        _stop(source)
-        log = _stop(node)
+        stop_process(source)
+        log = stop_process(node)
     assert lifted.rod_position_m > 1.4 and _stamp_s(lifted) > 50.0, log
     assert 10.0 < _stamp_s(after) < 15.0, log
     assert after.rod_position_m == pytest.approx(1.37, abs=2e-3), log  # back at rest, at its initial length
@@ -155,16 +141,14 @@ def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(client, tmp_
     client.spin_for(0.5)
     client.command(0.6)  # before any /clock: it waits for the first step
     client.spin_for(0.3)
-    source = subprocess.Popen(
-        [sys.executable, str(CLOCK_SOURCE), "200.0", "1.0:3.5"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT
-    )
+    source = _clock_source("200.0", "1.0:3.5")
     try:
         source.communicate(timeout=40)
         # the clock stands at 203.5 s now; a loaded machine may still be working off its backlog
         assert client.spin_until(lambda: client.states and _stamp_s(client.last()) > 203.4, timeout=60)
     finally:
-        _stop(source)
-        log = _stop(node)
+        stop_process(source)
+        log = stop_process(node)
     (bag,) = list(tmp_path.iterdir())
     counts = check_bag(bag)
     states = read_drive_states(bag)  # t from the recorded origin: the first /clock the node saw

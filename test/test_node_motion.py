@@ -6,7 +6,6 @@ import itertools
 import math
 import signal
 import subprocess
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -29,18 +28,6 @@ pytestmark = [
 
 #: The controller's dead-band (config/default.yaml): a settled boom is within twice it.
 DEADBAND = 0.002
-
-
-@pytest.fixture
-def node() -> Iterator[subprocess.Popen]:
-    proc = start_node("command_timeout_s:=0.5")
-    yield proc
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
 
 
 class Mover:
