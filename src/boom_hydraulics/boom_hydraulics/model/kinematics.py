@@ -34,6 +34,7 @@ class Chain(NamedTuple):
     barrel_rate_rad_s: float
     rod_m: float  # q1
     rod_rate_m_s: float
+    lever_rad_per_m: float  # k = d(alpha)/dq1 (eq. 5)
 
 
 def pivot_height_m(p: Any) -> float:
@@ -60,14 +61,15 @@ def along_boom_xz(p: Any, alpha_rad: float, distance_m: float) -> tuple[float, f
 def chain(p: Any, q1_m: float, v_m_s: float) -> Chain:
     """Joint values and rates at cylinder length ``q1_m`` and rod velocity ``v_m_s``."""
     alpha = boom_angle_rad(q1_m, p.a_m, p.b_m, p.support_height_m)
-    alpha_rate = lever_rad_per_m(q1_m, p.a_m, p.b_m) * v_m_s
+    lever = lever_rad_per_m(q1_m, p.a_m, p.b_m)
+    alpha_rate = lever * v_m_s
     kx, kz = along_boom_xz(p, alpha, p.a_m)
     ax, az = base_xz(p)
     rx, rz = kx - ax, kz - az
     beta = math.atan2(rz, rx)
     # d(beta)/dt = (rx rz' - rz rx') / |r|^2 with r' = a alpha' (-sin alpha, cos alpha)
     barrel_rate = p.a_m * alpha_rate * (rx * math.cos(alpha) + rz * math.sin(alpha)) / (rx * rx + rz * rz)
-    return Chain(alpha, alpha_rate, beta, barrel_rate, q1_m, v_m_s)
+    return Chain(alpha, alpha_rate, beta, barrel_rate, q1_m, v_m_s, lever)
 
 
 def rod_length_m(p: Any, alpha_rad: float) -> float:

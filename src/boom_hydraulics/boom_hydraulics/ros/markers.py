@@ -18,7 +18,7 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..model.kinematics import along_boom_xz, base_xz, chain, pivot_xz
-from ..model.robot_description import BASE_FRAME
+from ..model.robot_description import BASE_FRAME, drawing
 
 NAMESPACE = "boom_crane"
 RED = ColorRGBA(r=1.0, g=0.0, b=0.0, a=1.0)
@@ -63,13 +63,14 @@ def crane_markers(out: Mapping[str, Any], stamp: Any, p: Any) -> MarkerArray:
     o, a = pivot_xz(p), base_xz(p)
     tip = along_boom_xz(p, c.boom_rad, p.boom_length_m)
     ux, uz = math.cos(c.barrel_rad), math.sin(c.barrel_rad)
-    barrel_end = p.cylinder_min_length_m - 0.05
-    rod_start = c.rod_m - (p.cylinder_max_length_m - p.cylinder_min_length_m) - 0.1
+    d = drawing(p)
+    barrel_end = d.barrel_length
+    rod_start = c.rod_m - d.rod_length
     eye = (a[0] + c.rod_m * ux, a[1] + c.rod_m * uz)
     markers = [
         _segment("column", (0.0, 0.0), o, 0.15),
-        _segment("boom", o, tip, max(0.06, 0.05 * p.boom_length_m)),
-        _segment("barrel", a, (a[0] + barrel_end * ux, a[1] + barrel_end * uz), p.piston_diameter_m + 0.016),
+        _segment("boom", o, tip, d.boom_width),
+        _segment("barrel", a, (a[0] + barrel_end * ux, a[1] + barrel_end * uz), 2 * d.barrel_radius),
         _segment("rod", (a[0] + rod_start * ux, a[1] + rod_start * uz), eye, p.rod_diameter_m),
     ]
     column, boom, barrel, rod = markers
@@ -79,7 +80,7 @@ def crane_markers(out: Mapping[str, Any], stamp: Any, p: Any) -> MarkerArray:
     barrel.color = RED if alarms[0] else pressure_colour(float(out["p1"]), p)
     rod.color = RED if alarms[1] else pressure_colour(float(out["p2"]), p)
     payload = Marker(ns=NAMESPACE, id=_ID["payload"], type=Marker.SPHERE, action=Marker.ADD)
-    radius = 0.1 if p.payload_mass_kg <= 0.0 else max(0.05, 0.1 * (p.payload_mass_kg / 100.0) ** (1 / 3))
+    radius = d.payload_radius
     payload.header.frame_id = BASE_FRAME
     payload.pose.position.x, payload.pose.position.z = tip[0], tip[1] - radius
     payload.pose.orientation.w = 1.0

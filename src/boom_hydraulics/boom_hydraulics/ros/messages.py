@@ -16,7 +16,6 @@ from sensor_msgs.msg import FluidPressure, JointState
 from boom_hydraulics_msgs.msg import DriveState
 
 from ..bags.encoding import DRIVE_STATE_FIELDS, FLAGS
-from ..model.geometry import lever_rad_per_m
 from ..model.kinematics import chain
 from ..model.robot_description import BASE_FRAME, JOINTS
 
@@ -39,14 +38,13 @@ def joint_state(out: Mapping[str, Any], stamp: Any, p: Any) -> JointState:
     boom_joint (rad, rad/s, N m), cylinder_barrel_joint (rad, rad/s; a free pivot, effort 0)
     and cylinder_joint (m, m/s, N). The boom's torque is the rod force over the lever
     k = d(alpha)/dq1 (virtual work: T d(alpha) = F dq1)."""
-    lever = lever_rad_per_m(out["q1"], p.a_m, p.b_m)
     c = chain(p, float(out["q1"]), float(out["v"]))
     msg = JointState()
     msg.header.stamp = stamp
     msg.name = list(JOINTS)
     msg.position = [float(out["alpha"]), c.barrel_rad, float(out["q1"])]
     msg.velocity = [float(out["alpha_rate"]), c.barrel_rate_rad_s, float(out["v"])]
-    msg.effort = [float(out["f_hyd"] / lever), 0.0, float(out["f_hyd"])]
+    msg.effort = [float(out["f_hyd"] / c.lever_rad_per_m), 0.0, float(out["f_hyd"])]
     return msg
 
 
