@@ -16,7 +16,6 @@ Knots may differ per parameter set: every array has shape (knots, sets).
 
 from __future__ import annotations
 
-import bisect
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -80,13 +79,7 @@ class SetpointPath:
         """Setpoint angle and rate at ``t_s`` of a single-set path, as floats (without numpy:
         the node and the closed loop ask once per physics step)."""
         times, angles, rates = self._knots()
-        if t_s <= times[0] or len(times) == 1:
-            return angles[0], 0.0
-        if t_s >= times[-1]:
-            return angles[-1], 0.0
-        i = bisect.bisect_right(times, t_s) - 1
-        span = times[i + 1] - times[i]
-        return _segment(self.order, (t_s - times[i]) / span, span, angles[i], angles[i + 1], rates[i], rates[i + 1])
+        return setpoint_at(times, angles, rates, self.order, t_s)
 
     def _knots(self) -> tuple[list[float], list[float], list[float]]:
         """The first set's knots as lists (cached)."""
@@ -95,6 +88,33 @@ class SetpointPath:
             cached = (self.times_s[:, 0].tolist(), self.angles_rad[:, 0].tolist(), self.rates_rad_s[:, 0].tolist())
             object.__setattr__(self, "_lists", cached)
         return cached
+
+
+def last_at_or_before(times_s: Any, t: float) -> int:
+    """Index of the last of the ascending ``times_s`` at or before ``t`` (-1 if none), as
+    bisect_right - 1 (written out: numba compiles it)."""
+    low, high = 0, len(times_s)
+    while low < high:
+        middle = (low + high) // 2
+        if t < times_s[middle]:
+            high = middle
+        else:
+            low = middle + 1
+    return low - 1
+
+
+def setpoint_at(times_s: Any, angles_rad: Any, rates_rad_s: Any, order: int, t_s: float) -> tuple[float, float]:
+    """Angle and rate at ``t_s`` of one set's knots (sequences of floats): the scalar form of
+    :meth:`SetpointPath.evaluate`, which the compiled run kernel also calls."""
+    last = len(times_s) - 1
+    if t_s <= times_s[0] or last == 0:
+        return angles_rad[0], 0.0
+    if t_s >= times_s[last]:
+        return angles_rad[last], 0.0
+    i = last_at_or_before(times_s, t_s)
+    span = times_s[i + 1] - times_s[i]
+    w = (t_s - times_s[i]) / span
+    return _segment(order, w, span, angles_rad[i], angles_rad[i + 1], rates_rad_s[i], rates_rad_s[i + 1])
 
 
 def _segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -> tuple[Any, Any]:

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..errors import ConfigError
 from ..model.parameters import Parameters
+from .profiles import RAMP, SINE, STEPS, profile_value
 
 CommandProfile = Callable[[float], float]
 
@@ -20,32 +20,17 @@ def constant(value: float) -> CommandProfile:
 
 def steps(times_s: list[float], values: list[float]) -> CommandProfile:
     """Piecewise constant: values[i] from times_s[i] until times_s[i + 1]; 0 before times_s[0]."""
-
-    def u(t: float) -> float:
-        i = bisect.bisect_right(times_s, t) - 1
-        return values[i] if i >= 0 else 0.0
-
-    return u
+    return lambda t: profile_value(STEPS, times_s, values, 0.0, 0.0, 0.0, t)
 
 
 def ramp(times_s: list[float], values: list[float]) -> CommandProfile:
     """Piecewise linear through (times_s[i], values[i]); held flat before the first and after the last."""
-
-    def u(t: float) -> float:
-        if t <= times_s[0]:
-            return values[0]
-        if t >= times_s[-1]:
-            return values[-1]
-        i = bisect.bisect_right(times_s, t) - 1
-        w = (t - times_s[i]) / (times_s[i + 1] - times_s[i])
-        return values[i] + w * (values[i + 1] - values[i])
-
-    return u
+    return lambda t: profile_value(RAMP, times_s, values, 0.0, 0.0, 0.0, t)
 
 
 def sine(offset: float, amplitude: float, frequency_hz: float) -> CommandProfile:
     """u(t) = offset + amplitude sin(2 pi f t)."""
-    return lambda t: offset + amplitude * math.sin(2.0 * math.pi * frequency_hz * t)
+    return lambda t: profile_value(SINE, (), (), offset, amplitude, frequency_hz, t)
 
 
 def from_parameters(p: Parameters) -> CommandProfile:
