@@ -117,7 +117,8 @@ def test_resume_reuses_finished_batches_and_runs_only_the_rest(tmp_path):
 
 def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(tmp_path):
     out = tmp_path / "sweep"
-    args = ["--vary", "payload=0:200:8", "--duration", "2", "--batch-size", "1", "--no-plots", "--out", out]
+    # 8 batches of a 10-minute lift: about half a second each, compiled, so Ctrl-C lands midway
+    args = ["--vary", "payload=0:200:8", "--duration", "600", "--batch-size", "1", "--no-plots", "--out", out]
     process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     # finished batches only: a batch being written is a hidden .partial.npz until it is whole

@@ -48,10 +48,10 @@ def streamed(
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     move: tuple[float, float, float] = (math.nan, math.inf, math.nan),
 ) -> dict[str, float]:
-    """The metrics of :mod:`streaming` over stored ``signals`` (names of SAMPLE_SIGNALS; a
+    """The metrics of :mod:`streaming` over stored ``signals`` (names of streaming.SAMPLE_SIGNALS; a
     missing one counts as 0), with the closed-loop ``move`` (see :func:`move_window`)."""
     n = len(signals["t"])
-    columns = [np.asarray(signals[k], dtype=float) if k in signals else np.zeros(n) for k in SAMPLE_SIGNALS]
+    columns = [np.asarray(signals[k], dtype=float) if k in signals else np.zeros(n) for k in streaming.SAMPLE_SIGNALS]
     s = streaming.settings(lift_angle_deg, *move)
     m = streaming.accumulator()
     for row in zip(*(c.tolist() for c in columns)):

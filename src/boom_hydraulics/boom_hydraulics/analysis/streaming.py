@@ -65,6 +65,11 @@ NAMES = (
     "valve_loss_energy_j",
 )
 
+#: The signals add_sample takes, in its order (names of simulation outputs).
+SAMPLE_SIGNALS = (
+    "t", "q1", "v", "alpha", "p1", "p2", "u", "cavitation", "relief_open", "supply_energy", "valve_loss_energy",
+)  # fmt: skip
+
 #: A turning point of the ringing counts once p1 has come back from it by more than this, Pa.
 RIPPLE_PA = 1.0e3
 #: Settling band of a closed-loop move, as a fraction of its step.

@@ -1,23 +1,34 @@
-"""Many parameter sets integrated together, vectorised over the batch with numpy.
+"""Many parameter sets integrated together: the compiled run kernel, or numpy.
 
-The model and integrator functions are the same as for one simulation: a state
-component is an array with one entry per parameter set, the constants are arrays, and
-``xp=numpy``. All sets of a batch share mode, method (euler or rk4), time step and
-substeps; everything else (piston diameter, payload, bulk modulus, ...) may differ.
+:func:`run_sets` runs each set through the compiled kernel (:mod:`kernel`, in parallel over
+the sets), with the metrics taken while it runs and, if asked, every output stored.
+:func:`simulate_batch` vectorises over the sets with numpy instead: the model and
+integrator functions are the same as for one simulation, a state component is an array
+with one entry per parameter set, the constants are arrays, and ``xp=numpy``; it needs no
+numba and keeps every output. All sets of a batch share mode, method (euler or rk4), time
+step and substeps; everything else (piston diameter, payload, bulk modulus, ...) may differ.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis import streaming
+from ..analysis.metrics import DEFAULT_LIFT_ANGLE_DEG, move_window
 from ..errors import ConfigError
 from ..model import MODELS
 from ..model.parameters import Parameters
-from . import integrators, stepping
+from ..model.setpoints import LINEAR
+from . import accelerate, integrators, kernel, stepping
+from .closed_loop import PositionLoop
+from .commands import Profile
 from .integrators import BATCHED
-from .simulation import MAX_SUBSTEPS, OUTPUT_NAMES
+from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
+from .profiles import ANGLE
+from .simulation import MAX_SUBSTEPS
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
 
@@ -148,3 +159,106 @@ def _fail(
 
 def _as_array(u: float | np.ndarray, n: int) -> np.ndarray:
     return np.broadcast_to(np.asarray(u, dtype=float), (n,))
+
+
+@dataclass
+class SetRuns:
+    """What :func:`run_sets` gives, one entry per parameter set."""
+
+    metrics: dict[str, np.ndarray]  # streaming.NAMES -> one value per set
+    failed_at_s: np.ndarray  # NaN where the set ran through
+    failed_why: np.ndarray  # stepping outcome: OK (0), NONFINITE, ENERGY or TOO_STIFF
+    most_substeps: np.ndarray  # the most substeps one step took (TOO_STIFF: as many as it needed)
+    last_q1_m: np.ndarray  # the cylinder length at the end, or at the last good state
+    samples: np.ndarray  # how many samples each set took (fewer where it failed)
+    rows: np.ndarray | None  # with store: (sets, samples, outputs), outputs in OUTPUT_NAMES order
+
+    def columns(self, k: int) -> dict[str, np.ndarray]:
+        """The stored outputs of set ``k`` (run with store), as a trajectory's columns."""
+        if self.rows is None:
+            raise ValueError("run_sets(store=True) keeps the outputs")
+        table = self.rows[k, : self.samples[k]]
+        return {
+            name: table[:, j].astype(bool) if name in BOOLEAN_OUTPUTS else table[:, j].copy()
+            for j, name in enumerate(OUTPUT_NAMES)
+        }
+
+
+def kernel_command(command: Callable, n_sets: int) -> tuple | None:
+    """The run kernel's command arguments for ``command`` (a :class:`commands.Profile`, or a
+    :class:`closed_loop.PositionLoop` that has not run yet), or None where the kernel cannot
+    evaluate it (any other function of time)."""
+    no_knots = np.zeros((n_sets, 1))
+    if isinstance(command, Profile):
+        times = np.array(command.times_s or (0.0,), dtype=float)
+        values = np.array(command.values or (0.0,), dtype=float)
+        shape = (command.kind, times, values, command.offset, command.amplitude, command.frequency_hz)
+        return (*shape, no_knots, no_knots, no_knots, LINEAR, np.zeros((n_sets, 4)))
+    if isinstance(command, PositionLoop) and command.fresh:
+        path = command.path
+        knots = [
+            np.ascontiguousarray(np.broadcast_to(a, (len(a), n_sets)).T)
+            for a in (path.times_s, path.angles_rad, path.rates_rad_s)
+        ]
+        gains = np.column_stack([np.broadcast_to(np.asarray(g, dtype=float), (n_sets,)) for g in command.gains])
+        return (ANGLE, np.zeros(1), np.zeros(1), 0.0, 0.0, 0.0, *knots, path.order, gains)
+    return None
+
+
+def run_sets(
+    params: Sequence[Parameters],
+    duration_s: float,
+    command: Callable,
+    every: int = 1,
+    lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
+    store: bool = False,
+) -> SetRuns | None:
+    """Run every parameter set through the compiled kernel: the metrics of
+    :mod:`streaming` (over the samples at the start, every ``every`` steps and at the end),
+    and with ``store`` every output at those samples. None where numba is not available
+    (or switched off) or the kernel cannot evaluate ``command`` (see :func:`kernel_command`):
+    then :func:`simulate_batch` does the work.
+
+    Each set runs as its single run would (:meth:`simulation.Simulator.run`, the same steps
+    and substeps, commands and samples); a set that fails stops where it failed.
+    """
+    _check_shared(params)
+    if every < 1:
+        raise ConfigError(f"every must be >= 1, got {every}")
+    p0 = params[0]
+    runner = accelerate.batch_runner(p0.mode, p0.method)
+    spec = kernel_command(command, len(params))
+    if runner is None or spec is None:
+        return None
+    model = MODELS[p0.mode]
+    n_sets = len(params)
+    constants = [model.constants(p) for p in params]
+    initial = [model.initial_state(p) for p in params]
+    energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
+    bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0 for y, c in zip(initial, constants)]
+    method = integrators.METHODS[p0.method]
+    limit = (method.stability_limit or 0.0) if model.STABILITY_BOUND else 0.0
+    n_steps = round(duration_s / p0.time_step_s)
+    n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
+    settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
+    accumulators = np.array([streaming.accumulator() for _ in params])
+    rows = np.empty((n_sets, n_rows if store else 0, len(OUTPUT_NAMES)))
+    status = np.empty((n_sets, kernel.STATUS_SIZE))
+    taken = np.zeros(n_sets, dtype=np.int64)
+    runner(
+        np.array(constants, dtype=float), np.array(initial, dtype=float), *spec, float(p0.time_step_s),
+        int(p0.substeps), float(limit), MAX_SUBSTEPS, int(n_steps), int(every), energy_index,
+        np.array(bases, dtype=float), settings, accumulators, rows, status, taken,
+    )  # fmt: skip
+    values = np.empty((n_sets, len(streaming.NAMES)))
+    for k in range(n_sets):
+        streaming.finish(accumulators[k], settings[k], values[k])
+    return SetRuns(
+        metrics={name: values[:, j] for j, name in enumerate(streaming.NAMES)},
+        failed_at_s=status[:, kernel.FAILED_AT].copy(),
+        failed_why=status[:, kernel.OUTCOME].astype(int),
+        most_substeps=status[:, kernel.MOST].astype(int),
+        last_q1_m=status[:, kernel.LAST_Q1].copy(),
+        samples=taken,
+        rows=rows if store else None,
+    )

@@ -56,6 +56,11 @@ class PositionLoop:
         path = timed_moves(start, p0.command_times_s, p0.command_angles_rad, speed)
         return cls(params, path)
 
+    @property
+    def fresh(self) -> bool:
+        """True before the first command: the controller has no history yet."""
+        return self._t is None and not np.any(self.state.integral) and not np.any(self.state.holding)
+
     def __call__(self, t_s: float, y: Sequence[Any]) -> Any:
         if t_s == self._t:
             return self._u

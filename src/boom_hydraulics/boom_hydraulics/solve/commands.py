@@ -4,33 +4,49 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ConfigError
 from ..model.parameters import Parameters
-from .profiles import RAMP, SINE, STEPS, profile_value
+from .profiles import CONSTANT, RAMP, SINE, STEPS, profile_value
 
 CommandProfile = Callable[[float], float]
 
 
+@dataclass(frozen=True)
+class Profile:
+    """An open-loop command u(t) of :func:`profiles.profile_value` (the run kernel takes its fields)."""
+
+    kind: int
+    times_s: tuple[float, ...] = ()
+    values: tuple[float, ...] = ()
+    offset: float = 0.0
+    amplitude: float = 0.0
+    frequency_hz: float = 0.0
+
+    def __call__(self, t: float) -> float:
+        return profile_value(self.kind, self.times_s, self.values, self.offset, self.amplitude, self.frequency_hz, t)
+
+
 def constant(value: float) -> CommandProfile:
     """u(t) = value."""
-    return lambda t: value
+    return Profile(CONSTANT, offset=float(value))
 
 
-def steps(times_s: list[float], values: list[float]) -> CommandProfile:
+def steps(times_s: Sequence[float], values: Sequence[float]) -> CommandProfile:
     """Piecewise constant: values[i] from times_s[i] until times_s[i + 1]; 0 before times_s[0]."""
-    return lambda t: profile_value(STEPS, times_s, values, 0.0, 0.0, 0.0, t)
+    return Profile(STEPS, tuple(map(float, times_s)), tuple(map(float, values)))
 
 
-def ramp(times_s: list[float], values: list[float]) -> CommandProfile:
+def ramp(times_s: Sequence[float], values: Sequence[float]) -> CommandProfile:
     """Piecewise linear through (times_s[i], values[i]); held flat before the first and after the last."""
-    return lambda t: profile_value(RAMP, times_s, values, 0.0, 0.0, 0.0, t)
+    return Profile(RAMP, tuple(map(float, times_s)), tuple(map(float, values)))
 
 
 def sine(offset: float, amplitude: float, frequency_hz: float) -> CommandProfile:
     """u(t) = offset + amplitude sin(2 pi f t)."""
-    return lambda t: profile_value(SINE, (), (), offset, amplitude, frequency_hz, t)
+    return Profile(SINE, offset=float(offset), amplitude=float(amplitude), frequency_hz=float(frequency_hz))
 
 
 def from_parameters(p: Parameters) -> CommandProfile:

@@ -17,36 +17,7 @@ from ..errors import SimulationError
 from ..model import MODELS
 from ..model.parameters import Parameters
 from . import accelerate, integrators, stepping
-
-#: Output names, units and descriptions, in the order of CSV columns.
-OUTPUTS: tuple[tuple[str, str, str], ...] = (
-    ("t", "s", "simulated time"),
-    ("q1", "m", "cylinder length q1"),
-    ("v", "m/s", "rod velocity"),
-    ("a", "m/s^2", "rod acceleration"),
-    ("alpha", "rad", "boom elevation (eq. 4)"),
-    ("alpha_rate", "rad/s", "boom angular rate"),
-    ("p1", "Pa", "piston-chamber pressure"),
-    ("p2", "Pa", "rod-chamber pressure"),
-    ("q_in1", "m^3/s", "flow into the piston chamber"),
-    ("q_in2", "m^3/s", "flow into the rod chamber"),
-    ("f_hyd", "N", "hydraulic rod force p1 S1 - p2 S2"),
-    ("f_load", "N", "load force of eq. 10"),
-    ("f_friction", "N", "seal friction force, opposing the motion"),
-    ("u", "1", "valve command"),
-    ("x_v", "1", "spool position applied"),
-    ("p_supply", "Pa", "pressure at the valve P port"),
-    ("power", "W", "hydraulic power drawn from the supply"),
-    ("supply_energy", "J", "energy drawn from the supply"),
-    ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),
-    ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
-    ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
-    ("at_end_stop", "bool", "rod against an end stop"),
-    ("cavitation", "bool", "a chamber at the cavitation floor"),
-    ("relief_open", "bool", "a relief valve passes flow"),
-    ("pump_saturated", "bool", "pump at its maximum flow"),
-)
-OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES, OUTPUTS  # noqa: F401 (OUTPUTS: the table of them)
 
 _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
@@ -354,8 +325,18 @@ def simulate(
     """Run a fresh simulation of ``params`` for ``duration_s`` (command from the parameters by default).
 
     ``jit=None`` steps with the compiled model where numba is available (see :class:`Simulator`).
+    Compiled, a command of the parameters' kinds (commands.Profile, closed_loop.PositionLoop)
+    runs whole in the compiled kernel (batch.run_sets), with no Python per step; any other
+    command, and a run that fails (to raise its error), steps through :meth:`Simulator.run`.
+    Both give the same trajectory.
     """
+    from .batch import run_sets
     from .commands import from_parameters
 
+    command = command or from_parameters(params)
     sim = Simulator(params, jit=jit)
-    return sim.run(duration_s, command or from_parameters(params), every)
+    if sim.compiled and every >= 1 and params.method in integrators.BATCHED:
+        runs = run_sets([params], duration_s, command, every, store=True)
+        if runs is not None and math.isnan(runs.failed_at_s[0]):
+            return Trajectory(runs.columns(0), None, int(runs.most_substeps[0]))
+    return sim.run(duration_s, command, every)

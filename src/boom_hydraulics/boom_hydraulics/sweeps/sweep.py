@@ -18,28 +18,15 @@ from typing import Any
 import numpy as np
 
 from ..analysis import metrics as analysis
+from ..analysis import streaming
+from ..analysis.streaming import SAMPLE_SIGNALS
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import NAMES, Parameters, as_dict, from_mapping
 from ..solve import commands, stepping
-from ..solve.batch import SHARED, simulate_batch
+from ..solve.batch import SHARED, run_sets, simulate_batch
 from ..solve.integrators import BATCHED
 from ..solve.simulation import MAX_SUBSTEPS
 from .sampling import Axis, sample_points
-
-#: Model outputs the metrics need.
-SIGNALS = (
-    "t",
-    "q1",
-    "v",
-    "alpha",
-    "p1",
-    "p2",
-    "u",
-    "cavitation",
-    "relief_open",
-    "supply_energy",
-    "valve_loss_energy",
-)
 
 #: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -51,9 +38,9 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("lift_m", "m", "largest rise of the cylinder length"),
     ("peak_speed_m_s", "m/s", "peak rod speed"),
     ("rms_speed_m_s", "m/s", "RMS rod speed"),
-    ("overshoot_m", "m", "rise of q1 above its settled value after the valve closes"),
-    ("oscillation_hz", "Hz", "dominant frequency of p1 after the valve closes"),
-    ("damping_ratio", "1", "damping ratio of that oscillation"),
+    ("overshoot_m", "m", "rise of q1 after the valve closes above where it is when the hold ends"),
+    ("oscillation_hz", "Hz", "frequency of p1's ringing after the valve closes, from its maxima"),
+    ("damping_ratio", "1", "damping ratio of that ringing, from the decay of its swings"),
     ("peak_pressure_pa", "Pa", "highest chamber pressure"),
     ("min_pressure_pa", "Pa", "lowest chamber pressure"),
     ("cavitation_s", "s", "time with a chamber at the cavitation floor"),
@@ -65,6 +52,7 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
 )
 METRIC_NAMES = tuple(name for name, _, _ in METRICS)
+assert METRIC_NAMES == streaming.NAMES, "a sweep's metrics are those streaming takes, in its order"
 
 #: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
 #: failed (the integration diverged or left the model's geometry), invalid (parameters
@@ -221,33 +209,40 @@ def _failure_reason(p: Parameters, failed_at_s: float, why: int, q1_m: float) ->
 def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     """Integrate the points of ``batch`` together; one table row per point.
 
-    Columns: ``point``, ``status``, ``reason``, ``failed_at_s`` and :data:`METRIC_NAMES`.
-    A point that fails is frozen where it failed (see :func:`batch.simulate_batch`); its
-    metrics cover the run up to then.
+    Columns: ``point``, ``status``, ``reason``, ``failed_at_s`` and :data:`METRIC_NAMES`. The
+    compiled kernel takes the metrics while it integrates (batch.run_sets); without numba, the
+    numpy batch stores the signals and the same metrics are taken from them. A point that
+    fails stops where it failed; its metrics cover the run up to then.
     """
     params = batch.params
     command = commands.for_batch(params)
-    signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SIGNALS)
-    failed_at = signals["failed_at_s"]
     n = len(params)
+    runs = run_sets(params, batch.duration_s, command, every=batch.every, lift_angle_deg=batch.lift_angle_deg)
+    if runs is not None:
+        values = np.column_stack([runs.metrics[name] for name in METRIC_NAMES])
+        failed_at, failed_why, last_q1 = runs.failed_at_s, runs.failed_why, runs.last_q1_m
+    else:
+        signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SAMPLE_SIGNALS)
+        failed_at, failed_why = signals["failed_at_s"], signals["failed_why"]
+        values, last_q1 = np.full((n, len(METRIC_NAMES)), np.nan), np.empty(n)
+        for k in range(n):
+            one = {name: signals[name][:, k] for name in SAMPLE_SIGNALS}
+            if math.isfinite(failed_at[k]):
+                keep = one["t"] <= failed_at[k]
+                one = {name: column[keep] for name, column in one.items()}
+            m = analysis.streamed(one, batch.lift_angle_deg, analysis.move_window(params[k]))
+            values[k] = [m[name] for name in METRIC_NAMES]
+            last_q1[k] = one["q1"][-1]
     rows: dict[str, list] = {"status": [], "reason": []}
-    values = np.full((n, len(METRIC_NAMES)), np.nan)
+    completed = METRIC_NAMES.index("lift_completed")
+    rise = METRIC_NAMES.index("rise_deg")
     for k in range(n):
-        one = {name: signals[name][:, k] for name in SIGNALS}
         if math.isfinite(failed_at[k]):
-            keep = one["t"] <= failed_at[k]
-            one = {name: column[keep] for name, column in one.items()}
-        m = analysis.metrics(one, lift_angle_deg=batch.lift_angle_deg)
-        m.update(analysis.move_metrics(params[k], one))
-        values[k] = [m[name] for name in METRIC_NAMES]
-        if math.isfinite(failed_at[k]):
-            status, reason = (
-                "failed",
-                _failure_reason(params[k], float(failed_at[k]), int(signals["failed_why"][k]), float(one["q1"][-1])),
-            )
-        elif not m["lift_completed"]:
+            status = "failed"
+            reason = _failure_reason(params[k], float(failed_at[k]), int(failed_why[k]), float(last_q1[k]))
+        elif not values[k, completed]:
             status = "incomplete"
-            reason = f"rose {m['rise_deg']:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"
+            reason = f"rose {values[k, rise]:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"
         else:
             status, reason = "ok", ""
         rows["status"].append(status)

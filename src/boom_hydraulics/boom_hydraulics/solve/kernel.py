@@ -1,0 +1,178 @@
+"""A whole run of one parameter set in one call: stepping, valve command and metrics together.
+
+:func:`set_runner` builds ``run_set``, which integrates one parameter set from rest over
+``n_steps`` time steps, with its valve command evaluated inside (an open-loop profile of
+:mod:`profiles`, or the closed-loop position controller following setpoint knots), and takes
+every ``every``-th sample into the streaming metrics (:mod:`..analysis.streaming`) and,
+when asked, into a table of every output. It is written in the subset of Python that numba
+compiles: :mod:`accelerate` compiles it with the model inlined and runs it over the sets of
+a batch in parallel (``prange``), so that a run costs its steps and no Python per step.
+
+The step, the command and the samples are those of :meth:`simulation.Simulator.run`: the
+command of a step is taken at its middle from the state at its start and held over it, the
+stepping loop is :func:`stepping.fixed_stepper`'s, and a step that fails (non-finite, energy
+balance, too stiff, or the rod out of the geometry of eq. 1) is not taken and ends the run.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..analysis.streaming import SAMPLE_SIGNALS, add_sample
+from ..model.control import ControlState, Gains, position_command
+from ..model.setpoints import setpoint_at
+from .outputs import OUTPUT_NAMES
+from .profiles import ANGLE, profile_value
+from .stepping import NONFINITE, OK, TOO_STIFF
+
+#: Where run_set writes the outcome of a run: the time it failed (NaN: it ran through), the
+#: stepping outcome (stepping.OK, NONFINITE, ENERGY or TOO_STIFF), the most substeps one
+#: step took (on TOO_STIFF: the number the failing step would have needed) and the cylinder
+#: length at the end (or at the last good state), m.
+FAILED_AT, OUTCOME, MOST, LAST_Q1 = 0, 1, 2, 3
+STATUS_SIZE = 4
+#: Where the signals of the streaming metrics are among the outputs, in add_sample's order.
+SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
+
+
+def command_value(
+    kind: int,
+    times_s: Any,
+    values: Any,
+    offset: float,
+    amplitude: float,
+    frequency_hz: float,
+    knots_s: Any,
+    knots_rad: Any,
+    knot_rates: Any,
+    order: int,
+    gains: Any,
+    control: Any,
+    c: Any,
+    q1_m: float,
+    dt_s: float,
+    t_s: float,
+) -> float:
+    """The valve command of the step whose middle is ``t_s``: the open-loop profile ``kind``,
+    or (ANGLE) the position controller following the knots from cylinder length ``q1_m``;
+    its state (integral, holding) moves on in ``control``."""
+    if kind != ANGLE:
+        return profile_value(kind, times_s, values, offset, amplitude, frequency_hz, t_s)
+    return controller_value(knots_s, knots_rad, knot_rates, order, gains, control, c, q1_m, dt_s, t_s)
+
+
+def controller_value(
+    knots_s: Any,
+    knots_rad: Any,
+    knot_rates: Any,
+    order: int,
+    gains: Any,
+    control: Any,
+    c: Any,
+    q1_m: float,
+    dt_s: float,
+    t_s: float,
+) -> float:
+    """The position controller's command following the knots (see command_value). Physical
+    mode only: the compiled paper model, whose valve only lifts, has a stand-in returning 0."""
+    ref, rate = setpoint_at(knots_s, knots_rad, knot_rates, order, t_s)
+    g = Gains(gains[0], gains[1], gains[2], gains[3])
+    u, state = position_command(g, ControlState(control[0], control[1]), q1_m, c, ref, rate, dt_s)
+    control[0] = state.integral
+    control[1] = state.holding
+    return u
+
+
+def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]) -> Callable[..., int]:
+    """``run_set`` of one model and method: ``_loop`` is its :func:`stepping.fixed_stepper`,
+    ``observe_values(t, y, c, u)`` its outputs as a tuple of floats in the order of
+    simulation.OUTPUT_NAMES.
+
+    ``run_set(c, y0, kind, times_s, values, offset, amplitude, frequency_hz, knots_s,
+    knots_rad, knot_rates, order, gains, dt, min_substeps, limit, max_substeps, n_steps,
+    every, energy_index, energy_base, settings, metrics, rows, status)`` runs the set with
+    constants ``c`` from the state ``y0`` for ``n_steps`` steps of ``dt`` and returns the
+    number of samples taken (at the start, every ``every`` steps and at the end, until a
+    failure). Each sample goes into the streaming ``metrics`` accumulator (with its
+    ``settings``) and, where ``rows`` has rows, into ``rows[sample]``; ``status`` receives
+    FAILED_AT, OUTCOME, MOST and LAST_Q1.
+    """
+
+    def run_set(
+        c: Any,
+        y0: Any,
+        kind: int,
+        times_s: Any,
+        values: Any,
+        offset: float,
+        amplitude: float,
+        frequency_hz: float,
+        knots_s: Any,
+        knots_rad: Any,
+        knot_rates: Any,
+        order: int,
+        gains: Any,
+        dt: float,
+        min_substeps: int,
+        limit: float,
+        max_substeps: int,
+        n_steps: int,
+        every: int,
+        energy_index: int,
+        energy_base: float,
+        settings: Any,
+        metrics: Any,
+        rows: Any,
+        status: Any,
+    ) -> int:
+        y = [v for v in y0]
+        control = np.zeros(2)
+        half = 0.5 * dt
+        low, high = abs(c.b - c.a), c.a + c.b  # the geometry of eq. 1
+        store = rows.shape[0] > 0
+        status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
+        t = 0.0
+        u = command_value(
+            kind, times_s, values, offset, amplitude, frequency_hz, knots_s, knots_rad, knot_rates, order, gains,
+            control, c, y[0], dt, t + half,
+        )  # fmt: skip
+        taken = 0
+        for i in range(n_steps + 1):
+            if i > 0:
+                t_start = (i - 1) * dt
+                _, outcome, most, y_new = _loop(
+                    t_start, y, c, u, dt, min_substeps, limit, max_substeps, 1, energy_index, energy_base
+                )
+                if outcome == OK and not low < y_new[0] < high:
+                    outcome = NONFINITE  # the rod left the geometry: the model cannot go on
+                status[LAST_Q1] = y[0]
+                if outcome != OK:
+                    status[FAILED_AT] = t_start if outcome == TOO_STIFF else t_start + dt
+                    status[OUTCOME] = outcome
+                    status[MOST] = most if outcome == TOO_STIFF else status[MOST]
+                    return taken
+                status[MOST] = max(status[MOST], most)
+                y = y_new
+                t = i * dt
+                u = command_value(
+                    kind, times_s, values, offset, amplitude, frequency_hz, knots_s, knots_rad, knot_rates, order,
+                    gains, control, c, y[0], dt, t + half,
+                )  # fmt: skip
+            if i % every == 0 or i == n_steps:
+                o = observe_values(t, y, c, u)
+                add_sample(
+                    metrics, settings, o[SAMPLED[0]], o[SAMPLED[1]], o[SAMPLED[2]], o[SAMPLED[3]], o[SAMPLED[4]],
+                    o[SAMPLED[5]], o[SAMPLED[6]], o[SAMPLED[7]], o[SAMPLED[8]], o[SAMPLED[9]], o[SAMPLED[10]],
+                )  # fmt: skip
+                if store:
+                    for j in range(len(o)):
+                        rows[taken, j] = o[j]
+                taken += 1
+        status[LAST_Q1] = y[0]
+        return taken
+
+    return run_set

@@ -1,0 +1,79 @@
+"""The compiled run kernel: a whole run in one call equals the run stepped through the Simulator."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+from boom_hydraulics.analysis import metrics as analysis
+from boom_hydraulics.model import config
+from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.solve import accelerate, commands, stepping
+from boom_hydraulics.solve.batch import run_sets
+from boom_hydraulics.solve.simulation import OUTPUT_NAMES, Simulator
+from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.sampling import parse_axis
+
+pytestmark = pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
+
+CASES = {
+    "lift-hold-lower": (Parameters(), "steps:0=1,0.6=0,0.9=-0.5"),
+    "sine-euler": (with_updates(Parameters(), method="euler", substeps=4), "sine:0.2,0.6,2"),
+    "closed-loop": (Parameters(), "angle:0=25,0.8=15"),
+    "paper-ramp": (config.load(CONFIG / "paper_fig10.yaml"), "ramp:0=0,0.3=1"),
+}
+
+
+@pytest.mark.parametrize("case", CASES, ids=list(CASES))
+def test_a_whole_run_in_the_kernel_equals_the_run_stepped_through_the_simulator(case):
+    base, profile = CASES[case]
+    params = from_mapping(commands.parse_profile(profile), base=base)
+    duration, every = 1.2, 7  # 1200 steps: samples every 7 and at the end
+    runs = run_sets([params], duration, commands.from_parameters(params), every, store=True)
+    assert runs is not None and math.isnan(runs.failed_at_s[0])
+    kernel = runs.columns(0)
+    stepped = Simulator(params, jit=True).run(duration, commands.from_parameters(params), every)
+    interpreted = Simulator(params, jit=False).run(duration, commands.from_parameters(params), every)
+    assert len(kernel["t"]) == len(stepped) == 1 + 1200 // 7 + 1
+    for name in OUTPUT_NAMES:  # the same compiled steps, commands and samples: bit for bit
+        assert np.array_equal(kernel[name], stepped[name]), name
+    for name in ("q1", "v", "p1", "u", "supply_energy"):
+        scale = max(np.max(np.abs(interpreted[name])), 1e-9)
+        assert np.max(np.abs(kernel[name] - interpreted[name])) <= 1e-9 * scale, name
+    assert runs.most_substeps[0] == stepped.most_substeps
+    # the metrics taken while running equal those of the stored run
+    expected = analysis.metrics(stepped.columns, params=params)
+    for name, value in runs.metrics.items():
+        both_nan = math.isnan(value[0]) and math.isnan(expected[name])
+        assert both_nan or math.isclose(value[0], expected[name], rel_tol=1e-12, abs_tol=1e-15), name
+    closed_loop = np.isfinite([expected[k] for k in ("target_overshoot_deg", "target_error_deg")])
+    assert closed_loop.all() == (case == "closed-loop")
+
+
+def test_a_set_that_fails_stops_where_it_fails_and_the_others_run_through():
+    fig8, fig9 = (config.load(CONFIG / f"paper_fig{i}.yaml") for i in (8, 9))
+    runs = run_sets([fig8, fig9], 3.0, commands.constant(1.0), every=10, store=True)
+    assert 2.0 < runs.failed_at_s[0] < 2.3 and runs.failed_why[0] == stepping.NONFINITE  # fig. 8 leaves eq. 1
+    assert 1.75 < runs.last_q1_m[0] < 1.8  # the last good state, inside (1, 1.8) m
+    assert math.isnan(runs.failed_at_s[1]) and runs.failed_why[1] == stepping.OK
+    assert runs.samples[0] < runs.samples[1] == 301
+    assert np.isfinite(runs.columns(0)["q1"]).all()
+
+
+def test_a_command_the_kernel_cannot_evaluate_is_left_to_the_numpy_batch():
+    assert run_sets([Parameters()], 0.1, lambda t: 1.0) is None  # any function of time
+
+
+def test_a_sweep_without_numba_gives_the_compiled_sweeps_table(monkeypatch):
+    axes = [parse_axis("piston_diameter=0.04,0.063"), parse_axis("payload=0,150")]
+    plan = sweep.plan([("default", Parameters())], axes, duration_s=1.5, lift_angle_deg=10.0)
+    (batch,) = plan.batches
+    compiled = sweep.run_batch(batch)
+    monkeypatch.setenv("BOOM_HYDRAULICS_JIT", "0")
+    numpy_batch = sweep.run_batch(batch)
+    assert compiled["status"].tolist() == numpy_batch["status"].tolist() == ["ok", "ok", "incomplete", "incomplete"]
+    for name in sweep.METRIC_NAMES:
+        np.testing.assert_allclose(compiled[name], numpy_batch[name], rtol=1e-9, atol=1e-12, err_msg=name)
