@@ -3,14 +3,16 @@
     tools/with-env python bench/bench_sweep.py            # about three minutes
     tools/with-env python bench/bench_sweep.py --full     # plus boom-sweep over 10 000 points
 
-Compares the vectorised batch path (what boom-sweep runs) with one simulation per
-point (interpreted and compiled) and with one scipy solve_ivp per point. Prints
+Compares the batch paths (the compiled run kernel that boom-sweep runs, and the numpy
+batch it falls back to without numba) with one simulation per point (interpreted and
+compiled, metrics from the stored run) and with one scipy solve_ivp per point. Prints
 tables; nothing is asserted (these machines are shared and noisy).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import tempfile
@@ -86,17 +88,32 @@ def with_solve_ivp(points: int, method: str) -> float:
     return time.perf_counter() - t0
 
 
-def full_sweep(workers: int | None) -> float:
+def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
+    """boom-sweep over side x side points of a 5 s lift, start to finish: (seconds, peak
+    resident memory of the boom-sweep process in MB; with workers, of the parent alone)."""
     out = Path(tempfile.mkdtemp(prefix="bench-sweep-"))
-    args = ["boom-sweep", "--vary", "piston_diameter=0.032:0.1:100", "--vary", "payload=0:200:100"]
-    args += ["--duration", "5", "--out", str(out / "s"), "--no-plots", "--no-progress"]
+    args = [shutil.which("boom-sweep"), "--vary", f"piston_diameter=0.032:0.1:{side}"]
+    args += [
+        "--vary",
+        f"payload=0:200:{side}",
+        "--duration",
+        "5",
+        "--out",
+        str(out / "s"),
+        "--no-plots",
+        "--no-progress",
+    ]
     if workers:
         args += ["--workers", str(workers)]
     t0 = time.perf_counter()
-    subprocess.run(args, check=True, capture_output=True)
+    process = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(process.pid, 0)
     seconds = time.perf_counter() - t0
+    process.returncode = os.waitstatus_to_exitcode(status)
+    if process.returncode != 0:
+        raise RuntimeError(f"boom-sweep failed: {process.stderr.read().decode()}")
     shutil.rmtree(out)
-    return seconds
+    return seconds, usage.ru_maxrss / 1024
 
 
 def main() -> None:
@@ -108,15 +125,19 @@ def main() -> None:
     def add(label: str, points: int, seconds: float) -> None:
         rows.append([label, str(points), f"{seconds:.1f}", f"{points / seconds:.1f}"])
 
-    add("vectorised, 1 batch of 1000, this process", 1000, vectorised(1000, 1000, LocalExecutor()))
-    add("vectorised, 4 batches of 250, this process", 1000, vectorised(1000, 250, LocalExecutor()))
-    add("vectorised, 2 batches of 500, 2 Dask workers", 1000, vectorised(1000, 500, DaskExecutor(workers=2)))
+    sweep.run_batch(sweep_plan(1000, 2).batches[0])  # load the compiled kernel outside the timing
+    add("compiled kernel, 1 batch of 1000, this process", 1000, vectorised(1000, 1000, LocalExecutor()))
+    add("compiled kernel, 4 batches of 250, this process", 1000, vectorised(1000, 250, LocalExecutor()))
+    add("compiled kernel, 2 batches of 500, 2 Dask workers", 1000, vectorised(1000, 500, DaskExecutor(workers=2)))
+    os.environ["BOOM_HYDRAULICS_JIT"] = "0"  # the numpy batch, as without numba
+    add("numpy batch (no numba), 1 batch of 1000, this process", 1000, vectorised(1000, 1000, LocalExecutor()))
+    del os.environ["BOOM_HYDRAULICS_JIT"]
     add("one at a time, interpreted", 10, one_at_a_time(10, jit=False))
     if accelerate.available():
         add("one at a time, compiled (numba)", 50, one_at_a_time(50, jit=True))
     add("one solve_ivp (RK45, rtol 1e-6) per point", 5, with_solve_ivp(5, "RK45"))
     add("one solve_ivp (LSODA, rtol 1e-6) per point", 5, with_solve_ivp(5, "LSODA"))
-    base = float(rows[3][3])
+    base = float(rows[4][3])
     for r in rows:
         r.append(f"{float(r[3]) / base:.1f}x")
     table(
@@ -125,9 +146,19 @@ def main() -> None:
         rows,
     )
     if args.full:
-        full = [["boom-sweep, this process", f"{full_sweep(None):.0f}"]]
-        full.append(["boom-sweep --workers 2", f"{full_sweep(2):.0f}"])
-        table("boom-sweep over 10 000 points (100 x 100 grid), 5 s lift, start to finish", ["run", "seconds"], full)
+        full = []
+        for label, workers, side in (
+            ("boom-sweep, 1000 points, this process", None, 32),
+            ("boom-sweep, 10 000 points, this process", None, 100),
+            ("boom-sweep --workers 2, 10 000 points", 2, 100),
+        ):
+            seconds, peak_mb = full_sweep(workers, side)
+            full.append([label, f"{side * side}", f"{seconds:.1f}", f"{peak_mb:.0f}"])
+        table(
+            "boom-sweep over a grid of points, 5 s lift, start to finish",
+            ["run", "points", "seconds", "peak MB (boom-sweep process)"],
+            full,
+        )
 
 
 if __name__ == "__main__":
