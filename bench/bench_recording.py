@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
 from boom_hydraulics.bags.recording import BagRecorder, Topic
@@ -43,7 +42,7 @@ def rss_mib(pid: int) -> float:
 def write_latency(ticks: int) -> None:
     sim = Simulator(Parameters())
     out = sim.outputs()
-    data = serialize_message(drive_state(out, Clock().clock))
+    data = drive_state(out, 0)
     folder = Path(tempfile.mkdtemp()) / "bag"
     topics = [Topic(f"/t{i}", "boom_hydraulics_msgs/msg/DriveState") for i in range(6)]
     recorder = BagRecorder(folder, topics)

@@ -11,9 +11,13 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 from builtin_interfaces.msg import Time  # noqa: E402
-from rclpy.serialization import deserialize_message  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, drive_state_cdr  # noqa: E402
+from boom_hydraulics.bags import cdr  # noqa: E402
+from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, setpoint_cdr  # noqa: E402
 from boom_hydraulics.model.geometry import boom_angle_rad  # noqa: E402
 from boom_hydraulics.model.parameters import Parameters  # noqa: E402
 from boom_hydraulics.ros import messages  # noqa: E402
@@ -30,21 +34,22 @@ def _distinct_outputs() -> dict:
 
 def test_every_drive_state_field_carries_its_own_output():
     out = _distinct_outputs()
-    stamp = Time(sec=12, nanosec=5)
-    msg = messages.drive_state(out, stamp)
+    ns = 12 * 10**9 + 5
+    msg = deserialize_message(messages.drive_state(out, ns), DriveState)
     assert set(DRIVE_STATE_FIELDS) == set(DriveState.get_fields_and_field_types()) - {"header"}
     for field, name in DRIVE_STATE_FIELDS.items():
         assert getattr(msg, field) == out[name], field
-    assert msg.header.stamp == stamp and msg.header.frame_id == "base_link"
-    # the bag tools' encoder (rosbags, no rclpy) writes the same message
-    ns = 12 * 10**9 + 5
-    assert deserialize_message(drive_state_cdr(out, ns), DriveState) == msg
+    assert msg.header.stamp == Time(sec=12, nanosec=5) and msg.header.frame_id == "base_link"
+    # the same length as rclpy's serializer gives (the packing's alignment is CDR's)
+    assert len(messages.drive_state(out, ns)) == len(serialize_message(msg))
 
 
 def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
     p = Parameters()
     out = _distinct_outputs()
-    joints = messages.joint_state(out, Time(), p)
+    data = messages.joint_state(out, 7, p)
+    joints = deserialize_message(data, JointState)
+    assert len(data) == len(serialize_message(joints)) and joints.header.stamp == Time(sec=0, nanosec=7)
     assert joints.name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
     assert [joints.position[0], joints.position[2]] == [out["alpha"], out["q1"]]
     assert [joints.velocity[0], joints.velocity[2]] == [out["alpha_rate"], out["v"]]
@@ -56,10 +61,28 @@ def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
     ) / (2 * h)
     assert joints.effort[0] == pytest.approx(out["f_hyd"] / k, rel=1e-6)
     assert joints.effort[2] == out["f_hyd"]
-    piston, rod = messages.chamber_pressures(out, Time())
+    piston, rod = (deserialize_message(data, FluidPressure) for data in messages.chamber_pressures(out, 0))
     assert (piston.fluid_pressure, piston.header.frame_id) == (out["p1"], "piston_chamber")
     assert (rod.fluid_pressure, rod.header.frame_id) == (out["p2"], "rod_chamber")
-    assert messages.rod_force(out, Time()).wrench.force.x == out["f_hyd"]
+    force = deserialize_message(messages.rod_force(out, 0), WrenchStamped)
+    assert (force.wrench.force.x, force.header.frame_id) == (out["f_hyd"], "cylinder_rod")
+
+
+def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
+    """The hand-packed CDR is canonical: rosbags (strict about padding) reads what rclpy reads,
+    also the setpoint's JointState with its empty effort."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    setpoint = store.deserialize_cdr(setpoint_cdr("boom_joint", 0.5, -0.25, 3 * 10**9), "sensor_msgs/msg/JointState")
+    assert (setpoint.name, list(setpoint.position), list(setpoint.velocity)) == (["boom_joint"], [0.5], [-0.25])
+    assert len(setpoint.effort) == 0 and setpoint.header.stamp.sec == 3
+    joints = store.deserialize_cdr(
+        messages.joint_state(_distinct_outputs(), 0, Parameters()), "sensor_msgs/msg/JointState"
+    )
+    assert joints.name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"] and len(joints.effort) == 3
+    clock = deserialize_message(cdr.clock(5 * 10**9 + 1), Clock)
+    assert (clock.clock.sec, clock.clock.nanosec) == (5, 1)
 
 
 PUBLISHER = textwrap.dedent(

@@ -1,9 +1,10 @@
-"""Messages as CDR bytes without ROS: what the tools write into bags themselves.
+"""Messages as CDR bytes without ROS: what the node and the tools write into bags.
 
-Encoded with rosbags' typestore (Jazzy's types plus this package's DriveState, read from
-its installed .msg), so a bag written by a tool needs no rclpy. rosbags writes canonical
-CDR, which every reader takes (rclpy's serializer leaves trailing padding after empty
-8-byte sequences, which strict readers refuse).
+DriveState and the setpoint's JointState are packed directly (:mod:`cdr`); other messages
+are encoded with rosbags' typestore (Jazzy's types plus this package's DriveState, read
+from its installed .msg). Both write canonical CDR, which every reader takes (rclpy's
+serializer leaves trailing padding after empty 8-byte sequences, which strict readers refuse),
+and need no rclpy.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ..model.robot_description import BASE_FRAME
+from . import cdr
 from .recording import interface_file
 
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
@@ -44,6 +46,7 @@ DRIVE_STATE_FIELDS: dict[str, str] = {
     "relief_open": "relief_open",
 }
 FLAGS = ("at_end_stop", "cavitation", "relief_open")
+_DRIVE_STATE_OUTPUTS = tuple((name, name in FLAGS) for name in DRIVE_STATE_FIELDS.values())
 
 
 @functools.cache
@@ -56,34 +59,14 @@ def typestore() -> Typestore:
 
 def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = BASE_FRAME) -> bytes:
     """CDR of a boom_hydraulics_msgs/DriveState of the model outputs ``out``, stamped ``stamp_ns``."""
-    types = typestore().types
-    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-    header = types["std_msgs/msg/Header"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=frame_id
-    )
-    fields = {
-        field: bool(out[name]) if name in FLAGS else float(out[name]) for field, name in DRIVE_STATE_FIELDS.items()
-    }
-    return bytes(typestore().serialize_cdr(types[DRIVE_STATE](header=header, **fields), DRIVE_STATE))
+    floats = [float(out[name]) for name, flag in _DRIVE_STATE_OUTPUTS if not flag]
+    return cdr.drive_state(stamp_ns, frame_id, floats, [bool(out[name]) for name, flag in _DRIVE_STATE_OUTPUTS if flag])
 
 
 def setpoint_cdr(joint: str, angle_rad: float, rate_rad_s: float, stamp_ns: int) -> bytes:
-    """CDR of the sensor_msgs/JointState of a position setpoint (no effort). Encoded by rosbags:
-    rclpy's serializer pads after an empty trailing float64 sequence, and strict readers
-    (rosbags) refuse such a message."""
-    types = typestore().types
-    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-    header = types["std_msgs/msg/Header"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
-    )
-    msg = types["sensor_msgs/msg/JointState"](
-        header=header,
-        name=[joint],
-        position=np.array([angle_rad], dtype=np.float64),
-        velocity=np.array([rate_rad_s], dtype=np.float64),
-        effort=np.array([], dtype=np.float64),
-    )
-    return bytes(typestore().serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    """CDR of the sensor_msgs/JointState of a position setpoint (no effort; canonical CDR, with
+    no padding after the empty effort, as strict readers such as rosbags require)."""
+    return cdr.joint_state(stamp_ns, (joint,), (angle_rad,), (rate_rad_s,), ())
 
 
 _VALUE_FIELDS = {  # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it

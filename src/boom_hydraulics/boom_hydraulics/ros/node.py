@@ -58,6 +58,7 @@ from visualization_msgs.msg import MarkerArray
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
+from ..bags import cdr
 from ..bags.encoding import parameter_event_cdr, setpoint_cdr
 from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
@@ -334,7 +335,7 @@ class BoomSimNode(Node):
         received = self._now_ns()
         self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
 
-    def _publish(self, messages: list[tuple[Any, Any]], stamp: Any) -> None:
+    def _publish(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
         """Publish (publisher, message) pairs, then record them all: a tick cut short by
         shutdown leaves no partial tick in the bag. While recording, each message is
         serialised once, and the bytes published are the bytes recorded. A message given as
@@ -348,7 +349,6 @@ class BoomSimNode(Node):
         ]
         for publisher, data in serialised:
             publisher.publish(data)
-        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
         for publisher, data in serialised:
             self.recorder.write(publisher.topic_name, stamp_ns, data)
 
@@ -549,40 +549,37 @@ class BoomSimNode(Node):
         """Now on the node's clock: simulated time when it publishes /clock, ROS time otherwise."""
         if self.publish_clock:
             return round(self.sim.t * 1e9)
+        if not self.follow_clock:
+            return time.time_ns()  # ROS time without use_sim_time is the system clock (cheaper to read)
         return self.get_clock().now().nanoseconds
-
-    def _stamp(self):
-        return Time(nanoseconds=self._now_ns()).to_msg()
 
     def publish_state(self) -> None:
         out = self.sim.outputs()
         if not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
-        stamp = self._stamp()
+        stamp_ns = self._now_ns()
         if self.clock_pub is not None:
-            self._publish([(self.clock_pub, Clock(clock=stamp))], stamp)
+            self._publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
         p = self.sim.params
-        piston, rod = messages.chamber_pressures(out, stamp)
-        tick: list[tuple[Any, Any]] = [
-            (self.state_pub, messages.drive_state(out, stamp)),
-            (self.joint_pub, messages.joint_state(out, stamp, p)),
+        piston, rod = messages.chamber_pressures(out, stamp_ns)
+        tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
+            (self.state_pub, messages.drive_state(out, stamp_ns)),
+            (self.joint_pub, messages.joint_state(out, stamp_ns, p)),
             (self.p1_pub, piston),
             (self.p2_pub, rod),
-            (self.force_pub, messages.rod_force(out, stamp)),
+            (self.force_pub, messages.rod_force(out, stamp_ns)),
         ]
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
-            stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-            data = setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)
-            tick.append((self.setpoint_pub, data))
+            tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
         self._ticks += 1
         if self._ticks % self._markers_every == 0:
-            tick.append((self.markers_pub, crane_markers(out, stamp, p)))
-        self._publish(tick, stamp)
+            tick.append((self.markers_pub, crane_markers(out, Time(nanoseconds=stamp_ns).to_msg(), p)))
+        self._publish(tick, stamp_ns)
 
     def publish_description(self) -> None:
         """The URDF of the current parameters on robot_description (transient local)."""
         if self.description_pub is not None:
-            self._publish([(self.description_pub, String(data=urdf(self.sim.params)))], self._stamp())
+            self._publish([(self.description_pub, String(data=urdf(self.sim.params)))], self._now_ns())
 
     def on_second(self) -> None:
         """Once a second: diagnostics, and the command topics' publishers for the bag."""
@@ -594,7 +591,8 @@ class BoomSimNode(Node):
     def publish_diagnostics(self) -> None:
         out = self.sim.outputs() if self.failure is None else {}
         array = DiagnosticArray()
-        array.header.stamp = self._stamp()
+        stamp_ns = self._now_ns()
+        array.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
 
         def status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
             return DiagnosticStatus(
@@ -636,7 +634,7 @@ class BoomSimNode(Node):
             )
         )
         pacer.late_ticks = 0
-        self._publish([(self.diag_pub, array)], array.header.stamp)
+        self._publish([(self.diag_pub, array)], stamp_ns)
 
 
 def _fail(message: str) -> None:

@@ -221,7 +221,12 @@ def module_source(mode: str, method: str) -> str:
         *([] if mode == "physical" else [_without_controller_source()]),
         f"def tuple_of(y0):\n    return ({''.join(f'y0[{k}], ' for k in range(len(model.STATE_NAMES)))})",
         _inner_source(kernel.set_runner, "run_set", "run_set", *state),
-        "def run(t, y0, c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base):",
+        "# the entry points take the constants as a row of floats: numba types an array at once,",
+        "# a NamedTuple field by field on every call",
+        "def observe_row(t, y0, crow, u):",
+        f"    return observe_values(t, {'tuple_of(y0)' if state else '[v for v in y0]'}, constants_of(crow), u)",
+        "def run(t, y0, crow, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base):",
+        "    c = constants_of(crow)",
         "    done, outcome, most, y = _loop(",
         f"        t, {'tuple_of(y0)' if state else '[v for v in y0]'}, c, u, dt, min_substeps, limit, max_substeps, n,",
         "        energy_index, energy_base,",
@@ -282,11 +287,21 @@ def stepper(mode: str, method: str) -> Callable[..., tuple[int, int, int, np.nda
     """The compiled stepping loop (:func:`stepping.fixed_stepper`) of one model and method, or None.
 
     ``run(t, y, constants, u, dt, min_substeps, limit, max_substeps, n, energy_index,
-    energy_base) -> (steps taken, outcome, most substeps, y)`` with ``y`` a numpy array.
+    energy_base) -> (steps taken, outcome, most substeps, y)`` with ``y`` and ``constants``
+    (the model's Constants in order) numpy arrays.
     """
     if not available() or method not in _STEPS:
         return None
     return _load(mode, method).run
+
+
+def observer(mode: str, method: str) -> Callable[..., tuple] | None:
+    """The compiled outputs of one model: ``observe_row(t, y, constants, u)`` -> a tuple of
+    floats in the order of OUTPUT_NAMES (flags 0.0 or 1.0), ``y`` and ``constants`` numpy
+    arrays (as for :func:`stepper`); or None."""
+    if not available() or method not in _STEPS:
+        return None
+    return _load(mode, method).observe_row
 
 
 def batch_runner(mode: str, method: str) -> Callable[..., None] | None:

@@ -84,6 +84,8 @@ class Simulator:
             model = self.model
             self._run = stepping.fixed_stepper(self._method.step, model.derivative, model.stiffness_rate, model.energy)
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
+        self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
+        self._constants_row = np.array(self.constants, dtype=float)  # what the compiled calls take
 
     # --- state --------------------------------------------------------------------------
     def reset(self, initial_length_m: float | None = None, keep_time: bool = False) -> None:
@@ -153,7 +155,7 @@ class Simulator:
         rest = (self.constants, float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
         rest += (self._energy_index, self._energy_base)
         if self._compiled is not None:
-            done, outcome, most, y = self._compiled(self.t, np.array(self.y), *rest)
+            done, outcome, most, y = self._compiled(self.t, np.array(self.y), self._constants_row, *rest[1:])
             y = y.tolist()
         else:
             try:
@@ -255,8 +257,14 @@ class Simulator:
         return ", ".join(f"{n} = {v:.6g}" for n, v in zip(self.model.STATE_NAMES[:5], y))
 
     def outputs(self) -> dict[str, float]:
-        """Every output (see :data:`OUTPUTS`) at the current state and command."""
-        return self.model.observe(self.t, self.y, self.constants, self.u)
+        """Every output (see :data:`OUTPUTS`) at the current state and command (compiled, the
+        model's observe as numba compiled it: a node asks for them every tick)."""
+        if self._observe is None:
+            return self.model.observe(self.t, self.y, self.constants, self.u)
+        out = dict(zip(OUTPUT_NAMES, self._observe(self.t, np.array(self.y), self._constants_row, float(self.u))))
+        for name in BOOLEAN_OUTPUTS:
+            out[name] = out[name] != 0.0
+        return out
 
     def run(
         self, duration_s: float, command: Callable[[float], float], every: int = 1, stop_on_error: bool = False

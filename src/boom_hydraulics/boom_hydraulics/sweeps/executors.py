@@ -7,6 +7,8 @@ any order), so the caller can store every result as soon as it exists. Leaving t
 
 from __future__ import annotations
 
+import contextlib
+import os
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
@@ -14,6 +16,21 @@ from typing import Any, TypeVar
 from ..errors import BoomHydraulicsError, ConfigError
 
 Item = TypeVar("Item")
+
+
+@contextlib.contextmanager
+def _environment(**values: str) -> Iterator[None]:
+    """Set environment variables for what starts inside (worker processes inherit them)."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 class LocalExecutor:
@@ -60,9 +77,12 @@ class DaskExecutor:
             if self.scheduler is not None:
                 self.client = Client(self.scheduler, timeout=f"{self.connect_s}s")
             else:
-                self.cluster = LocalCluster(
-                    n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
-                )
+                # each worker process runs the compiled kernel on its share of the cores
+                threads = max(1, (os.cpu_count() or 1) // self.workers)
+                with _environment(NUMBA_NUM_THREADS=str(threads)):
+                    self.cluster = LocalCluster(
+                        n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
+                    )
                 self.client = Client(self.cluster)
         except (OSError, TimeoutError, ValueError) as exc:
             self.__exit__()
