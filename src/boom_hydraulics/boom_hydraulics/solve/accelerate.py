@@ -114,6 +114,16 @@ class _AsTuples(ast.NodeTransformer):
         return ast.Tuple(elts=elements, ctx=ast.Load())
 
 
+class _WithoutStore(ast.NodeTransformer):
+    """Drop the ``if store:`` block: a kernel for the metrics alone, which takes only the
+    outputs they need (numba inlines the outputs and leaves the rest uncomputed)."""
+
+    def visit_If(self, node: ast.If) -> ast.AST | None:
+        if isinstance(node.test, ast.Name) and node.test.id == "store":
+            return None
+        return self.generic_visit(node)
+
+
 class _Substitute(ast.NodeTransformer):
     def __init__(self, items: dict[str, ast.AST]) -> None:
         self.items = items
@@ -186,12 +196,20 @@ def _run_batch(
     C, Y0, kind, times_s, values, offset, amplitude, frequency_hz, KT, KA, KR, order, G, dt, min_substeps, limit,
     max_substeps, n_steps, every, energy_index, EB, S, M, ROWS, STATUS, TAKEN,
 ):
+    store = ROWS.shape[1] > 0
     for k in _numba.prange(C.shape[0]):
-        TAKEN[k] = run_set(
-            constants_of(C[k]), Y0[k], kind, times_s, values, offset, amplitude, frequency_hz, KT[k], KA[k], KR[k],
-            order, G[k], dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k], S[k], M[k],
-            ROWS[k], STATUS[k],
-        )
+        if store:
+            TAKEN[k] = run_set(
+                constants_of(C[k]), Y0[k], kind, times_s, values, offset, amplitude, frequency_hz, KT[k], KA[k],
+                KR[k], order, G[k], dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k],
+                S[k], M[k], ROWS[k], STATUS[k],
+            )
+        else:
+            TAKEN[k] = run_metrics(
+                constants_of(C[k]), Y0[k], kind, times_s, values, offset, amplitude, frequency_hz, KT[k], KA[k],
+                KR[k], order, G[k], dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k],
+                S[k], M[k], ROWS[k], STATUS[k],
+            )
 """
 
 
@@ -221,6 +239,7 @@ def module_source(mode: str, method: str) -> str:
         *([] if mode == "physical" else [_without_controller_source()]),
         f"def tuple_of(y0):\n    return ({''.join(f'y0[{k}], ' for k in range(len(model.STATE_NAMES)))})",
         _inner_source(kernel.set_runner, "run_set", "run_set", *state),
+        _inner_source(kernel.set_runner, "run_set", "run_metrics", *state, _WithoutStore()),
         "# the entry points take the constants as a row of floats: numba types an array at once,",
         "# a NamedTuple field by field on every call",
         "def observe_row(t, y0, crow, u):",
@@ -232,9 +251,11 @@ def module_source(mode: str, method: str) -> str:
         "        energy_index, energy_base,",
         "    )",
         "    return done, outcome, most, _np.array(y)",
+        "_INLINED = ('observe_values', '_terms')",
         "for _name, _object in list(globals().items()):",
         "    if isinstance(_object, _types.FunctionType) and _object.__module__ == __name__:",
-        "        globals()[_name] = _njit(cache=CACHE, error_model='numpy')(_object)",
+        "        _inline = 'always' if _name in _INLINED else 'never'",
+        "        globals()[_name] = _njit(cache=CACHE, error_model='numpy', inline=_inline)(_object)",
         _BATCH_SOURCE,
         "run_batch = _njit(cache=CACHE, parallel=True)(_run_batch)",
     ]
