@@ -89,17 +89,20 @@ def scipy_comparison() -> dict[str, float]:
         t_jit = best_of(lambda: simulate(PHYSICAL, duration, OPEN, every=10**9, jit=True), 5)
         rows.append(["rk4 dt=1 ms (ours, compiled)", f"{rk4_err:.1e}", f"{t_jit:.4f}", f"{t_jit / rk4_time:.3f}"])
         seconds_by["rk4 compiled"] = t_jit
+    seconds_by["rk4 error"] = rk4_err
     for method in ("RK45", "LSODA"):
-        chosen = None
+        chosen, reached = None, False
         for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
             atol = [rtol * s for s in physical_scales()]
             sol = solve_ivp(fun, (0, duration), y0, method=method, rtol=rtol, atol=atol)
             err = abs(sol.y[0, -1] - q_ref) / q_ref
+            if sol.success:
+                chosen = (rtol, atol, err)  # the tightest that ran, if none reaches it
             if sol.success and err <= rk4_err:
-                chosen = (rtol, atol, err)
+                reached = True
                 break
         if chosen is None:
-            rows.append([f"solve_ivp {method}", "did not reach it", "", ""])
+            rows.append([f"solve_ivp {method}", "failed", "", ""])
             continue
         rtol, atol, err = chosen
         seconds = best_of(
@@ -108,8 +111,10 @@ def scipy_comparison() -> dict[str, float]:
             ),
             2,
         )
-        rows.append([f"solve_ivp {method} rtol={rtol:g}", f"{err:.1e}", f"{seconds:.4f}", f"{seconds / rk4_time:.3f}"])
+        label = f"solve_ivp {method} rtol={rtol:g}" + ("" if reached else " (its tightest; does not reach it)")
+        rows.append([label, f"{err:.1e}", f"{seconds:.4f}", f"{seconds / rk4_time:.3f}"])
         seconds_by[method] = seconds
+        seconds_by[f"{method} error"] = err
     table(
         "1.5 s physical lift at matching accuracy (error in final q1 against DOP853 rtol 1e-11)",
         ["solver", "rel. error q1", "wall s", "ratio to rk4 interpreted"],

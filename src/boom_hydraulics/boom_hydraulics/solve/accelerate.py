@@ -100,6 +100,8 @@ class _AsTuples(ast.NodeTransformer):
 
     def visit_ListComp(self, node: ast.ListComp) -> ast.AST:
         self.generic_visit(node)
+        if len(node.generators) != 1 or node.generators[0].ifs:
+            return node  # only the plain one-loop comprehensions of a state
         (generator,) = node.generators
         if isinstance(generator.target, ast.Name):
             names, sources = [generator.target.id], [generator.iter]
