@@ -11,6 +11,7 @@ step and substeps; everything else (piston diameter, payload, bulk modulus, ...)
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -31,6 +32,11 @@ from .profiles import ANGLE
 from .simulation import MAX_SUBSTEPS
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
+
+#: One kernel call at a time per process: it runs on all the cores itself, and where numba's
+#: threading layer is its own workqueue (no OpenMP or TBB), two threads launching parallel
+#: kernels at once abort the process (a Dask worker with several threads would).
+_KERNEL_LOCK = threading.Lock()
 
 
 def stacked_constants(params: Sequence[Parameters]):
@@ -245,11 +251,12 @@ def run_sets(
     rows = np.empty((n_sets, n_rows if store else 0, len(OUTPUT_NAMES)))
     status = np.empty((n_sets, kernel.STATUS_SIZE))
     taken = np.zeros(n_sets, dtype=np.int64)
-    runner(
-        np.array(constants, dtype=float), np.array(initial, dtype=float), *spec, float(p0.time_step_s),
-        int(p0.substeps), float(limit), MAX_SUBSTEPS, int(n_steps), int(every), energy_index,
-        np.array(bases, dtype=float), settings, accumulators, rows, status, taken,
-    )  # fmt: skip
+    with _KERNEL_LOCK:
+        runner(
+            np.array(constants, dtype=float), np.array(initial, dtype=float), *spec, float(p0.time_step_s),
+            int(p0.substeps), float(limit), MAX_SUBSTEPS, int(n_steps), int(every), energy_index,
+            np.array(bases, dtype=float), settings, accumulators, rows, status, taken,
+        )  # fmt: skip
     values = np.empty((n_sets, len(streaming.NAMES)))
     for k in range(n_sets):
         streaming.finish(accumulators[k], settings[k], values[k])
