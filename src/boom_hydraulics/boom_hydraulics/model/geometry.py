@@ -23,6 +23,12 @@ def xi(q1_m: Num, a_m: float, b_m: float) -> Num:
     return (a_m * a_m + b_m * b_m - q1_m * q1_m) / (2.0 * a_m * b_m)
 
 
+def within_triangle(q1_m: float, a_m: float, b_m: float) -> bool:
+    """True where the cylinder length lies strictly inside (|b - a|, a + b): where the
+    triangle of eq. 1 exists and the model can be evaluated."""
+    return abs(b_m - a_m) < q1_m < a_m + b_m
+
+
 def boom_angle_rad(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType = math) -> Num:
     """alpha: boom elevation above the horizontal, rad (eq. 4)."""
     return xp.acos(xi(q1_m, a_m, b_m)) - math.pi / 2.0 + xp.acos(h_m / b_m)  # eq. 2-4

@@ -29,7 +29,7 @@ from .commands import Profile
 from .integrators import BATCHED
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 from .profiles import ANGLE
-from .simulation import MAX_SUBSTEPS
+from .simulation import MAX_SUBSTEPS, sample_count, stability_limit
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
 
@@ -92,12 +92,12 @@ def simulate_batch(
     y = [np.array(column, dtype=float) for column in zip(*(model.initial_state(p) for p in params))]
     dt, min_substeps = params[0].time_step_s, params[0].substeps
     method = integrators.METHODS[params[0].method]
-    step, limit = method.step, (method.stability_limit or 0.0) if model.STABILITY_BOUND else 0.0
+    step, limit = method.step, stability_limit(params[0])
     energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
     failed_at = np.full(n_sets, np.nan)
     failed_why = np.zeros(n_sets, dtype=int)
     n_steps = round(duration_s / dt)
-    n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
+    n_rows = sample_count(n_steps, every)
     t = 0.0
     half = 0.5 * dt  # the command of a step is taken at its middle, as in Simulator.run
     feedback = getattr(command, "feedback", False)
@@ -242,10 +242,9 @@ def run_sets(
     initial = [model.initial_state(p) for p in params]
     energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
     bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0 for y, c in zip(initial, constants)]
-    method = integrators.METHODS[p0.method]
-    limit = (method.stability_limit or 0.0) if model.STABILITY_BOUND else 0.0
+    limit = stability_limit(p0)
     n_steps = round(duration_s / p0.time_step_s)
-    n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
+    n_rows = sample_count(n_steps, every)
     settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
     accumulators = np.array([streaming.accumulator() for _ in params])
     rows = np.empty((n_sets, n_rows if store else 0, len(OUTPUT_NAMES)))

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..analysis.streaming import SAMPLE_SIGNALS, add_sample
 from ..model.control import ControlState, Gains, position_command
+from ..model.geometry import within_triangle
 from ..model.setpoints import setpoint_at
 from .outputs import OUTPUT_NAMES
 from .profiles import ANGLE, profile_value
@@ -132,7 +133,6 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
         y = [v for v in y0]
         control = np.zeros(2)
         half = 0.5 * dt
-        low, high = abs(c.b - c.a), c.a + c.b  # the geometry of eq. 1
         store = rows.shape[0] > 0
         status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
         t = 0.0
@@ -147,7 +147,7 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
                 _, outcome, most, y_new = _loop(
                     t_start, y, c, u, dt, min_substeps, limit, max_substeps, 1, energy_index, energy_base
                 )
-                if outcome == OK and not low < y_new[0] < high:
+                if outcome == OK and not within_triangle(y_new[0], c.a, c.b):
                     outcome = NONFINITE  # the rod left the geometry: the model cannot go on
                 status[LAST_Q1] = y[0]
                 if outcome != OK:

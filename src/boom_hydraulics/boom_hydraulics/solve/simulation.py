@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..model import MODELS
+from ..model.geometry import within_triangle
 from ..model.parameters import Parameters
 from . import accelerate, integrators, stepping
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES, OUTPUTS  # noqa: F401 (OUTPUTS: the table of them)
@@ -23,6 +24,17 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
 #: Most substeps the stability bound may ask for in one time step before a run stops.
 MAX_SUBSTEPS = 10_000
+
+
+def stability_limit(p: Parameters) -> float:
+    """The limit on dt x rate of the parameters' method where their model asks for stability
+    substeps (see stepping.fixed_stepper), else 0 (no automatic substeps)."""
+    return (integrators.METHODS[p.method].stability_limit or 0.0) if MODELS[p.mode].STABILITY_BOUND else 0.0
+
+
+def sample_count(n_steps: int, every: int) -> int:
+    """Samples of a run of ``n_steps``: at the start, after every ``every`` steps and at the end."""
+    return 1 + n_steps // every + (1 if n_steps % every else 0)
 
 
 def absolute_tolerances(p: Parameters) -> list[float]:
@@ -79,7 +91,7 @@ class Simulator:
         self.constants = self.model.constants(params)
         self.integrator = make_integrator(params)
         self._method = integrators.METHODS[params.method]
-        self._limit = (self._method.stability_limit or 0.0) if self.model.STABILITY_BOUND else 0.0
+        self._limit = stability_limit(params)
         if self._method.step is not None:
             model = self.model
             self._run = stepping.fixed_stepper(self._method.step, model.derivative, model.stiffness_rate, model.energy)
@@ -198,7 +210,7 @@ class Simulator:
     def _check(self, y: list) -> None:
         p = self.params
         q1 = y[0]
-        if not abs(p.b_m - p.a_m) < q1 < p.a_m + p.b_m:
+        if not within_triangle(q1, p.a_m, p.b_m):
             raise SimulationError(
                 f"rod left the valid geometry at t = {self.t:.6g} s: q1 = {q1:.6g} m is outside "
                 f"({abs(p.b_m - p.a_m):.4g}, {p.a_m + p.b_m:.4g}) m where the triangle of eq. 1 "
@@ -284,7 +296,7 @@ class Simulator:
         opening = feedback_free(command, self)
         n_steps = round(duration_s / self.params.time_step_s)
         half = 0.5 * self.params.time_step_s
-        n_rows = 1 + n_steps // every + (1 if n_steps % every else 0)
+        n_rows = sample_count(n_steps, every)
         columns: dict[str, np.ndarray] = {}
 
         def record(row: int) -> None:
