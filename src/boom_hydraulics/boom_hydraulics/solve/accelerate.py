@@ -199,19 +199,15 @@ def _run_batch(
     max_substeps, n_steps, every, energy_index, EB, S, M, ROWS, STATUS, TAKEN,
 ):
     store = ROWS.shape[1] > 0
+    profile = (kind, times_s, values, offset, amplitude, frequency_hz)
     for k in _numba.prange(C.shape[0]):
+        path = (KT[k], KA[k], KR[k], order, G[k])
+        c = constants_of(C[k])
+        rest = (dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k], S[k], M[k], ROWS[k])
         if store:
-            TAKEN[k] = run_set(
-                constants_of(C[k]), Y0[k], kind, times_s, values, offset, amplitude, frequency_hz, KT[k], KA[k],
-                KR[k], order, G[k], dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k],
-                S[k], M[k], ROWS[k], STATUS[k],
-            )
+            TAKEN[k] = run_set(c, Y0[k], profile, path, *rest, STATUS[k])
         else:
-            TAKEN[k] = run_metrics(
-                constants_of(C[k]), Y0[k], kind, times_s, values, offset, amplitude, frequency_hz, KT[k], KA[k],
-                KR[k], order, G[k], dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k],
-                S[k], M[k], ROWS[k], STATUS[k],
-            )
+            TAKEN[k] = run_metrics(c, Y0[k], profile, path, *rest, STATUS[k])
 """
 
 

@@ -40,46 +40,22 @@ STATUS_SIZE = 4
 SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
 
 
-def command_value(
-    kind: int,
-    times_s: Any,
-    values: Any,
-    offset: float,
-    amplitude: float,
-    frequency_hz: float,
-    knots_s: Any,
-    knots_rad: Any,
-    knot_rates: Any,
-    order: int,
-    gains: Any,
-    control: Any,
-    c: Any,
-    q1_m: float,
-    dt_s: float,
-    t_s: float,
-) -> float:
-    """The valve command of the step whose middle is ``t_s``: the open-loop profile ``kind``,
-    or (ANGLE) the position controller following the knots from cylinder length ``q1_m``;
-    its state (integral, holding) moves on in ``control``."""
+def command_value(profile: tuple, path: tuple, control: Any, c: Any, q1_m: float, dt_s: float, t_s: float) -> float:
+    """The valve command of the step whose middle is ``t_s``: the open-loop ``profile``
+    (kind, times_s, values, offset, amplitude, frequency_hz; see profiles.profile_value), or
+    for kind ANGLE the position controller following ``path`` from cylinder length ``q1_m``
+    (see controller_value); the controller's state (integral, holding) moves on in ``control``."""
+    kind, times_s, values, offset, amplitude, frequency_hz = profile
     if kind != ANGLE:
         return profile_value(kind, times_s, values, offset, amplitude, frequency_hz, t_s)
-    return controller_value(knots_s, knots_rad, knot_rates, order, gains, control, c, q1_m, dt_s, t_s)
+    return controller_value(path, control, c, q1_m, dt_s, t_s)
 
 
-def controller_value(
-    knots_s: Any,
-    knots_rad: Any,
-    knot_rates: Any,
-    order: int,
-    gains: Any,
-    control: Any,
-    c: Any,
-    q1_m: float,
-    dt_s: float,
-    t_s: float,
-) -> float:
-    """The position controller's command following the knots (see command_value). Physical
-    mode only: the compiled paper model, whose valve only lifts, has a stand-in returning 0."""
+def controller_value(path: tuple, control: Any, c: Any, q1_m: float, dt_s: float, t_s: float) -> float:
+    """The position controller's command following ``path`` = (knot times s, angles rad,
+    rates rad/s, order, gains kp ki deadband lower_limit). Physical mode only: the compiled
+    paper model, whose valve only lifts, has a stand-in returning 0."""
+    knots_s, knots_rad, knot_rates, order, gains = path
     ref, rate = setpoint_at(knots_s, knots_rad, knot_rates, order, t_s)
     g = Gains(gains[0], gains[1], gains[2], gains[3])
     u, state = position_command(g, ControlState(control[0], control[1]), q1_m, c, ref, rate, dt_s)
@@ -93,10 +69,10 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
     ``observe_values(t, y, c, u)`` its outputs as a tuple of floats in the order of
     simulation.OUTPUT_NAMES.
 
-    ``run_set(c, y0, kind, times_s, values, offset, amplitude, frequency_hz, knots_s,
-    knots_rad, knot_rates, order, gains, dt, min_substeps, limit, max_substeps, n_steps,
-    every, energy_index, energy_base, settings, metrics, rows, status)`` runs the set with
-    constants ``c`` from the state ``y0`` for ``n_steps`` steps of ``dt`` and returns the
+    ``run_set(c, y0, profile, path, dt, min_substeps, limit, max_substeps, n_steps, every,
+    energy_index, energy_base, settings, metrics, rows, status)`` runs the set with
+    constants ``c`` from the state ``y0`` for ``n_steps`` steps of ``dt``, with the valve
+    command of ``profile`` and ``path`` (see command_value), and returns the
     number of samples taken (at the start, every ``every`` steps and at the end, until a
     failure). Each sample goes into the streaming ``metrics`` accumulator (with its
     ``settings``) and, where ``rows`` has rows, into ``rows[sample]``; ``status`` receives
@@ -106,17 +82,8 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
     def run_set(
         c: Any,
         y0: Any,
-        kind: int,
-        times_s: Any,
-        values: Any,
-        offset: float,
-        amplitude: float,
-        frequency_hz: float,
-        knots_s: Any,
-        knots_rad: Any,
-        knot_rates: Any,
-        order: int,
-        gains: Any,
+        profile: tuple,
+        path: tuple,
         dt: float,
         min_substeps: int,
         limit: float,
@@ -136,10 +103,7 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
         store = rows.shape[0] > 0
         status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
         t = 0.0
-        u = command_value(
-            kind, times_s, values, offset, amplitude, frequency_hz, knots_s, knots_rad, knot_rates, order, gains,
-            control, c, y[0], dt, t + half,
-        )  # fmt: skip
+        u = command_value(profile, path, control, c, y[0], dt, t + half)
         taken = 0
         for i in range(n_steps + 1):
             if i > 0:
@@ -158,10 +122,7 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
                 status[MOST] = max(status[MOST], most)
                 y = y_new
                 t = i * dt
-                u = command_value(
-                    kind, times_s, values, offset, amplitude, frequency_hz, knots_s, knots_rad, knot_rates, order,
-                    gains, control, c, y[0], dt, t + half,
-                )  # fmt: skip
+                u = command_value(profile, path, control, c, y[0], dt, t + half)
             if i % every == 0 or i == n_steps:
                 o = observe_values(t, y, c, u)
                 add_sample(
