@@ -137,8 +137,9 @@ class BoomSimNode(Node):
                 "another node publishes it) or publishes it (publish_clock); set one of them to false"
             )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
-        if self.sim.jit:
-            self.sim.step(0.0, 0)  # compile before the clock starts
+        if self.sim.jit:  # compile (or load from the cache) the steps and the outputs before the clock starts
+            self.sim.step(0.0, 0)
+            self.sim.outputs()
         self.drive = CommandedDrive(self.sim, self.timeout_s)
         self.lock = threading.RLock()
         self.stopping = threading.Event()
