@@ -18,21 +18,6 @@ from . import streaming
 #: The boom rise (degrees) a lift has to achieve, unless the caller names another.
 DEFAULT_LIFT_ANGLE_DEG = 20.0
 
-#: The signals the streaming metrics take, in the order of streaming.add_sample.
-SAMPLE_SIGNALS = (
-    "t",
-    "q1",
-    "v",
-    "alpha",
-    "p1",
-    "p2",
-    "u",
-    "cavitation",
-    "relief_open",
-    "supply_energy",
-    "valve_loss_energy",
-)
-
 
 def move_window(p: Any) -> tuple[float, float, float]:
     """(start s, end s, target rad) of the first move of a closed-loop ``angle`` scenario
@@ -47,12 +32,15 @@ def streamed(
     signals: Mapping[str, np.ndarray],
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     move: tuple[float, float, float] = (math.nan, math.inf, math.nan),
+    ripple: float = streaming.RIPPLE_PA,
 ) -> dict[str, float]:
     """The metrics of :mod:`streaming` over stored ``signals`` (names of streaming.SAMPLE_SIGNALS; a
-    missing one counts as 0), with the closed-loop ``move`` (see :func:`move_window`)."""
+    missing one counts as 0), with the closed-loop ``move`` (see :func:`move_window`) and the
+    ringing's turning points counted beyond ``ripple``."""
     n = len(signals["t"])
     columns = [np.asarray(signals[k], dtype=float) if k in signals else np.zeros(n) for k in streaming.SAMPLE_SIGNALS]
     s = streaming.settings(lift_angle_deg, *move)
+    s[streaming.RIPPLE] = ripple
     m = streaming.accumulator()
     for row in zip(*(c.tolist() for c in columns)):
         streaming.add_sample(m, s, *row)
@@ -70,16 +58,11 @@ def oscillation(t: np.ndarray, x: np.ndarray, ripple: float = streaming.RIPPLE_P
     """Frequency (Hz) and damping ratio of the ringing in ``x`` (p1 in Pa, say), from its
     turning points that stand out by more than ``ripple`` (see :mod:`streaming`): NaN where
     there are fewer than two maxima."""
-    s = streaming.settings(DEFAULT_LIFT_ANGLE_DEG, math.nan, math.inf, math.nan)
-    s[streaming.RIPPLE] = ripple
-    m = streaming.accumulator()
-    for time, value in zip(np.asarray(t, float).tolist(), np.asarray(x, float).tolist()):
-        # a hold from the first sample: open, then closed
-        u = 1.0 if m[streaming.COUNT] == 0.0 else 0.0
-        streaming.add_sample(m, s, time, 0.0, 0.0, 0.0, value, value, u, 0.0, 0.0, 0.0, 0.0)
-    out = np.empty(len(streaming.NAMES))
-    streaming.finish(m, s, out)
-    return out[streaming.NAMES.index("oscillation_hz")], out[streaming.NAMES.index("damping_ratio")]
+    x = np.asarray(x, dtype=float)
+    hold = np.zeros(len(x))
+    hold[0] = 1.0  # opened at the first sample, closed from the second: the whole signal is the hold
+    m = streamed({"t": t, "p1": x, "p2": x, "u": hold}, ripple=ripple)
+    return m["oscillation_hz"], m["damping_ratio"]
 
 
 def lift_metrics(signals: Mapping[str, np.ndarray], lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG) -> dict[str, float]:

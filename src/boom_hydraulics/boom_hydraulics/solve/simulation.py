@@ -164,14 +164,14 @@ class Simulator:
             self._step_adaptive(u, steps)
             return
         p = self.params
-        rest = (self.constants, float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
+        rest = (float(u), p.time_step_s, p.substeps, self._limit, MAX_SUBSTEPS, steps)
         rest += (self._energy_index, self._energy_base)
         if self._compiled is not None:
-            done, outcome, most, y = self._compiled(self.t, np.array(self.y), self._constants_row, *rest[1:])
+            done, outcome, most, y = self._compiled(self.t, np.array(self.y), self._constants_row, *rest)
             y = y.tolist()
         else:
             try:
-                done, outcome, most, y = self._run(self.t, self.y, *rest)
+                done, outcome, most, y = self._run(self.t, self.y, self.constants, *rest)
             except (ValueError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError) as exc:
                 raise self._evaluation_error(exc) from None
         self.y = y
