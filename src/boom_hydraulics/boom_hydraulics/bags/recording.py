@@ -18,13 +18,20 @@ Safety of the data:
 - While recording, the recorder holds an exclusive lock (``flock``) on the MCAP file. The
   operating system frees it when the process dies, so :func:`is_being_recorded` tells a
   live bag from a killed one.
+- A disk that fails (full, I/O error) stops the recording, never the caller: the first
+  failed write or fsync cuts the file back to its last complete record, the recorder keeps
+  a one-line :attr:`BagRecorder.error` and drops what comes after it, and :meth:`close`
+  leaves the bag (no ``metadata.yaml``) for ``boom-bag-recover``, which brings back every
+  complete chunk. Each chunk is fsynced as it is written, so at most one chunk is lost.
 
-Writing happens in a thread of its own behind a queue, so the caller never waits for the
-disk. No rclpy here: the caller passes CDR bytes.
+Writing, and finishing the file at :meth:`BagRecorder.close`, happen in a thread of its
+own behind a queue, so the caller never waits for the disk and an interrupt of the caller
+cannot stop the writer half way. No rclpy here: the caller passes CDR bytes.
 """
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -240,7 +247,85 @@ def write_metadata(folder: Path, info: dict[str, Any]) -> None:
         tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
 
 
+class BagFile:
+    """The MCAP file of a recording, written straight through to its descriptor.
+
+    No hidden buffer: what :meth:`write` accepted is in the file, and a write that fails
+    part way is cut off again (``ftruncate`` to where it started), so the file always ends
+    at a complete record and ``boom-bag-recover`` finds every chunk before the failure. A
+    failed :meth:`sync` cuts the file back to the last successful one: after a failed fsync
+    the kernel no longer says which pages reached the disk. After a failure every write
+    fails at once: nothing is ever appended behind a gap. The writer (``mcap.writer.Writer``)
+    uses :meth:`write`, :meth:`tell` and :meth:`flush`.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        # 0o666: the umask makes it 0644 like every other file of the bag (mkstemp would give 0600)
+        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        self.position = 0  # bytes accepted, all in the file
+        self.durable = 0  # bytes known to be on the disk (the last successful fsync)
+        self.failure: OSError | None = None
+
+    def _write_some(self, data: memoryview) -> int:
+        """One ``write(2)``; the seam where the fault-injection tests make the disk fail."""
+        return os.write(self.fd, data)
+
+    def write(self, data: bytes) -> int:
+        if self.failure is not None:
+            raise self.failure
+        view = memoryview(data)
+        try:
+            while view:
+                done = self._write_some(view)
+                if done <= 0:  # a write that makes no progress would spin for ever
+                    raise OSError(errno.EIO, os.strerror(errno.EIO))
+                view = view[done:]
+        except OSError as exc:
+            self._fail(exc, self.position)
+            raise
+        self.position += len(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self.position
+
+    def flush(self) -> None:
+        """Nothing to do: :meth:`write` is unbuffered."""
+
+    def sync(self) -> None:
+        """fsync: what was written so far survives a power loss."""
+        if self.failure is not None:
+            raise self.failure
+        try:
+            os.fsync(self.fd)
+        except OSError as exc:
+            self._fail(exc, self.durable)
+            raise
+        self.durable = self.position
+
+    def _fail(self, exc: OSError, keep: int) -> None:
+        """Remember the failure and cut the file to ``keep`` bytes, which are whole records."""
+        self.failure = exc
+        self.position = keep
+        try:
+            os.ftruncate(self.fd, keep)
+        except OSError:
+            pass  # the disk refuses even that: the reader stops at the incomplete record
+
+    def close(self) -> None:
+        """Close the descriptor, which frees the recorder's lock; never raises."""
+        if self.fd >= 0:
+            fd, self.fd = self.fd, -1
+            try:
+                os.close(fd)
+            except OSError:
+                pass  # close(2) frees the descriptor even when it reports an error
+
+
 _FLUSH_NOW = object()  # the writer's own signal, on a queue timeout: close the chunk in progress
+_FINISH = object()  # close() asks the writer thread to finish the file and metadata.yaml
+CLOSE_TIMEOUT_S = 60.0  # how long close() waits for the writer (a stalled disk) before it gives up
 
 
 class BagRecorder:
@@ -249,6 +334,15 @@ class BagRecorder:
     Topics are declared at start or later with :meth:`add_topic` (a command topic, once
     its first publisher shows up); :meth:`add_offers` adds what a topic's new publishers
     offered, for the metadata written at close.
+
+    A disk failure (``OSError``: full disk, I/O error), while recording or while finishing,
+    never reaches the caller. The recorder stops at the first one: :attr:`error` becomes a
+    one-line message naming the file, the cause, and what to do (poll it, or
+    :attr:`failed`, as often as you like: they are plain attributes); :meth:`write` then
+    returns at once and drops the message; :meth:`close` still returns, with
+    :attr:`finished` False and no ``metadata.yaml``, so that the bag is one for
+    ``boom-bag-recover``. A failure at start (folder or file cannot be created, header
+    cannot be written) raises RecordingError instead: there is no bag to keep.
     """
 
     def __init__(
@@ -268,32 +362,55 @@ class BagRecorder:
         except OSError as exc:
             raise RecordingError(f"{self.folder}: cannot create the bag folder ({exc.strerror})") from None
         self.file = self.folder / f"{file_stem or self.folder.name}_0.mcap"
-        self._stream = self.file.open("wb")
-        fcntl.flock(self._stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)  # live until closed or dead
-        self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile="ros2", library="boom_hydraulics")
-        # custom data (e.g. the run's parameters): in metadata.yaml and, so that a lone
-        # .mcap file carries it too, as an MCAP metadata record at once
         self.custom_data = dict(custom_data or {})
-        if self.custom_data:
-            self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
-        self._stream.flush()
+        self._stream = self._start_file(chunk_size)
         self.flush_s = flush_s
         self.topics: dict[str, Topic] = {}
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
         self._hashes: dict[str, str] = {}
+        self._definitions: dict[str, bytes] = {}
         self._last_log: dict[str, int] = {}
         self.counts: dict[str, int] = {}
         self.first_ns: int | None = None
         self.last_ns = 0
+        self.on_disk = 0  # messages in chunks that were written and fsynced
+        #: One line on the first disk failure (then nothing more is recorded); None while all is well.
         self.error: str | None = None
+        #: True once close() finished the MCAP file and wrote metadata.yaml.
+        self.finished = False
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._closed = False
         for topic in topics:
             self.add_topic(topic)
         self._thread = threading.Thread(target=self._drain, name="bag_writer", daemon=True)
         self._thread.start()
+
+    def _start_file(self, chunk_size: int) -> BagFile:
+        """The locked MCAP file with its header and the custom data, on the disk before recording starts."""
+        stream = None
+        try:
+            stream = BagFile(self.file)
+            fcntl.flock(stream.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # live until closed or dead
+            self._writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+            self._writer.start(profile="ros2", library="boom_hydraulics")
+            # custom data (e.g. the run's parameters): in metadata.yaml and, so that a lone
+            # .mcap file carries it too, as an MCAP metadata record at once
+            if self.custom_data:
+                self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
+            stream.sync()
+        except OSError as exc:
+            if stream is not None:
+                stream.close()
+                self.file.unlink(missing_ok=True)  # created just now, by this call
+            self.folder.rmdir()  # likewise, and empty again
+            raise RecordingError(f"{self.file}: cannot start the bag ({exc.strerror or exc})") from None
+        return stream
+
+    @property
+    def failed(self) -> bool:
+        """True once the disk failed: nothing more is recorded, see :attr:`error`."""
+        return self.error is not None
 
     # --- caller side -----------------------------------------------------------------
     def add_topic(self, topic: Topic) -> None:
@@ -302,6 +419,7 @@ class BagRecorder:
             return
         if topic.msgtype not in self._hashes:  # read once per type; fails here, not in the thread
             self._hashes[topic.msgtype] = type_hash(topic.msgtype)
+            self._definitions[topic.msgtype] = message_definition(topic.msgtype).encode()
         self.topics[topic.name] = topic
         self.counts[topic.name] = 0
         self._queue.put(topic)
@@ -316,7 +434,10 @@ class BagRecorder:
                 self.topics[name] = replace(topic, offers=topic.offers + new)
 
     def write(self, topic: str, log_time_ns: int, data: bytes, publish_time_ns: int | None = None) -> None:
-        """Queue one message; returns at once. Log time: when it was received or published."""
+        """Queue one message; returns at once. Log time: when it was received or published.
+        After a disk failure (:attr:`failed`), or once closed, the message is dropped."""
+        if self.error is not None or self._closed:
+            return
         if topic not in self.topics:
             raise RecordingError(f"{self.folder}: topic {topic} was not declared for this bag")
         self._queue.put((topic, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns, data))
@@ -325,7 +446,7 @@ class BagRecorder:
     def _register(self, topic: Topic) -> None:
         if topic.msgtype not in self._schemas:
             self._schemas[topic.msgtype] = self._writer.register_schema(
-                topic.msgtype, "ros2msg", message_definition(topic.msgtype).encode()
+                topic.msgtype, "ros2msg", self._definitions[topic.msgtype]
             )
         self._channels[topic.name] = self._writer.register_channel(
             topic.name,
@@ -340,17 +461,35 @@ class BagRecorder:
 
     def _add(self, topic: str, log_ns: int, publish_ns: int, data: bytes) -> None:
         log_ns = max(log_ns, self._last_log.get(topic, log_ns))  # never back in time per channel
+        written = self._stream.position
         self._writer.add_message(self._channels[topic], log_ns, data, publish_ns, self.counts[topic])
         self._last_log[topic] = log_ns
         self.counts[topic] += 1
         self.first_ns = log_ns if self.first_ns is None else min(self.first_ns, log_ns)
         self.last_ns = max(self.last_ns, log_ns)
+        if self._stream.position != written:  # the message filled its chunk, which went out: to the disk
+            self._sync()
+
+    def _sync(self) -> None:
+        """fsync: every message added so far is on the disk now (the writer was flushed or finished)."""
+        self._stream.sync()
+        self.on_disk = sum(self.counts.values())
 
     def _flush_chunk(self) -> None:
         self._writer.flush()
-        os.fsync(self._stream.fileno())
+        self._sync()
+
+    def _fail(self, exc: BaseException) -> None:
+        """Stop recording at the first failure, with the one line the caller shows."""
+        cause = exc.strerror if isinstance(exc, OSError) and exc.strerror else repr(exc)
+        total = sum(self.counts.values())
+        self.error = (
+            f"{self.file}: {cause}; recording stopped after {total} messages, {self.on_disk} of them in "
+            f"complete chunks on the disk: run boom-bag-recover {self.folder} to finish the bag with them"
+        )
 
     def _drain(self) -> None:
+        """The writer thread: records until close() asks it to finish, or until the disk fails."""
         pending = 0  # messages not on disk yet
         last_flush = -float("inf")
         while True:
@@ -359,10 +498,11 @@ class BagRecorder:
                 item = self._queue.get(timeout=timeout)
             except queue.Empty:
                 item = _FLUSH_NOW
-            if item is None:
+            if item is _FINISH:
+                self._finish()
                 return
             if self.error is not None:
-                continue
+                continue  # failed: drop what was queued before the caller noticed
             try:
                 if isinstance(item, Topic):
                     self._register(item)
@@ -372,8 +512,25 @@ class BagRecorder:
                 if pending and (item is _FLUSH_NOW or time.monotonic() - last_flush >= self.flush_s):
                     self._flush_chunk()  # the first messages at once, then at most every flush_s
                     pending, last_flush = 0, time.monotonic()
-            except (OSError, ValueError, RecordingError) as exc:  # disk full, bad type: keep what was written
-                self.error = f"{self.file}: {exc}"
+            except Exception as exc:  # the disk failed (OSError), or a bug: keep what is on the disk
+                self._fail(exc)
+
+    def _finish(self) -> None:
+        """Finish the MCAP file and write metadata.yaml, unless recording failed; then release
+        the lock. In the writer thread, so that an interrupted close() cannot cut it short."""
+        try:
+            if self.error is None:
+                try:
+                    info = self.info()
+                    self._writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
+                    self._writer.finish()
+                    self._sync()
+                    write_metadata(self.folder, info)  # before the lock goes: never a live-looking bag without it
+                    self.finished = True
+                except Exception as exc:
+                    self._fail(exc)
+        finally:
+            self._stream.close()
 
     # --- finishing -------------------------------------------------------------------
     def info(self) -> dict[str, Any]:
@@ -384,19 +541,36 @@ class BagRecorder:
         ]
         return bag_info(self.file.name, topics, self.first_ns or 0, self.last_ns, self.custom_data)
 
-    def close(self) -> Path:
-        """Write out what is queued, finish the MCAP file and write metadata.yaml. Idempotent."""
+    def close(self, timeout_s: float = CLOSE_TIMEOUT_S) -> Path:
+        """Write out what is queued, finish the MCAP file and write metadata.yaml; idempotent.
+        Returns the bag folder; never raises for a disk failure.
+
+        Afterwards :attr:`finished` tells whether the bag was finished. If not, :attr:`error`
+        says why, there is no metadata.yaml, and the MCAP file ends at its last complete
+        record: ``boom-bag-recover`` finishes it. The writer thread does the finishing; a
+        KeyboardInterrupt while close() waits for it is held back until the bag is finished,
+        then raised. The caller should still keep signals away from close() (its first lines
+        are not shielded). A writer stuck longer than ``timeout_s`` on a stalled disk is left
+        behind, with :attr:`error` set, so that close() always returns.
+        """
         if self._closed:
             return self.folder
         self._closed = True
-        self._queue.put(None)
-        self._thread.join()
-        info = self.info()
-        self._writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
-        self._writer.finish()
-        self._stream.flush()
-        write_metadata(self.folder, info)  # before the lock goes: never a live-looking bag without it
-        self._stream.close()
+        self._queue.put(_FINISH)
+        interrupted = False
+        deadline = time.monotonic() + timeout_s
+        while self._thread.is_alive() and time.monotonic() < deadline:
+            try:
+                self._thread.join(timeout=min(1.0, max(0.0, deadline - time.monotonic())))
+            except KeyboardInterrupt:
+                interrupted = True  # the bag first
+        if self._thread.is_alive() and self.error is None:
+            self.error = (
+                f"{self.file}: the disk did not take the bag's last writes within {timeout_s:g} s; "
+                f"run boom-bag-recover {self.folder} once the recorder has exited"
+            )
+        if interrupted:
+            raise KeyboardInterrupt
         return self.folder
 
     def __enter__(self) -> BagRecorder:
