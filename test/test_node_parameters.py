@@ -10,9 +10,10 @@ import pytest
 from conftest import BOOM_SIM, CONFIG
 
 rclpy = pytest.importorskip("rclpy")
+import yaml  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters  # noqa: E402
-from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
+from rclpy.parameter import Parameter, parameter_dict_from_yaml_file, parameter_value_to_python  # noqa: E402
 from ros_client import Client  # noqa: E402
 
 from boom_hydraulics.model import config  # noqa: E402
@@ -29,7 +30,8 @@ NODE = "/crane1/boom_sim"
 def crane1(ros_context) -> Iterator[Client]:
     """A namespaced node started from a shipped params file (paper mode, fig. 8)."""
     args = ["-r", "__ns:=/crane1", "--params-file", str(CONFIG / "paper_fig8.yaml"), "-p", "record:=false"]
-    args += ["-p", "payload_mass_kg:=60"]  # an integer for a float, on the command line
+    # an integer for a float, on the command line, after a double (rcl keeps the integer: the last, as meant)
+    args += ["-p", "payload_mass_kg:=55.0", "-p", "payload_mass_kg:=60"]
     proc = subprocess.Popen(
         [BOOM_SIM, "--ros-args", *args],
         stdout=subprocess.PIPE,
@@ -93,26 +95,42 @@ def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
     assert "headless scenario" in scenario.additional_constraints  # not silently ignored
 
 
-def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1):
-    """What ``ros2 param dump`` then ``ros2 param load`` do, through the same services: the
-    dump is every parameter's value; the load sets each value of the file, as its type reads."""
+def _load_file(client: Client, path) -> tuple[list[Parameter], list]:
+    """What ``ros2 param load`` does: rclpy's parameter_dict_from_yaml_file, then a set of each."""
+    messages = parameter_dict_from_yaml_file(str(path), use_wildcard=True)
+    loaded = [Parameter.from_parameter_msg(m) for m in messages.values()]
+    return loaded, _set(client, *loaded)
+
+
+def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1, tmp_path):
+    """``ros2 param dump`` then ``ros2 param load``: the dump is yaml.dump of every value; the load
+    reads it back through rclpy (whose str() round trip makes 1e-06 the text '1e-06')."""
     names = crane1.call(crane1.list, ListParameters.Request()).result.names
     dump = {name: parameter_value_to_python(v) for name, v in zip(names, _get(crane1, *names))}
-    loaded = [Parameter(name, value=list(v) if hasattr(v, "tolist") else v) for name, v in dump.items()]
-    results = _set(crane1, *loaded)
+    dump = {name: list(v) if hasattr(v, "tolist") else v for name, v in dump.items()}
+    assert dump["rtol"] == 1e-6  # one of the doubles a naive load gets back as text
+    path = tmp_path / "dump.yaml"
+    path.write_text(yaml.dump({NODE: {"ros__parameters": dump}}, default_flow_style=False))
+    loaded, results = _load_file(crane1, path)
     failed = {p.name for p, r in zip(loaded, results) if not r.successful}
     assert failed == set(START_ONLY) | {"start_type_description_service"}  # rclpy refuses read-only ones
     assert all("read-only" in r.reason for r in results if not r.successful)
+    values = _get(crane1, "rtol", "atol_scale", "valve_leakage_m3_s_pa", "load_holding_leakage_m3_s_pa")
+    assert all(v.type == ParameterType.PARAMETER_DOUBLE for v in values)
+    assert [v.double_value for v in values] == [dump[n] for n in ("rtol", "atol_scale")] + [
+        dump["valve_leakage_m3_s_pa"],
+        dump["load_holding_leakage_m3_s_pa"],
+    ]
 
 
-def test_a_shipped_params_file_loads_into_the_running_node(crane1):
-    """``ros2 param load /crane1/boom_sim config/paper_fig9.yaml``: every value, as its YAML type reads."""
-    values = config.read_values(CONFIG / "paper_fig9.yaml")
-    loaded = [Parameter(name, value=value) for name, value in values.items()]
-    results = _set(crane1, *loaded)
-    assert all(r.successful for r in results), [r.reason for r in results if not r.successful]
-    (diameter,) = _get(crane1, "piston_diameter_m")
-    assert diameter.double_value == 0.08
+@pytest.mark.parametrize("name", ["paper_fig9.yaml", "default.yaml", "paper_fig8.yaml"])
+def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
+    """``ros2 param load /crane1/boom_sim config/NAME``: every value, as rclpy reads the file."""
+    loaded, results = _load_file(crane1, CONFIG / name)
+    assert all(r.successful for r in results), [(p.name, r.reason) for p, r in zip(loaded, results) if not r.successful]
+    expected = config.read_values(CONFIG / name)
+    got = _get(crane1, *expected)
+    assert {n: parameter_value_to_python(v) for n, v in zip(expected, got)} == expected
 
 
 @pytest.mark.parametrize(
@@ -123,15 +141,18 @@ def test_a_shipped_params_file_loads_into_the_running_node(crane1):
         ("/**:\n  ros__parameters:\n    a_m: [0.4\n", [], "malformed YAML at line"),
         ("MISSING", [], "no such file"),
         (None, ["-p", "payload_mass_kg:=1e300"], "'payload_mass_kg'"),
+        (None, ["-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc"], "payload_mass_kg:=abc would not be used"),
+        ("/**:\n  ros__parameters:\n    rtol: 1.0e-06\n", ["-p", "rtol:=tight"], "rtol:=tight would not be used"),
     ],
 )
 def test_a_bad_start_is_one_line_and_exit_2(tmp_path, params_file, extra, message):
-    args = [BOOM_SIM, "--ros-args", "-p", "record:=false", *extra]
+    args = [BOOM_SIM, "--ros-args", "-p", "record:=false"]
     if params_file == "MISSING":
         args += ["--params-file", str(tmp_path / "missing.yaml")]
     elif params_file:
         (tmp_path / "p.yaml").write_text(params_file)
         args += ["--params-file", str(tmp_path / "p.yaml")]
+    args += extra  # after the file: a -p has the last word
     result = subprocess.run(args, capture_output=True, text=True, timeout=60)
     lines = (result.stdout + result.stderr).strip().splitlines()
     assert result.returncode == 2, lines

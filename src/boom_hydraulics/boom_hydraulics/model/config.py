@@ -10,6 +10,12 @@ A file looks like::
 ``/**`` matches the node under any name and namespace (the shipped files use it);
 ``boom_sim`` or ``/boom_sim`` are accepted too. Nested mappings under
 ``ros__parameters`` are flattened with dots, as ROS 2 does.
+
+Reading is lenient (``1e-06`` is a number, as rcl reads it); writing (:func:`dumps`,
+:func:`default_file`) is strict: every float has a dot and a signed exponent where it has
+one (``1.0e-06``, ``16000000.0``), the form YAML 1.1 reads as a float too. The ROS tools'
+Python side (``ros2 param load``, rclpy's ``parameter_dict_from_yaml_file``, launch) reads
+params files with PyYAML, which is YAML 1.1: there ``1e-06`` and ``16.0e6`` are strings.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from typing import Any
 import yaml
 
 from ..errors import ConfigError
-from .parameters import Parameters, from_mapping
+from .parameters import Parameters, as_dict, describe, from_mapping
 
 NODE_NAME = "boom_sim"
 
@@ -113,6 +119,43 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Parame
         return from_mapping(values)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+
+
+def scalar_text(value: Any) -> str:
+    """``value`` (bool, int, float, str or a list of them) as YAML that rcl and YAML 1.1 both
+    read back as the same value and type: ``1e-06`` -> ``1.0e-06``, ``'true'`` -> ``'true'`` quoted."""
+    text = yaml.safe_dump(value, default_flow_style=True, width=1 << 30, allow_unicode=True)
+    return text.removesuffix("\n").removesuffix("\n...").strip()
+
+
+def dumps(values: Mapping[str, Any], node_name: str = "/**", comments: Mapping[str, str] | None = None) -> str:
+    """A params YAML document of ``values`` for ``node_name`` (``/**``: any node), each value in
+    the form every ROS 2 reader types alike (see :func:`scalar_text`), with an optional comment each."""
+    lines = [f"{scalar_text(node_name)}:", "  ros__parameters:"]
+    for name, value in values.items():
+        comment = (comments or {}).get(name)
+        lines.append(f"    {name}: {scalar_text(value)}" + (f"  # {comment}" if comment else ""))
+    return "\n".join(lines) + "\n"
+
+
+DEFAULT_FILE_HEADER = """\
+# Physical mode (the default): the paper's crane geometry and masses with realistic oil,
+# valve, supply and cylinder components. Every parameter is listed with its default;
+# units are in the names (SI; pressures absolute). Load with:
+#   boom-sim run --config config/default.yaml --duration 5 --out run.csv
+#   ros2 run boom_hydraulics boom_sim --ros-args --params-file config/default.yaml
+"""
+
+
+def default_file() -> str:
+    """The text of the shipped ``config/default.yaml``: every parameter with its default and
+    its description as a comment. A test keeps the shipped file equal to it."""
+    values = as_dict(Parameters())
+    comments = {}
+    for name in values:
+        meta = describe(name)
+        comments[name] = meta["description"] + (f" [{meta['unit']}]" if meta["unit"] else "")
+    return DEFAULT_FILE_HEADER + dumps(values, comments=comments)
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:

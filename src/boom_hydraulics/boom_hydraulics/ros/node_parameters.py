@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import array
 import difflib
-from collections.abc import Iterable, Sequence
+import sys
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import yaml
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.parameter import Parameter
 
@@ -150,23 +152,68 @@ def plain(value: Any) -> Any:
     return list(value) if isinstance(value, (array.array, tuple)) else value
 
 
+def _number(value: Any) -> float | None:
+    """``value`` as a float if it is an int, or a string that reads as a number; else None."""
+    if isinstance(value, str):
+        try:
+            value = config.load_yaml(value)
+        except yaml.YAMLError:
+            return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def _numbers(value: Any) -> list[float] | None:
+    """``value`` as a list of floats if it is a list of numbers (or of number strings), or a
+    string that reads as one; else None."""
+    if isinstance(value, str):
+        try:
+            value = config.load_yaml(value)
+        except yaml.YAMLError:
+            return None
+    if not isinstance(value, (list, tuple, array.array)):
+        return None
+    numbers = [_number(v) for v in value]
+    return None if any(n is None for n in numbers) else numbers
+
+
 def typed(parameter: Parameter) -> Parameter:
-    """``parameter`` with an integer turned into the double (or double array) its parameter is."""
+    """``parameter`` as the double (or double array) its parameter is, where it was given as a
+    number of another type: an integer, or a string that reads as a number.
+
+    rclpy's ``parameter_dict_from_yaml_file`` (``ros2 param load``) reads a file's value, turns
+    it into text with ``str()`` and reads that again as YAML 1.1: ``2.0e-05`` in a file becomes
+    the float 2e-05, then the text ``'2e-05'``, which YAML 1.1 reads as a string. No way of
+    writing the file avoids it for a double below 1e-4 or from 1e16 up, so such a string (and
+    a list mixing integers and floats, which arrives as one string) is taken as its number here.
+    """
     if parameter.name not in NAMES and parameter.name not in NODE_PARAMETERS:
         return parameter
     kind = _kind(parameter.name)
     value = parameter.value
-    if kind == "float" and parameter.type_ == Parameter.Type.INTEGER:
-        return Parameter(parameter.name, Parameter.Type.DOUBLE, float(value))
-    if kind == "list" and parameter.type_ == Parameter.Type.INTEGER_ARRAY:
-        return Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in value])
+    if kind == "float" and parameter.type_ in (Parameter.Type.INTEGER, Parameter.Type.STRING):
+        number = _number(value)
+        return parameter if number is None else Parameter(parameter.name, Parameter.Type.DOUBLE, number)
     if kind == "list" and parameter.type_ in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
         return Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(value)])
+    if kind == "list" and parameter.type_ in (
+        Parameter.Type.INTEGER_ARRAY,
+        Parameter.Type.STRING_ARRAY,
+        Parameter.Type.STRING,
+    ):
+        numbers = _numbers(value)
+        return parameter if numbers is None else Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, numbers)
     return parameter
 
 
-def check_known(names: Iterable[str]) -> None:
-    """Raise ConfigError for a key that is none of this node's parameters, naming the closest."""
+def check_known(names: Iterable[str] | Mapping[str, Parameter], argv: Sequence[str] | None = None) -> None:
+    """Raise ConfigError for a key that is none of this node's parameters, naming the closest.
+
+    Given the overrides rclpy read (name -> Parameter), also refuse a ``-p`` value that rcl
+    does not use (see :func:`check_overrides`); ``argv`` is the command line rclpy read,
+    ``sys.argv`` by default (what ``rclpy.init()`` reads without ``args``).
+    """
     known = all_names()
     for name in names:
         if name in known or name in _STANDARD or name.startswith(_STANDARD_PREFIXES):
@@ -174,6 +221,89 @@ def check_known(names: Iterable[str]) -> None:
         close = difflib.get_close_matches(name, known, n=1)
         hint = f"; did you mean '{close[0]}'?" if close else ""
         raise ConfigError(f"unknown parameter '{name}' for boom_sim{hint} (boom_sim --help lists them)")
+    if isinstance(names, Mapping):
+        check_overrides(names, sys.argv if argv is None else argv)
+
+
+def assignments(args: Sequence[str], node_name: str = "boom_sim") -> list[tuple[int, str, str]]:
+    """The ``-p NAME:=VALUE`` (``--param``) in the ROS arguments of ``args`` that are for this node:
+    (position, NAME, VALUE as written). ``-p node:NAME:=VALUE`` counts where node is this node or ``**``."""
+    found, in_ros = [], False
+    for i, arg in enumerate(args):
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--":
+            in_ros = False
+        elif in_ros and arg in ("-p", "--param") and i + 1 < len(args):
+            key, sep, text = args[i + 1].partition(":=")
+            node, _, name = key.rpartition(":")
+            if sep and (not node or node.rsplit("/", 1)[-1] in (node_name, "**", "*")):
+                found.append((i, name, text))
+    return found
+
+
+def _file_names(path: str) -> set[str]:
+    """Every parameter name a params file sets, for any node (empty if it cannot be read)."""
+    try:
+        document = config.read_document(path)
+    except ConfigError:
+        return set()
+    names: set[str] = set()
+    for section in document.values() if isinstance(document, Mapping) else ():
+        if isinstance(section, Mapping) and isinstance(section.get("ros__parameters"), Mapping):
+            names.update(config.flatten(section["ros__parameters"]))
+    return names
+
+
+def _rcl_key(value: Any) -> Any:
+    """A value with its type, as rcl tells types apart (an int 50 is not the double 50.0)."""
+    value = plain(value)
+    if isinstance(value, list):
+        return ("list", tuple(_rcl_key(v) for v in value))
+    return (type(value).__name__, value)
+
+
+def _expected(name: str) -> str:
+    kind = _kind(name) if name in NAMES or name in NODE_PARAMETERS else "bool" if name == "use_sim_time" else ""
+    return {
+        "float": "a number",
+        "int": "an integer",
+        "bool": "true or false",
+        "str": "text",
+        "list": "a list of numbers",
+    }.get(kind, "one value")
+
+
+def check_overrides(overrides: Mapping[str, Parameter], argv: Sequence[str]) -> None:
+    """Raise ConfigError where the last ``-p`` of a parameter on the command line is not the value
+    rcl hands the node.
+
+    rcl keeps one value per type of each parameter, and hands over the one of the first type of
+    bool, integer, double, string, then the arrays: ``-p payload_mass_kg:=50.0 -p payload_mass_kg:=abc``
+    (or ``abc`` after a params file's 50.0) runs with 50.0, silently. Of values of one type the last
+    wins, as ROS documents: ``-p x:=1.0 -p x:=2.0`` is 2.0 and passes. A params file given after
+    the last ``-p`` of a name has the last word on it: that name is not checked.
+    """
+    given = assignments(argv)
+    files = [(i, argv[i + 1]) for i, arg in enumerate(argv[:-1]) if arg == "--params-file"]
+    last: dict[str, tuple[int, str]] = {}
+    for position, name, text in given:
+        last[name] = (position, text)
+    for name, (position, text) in last.items():
+        if name not in overrides or any(i > position and name in _file_names(path) for i, path in files):
+            continue
+        try:
+            meant = config.load_yaml(text) if text.strip() else text
+        except yaml.YAMLError:
+            meant = text
+        kept = overrides[name].value
+        if _rcl_key(kept) != _rcl_key(meant):
+            times = sum(1 for _, n, _ in given if n == name)
+            where = f"it is given {times} times, and" if times > 1 else "a params file gives it before, and"
+            raise ConfigError(
+                f"-p {name}:={text} would not be used: {where} rcl keeps {plain(kept)!r}, an earlier value "
+                f"of another type; give {name} once, as {_expected(name)}"
+            )
 
 
 def check_node_parameter(name: str, value: Any) -> None:
