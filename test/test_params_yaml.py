@@ -9,6 +9,7 @@ import pytest
 import yaml
 from conftest import CONFIG
 
+from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
 from boom_hydraulics.model.parameters import NAMES, Parameters, as_dict
 
@@ -109,3 +110,34 @@ def test_scalar_text_keeps_floats_floats_in_yaml_1_1():
         text = config.scalar_text(value)
         assert isinstance(yaml.safe_load(text), float) and yaml.safe_load(text) == value, text
         assert config.load_yaml(text) == value
+
+
+def _overrides(**values) -> dict[str, Parameter]:
+    return {name: Parameter(name, value=value) for name, value in values.items()}
+
+
+@pytest.mark.parametrize(
+    ("argv", "kept"),
+    [
+        (["--ros-args", "-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=60.0"], 60.0),  # last wins
+        (["--ros-args", "-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=60"], 60),  # the int wins, as meant
+        (["--ros-args", "-p", "payload_mass_kg:=abc", "--", "-p", "payload_mass_kg:=xyz"], "abc"),  # not a ROS arg
+        (["--ros-args", "-p", "other_node:payload_mass_kg:=abc"], 50.0),  # for another node
+        (["--ros-args", "-p", "payload_mass_kg:=abc", "--params-file", str(CONFIG / "default.yaml")], 50.0),
+    ],
+)
+def test_a_p_value_rcl_uses_or_one_overridden_later_passes(argv, kept):
+    node_parameters.check_known(_overrides(payload_mass_kg=kept), argv=["boom_sim", *argv])
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--ros-args", "-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc"],
+        ["--ros-args", "--params-file", str(CONFIG / "default.yaml"), "-p", "payload_mass_kg:=abc"],
+        ["--ros-args", "-p", "payload_mass_kg:=50.0", "--ros-args", "-p", "/boom_sim:payload_mass_kg:=abc"],
+    ],
+)
+def test_a_p_value_rcl_does_not_use_is_refused(argv):
+    with pytest.raises(ConfigError, match=r"-p payload_mass_kg:=abc would not be used: .*rcl keeps 50\.0"):
+        node_parameters.check_known(_overrides(payload_mass_kg=50.0), argv=["boom_sim", *argv])
