@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
+import signal
 import sys
 import threading
 import time
@@ -35,6 +36,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -64,7 +66,7 @@ from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, ru
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
-from ..solve.command_queue import CommandedDrive, valve_opening
+from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.pacing import Pacer
 from ..solve.simulation import Simulator
 from . import messages
@@ -83,6 +85,9 @@ PARAMETER_EVENTS = "/parameter_events"
 MARKERS_HZ = 20.0
 #: A ROS clock that steps back by more than this is a jump back (a world reset), s.
 CLOCK_JUMP_S = 1e-3
+#: The most simulated time one ~/step call may take, s: the executor serves nothing else
+#: meanwhile, so a larger request is refused with how to get there.
+STEP_CALL_LIMIT_S = 10.0
 
 
 def _type_name(msg_type: Any) -> str:
@@ -177,10 +182,22 @@ class BoomSimNode(Node):
             self.resolve_topic_name("valve_command"): ValveCommand,
             self.resolve_topic_name("commands"): Float64MultiArray,
         }
-        self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True)
+        self.commands_received = self.commands_stale = self.commands_lost = self.commands_refused = 0
+        lost = SubscriptionEventCallbacks(message_lost=self._on_commands_lost)
         self.create_subscription(
-            Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data, raw=True
+            ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True, event_callbacks=lost
         )
+        self.create_subscription(
+            Float64MultiArray,
+            "commands",
+            self.on_command_array,
+            qos_profile_sensor_data,
+            raw=True,
+            event_callbacks=lost,
+        )
+        self.resets = self.pauses = self.steps_paused = 0  # calls of ~/reset, ~/pause (true), ~/step
+        self.origin_shift_s = 0.0  # how far dropped backlogs moved the time origin of command stamps
+        self.recording_error: str | None = None
         self.create_service(Reset, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.create_service(Step, "~/step", self.on_step)
@@ -190,13 +207,12 @@ class BoomSimNode(Node):
         self.motion = Motion(self)
 
         self._restart_clock()
-        # on a shared clock, simulated time 0 is the first /clock: the bag starts there (its
-        # time origin); commands received before it are kept for it
-        record = bool(self.get_parameter("record").value)
-        self.recorder = self._start_recording() if record and not self.follow_clock else None
-        self.record_pending = record and self.follow_clock
+        # The bag starts with the stepping (its time origin, simulated time 0): at start() on
+        # the node's own clock, at the first /clock on a shared one. Commands received before
+        # it are kept for it.
+        self.recorder: BagRecorder | None = None
+        self.record_pending = bool(self.get_parameter("record").value)
         self._early_commands: list[tuple[str, bytes, dict]] = []
-        self.publish_description()
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -214,6 +230,26 @@ class BoomSimNode(Node):
             f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, {pace}, "
             f"{'compiled' if self.sim.compiled else 'interpreted'}"
         )
+
+    def start(self) -> None:
+        """Start stepping: simulated time 0 is now (on the node's own clock; on a shared one,
+        the first /clock), so that a command stamped in ROS time acts at its stamp."""
+        with self.lock:
+            if not self.follow_clock:
+                self._restart_clock()
+                self._begin_recording()
+            self.publish_description()
+        self.loop.start()
+
+    def _begin_recording(self) -> None:
+        """Open the bag, if asked for, at the time origin, with the commands received before it."""
+        if not self.record_pending:
+            return
+        self.record_pending = False
+        self.recorder = self._start_recording()
+        for topic, data, info in self._early_commands:
+            self._record_received(topic, data, info)
+        self._early_commands.clear()
 
     # --- parameters -----------------------------------------------------------------------
     def _declare_parameters(self) -> None:
@@ -246,16 +282,27 @@ class BoomSimNode(Node):
         """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
         model_changes = {p.name: ros_parameters.plain(p.value) for p in changes if p.name in NAMES}
         node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
+        for p in changes:
+            if p.name == "use_sim_time" and bool(p.value) != self.follow_clock:
+                return SetParametersResult(
+                    successful=False,
+                    reason="use_sim_time is start-only: the clock a run follows is chosen when it starts; "
+                    "restart the node with -p use_sim_time:=" + ("true" if p.value else "false"),
+                )
         try:
             for name, value in node_changes.items():
                 ros_parameters.check_node_parameter(name, value)
             new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        dt_before = self.sim.params.time_step_s
         if new_params is not None:
             if new_params.mode != "physical":
                 self.motion.stop("mode changed to paper, which has no position control")
             self.sim.set_parameters(new_params)
+            if self.sim.jit:  # compile (or load) a new method's steps now, not in the next tick
+                self.sim.step(0.0, 0)
+                self.sim.outputs()
             self.drive.parameters_changed()
             self._description_due = True
         if node_changes:
@@ -266,10 +313,14 @@ class BoomSimNode(Node):
             self.pacer.rate_hz, self.pacer.real_time_factor = self.rate_hz, self._pace_factor()
             self._markers_every = max(1, round(self.rate_hz / MARKERS_HZ))
             self.pacer.max_catch_up_s = self.max_catch_up_s
-        if new_params is not None or node_changes:
-            self._restart_clock()  # pacing starts afresh from the state as it is now
+        if "real_time_factor" in node_changes:
+            self._restart_clock()  # a new pace: simulated time follows the clock afresh from here
+        elif new_params is not None or node_changes:
+            # the time origin stays: the change takes no simulated time, and the steps it
+            # held up (a new method's compile) are worked off as a late tick would be
+            self.pacer.rebase(self.sim.step_count, dt_before)
         # the node-clock time of the simulated instant the change takes effect at
-        self._changed_at_ns = round((self.clock_origin_s + self.sim.t) * 1e9)
+        self._changed_at_ns = self._sim_instant_ns()
         return SetParametersResult(successful=True)
 
     def after_set_parameters(self, changes: list[Parameter]) -> None:
@@ -308,7 +359,12 @@ class BoomSimNode(Node):
         return recorder
 
     def _origin_ns(self) -> int:
-        return round(self.clock_origin_s * 1e9)
+        return self.clock_origin_ns
+
+    def _sim_instant_ns(self) -> int:
+        """The node-clock time of the simulated instant now (integer ns: float seconds of the
+        epoch would round it to a quarter of a microsecond)."""
+        return self.clock_origin_ns + round(self.sim.t * 1e9)
 
     def _offers(self, topic: str) -> tuple[Qos, ...]:
         """What the publishers of ``topic`` offer (as ``ros2 bag record`` records it)."""
@@ -336,7 +392,7 @@ class BoomSimNode(Node):
         received = self._now_ns()
         self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
 
-    def _publish(self, messages: list[tuple[Any, Any]], stamp_ns: int) -> None:
+    def _publish(self, messages: list[tuple[Any, Any]], log_ns: int) -> None:
         """Publish (publisher, message) pairs, then record them all: a tick cut short by
         shutdown leaves no partial tick in the bag. While recording, each message is
         serialised once, and the bytes published are the bytes recorded. A message given as
@@ -351,14 +407,14 @@ class BoomSimNode(Node):
         for publisher, data in serialised:
             publisher.publish(data)
         for publisher, data in serialised:
-            self.recorder.write(publisher.topic_name, stamp_ns, data)
+            self.recorder.write(publisher.topic_name, log_ns, data)
 
     # --- commands -------------------------------------------------------------------------
     def stamp_to_sim_time(self, stamp: Any) -> float | None:
         """Simulated time a command stamp means; None for a zero (unset) stamp."""
         if stamp.sec == 0 and stamp.nanosec == 0:
             return None
-        return stamp.sec + stamp.nanosec * 1e-9 - self.clock_origin_s
+        return (stamp.sec * 1_000_000_000 + stamp.nanosec - self.clock_origin_ns) * 1e-9
 
     def _accept(self, opening: float, stamp: Any | None) -> None:
         u = valve_opening(opening, self.sim.params.mode)
@@ -367,9 +423,27 @@ class BoomSimNode(Node):
             return
         if u != opening:
             self.get_logger().warning(f"valve opening {opening} clamped to {u:g}", throttle_duration_sec=1.0)
+        self.commands_received += 1
         at = self.stamp_to_sim_time(stamp) if stamp is not None else None
+        if at is not None:
+            received_s = (self._now_ns() - self.clock_origin_ns) * 1e-9  # by the log time the bag keeps
+            if stale(at, received_s, self.timeout_s):
+                self.commands_stale += 1
+                self.get_logger().warning(
+                    f"ignored a valve command stamped {received_s - at:.3f} s before it arrived: older than "
+                    f"command_timeout_s = {self.timeout_s:g} s, it is stale; stamp commands with the time they are "
+                    "meant for (a zero stamp: now), or raise command_timeout_s",
+                    throttle_duration_sec=1.0,
+                )
+                return
         if not self.drive.push(self.sim.t if at is None else at, u):
+            self.commands_refused += 1
             self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
+
+    def _on_commands_lost(self, info: Any) -> None:
+        """The middleware dropped commands before this node could take them (a flood)."""
+        with self.lock:
+            self.commands_lost += info.total_count_change
 
     @_locked
     def on_command(self, data: bytes, info: dict) -> None:
@@ -398,7 +472,9 @@ class BoomSimNode(Node):
             response.success, response.message = False, str(exc)
             return response
         response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
+        self.resets += 1
         self.publish_state()
+        self.publish_diagnostics()  # the bag keeps the count at once: boom-resim reads it
         return response
 
     @_locked
@@ -407,9 +483,12 @@ class BoomSimNode(Node):
             response.success, response.message = True, "already paused" if self.paused else "already running"
             return response
         self.paused = request.data
-        if not self.paused:
+        if self.paused:
+            self.pauses += 1
+        else:
             self._restart_clock()
         response.success, response.message = True, "paused" if self.paused else "resumed"
+        self.publish_diagnostics()  # the bag keeps the count at once: boom-resim reads it
         return response
 
     @_locked
@@ -419,9 +498,21 @@ class BoomSimNode(Node):
         elif self.failure:
             response.success, response.message = False, f"simulation stopped: {self.failure}; call ~/reset"
         else:
-            self.advance(max(1, request.steps))
+            steps, dt = max(1, request.steps), self.sim.params.time_step_s
+            limit = max(1, int(STEP_CALL_LIMIT_S / dt))
+            if steps > limit:
+                response.success = False
+                response.message = (
+                    f"steps: {steps} is {steps * dt:g} s of simulated time; one call takes at most "
+                    f"{STEP_CALL_LIMIT_S:g} s ({limit} steps of {dt:g} s): call ~/step again for more"
+                )
+                response.sim_time_s = self.sim.t
+                return response
+            self.advance(steps)
+            self.steps_paused += 1
             response.success, response.message = self.failure is None, self.failure or "ok"
             self.publish_state()
+            self.publish_diagnostics()
         response.sim_time_s = self.sim.t
         return response
 
@@ -433,7 +524,7 @@ class BoomSimNode(Node):
         self.motion.stop(why)
         self.drive.reset()
         self.failure = None
-        self._restart_clock()
+        self.pacer.rebase(self.sim.step_count, self.sim.params.time_step_s)  # time runs on from here
 
     def _pace_factor(self) -> float:
         """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
@@ -446,12 +537,13 @@ class BoomSimNode(Node):
         return time.monotonic()
 
     def _restart_clock(self) -> None:
-        """Tie simulated time to the clock from now on (start, reset, resume, changes)."""
+        """Tie simulated time to the clock from now on: at the start (or the first /clock), a
+        resume, a new real-time factor and a jump back of the ROS clock."""
         self.pacer.restart(self._pace_clock_s(), self.sim.step_count)
         # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
-        now = self.get_clock().now().nanoseconds * 1e-9
-        self.clock_origin_s = 0.0 if self.publish_clock else now - self.sim.t
-        self._clock_seen_s = now
+        now_ns = self.get_clock().now().nanoseconds
+        self.clock_origin_ns = 0 if self.publish_clock else now_ns - round(self.sim.t * 1e9)
+        self._clock_seen_s = now_ns * 1e-9
 
     def _follow_ros_clock(self) -> bool:
         """use_sim_time: whether the loop may step now. No /clock yet: wait. A jump back (a
@@ -462,12 +554,8 @@ class BoomSimNode(Node):
         if self._clock_seen_s <= 0.0:  # the first /clock
             self._restart_clock()
             if self.record_pending:
-                self.record_pending = False
-                self.recorder = self._start_recording()
+                self._begin_recording()
                 self.publish_description()  # (transient local: published again, so the bag has it)
-                for topic, data, info in self._early_commands:
-                    self._record_received(topic, data, info)
-                self._early_commands.clear()
             return True
         if now < self._clock_seen_s - CLOCK_JUMP_S:
             self.get_logger().warning(
@@ -475,6 +563,7 @@ class BoomSimNode(Node):
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
             self._back_to_rest("the ROS clock jumped back")
+            self._restart_clock()
             return True
         self._clock_seen_s = max(self._clock_seen_s, now)
         return True
@@ -499,8 +588,6 @@ class BoomSimNode(Node):
 
     def run_loop(self) -> None:
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
-        with self.lock:  # the pacing starts with the loop, not when the node was built
-            self.pacer.restart(self._pace_clock_s(), self.sim.step_count)
         deadline = time.monotonic()
         while not self.stopping.is_set():
             if self.rtf == 0 and not self.follow_clock:
@@ -537,13 +624,34 @@ class BoomSimNode(Node):
                 throttle_duration_sec=5.0,
             )
             if not self.publish_clock:
-                self.clock_origin_s += tick.dropped_s  # ROS-time stamps map to the later sim time
+                self.clock_origin_ns += round(tick.dropped_s * 1e9)  # ROS-time stamps map to the later sim time
+                self.origin_shift_s += tick.dropped_s
         if tick.steps <= 0:
             return
-        self.advance(tick.steps)
+        if self.follow_clock:
+            self._advance_publishing(tick.steps, self.pacer.per_tick(dt))
+        else:
+            self.advance(tick.steps)
+            if self.failure is None:
+                self.publish_state()
         self.pacer.settled(self.sim.step_count, dt)
-        if self.failure is None:
-            self.publish_state()
+        self._watch_recorder()
+
+    def _advance_publishing(self, steps: int, per_tick: int) -> None:
+        """Take ``steps`` steps, publishing at every multiple of ``per_tick`` steps: on a shared
+        clock the states come at publish_rate_hz of the clock's time, whatever its pace."""
+        while steps > 0 and self.failure is None:
+            n = min(steps, per_tick - self.sim.step_count % per_tick)
+            self.advance(n)
+            steps -= n
+            if self.failure is None and self.sim.step_count % per_tick == 0:
+                self.publish_state()
+
+    def _watch_recorder(self) -> None:
+        """A recording that failed (a full disk) stops with one error line; the run goes on."""
+        if self.recorder is not None and self.recording_error is None and self.recorder.error is not None:
+            self.recording_error = self.recorder.error
+            self.get_logger().error(f"recording stopped: {self.recording_error}; the simulation goes on")
 
     # --- output ------------------------------------------------------------------------------
     def _now_ns(self) -> int:
@@ -554,13 +662,25 @@ class BoomSimNode(Node):
             return time.time_ns()  # ROS time without use_sim_time is the system clock (cheaper to read)
         return self.get_clock().now().nanoseconds
 
+    def _state_stamp_ns(self) -> int:
+        """The header stamp of the state now: the node-clock time of this simulated instant
+        (command stamps map back through the same origin, so a state and a command stamped
+        alike mean one instant). Where simulated time runs at another pace than ROS time
+        (real_time_factor other than 1, without publish_clock), the time it is published."""
+        if self.publish_clock:
+            return round(self.sim.t * 1e9)
+        if self.follow_clock or self.rtf == 1.0:
+            return self._sim_instant_ns()
+        return self._now_ns()
+
     def publish_state(self) -> None:
         out = self.sim.outputs()
         if not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
-        stamp_ns = self._now_ns()
+        stamp_ns = self._state_stamp_ns()
         if self.clock_pub is not None:
             self._publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
+        log_ns = stamp_ns if self.publish_clock else self._now_ns()  # when it is published
         p = self.sim.params
         piston, rod = messages.chamber_pressures(out, stamp_ns)
         tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
@@ -575,7 +695,7 @@ class BoomSimNode(Node):
         self._ticks += 1
         if self._ticks % self._markers_every == 0:
             tick.append((self.markers_pub, crane_markers(out, Time(nanoseconds=stamp_ns).to_msg(), p)))
-        self._publish(tick, stamp_ns)
+        self._publish(tick, log_ns)
 
     def publish_description(self) -> None:
         """The URDF of the current parameters on robot_description (transient local)."""
@@ -635,12 +755,76 @@ class BoomSimNode(Node):
             )
         )
         pacer.late_ticks = 0
+        dropped = self.commands_stale + self.commands_lost + self.commands_refused
+        array.status.append(
+            status(
+                "commands",
+                DiagnosticStatus.WARN if dropped else DiagnosticStatus.OK,
+                "some commands were not applied" if dropped else "ok",
+                received=self.commands_received,
+                stale=self.commands_stale,  # older than command_timeout_s when received
+                lost=self.commands_lost,  # dropped by the middleware before the node took them
+                refused=self.commands_refused,  # the queue of future commands was full
+            )
+        )
+        # what a re-simulation of the bag must know: boom-resim refuses a run with resets or pauses
+        array.status.append(
+            status(
+                "run",
+                DiagnosticStatus.OK,
+                "ok",
+                resets=self.resets,
+                pauses=self.pauses,
+                step_calls=self.steps_paused,
+                clock_origin_shift_s=f"{self.origin_shift_s:.6f}",
+            )
+        )
+        if self.recorder is not None:
+            self._watch_recorder()
+            if self.recording_error is not None:
+                array.status.append(status("recording", DiagnosticStatus.ERROR, f"stopped: {self.recording_error}"))
+            else:
+                array.status.append(status("recording", DiagnosticStatus.OK, "ok", folder=str(self.recorder.folder)))
         self._publish([(self.diag_pub, array)], stamp_ns)
 
 
 def _fail(message: str) -> None:
-    print(f"boom_sim: error: {message}", flush=True)
+    print(f"boom_sim: error: {message}", file=sys.stderr, flush=True)
     raise SystemExit(2)
+
+
+def _shield_signals() -> None:
+    """From the first SIGINT or SIGTERM on, a second one (a terminal's Ctrl-C and the one
+    ros2 launch forwards arrive together) must not interrupt finishing the bag."""
+
+    def note(_signum: int, _frame: Any) -> None:
+        print("boom_sim: still finishing; it ends by itself", file=sys.stderr, flush=True)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, note)
+
+
+def _finish(node: BoomSimNode) -> None:
+    """Stop the loop, finish the bag and say where it is, then leave the ROS graph."""
+    node.stopping.set()
+    node.loop.join(timeout=5.0)
+    if node.record_pending:
+        print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
+    recorder = node.recorder
+    if recorder is not None:
+        folder = recorder.close()
+        counts = ", ".join(f"{t} {n}" for t, n in recorder.counts.items() if n)
+        if recorder.error is not None:
+            print(
+                f"boom_sim: error: recording failed: {recorder.error}; run boom-bag-recover {folder} "
+                "to bring back every complete chunk",
+                file=sys.stderr,
+                flush=True,
+            )
+        else:
+            print(f"boom_sim: bag {folder} ({counts})", flush=True)
+    node.motion.destroy()
+    node.destroy_node()
 
 
 def main(args: list[str] | None = None) -> None:
@@ -665,9 +849,20 @@ def main(args: list[str] | None = None) -> None:
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
         rclpy.try_shutdown()
         _fail(str(exc))
-    node.loop.start()
-    node.motion.spin_in_background()
+    except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
+        _shield_signals()
+        rclpy.try_shutdown()
+        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        return
+    except Exception:
+        if rclpy.ok():
+            raise
+        _shield_signals()  # a signal shut the context down under the start-up: a clean stop too
+        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        return
     try:
+        node.start()
+        node.motion.spin_in_background()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -678,16 +873,8 @@ def main(args: list[str] | None = None) -> None:
         if rclpy.ok():
             raise
     finally:
-        node.stopping.set()
-        node.loop.join(timeout=5.0)
-        if node.record_pending:
-            print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
-        if node.recorder is not None:
-            folder = node.recorder.close()
-            counts = ", ".join(f"{t} {n}" for t, n in node.recorder.counts.items() if n)
-            print(f"boom_sim: bag {folder} ({counts})", flush=True)
-        node.motion.destroy()
-        node.destroy_node()
+        _shield_signals()
+        _finish(node)
         rclpy.try_shutdown()
 
 

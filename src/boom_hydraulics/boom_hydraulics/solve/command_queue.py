@@ -7,6 +7,9 @@ Rule (documented in the README and ValveCommand.msg):
   within half a step of its stamp. Commands due at the same step apply in stamp order
   (the last wins).
 - At most ``max_pending`` future commands wait; more are refused.
+- A command that was already older than the command timeout when it was received is stale
+  and refused (:func:`stale`), as ros2_control's controllers ignore a command older than
+  their timeout: applied, it would time out before its first step.
 
 With this rule a scenario sent ahead of time gives the same trajectory as ``boom-sim``
 with the same commands, however late the messages are delivered or the node's timer fires.
@@ -33,6 +36,12 @@ def valve_opening(opening: float, mode: str) -> float | None:
     if not math.isfinite(opening):
         return None
     return min(1.0, max(0.0 if mode == "paper" else -1.0, opening))
+
+
+def stale(stamp_s: float, received_s: float, timeout_s: float) -> bool:
+    """Whether a command stamped at ``stamp_s`` and received at ``received_s`` (both in
+    simulated time) was already older than the command timeout ``timeout_s`` (0: never stale)."""
+    return timeout_s > 0 and received_s - stamp_s >= timeout_s
 
 
 class CommandQueue:

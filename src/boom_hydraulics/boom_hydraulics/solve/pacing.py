@@ -11,8 +11,10 @@ Following a clock that other nodes share (``drop_backlog=False``), a backlog is 
 up: simulated time must stay the clock's. A tick still takes at most ``max_catch_up_s``
 worth of steps, and the rest waits for the next ticks.
 
-:meth:`Pacer.restart` ties the clock afresh to the state as it is: at start, after a
-reset, a resume and any parameter change (a new time step changes what a step count means).
+:meth:`Pacer.restart` ties the clock afresh to the state as it is: at start, at a resume
+and at a new real-time factor. :meth:`Pacer.rebase` keeps the tie and only counts steps
+afresh, after a reset or another parameter change (a new time step changes what a step
+count means, not where simulated time is due).
 """
 
 from __future__ import annotations
@@ -48,6 +50,14 @@ class Pacer:
     def restart(self, wall_s: float, step_count: int) -> None:
         """Simulated time follows the clock from here: ``step_count`` steps taken at ``wall_s``."""
         self.wall_origin_s = wall_s
+        self.origin_steps = step_count
+
+    def rebase(self, step_count: int, dt_s: float) -> None:
+        """Count steps from ``step_count`` on without moving the tie between the clock and
+        simulated time (the steps so far were of ``dt_s``): after a reset or a parameter
+        change, which take no simulated time, simulated time is due where it was."""
+        if self.real_time_factor > 0:
+            self.wall_origin_s += (step_count - self.origin_steps) * dt_s / self.real_time_factor
         self.origin_steps = step_count
 
     def per_tick(self, dt_s: float) -> int:

@@ -1,0 +1,137 @@
+"""The node's default clock (ROS time, no publish_clock): commands act at their stamps, a
+bag re-simulates, stale commands are refused, and the node ends as a robot stack ends it."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import signal
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import BOOM_SIM, start_node, stop_process
+
+rclpy = pytest.importorskip("rclpy")
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from std_srvs.srv import SetBool  # noqa: E402
+
+from boom_hydraulics_msgs.srv import Step  # noqa: E402
+
+RESIM = shutil.which("boom-resim")
+pytestmark = [
+    pytest.mark.usefixtures("ros_context"),
+    pytest.mark.skipif(BOOM_SIM is None or RESIM is None, reason="run through tools/with-env"),
+]
+TICK_S, DT_S = 0.01, 0.001  # config/default.yaml: 100 Hz, 1 ms steps
+
+
+def _ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def _values(client, status_suffix: str) -> dict[str, str]:
+    """The key-values of the newest diagnostics status whose name ends in ``status_suffix``."""
+    for array in reversed(client.diagnostics):
+        for status in array.status:
+            if status.name.endswith(status_suffix):
+                return {kv.key: kv.value for kv in status.values}
+    return {}
+
+
+def _states(bag: Path) -> list[tuple[int, float, float]]:
+    """(header stamp ns, rod position m, valve command) of each recorded DriveState."""
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == "/drive_state"]
+        rows = []
+        for connection, _, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            rows.append((_ns(msg.header.stamp), msg.rod_position_m, msg.valve_command))
+    return rows
+
+
+def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(client, tmp_path):
+    proc = start_node(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
+    try:
+        assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
+        client.spin_for(0.3)  # discovery both ways
+        stamp_ns = _ns(client.last().header.stamp) + 500_000_000  # half a second ahead of the node
+        client.command(0.6, stamp_s=stamp_ns * 1e-9)
+        client.command(-0.4, stamp_s=(stamp_ns + 300_000_000) * 1e-9)
+        assert client.spin_until(lambda: client.last().valve_command == -0.4, timeout=30)
+        client.spin_for(0.2)
+    finally:
+        out = stop_process(proc)
+    assert proc.returncode == 0, out
+    (bag,) = (tmp_path / "bags").iterdir()
+    origin_ns = int(
+        yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]["custom_data"][
+            "clock_origin_ns"
+        ]
+    )
+    states = _states(bag)
+    # a state's stamp is the node-clock time of its simulated instant
+    assert (states[0][0] - origin_ns) * 1e-9 < 1.0  # the bag starts with the stepping, not before
+    for opening, at_ns in ((0.6, stamp_ns), (-0.4, stamp_ns + 300_000_000)):
+        first = next(i for i, s in enumerate(states) if s[2] == opening)
+        before, after = states[first - 1][0], states[first][0]
+        # acted at the step that starts within half a step of the stamp: between these two states
+        assert before <= at_ns + DT_S * 0.5e9 and after >= at_ns - DT_S * 0.5e9 + DT_S * 1e9, (before, at_ns, after)
+    # an unchanged re-simulation of this default-clock bag reproduces it
+    result = subprocess.run([RESIM, str(bag), "--out", str(tmp_path / "again")], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    again = {ns: q1 for ns, q1, _ in _states(tmp_path / "again")}
+    common = [(q1, again[ns]) for ns, q1, _ in states if ns in again]
+    assert len(common) > 0.9 * len(states)
+    assert max(abs(a - b) for a, b in common) < 1e-6
+
+
+def test_a_stale_command_is_refused_with_the_reason_and_counted(client):
+    proc = start_node("command_timeout_s:=0.5")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
+        client.spin_for(0.3)
+        now_ns = _ns(client.last().header.stamp)
+        client.command(0.7, stamp_s=(now_ns - 2_000_000_000) * 1e-9)  # 2 s old: older than the timeout
+        assert client.spin_until(lambda: _values(client, "commands").get("stale") == "1", timeout=30)
+        assert all(s.valve_command == 0.0 for s in client.states)  # it never acted
+        client.command(0.3, stamp_s=(_ns(client.last().header.stamp) - 100_000_000) * 1e-9)  # late, not stale
+        assert client.spin_until(lambda: client.last().valve_command == 0.3, timeout=30)
+    finally:
+        out = stop_process(proc)
+    assert "older than command_timeout_s = 0.5 s, it is stale" in out
+
+
+def test_use_sim_time_is_start_only_and_step_is_bounded(node, client):
+    assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
+    flag = Parameter(name="use_sim_time", value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True))
+    result = client.call(client.set_params, SetParameters.Request(parameters=[flag])).results[0]
+    assert not result.successful and "use_sim_time is start-only" in result.reason
+    assert client.call(client.pause, SetBool.Request(data=True)).success
+    huge = client.call(client.step, Step.Request(steps=4294967295))
+    assert not huge.success and "call ~/step again" in huge.message
+    t0 = huge.sim_time_s
+    small = client.call(client.step, Step.Request(steps=25))
+    assert small.success and math.isclose(small.sim_time_s - t0, 25 * DT_S, abs_tol=1e-9)
+    assert client.spin_until(lambda: _values(client, "run").get("step_calls") == "1", timeout=30)
+    assert _values(client, "run")["pauses"] == "1"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_two_signals_at_once_still_finish_the_bag_with_status_0(client, tmp_path, sig):
+    """A terminal's Ctrl-C and the one ros2 launch forwards arrive together."""
+    proc = start_node(f"record_folder:={tmp_path}", record=True)
+    try:
+        assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
+    finally:
+        proc.send_signal(sig)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out
+    (bag,) = tmp_path.iterdir()
+    assert (bag / "metadata.yaml").is_file()
+    assert len(_states(bag)) > 5
