@@ -33,7 +33,12 @@ def _installed(package: str) -> bool:
 def _start(context, *_args, **_kwargs):
     share = get_package_share_directory("boom_hydraulics")
     values = {a.name: LaunchConfiguration(a.name).perform(context) for a in ARGUMENTS}
-    p = plan(values, os.path.join(share, "config", "default.yaml"), _installed("robot_state_publisher"))
+    p = plan(
+        values,
+        os.path.join(share, "config", "default.yaml"),
+        state_publisher_installed=_installed("robot_state_publisher"),
+        rviz_installed=_installed("rviz2"),
+    )
     sim_time = p.sim_parameters["use_sim_time"]
     actions = [
         Node(

@@ -72,8 +72,17 @@ class Plan:
     rviz: bool
 
 
-def plan(values: Mapping[str, str], default_params_file: str, state_publisher_installed: bool) -> Plan:
-    """The nodes and their parameters for the launch arguments ``values`` (strings, as given)."""
+def plan(
+    values: Mapping[str, str],
+    default_params_file: str,
+    state_publisher_installed: bool,
+    rviz_installed: bool = False,
+) -> Plan:
+    """The nodes and their parameters for the launch arguments ``values`` (strings, as given).
+
+    Raises ConfigError before anything starts for a node asked for that is not installed: a
+    launch that fails to find an executable once boom_sim runs exits and leaves boom_sim running.
+    """
     unknown = set(values) - set(NAMES)
     if unknown:
         raise ConfigError(f"unknown launch arguments {sorted(unknown)}; choose from {', '.join(NAMES)}")
@@ -85,6 +94,9 @@ def plan(values: Mapping[str, str], default_params_file: str, state_publisher_in
         raise ConfigError("robot_state_publisher:=true, but robot_state_publisher is not installed")
     state_publisher = rsp == "true" or (rsp == "auto" and state_publisher_installed)
     sim_time = _flag("use_sim_time", v["use_sim_time"])
+    rviz = _flag("rviz", v["rviz"])
+    if rviz and not rviz_installed:
+        raise ConfigError("rviz:=true, but rviz2 is not installed; install rviz2 or leave rviz:=false")
     return Plan(
         namespace=v["namespace"].strip("/"),
         params_file=v["params_file"] or default_params_file,
@@ -96,5 +108,5 @@ def plan(values: Mapping[str, str], default_params_file: str, state_publisher_in
             "publish_robot_description": not state_publisher,
         },
         state_publisher=state_publisher,
-        rviz=_flag("rviz", v["rviz"]),
+        rviz=rviz,
     )
