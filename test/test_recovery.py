@@ -48,8 +48,9 @@ def test_every_flushed_message_comes_back_and_the_damaged_file_stays(tmp_path):
     with pytest.raises(BagError, match="run boom-bag-recover"):
         check_bag_path(bag)
     damaged_bytes = (bag / "killed_0.mcap").read_bytes()
-    file, count = recover(bag)
-    assert count == 50
+    result = recover(bag)
+    file = result.file
+    assert result.messages == 50 and result.dropped_chunks == 0 and not result.resumed
     assert check_bag(bag) == {"/drive_state": 50}
     assert (bag / "killed_0.mcap.damaged").read_bytes() == damaged_bytes  # kept as it was
     with file.open("rb") as handle:

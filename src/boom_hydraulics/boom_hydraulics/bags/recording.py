@@ -39,6 +39,8 @@ import queue
 import re
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -268,8 +270,12 @@ class BagFile:
         self.failure: OSError | None = None
 
     def _write_some(self, data: memoryview) -> int:
-        """One ``write(2)``; the seam where the fault-injection tests make the disk fail."""
+        """One ``write(2)``; a seam where the fault-injection tests make the disk fail."""
         return os.write(self.fd, data)
+
+    def _fsync(self) -> None:
+        """``fsync(2)``; the other seam of the fault-injection tests."""
+        os.fsync(self.fd)
 
     def write(self, data: bytes) -> int:
         if self.failure is not None:
@@ -298,7 +304,7 @@ class BagFile:
         if self.failure is not None:
             raise self.failure
         try:
-            os.fsync(self.fd)
+            self._fsync()
         except OSError as exc:
             self._fail(exc, self.durable)
             raise
@@ -374,7 +380,7 @@ class BagRecorder:
         self.counts: dict[str, int] = {}
         self.first_ns: int | None = None
         self.last_ns = 0
-        self.on_disk = 0  # messages in chunks that were written and fsynced
+        self.on_disk = 0  # messages in complete chunks in the file (fsynced, but for the last one)
         #: One line on the first disk failure (then nothing more is recorded); None while all is well.
         self.error: str | None = None
         #: True once close() finished the MCAP file and wrote metadata.yaml.
@@ -462,7 +468,8 @@ class BagRecorder:
     def _add(self, topic: str, log_ns: int, publish_ns: int, data: bytes) -> None:
         log_ns = max(log_ns, self._last_log.get(topic, log_ns))  # never back in time per channel
         written = self._stream.position
-        self._writer.add_message(self._channels[topic], log_ns, data, publish_ns, self.counts[topic])
+        with self._chunk_write(extra=1):
+            self._writer.add_message(self._channels[topic], log_ns, data, publish_ns, self.counts[topic])
         self._last_log[topic] = log_ns
         self.counts[topic] += 1
         self.first_ns = log_ns if self.first_ns is None else min(self.first_ns, log_ns)
@@ -470,13 +477,28 @@ class BagRecorder:
         if self._stream.position != written:  # the message filled its chunk, which went out: to the disk
             self._sync()
 
+    @contextmanager
+    def _chunk_write(self, extra: int = 0) -> Iterator[None]:
+        """Around a call that may write a chunk: the writer writes the chunk record, then its
+        message indexes. If the disk fails after the chunk record, the file (cut back to the
+        failed write) still holds that chunk, so its messages count as kept (``extra``: the
+        message being added, which is not counted yet)."""
+        written = self._stream.position
+        try:
+            yield
+        except OSError:
+            if self._stream.position > written:
+                self.on_disk = sum(self.counts.values()) + extra
+            raise
+
     def _sync(self) -> None:
         """fsync: every message added so far is on the disk now (the writer was flushed or finished)."""
         self._stream.sync()
         self.on_disk = sum(self.counts.values())
 
     def _flush_chunk(self) -> None:
-        self._writer.flush()
+        with self._chunk_write():
+            self._writer.flush()
         self._sync()
 
     def _fail(self, exc: BaseException) -> None:
@@ -521,6 +543,7 @@ class BagRecorder:
         try:
             if self.error is None:
                 try:
+                    self._flush_chunk()  # the last messages first: a disk that fails now loses none of them
                     info = self.info()
                     self._writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
                     self._writer.finish()

@@ -1,11 +1,22 @@
-"""Recovering a bag whose recorder was killed (SIGKILL, power loss); boom-bag-recover runs it.
+"""Recovering a bag whose recorder was killed or whose disk failed; boom-bag-recover runs it.
 
-A killed recorder leaves an MCAP file without its summary and footer, and no
-metadata.yaml. Every chunk the recorder completed is intact on disk: this reads the file
-record by record up to the first incomplete one and writes a finished MCAP file with
-those messages, under the original name, with metadata.yaml. The damaged file is kept
-beside it as <name>.damaged. What was still in the last, incomplete chunk is lost: at
-most one chunk, which the node closes at least every record_flush_s seconds (default 1 s).
+A killed recorder (SIGKILL, power loss), or one whose disk filled up, leaves an MCAP file
+without its summary and footer, and no metadata.yaml. Every chunk the recorder completed
+is intact on disk. This reads the file record by record, checking each length against
+the bytes that are there, and keeps every complete chunk whose contents decompress and
+match their CRC (a chunk that does not is dropped and counted), and every complete
+message record outside chunks; it stops at the first incomplete record. What was still
+in the last, incomplete chunk is lost: at most one chunk, which the node closes at least
+every record_flush_s seconds (default 1 s).
+
+The result is whole or nothing. The new MCAP file and metadata.yaml are written and
+fsynced under temporary names (``.<name>.<8 characters>.partial``) first; then the
+damaged file is renamed to <name>.damaged, the new file takes its name, and metadata.yaml
+comes last: its presence says the bag is finished. An interruption at any point leaves a
+state that a rerun continues from: the bag as it was; or <name>.damaged (the original)
+without a finished <name>, which a rerun recovers from again. Temporary files that an
+interrupted run left are removed by the next run, which says so; only names of that
+pattern, for this bag's file and metadata.yaml, are touched.
 
 A bag whose recorder is still running is refused: the recorder holds a lock on its file
 until it finishes or dies.
@@ -13,111 +24,413 @@ until it finishes or dies.
 
 from __future__ import annotations
 
+import mmap
 import os
-import tempfile
+import re
+import secrets
+import struct
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
-from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+import zstandard
 from mcap.writer import CompressionType, Writer
 
 from ..errors import BagError
-from .recording import ROSBAG2_RECORD, bag_info, is_being_recorded, rosbag2_record, write_metadata
+from .recording import CUSTOM_DATA_RECORD, MCAP_MAGIC, ROSBAG2_RECORD, bag_info, is_being_recorded, rosbag2_record
+
+RECOVERED_LIBRARY = "boom_hydraulics (recovered)"  # the header's library field of a file this module wrote
+DAMAGED_SUFFIX = ".damaged"
+# MCAP opcodes (the specification's record types) this reader acts on
+_HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK, _METADATA, _DATA_END = (
+    0x01,
+    0x02,
+    0x03,
+    0x04,
+    0x05,
+    0x06,
+    0x0C,
+    0x0F,
+)
+_RECORD_HEAD = 9  # opcode (1 byte) and content length (uint64)
 
 
-def _salvage(path: Path) -> tuple[dict, dict, list[Message], list[Metadata]]:
-    """Schemas, channels, messages and metadata records up to the first incomplete record."""
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    messages: list[Message] = []
-    metadata: list[Metadata] = []
-    with path.open("rb") as handle:
+class _CutError(Exception):
+    """The bytes end inside a record."""
+
+
+class _DamagedError(Exception):
+    """A record's content does not parse, or a chunk does not decompress or match its CRC."""
+
+
+class _Cursor:
+    """Reads little-endian fields from ``data``, each one checked against the bytes left."""
+
+    def __init__(self, data: memoryview):
+        self.data = data
+        self.pos = 0
+
+    def take(self, n: int) -> memoryview:
+        if n > len(self.data) - self.pos:
+            raise _CutError
+        self.pos += n
+        return self.data[self.pos - n : self.pos]
+
+    def uint(self, size: int) -> int:
+        return int.from_bytes(self.take(size), "little")
+
+    def string(self) -> str:
         try:
-            for record in StreamReader(handle, validate_crcs=True).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Message):
-                    messages.append(record)
-                elif isinstance(record, Metadata) and record.name != ROSBAG2_RECORD:
-                    metadata.append(record)
-        except (McapError, EOFError, ValueError, OSError):
-            pass  # the truncated tail: everything before it is kept
-    return schemas, channels, messages, metadata
+            return str(self.take(self.uint(4)), "utf-8")
+        except UnicodeDecodeError:
+            raise _DamagedError from None
+
+    def string_map(self) -> dict[str, str]:
+        inner = _Cursor(self.take(self.uint(4)))
+        pairs = {}
+        while inner.pos < len(inner.data):
+            key = inner.string()
+            pairs[key] = inner.string()
+        return pairs
+
+    def rest(self) -> memoryview:
+        return self.take(len(self.data) - self.pos)
 
 
-def _write_mcap(
-    path: Path, file_name: str, schemas: dict, channels: dict, messages: list[Message], metadata: list[Metadata]
-) -> dict:
-    """A finished MCAP file of the salvaged records at ``path`` (to be named ``file_name``);
-    returns the bag's metadata."""
-    counts = {cid: 0 for cid in channels}
-    with path.open("wb") as handle:
-        writer = Writer(handle, compression=CompressionType.ZSTD)
-        writer.start(profile="ros2", library="boom_hydraulics (recovered)")
-        for record in metadata:
-            writer.add_metadata(record.name, record.metadata)
-        new_schema = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
-        new_channel = {
-            cid: writer.register_channel(c.topic, c.message_encoding, new_schema[c.schema_id], c.metadata)
-            for cid, c in channels.items()
-        }
-        for m in messages:
-            writer.add_message(new_channel[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
-            counts[m.channel_id] += 1
-        custom = next((r.metadata for r in metadata if r.name == "boom_hydraulics"), {})
-        info = bag_info(
-            file_name,
-            [
-                (
-                    c.topic,
-                    schemas[c.schema_id].name,
-                    yaml.safe_load(c.metadata.get("offered_qos_profiles", "[]")) or [],
-                    c.metadata.get("topic_type_hash", ""),
-                    counts[cid],
-                )
-                for cid, c in channels.items()
-            ],
-            messages[0].log_time if messages else 0,
-            messages[-1].log_time if messages else 0,
-            dict(custom),
+@dataclass
+class Salvage:
+    """What a damaged MCAP file still holds, and where reading it stopped."""
+
+    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)  # id: name, encoding, data
+    channels: dict[int, tuple[str, str, int, dict[str, str]]] = field(default_factory=dict)  # topic, enc, schema, meta
+    messages: list[tuple[int, int, int, int, bytes]] = field(default_factory=list)  # channel, seq, log, publish, data
+    metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
+    dropped_chunks: int = 0  # complete chunks whose contents were damaged
+    orphans: int = 0  # messages whose channel was in a dropped chunk
+    stop: int = 0  # the offset where reading stopped
+    complete: bool = False  # True when the data section ended properly (a finished file)
+
+
+def _records(data: memoryview) -> Iterator[tuple[int, memoryview, int]]:
+    """(opcode, content, offset) of each complete record; ends before the first incomplete one."""
+    pos = 0
+    while len(data) - pos >= _RECORD_HEAD:
+        opcode = data[pos]
+        (length,) = struct.unpack_from("<Q", data, pos + 1)
+        if length > len(data) - pos - _RECORD_HEAD:
+            return
+        yield opcode, data[pos + _RECORD_HEAD : pos + _RECORD_HEAD + length], pos
+        pos += _RECORD_HEAD + length
+
+
+def _chunk_data(content: memoryview) -> memoryview:
+    """The records inside a chunk: decompressed, with size and CRC checked."""
+    cursor = _Cursor(content)
+    cursor.take(16)  # message start and end time
+    size, crc = cursor.uint(8), cursor.uint(4)
+    compression = cursor.string()
+    packed = cursor.take(cursor.uint(8))
+    try:
+        if compression == "":
+            raw = bytes(packed)
+        elif compression == "zstd":
+            raw = zstandard.ZstdDecompressor().decompress(packed, max_output_size=size)
+        elif compression == "lz4":
+            import lz4.frame  # the recorder writes zstd; lz4 only if another writer used it
+
+            raw = lz4.frame.decompress(bytes(packed))
+        else:
+            raise _DamagedError
+    except (zstandard.ZstdError, RuntimeError, ImportError, MemoryError):
+        raise _DamagedError from None
+    if len(raw) != size or (crc and zlib.crc32(raw) != crc):
+        raise _DamagedError
+    return memoryview(raw)
+
+
+def _take_record(found: Salvage, opcode: int, content: memoryview) -> None:
+    """Add a schema, channel or message record to ``found``."""
+    cursor = _Cursor(content)
+    if opcode == _SCHEMA:
+        sid, name, encoding = cursor.uint(2), cursor.string(), cursor.string()
+        found.schemas[sid] = (name, encoding, bytes(cursor.take(cursor.uint(4))))
+    elif opcode == _CHANNEL:
+        cid, sid, topic, encoding = cursor.uint(2), cursor.uint(2), cursor.string(), cursor.string()
+        found.channels[cid] = (topic, encoding, sid, cursor.string_map())
+    elif opcode == _MESSAGE:
+        cid, seq, log_ns, publish_ns = cursor.uint(2), cursor.uint(4), cursor.uint(8), cursor.uint(8)
+        if cid in found.channels:
+            found.messages.append((cid, seq, log_ns, publish_ns, bytes(cursor.rest())))
+        else:
+            found.orphans += 1
+
+
+def _take_chunk(found: Salvage, content: memoryview) -> None:
+    """Every record of a chunk, or none of them (a chunk that is damaged anywhere is dropped)."""
+    inner = Salvage(schemas=dict(found.schemas), channels=dict(found.channels))
+    try:
+        records = _chunk_data(content)
+        end = 0
+        for opcode, body, offset in _records(records):
+            _take_record(inner, opcode, body)
+            end = offset + _RECORD_HEAD + len(body)
+        if end != len(records):
+            raise _CutError
+    except (_CutError, _DamagedError):
+        found.dropped_chunks += 1
+        return
+    found.schemas, found.channels = inner.schemas, inner.channels
+    found.messages += inner.messages
+    found.orphans += inner.orphans
+
+
+def salvage(data: bytes | memoryview) -> Salvage:
+    """What any byte prefix of an MCAP file holds (see the module's description); never raises
+    for damaged or cut contents, only BagError when the bytes are not an MCAP file at all."""
+    data = memoryview(data)
+    if bytes(data[: len(MCAP_MAGIC)]) != MCAP_MAGIC[: len(data)]:
+        raise BagError("not an MCAP file (wrong magic bytes)")
+    found = Salvage()
+    body = data[len(MCAP_MAGIC) :]
+    for opcode, content, offset in _records(body):
+        found.stop = len(MCAP_MAGIC) + offset
+        if opcode in (_DATA_END, _FOOTER):
+            found.complete = True
+            return found
+        try:
+            if opcode == _CHUNK:
+                _take_chunk(found, content)
+            elif opcode == _METADATA:
+                cursor = _Cursor(content)
+                name = cursor.string()
+                if name != ROSBAG2_RECORD:  # rewritten for what was kept
+                    found.metadata.append((name, cursor.string_map()))
+            elif opcode != _HEADER:
+                _take_record(found, opcode, content)  # unchunked records; indexes and others are skipped
+        except (_CutError, _DamagedError):
+            pass  # a complete record with damaged contents: skip it, the next one starts after it
+        found.stop = len(MCAP_MAGIC) + offset + _RECORD_HEAD + len(content)
+    return found
+
+
+def _library(path: Path) -> str | None:
+    """The library field of an MCAP file's header (None if it has none)."""
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(1 << 12)
+    except OSError:
+        return None
+    try:
+        for opcode, content, _ in _records(memoryview(head)[len(MCAP_MAGIC) :]):
+            if opcode == _HEADER:
+                cursor = _Cursor(content)
+                cursor.string()
+                return cursor.string()
+            return None
+    except (_CutError, _DamagedError):
+        return None
+    return None
+
+
+def _finished_by_us(path: Path) -> bool:
+    """True for a finished MCAP file that this module wrote: an earlier run's result."""
+    try:
+        with path.open("rb") as handle:
+            handle.seek(0, os.SEEK_END)
+            if handle.tell() < 2 * len(MCAP_MAGIC):
+                return False
+            handle.seek(-len(MCAP_MAGIC), os.SEEK_END)
+            if handle.read() != MCAP_MAGIC:
+                return False
+    except OSError:
+        return False
+    return _library(path) == RECOVERED_LIBRARY
+
+
+# --- writing ----------------------------------------------------------------------------
+def _partial_pattern(file_name: str) -> re.Pattern[str]:
+    """Temporary names of this module and of files.atomic_path for the bag's file and metadata.yaml."""
+    names = f"(?:{re.escape(file_name)}|metadata\\.yaml)"
+    return re.compile(rf"\.{names}\.[a-z0-9_]{{8}}\.partial")
+
+
+def _remove_leftovers(bag: Path, file_name: str) -> list[Path]:
+    """Remove what an interrupted earlier run left; returns the names removed."""
+    pattern = _partial_pattern(file_name)
+    removed = []
+    for item in sorted(bag.iterdir()):
+        if pattern.fullmatch(item.name) and item.is_file() and not item.is_symlink():
+            try:
+                item.unlink()
+            except OSError as exc:
+                raise BagError(f"{item}: cannot remove this leftover of an interrupted run ({exc.strerror})") from None
+            removed.append(item)
+    return removed
+
+
+def _new_partial(final: Path) -> tuple[Path, int]:
+    """A new temporary file beside ``final``, with the mode any new file gets (0666 & ~umask)."""
+    while True:
+        tmp = final.with_name(f".{final.name}.{secrets.token_hex(4)}.partial")
+        try:
+            return tmp, os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        except FileExistsError:
+            continue
+
+
+def _topics(found: Salvage, counts: dict[int, int]) -> list[tuple[str, str, list[dict], str, int]]:
+    return [
+        (
+            topic,
+            found.schemas[sid][0] if sid in found.schemas else "",
+            yaml.safe_load(meta.get("offered_qos_profiles", "[]")) or [],
+            meta.get("topic_type_hash", ""),
+            counts[cid],
         )
-        writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
-        writer.finish()
+        for cid, (topic, _, sid, meta) in found.channels.items()
+    ]
+
+
+def _write_mcap(handle: object, file_name: str, found: Salvage) -> dict:
+    """A finished MCAP file of the salvaged records; returns the bag's metadata."""
+    writer = Writer(handle, compression=CompressionType.ZSTD)
+    writer.start(profile="ros2", library=RECOVERED_LIBRARY)
+    for name, pairs in found.metadata:
+        writer.add_metadata(name, pairs)
+    new_schema = {sid: writer.register_schema(*schema) for sid, schema in found.schemas.items()}
+    new_channel = {
+        cid: writer.register_channel(topic, encoding, new_schema.get(sid, 0), meta)
+        for cid, (topic, encoding, sid, meta) in found.channels.items()
+    }
+    counts = dict.fromkeys(found.channels, 0)
+    for cid, seq, log_ns, publish_ns, data in found.messages:
+        writer.add_message(new_channel[cid], log_ns, data, publish_ns, seq)
+        counts[cid] += 1
+    custom = next((pairs for name, pairs in found.metadata if name == CUSTOM_DATA_RECORD), {})
+    times = [m[2] for m in found.messages]
+    info = bag_info(file_name, _topics(found, counts), min(times, default=0), max(times, default=0), dict(custom))
+    writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
+    writer.finish()
     return info
 
 
-def recover(bag: Path) -> tuple[Path, int]:
-    """Finish ``bag`` (folder) in place; returns the MCAP file and the number of messages kept."""
+def _write_partial(final: Path, fill: object) -> Path:
+    """``fill(handle)`` into a fsynced temporary file beside ``final``; removed again if anything fails."""
+    tmp, fd = _new_partial(final)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            fill(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # ours: created above
+        raise
+    return tmp
+
+
+def _sync_folder(folder: Path) -> None:
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+# --- the tool ---------------------------------------------------------------------------
+@dataclass
+class Recovery:
+    """What :func:`recover` did."""
+
+    file: Path  # the finished MCAP file
+    damaged: Path  # the original, kept
+    messages: int  # messages kept
+    dropped_chunks: int  # complete chunks whose contents were damaged
+    orphans: int  # messages dropped because their channel was lost
+    removed: list[Path]  # leftovers of an interrupted earlier run, removed
+    resumed: bool  # True when an earlier run had renamed the original already
+
+
+def _mcap_name(bag: Path) -> str:
+    """The name of the bag's one MCAP file, also when an interrupted run left only its .damaged."""
+    names = {f.name for f in bag.glob("*.mcap")} | {f.name[: -len(DAMAGED_SUFFIX)] for f in bag.glob("*.mcap.damaged")}
+    if len(names) != 1:
+        raise BagError(f"{bag}: expected one .mcap file, found {len(names)}")
+    return names.pop()
+
+
+def _read(source: Path) -> Salvage:
+    try:
+        with source.open("rb") as handle:
+            size = os.fstat(handle.fileno()).st_size
+            if size == 0:
+                return salvage(b"")
+            with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
+                found = salvage(data)
+    except OSError as exc:
+        raise BagError(f"{source}: cannot read it ({exc.strerror or exc})") from None
+    except BagError as exc:
+        raise BagError(f"{source}: {exc}") from None
+    return found
+
+
+def recover(bag: Path) -> Recovery:
+    """Finish ``bag`` (folder) in place; see the module's description for the order of steps."""
     if not bag.is_dir():
         raise BagError(f"{bag}: not a bag folder")
-    files = sorted(bag.glob("*.mcap"))
-    if len(files) != 1:
-        raise BagError(f"{bag}: expected one .mcap file, found {len(files)}")
-    damaged = files[0]
-    if is_being_recorded(damaged):
+    name = _mcap_name(bag)
+    target, kept = bag / name, bag / f"{name}{DAMAGED_SUFFIX}"
+    if target.exists() and is_being_recorded(target):
         raise BagError(f"{bag}: is still being recorded; stop its recorder first (a killed one frees the bag)")
+    removed = _remove_leftovers(bag, name)
     if (bag / "metadata.yaml").exists():
         raise BagError(f"{bag}: has a metadata.yaml already, so it was finished; nothing to recover")
-    kept = damaged.with_name(f"{damaged.name}.damaged")
-    if kept.exists():
+    resumed = kept.exists()
+    if resumed and target.exists() and not _finished_by_us(target):
         raise BagError(f"{kept} exists already; move it out of the bag folder first")
-    schemas, channels, messages, metadata = _salvage(damaged)
-    if not channels:
-        raise BagError(f"{damaged}: no channel survived; nothing to recover")
-    messages.sort(key=lambda m: m.log_time)
-    handle, name = tempfile.mkstemp(prefix=f".{damaged.name}.", suffix=".partial", dir=bag)
-    os.close(handle)
-    tmp = Path(name)
+    source = kept if resumed else target
+    found = _read(source)
+    if not found.channels:
+        raise BagError(f"{source}: no channel survived; nothing to recover")
+    found.messages.sort(key=lambda m: m[2])  # by log time; stable, so per channel as recorded
+    _place(bag, source, target, kept, found)
+    return Recovery(target, kept, len(found.messages), found.dropped_chunks, found.orphans, removed, resumed)
+
+
+def _place(bag: Path, source: Path, target: Path, kept: Path, found: Salvage) -> None:
+    """Write both files whole under temporary names, then rename them into place."""
+    need = f"about {max(1, source.stat().st_size >> 20)} MiB"
+    written: list[Path] = []
     try:
-        info = _write_mcap(tmp, damaged.name, schemas, channels, messages, metadata)
-        os.rename(damaged, kept)  # the damaged file stays, under a new name
-        os.rename(tmp, damaged)
+        info: dict = {}
+
+        def fill_mcap(handle: object) -> None:
+            info.update(_write_mcap(handle, target.name, found))
+
+        written.append(_write_partial(target, fill_mcap))
+        text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False).encode()
+        written.append(_write_partial(bag / "metadata.yaml", lambda handle: handle.write(text)))
+    except OSError as exc:
+        for tmp in written:
+            tmp.unlink(missing_ok=True)
+        raise BagError(
+            f"{exc.filename or target}: {exc.strerror or exc}; nothing was changed, the bag is as it was "
+            f"(free {need} and run boom-bag-recover {bag} again)"
+        ) from None
     except BaseException:
-        tmp.unlink(missing_ok=True)  # ours
+        for tmp in written:
+            tmp.unlink(missing_ok=True)
         raise
-    write_metadata(bag, info)
-    return damaged, len(messages)
+    new_mcap, new_yaml = written
+    try:
+        if source == target:
+            os.rename(target, kept)  # the original stays, under a new name
+        os.replace(new_mcap, target)
+        os.replace(new_yaml, bag / "metadata.yaml")  # last: a bag with metadata.yaml is finished
+        _sync_folder(bag)
+    except OSError as exc:
+        raise BagError(
+            f"{exc.filename or bag}: {exc.strerror or exc}; the bag is half renamed: "
+            f"run boom-bag-recover {bag} again to finish it"
+        ) from None
