@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -68,24 +69,117 @@ def remove_created(created: Sequence[Path]) -> None:
             break  # not empty (someone else's files): keep it and everything above it
 
 
+def _alive(pid: int) -> bool:
+    """True unless no process ``pid`` runs on this machine (then its temporary files are stale)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def _note(message: str) -> None:
+    print(f"{Path(sys.argv[0]).name or 'boom_hydraulics'}: note: {message}", file=sys.stderr)
+
+
+def _stale_owner(name: str, prefix: str, suffix: str) -> int | None:
+    """The process id in a temporary ``name`` that files.py made (``prefix`` PID-random ``suffix``)
+    where that process is gone, else None (someone else's name, or a run still going)."""
+    if not (name.startswith(prefix) and name.endswith(suffix)):
+        return None
+    pid, dash, tail = name[len(prefix) : len(name) - len(suffix)].partition("-")
+    if not (dash and pid.isdigit() and tail and all(ch.isalnum() or ch == "_" for ch in tail)):
+        return None
+    return None if _alive(int(pid)) else int(pid)
+
+
+def _remove_stale_files(path: Path, suffix: str) -> None:
+    """Remove the temporary files that an earlier, stopped run (SIGKILL, a power cut) left for
+    ``path``: only names this module makes for that path, of processes that no longer run."""
+    prefix, ending = f".{path.name}.", f".partial{suffix}"
+    try:
+        candidates = [entry for entry in os.scandir(path.parent) if entry.name.startswith(prefix)]
+    except OSError:
+        return
+    for entry in candidates:
+        if _stale_owner(entry.name, prefix, ending) is not None and entry.is_file(follow_symlinks=False):
+            try:
+                os.unlink(entry.path)
+            except OSError:
+                continue
+            _note(f"removed {entry.path}, the unfinished {path.name} of an earlier run that was stopped")
+
+
+def _remove_stale_staging(out: Path) -> None:
+    """Remove the staging folders (.partial-PID-XXXX) that stopped runs left in ``out``, and name
+    the ones of older versions (.partial-XXXX, no process id: they cannot be told from a live run)."""
+    try:
+        entries = [entry for entry in os.scandir(out) if entry.name.startswith(_STAGING)]
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.is_dir(follow_symlinks=False):
+            continue
+        if _stale_owner(entry.name, _STAGING, "") is not None:
+            shutil.rmtree(entry.path, ignore_errors=True)
+            _note(f"removed {entry.path}, the unfinished results of an earlier run that was stopped")
+        elif "-" not in entry.name[len(_STAGING) :]:
+            _note(f"{entry.path} holds the unfinished results of an earlier run that was stopped; remove it")
+
+
+def named_for(exc: OSError, target: Path, temporary: Path | None = None) -> OSError:
+    """``exc`` naming ``target`` where it named ``temporary`` (or a file in it; None: whatever it
+    named) or nothing at all: a user knows the file asked for, not the temporary name it is
+    written under."""
+    filename = exc.filename
+    if filename is not None and temporary is not None:
+        name = Path(filename)
+        if name != temporary and temporary not in name.parents:
+            return exc
+        if temporary in name.parents:
+            target = target / name.relative_to(temporary)
+    renamed = OSError(exc.errno, exc.strerror or str(exc), str(target))
+    renamed.__cause__ = exc
+    return renamed
+
+
+#: The start of a staging folder's name (results_folder), and of nothing else.
+_STAGING = ".partial-"
+
+
 @contextmanager
 def atomic_path(path: Path, suffix: str = "") -> Iterator[Path]:
     """A fresh temporary path beside ``path``; renamed onto ``path`` when the block succeeds,
-    removed when it fails. ``suffix`` keeps an ending that a writer insists on (``.npz``)."""
+    removed when it fails. ``suffix`` keeps an ending that a writer insists on (``.npz``).
+
+    The temporary name holds this process's id, so that the next run for ``path`` can tell
+    the file of a stopped run (removed, with a note) from that of one still writing. An
+    OSError about the temporary file (a full disk, a read-only folder) names ``path``."""
     path = Path(path)
     if path.is_dir():
         raise ConfigError(f"{path} is a folder; name a file to write")
     created = make_folder(path.parent)
-    handle, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".partial{suffix}", dir=path.parent)
+    _remove_stale_files(path, suffix)
+    try:
+        handle, name = tempfile.mkstemp(
+            prefix=f".{path.name}.{os.getpid()}-", suffix=f".partial{suffix}", dir=path.parent
+        )
+    except OSError as exc:
+        remove_created(created)
+        raise named_for(exc, path) from None
     os.close(handle)
     tmp = Path(name)
-    os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes it private
     try:
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes it private
         yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)  # ours: created above
         remove_created(created)
+        if isinstance(exc, OSError):
+            raise named_for(exc, path, tmp) from None
         raise
 
 
@@ -97,10 +191,17 @@ def results_folder(out: Path) -> Iterator[Path]:
     renamed into ``out``, replacing only a file of the same name; everything else in
     ``out`` stays. When it fails, nothing reaches ``out``. The staging folder, and ``out``
     itself if this call created it and it stayed empty, are removed: both are this run's.
+    Staging folders of earlier runs that were stopped (SIGKILL) are removed first, with a
+    note; an OSError about a staged file names the file in ``out`` it was meant to be.
     """
     out = Path(out)
     created = make_folder(out)
-    staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
+    _remove_stale_staging(out)
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f"{_STAGING}{os.getpid()}-", dir=out))
+    except OSError as exc:
+        remove_created(created)
+        raise named_for(exc, out) from None
     ok = False
     try:
         yield staging
@@ -109,6 +210,8 @@ def results_folder(out: Path) -> Iterator[Path]:
                 raise ConfigError(f"{item}: results are files; a folder cannot be placed into {out}")
             os.replace(item, out / item.name)
         ok = True
+    except OSError as exc:
+        raise named_for(exc, out, staging) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # created by this call
         if not ok:
@@ -130,6 +233,17 @@ def csv_cell(value: Any) -> str:
     if isinstance(value, (bool, np.bool_, int, np.integer)):
         return str(int(value))
     return repr(float(value))
+
+
+def csv_column(values: np.ndarray) -> list[str]:
+    """:func:`csv_cell` of every value of a column, with numpy doing the conversions (a run
+    streamed to CSV writes millions of cells)."""
+    values = np.asarray(values)
+    if values.dtype == bool or np.issubdtype(values.dtype, np.integer):
+        return list(map(str, values.astype(np.int64).tolist()))
+    if values.dtype.kind == "f":
+        return list(map(repr, values.astype(float).tolist()))
+    return [csv_cell(value) for value in values]
 
 
 def write_bytes(path: Path, data: bytes) -> None:

@@ -1,12 +1,16 @@
 """What the command-line tools share: arguments that fail as one line, and exit codes.
 
 Exit codes: 0 done, 1 the work failed (a simulation, a file, a bag), 2 bad arguments or
-configuration (ConfigError), 130 interrupted.
+configuration (ConfigError), 130 interrupted (Ctrl-C, SIGINT), 143 terminated (SIGTERM).
+An interrupted or terminated tool stops as a failing one does: what it was writing is
+removed, what was there before stays.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
+import signal
 import sys
 from collections.abc import Callable
 
@@ -36,15 +40,65 @@ def summary(doc: str | None) -> str:
     return (doc or "").strip().splitlines()[0].replace("``", "")
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that the same clean-up runs (temporary files removed)."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+#: What to do about the OSErrors a user meets writing results.
+_ADVICE = {
+    errno.ENOSPC: "the disk is full; free some space or write to another disk",
+    errno.EDQUOT: "the disk quota is used up; free some space or write elsewhere",
+    errno.EROFS: "the file system is read-only; write somewhere else",
+    errno.EACCES: "no permission; write somewhere you may, or change the permissions",
+    errno.EPERM: "not permitted; write somewhere you may",
+    errno.ENOENT: "no such file or folder; check the path",
+}
+
+
+def describe_os_error(exc: OSError) -> str:
+    """One line on ``exc``: the file it is about (when known), what went wrong and what to do."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    advice = _ADVICE.get(exc.errno)
+    text = f"{what} ({advice})" if advice else what
+    return f"{exc.filename}: {text}" if exc.filename else text
+
+
 def run_main(prog: str, body: Callable[[], int]) -> int:
-    """``body()``, with this package's errors printed as ``PROG: error: ...`` and turned into exit codes."""
+    """``body()``, with this package's errors printed as ``PROG: error: ...`` and turned into exit codes.
+
+    SIGTERM is turned into an exception like Ctrl-C while ``body`` runs, so that a terminated
+    tool cleans up as an interrupted one does (and exits 143, 130 for Ctrl-C)."""
+    previous = _install_terminate()
     try:
         return body()
     except BoomHydraulicsError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, ConfigError) else 1
     except OSError as exc:
-        print(f"{prog}: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
         return 1
+    except MemoryError:
+        print(f"{prog}: error: out of memory; ask for a smaller run (fewer points or samples)", file=sys.stderr)
+        return 1
+    except Terminated:
+        print(f"{prog}: error: terminated (SIGTERM); stopped, and what it was writing was not kept", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
+        print(f"{prog}: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _install_terminate() -> object | None:
+    """Route SIGTERM to :class:`Terminated` (main thread only, where Python allows handlers);
+    return the handler it replaced, or None where it installed nothing."""
+    try:
+        return signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread
+        return None

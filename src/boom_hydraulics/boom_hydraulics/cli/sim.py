@@ -13,6 +13,7 @@ Errors in arguments, configs or the run print one line and exit non-zero.
 from __future__ import annotations
 
 import argparse
+import csv
 import math
 import sys
 from collections.abc import Sequence
@@ -22,14 +23,14 @@ from typing import Any
 import numpy as np
 
 from ..analysis import studies
-from ..analysis.metrics import move_metrics
+from ..analysis.metrics import move_window
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, write_bytes, write_csv
+from ..files import atomic_path, check_apart, csv_column, write_bytes, write_csv
 from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve import commands
-from ..solve.simulation import OUTPUTS, simulate
+from ..solve.simulation import OUTPUTS, RunStream, check_fits
 from .common import RaisingParser, run_main
 
 
@@ -60,34 +61,69 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration}")
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
-    trajectory = simulate(params, args.duration, commands.from_parameters(params), every=args.every)
-    header = [f"{name} [{unit}]" for name, unit, _ in OUTPUTS]
-    columns = [trajectory[name] for name, _, _ in OUTPUTS]
-    rows = ([csv_cell(col[i]) for col in columns] for i in range(len(trajectory)))
-    write_csv(Path(args.out), header, rows)
+    stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)
+    first_q1, last_q1, rows, start = _stream_csv(Path(args.out), stream)
     print(
-        f"{args.out}: {len(trajectory)} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
-        f"q1 {trajectory['q1'][0]:.4f} -> {trajectory['q1'][-1]:.4f} m"
+        f"{args.out}: {rows} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
+        f"q1 {first_q1:.4f} -> {last_q1:.4f} m"
         + (
-            f", up to {trajectory.most_substeps} substeps per step (stability bound)"
-            if trajectory.most_substeps > params.substeps
+            f", up to {stream.most_substeps} substeps per step (stability bound)"
+            if stream.most_substeps > params.substeps
             else ""
         )
     )
     if params.command_profile == "angle":
-        print(_move_summary(params, trajectory))
+        print(_move_summary(params, stream.metrics, start))
     return 0
 
 
-def _move_summary(params: Parameters, trajectory: Any) -> str:
-    """One line on the closed loop's first move: target, settling, overshoot, final error."""
-    m = move_metrics(params, trajectory.columns)
+def _stream_csv(out: Path, stream: RunStream) -> tuple[float, float, int, float]:
+    """Write the run's samples to ``out`` as they come (temporary name, renamed at the end:
+    memory stays flat however long the run), with a progress bar on stderr when it is a
+    terminal. Returns q1 at the start and the end, the rows written, and the elevation at
+    the first sample of the closed-loop move (NaN without one)."""
+    from tqdm import tqdm
+
+    start_s, end_s, _ = move_window(stream.params)
+    first_q1, last_q1, rows, start_alpha = math.nan, math.nan, 0, math.nan
+    progress = tqdm(total=stream.duration_s, unit="s", unit_scale=True, disable=None, file=sys.stderr,
+                    desc="boom-sim", bar_format=PROGRESS_FORMAT)  # fmt: skip
+    with progress, atomic_path(out) as tmp, tmp.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow([f"{name} [{unit}]" for name, unit, _ in OUTPUTS])
+        for chunk in stream:
+            writer.writerows(zip(*(csv_column(chunk[name]) for name, _, _ in OUTPUTS)))
+            handle.flush()  # what is written can be seen growing, and the disk fills now, not at the end
+            if rows == 0:
+                first_q1 = float(chunk["q1"][0])
+            if math.isnan(start_alpha):
+                inside = np.nonzero((chunk["t"] >= start_s) & (chunk["t"] < end_s))[0]
+                start_alpha = float(chunk["alpha"][inside[0]]) if len(inside) else math.nan
+            last_q1 = float(chunk["q1"][-1])
+            rows += len(chunk["t"])
+            progress.update(stream.done_s - progress.n)
+    return first_q1, last_q1, rows, start_alpha
+
+
+#: The progress bar: simulated seconds done of the run's, rate and time left.
+PROGRESS_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} s simulated [{elapsed}<{remaining}]"
+
+
+def _move_summary(params: Parameters, m: dict[str, float], start_rad: float) -> str:
+    """One line on the closed loop's first move (metrics ``m`` of the run's samples, elevation
+    ``start_rad`` at the move's first sample): target, settling, overshoot, final error."""
     settle = m["settling_s"]
+    target = math.degrees(move_window(params)[2])
     return (
-        f"closed loop: {m['start_deg']:.2f} -> {m['target_deg']:.2f} deg, "
+        f"closed loop: {math.degrees(start_rad):.2f} -> {target:.2f} deg, "
         + (f"settled within 2 % in {settle:.3f} s" if math.isfinite(settle) else "not settled within 2 %")
         + f", overshoot {m['target_overshoot_deg']:.3f} deg, final error {m['target_error_deg']:.3f} deg"
     )
+
+
+#: Floats per position that boom-sim statics holds at its peak, besides one per diameter: the
+#: table's columns, the geometry's intermediate arrays and the stacked copy for the CSV.
+STATICS_WORK_COLUMNS = 16
 
 
 def statics_table(params: Parameters, diameters_m: Sequence[float], points: int) -> tuple[list[str], np.ndarray]:
@@ -106,6 +142,11 @@ def cmd_statics(args: argparse.Namespace) -> int:
         raise ConfigError(f"--diameters must be positive diameters in m, got {args.diameters!r}")
     if args.points < 2:
         raise ConfigError(f"--points must be >= 2, got {args.points}")
+    check_fits(
+        args.points * (len(diameters) + STATICS_WORK_COLUMNS),
+        f"--points {args.points} with {len(diameters)} diameters",
+        "ask for fewer points (a few thousand draw every curve smooth)",
+    )
     header, table = statics_table(params, diameters, args.points)
     write_csv(Path(args.out), header, ([repr(float(v)) for v in row] for row in table))
     print(f"{args.out}: {len(table)} positions x {len(diameters)} piston diameters")

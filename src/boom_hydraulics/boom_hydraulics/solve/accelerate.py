@@ -192,11 +192,12 @@ def _constants_of_source(model: types.ModuleType) -> str:
     return f"def constants_of(row):\n    return Constants({fields})"
 
 
-#: The parallel loop over the sets of a batch, each a whole run (kernel.set_runner).
+#: The parallel loop over the sets of a batch, each run over the passes first ... last - 1
+#: (kernel.set_runner): a run goes in slices, each call returning to Python.
 _BATCH_SOURCE = """
 def _run_batch(
-    C, Y0, kind, times_s, values, offset, amplitude, frequency_hz, KT, KA, KR, order, G, dt, min_substeps, limit,
-    max_substeps, n_steps, every, energy_index, EB, S, M, ROWS, STATUS, TAKEN,
+    C, Y, kind, times_s, values, offset, amplitude, frequency_hz, KT, KA, KR, order, G, dt, min_substeps, limit,
+    max_substeps, n_steps, every, energy_index, EB, S, M, ROWS, STATUS, TAKEN, first, last,
 ):
     store = ROWS.shape[1] > 0
     profile = (kind, times_s, values, offset, amplitude, frequency_hz)
@@ -205,9 +206,9 @@ def _run_batch(
         c = constants_of(C[k])
         rest = (dt, min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k], S[k], M[k], ROWS[k])
         if store:
-            TAKEN[k] = run_set(c, Y0[k], profile, path, *rest, STATUS[k])
+            TAKEN[k] = run_set(c, Y[k], profile, path, *rest, STATUS[k], first, last)
         else:
-            TAKEN[k] = run_metrics(c, Y0[k], profile, path, *rest, STATUS[k])
+            TAKEN[k] = run_metrics(c, Y[k], profile, path, *rest, STATUS[k], first, last)
 """
 
 

@@ -12,7 +12,8 @@ step and substeps; everything else (piston diameter, payload, bulk modulus, ...)
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -211,6 +212,123 @@ def kernel_command(command: Callable, n_sets: int) -> tuple | None:
     return None
 
 
+#: Wall time a slice of a kernel run aims at, s: between slices the run is back in Python,
+#: where Ctrl-C (KeyboardInterrupt) is seen, progress shown and rows streamed out.
+SLICE_S = 0.2
+#: Passes of the first slice (the kernel may compile in it), and the most a slice may grow by.
+FIRST_SLICE, SLICE_GROWTH = 64, 4
+#: Most floats the table of one slice's rows may hold, all sets together (64 MB).
+SLICE_FLOATS = 8_000_000
+
+
+def next_slice(passes: int, seconds: float, most: int) -> int:
+    """The passes of the next slice after one of ``passes`` took ``seconds``: as many as take
+    about SLICE_S, growing at most SLICE_GROWTH-fold, at least 1 and at most ``most``."""
+    wanted = passes * SLICE_S / seconds if seconds > 0 else passes * SLICE_GROWTH
+    return max(1, min(most, passes * SLICE_GROWTH, int(wanted)))
+
+
+class KernelRun:
+    """A batch of parameter sets in the compiled run kernel, run slice by slice (:meth:`slices`).
+
+    The kernel keeps each set's state, controller, command and sample count in ``state`` and
+    ``status`` between calls, so a run split into slices gives what one call over all its steps
+    would, bit for bit; each slice takes about SLICE_S of wall time, so that Ctrl-C ends a run
+    of any length within a second.
+    """
+
+    def __init__(
+        self, runner: Callable[..., None], params: Sequence[Parameters], spec: tuple, duration_s: float, every: int,
+        lift_angle_deg: float, store: bool,
+    ) -> None:  # fmt: skip
+        p0 = params[0]
+        model = MODELS[p0.mode]
+        self.n_sets = len(params)
+        constants = [model.constants(p) for p in params]
+        initial = [model.initial_state(p) for p in params]
+        energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
+        bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0 for y, c in zip(initial, constants)]
+        self.n_steps = round(duration_s / p0.time_step_s)
+        self.every = every
+        self.n_rows = sample_count(self.n_steps, every)
+        self.settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
+        self.accumulators = np.array([streaming.accumulator() for _ in params])
+        self.state = np.array(initial, dtype=float)  # each set's state, carried from slice to slice
+        self.status = np.zeros((self.n_sets, kernel.STATUS_SIZE))
+        self.taken = np.zeros(self.n_sets, dtype=np.int64)  # samples of each set in the last slice
+        self.done = 0  # passes done of n_steps + 1 (pass 0: the start, pass i: step i)
+        self._runner = runner
+        self._head = (np.array(constants, dtype=float), self.state, *spec)
+        self._middle = (
+            float(p0.time_step_s), int(p0.substeps), float(stability_limit(p0)), MAX_SUBSTEPS, int(self.n_steps),
+            int(every), energy_index, np.array(bases, dtype=float), self.settings, self.accumulators,
+        )  # fmt: skip
+        width = len(OUTPUT_NAMES)
+        slice_rows = max(2, SLICE_FLOATS // (self.n_sets * width)) if store else 0
+        self.most_passes = max(1, (slice_rows - 2) * every) if store else self.n_steps + 1
+        self.rows = np.empty((self.n_sets, slice_rows, width))  # the rows of the last slice
+
+    @property
+    def passes(self) -> int:
+        """All passes of the run: the start and each step."""
+        return self.n_steps + 1
+
+    def slices(self) -> Iterator[np.ndarray]:
+        """Run to the end, one slice per step of the iteration; after each, ``rows[k, :taken[k]]``
+        are the samples set ``k`` took in it (overwritten by the next slice), and the samples
+        per set are returned. Stops early once every set has failed."""
+        size = FIRST_SLICE
+        while self.done < self.passes:
+            last = min(self.passes, self.done + min(size, self.most_passes))
+            started = time.perf_counter()
+            with _KERNEL_LOCK:
+                self._runner(*self._head, *self._middle, self.rows, self.status, self.taken, self.done, last)
+            seconds = time.perf_counter() - started
+            passes, self.done = last - self.done, last
+            yield self.taken
+            if not (self.status[:, kernel.OUTCOME] == stepping.OK).any():
+                self.done = self.passes  # every set has stopped: the rest would do nothing
+                return
+            size = next_slice(passes, seconds, self.most_passes)
+
+    def result(self, rows: np.ndarray | None = None) -> SetRuns:
+        """What the run gave (after :meth:`slices`), with ``rows`` the table of every sample, if kept."""
+        values = np.empty((self.n_sets, len(streaming.NAMES)))
+        for k in range(self.n_sets):
+            streaming.finish(self.accumulators[k], self.settings[k], values[k])
+        status = self.status
+        return SetRuns(
+            metrics={name: values[:, j] for j, name in enumerate(streaming.NAMES)},
+            failed_at_s=status[:, kernel.FAILED_AT].copy(),
+            failed_why=status[:, kernel.OUTCOME].astype(int),
+            most_substeps=status[:, kernel.MOST].astype(int),
+            last_q1_m=status[:, kernel.LAST_Q1].copy(),
+            samples=status[:, kernel.TAKEN].astype(np.int64),
+            rows=rows,
+        )
+
+
+def kernel_run(
+    params: Sequence[Parameters],
+    duration_s: float,
+    command: Callable,
+    every: int = 1,
+    lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
+    store: bool = False,
+) -> KernelRun | None:
+    """The sets prepared for the compiled kernel (see :func:`run_sets`), or None where numba
+    is not available (or switched off) or the kernel cannot evaluate ``command``."""
+    _check_shared(params)
+    if every < 1:
+        raise ConfigError(f"every must be >= 1, got {every}")
+    p0 = params[0]
+    runner = accelerate.batch_runner(p0.mode, p0.method)
+    spec = kernel_command(command, len(params))
+    if runner is None or spec is None:
+        return None
+    return KernelRun(runner, params, spec, duration_s, every, lift_angle_deg, store)
+
+
 def run_sets(
     params: Sequence[Parameters],
     duration_s: float,
@@ -226,45 +344,19 @@ def run_sets(
     then :func:`simulate_batch` does the work.
 
     Each set runs as its single run would (:meth:`simulation.Simulator.run`, the same steps
-    and substeps, commands and samples); a set that fails stops where it failed.
+    and substeps, commands and samples); a set that fails stops where it failed. The kernel
+    runs in slices of about SLICE_S (:class:`KernelRun`): Ctrl-C stops it within a second.
     """
-    _check_shared(params)
-    if every < 1:
-        raise ConfigError(f"every must be >= 1, got {every}")
-    p0 = params[0]
-    runner = accelerate.batch_runner(p0.mode, p0.method)
-    spec = kernel_command(command, len(params))
-    if runner is None or spec is None:
+    run = kernel_run(params, duration_s, command, every, lift_angle_deg, store)
+    if run is None:
         return None
-    model = MODELS[p0.mode]
-    n_sets = len(params)
-    constants = [model.constants(p) for p in params]
-    initial = [model.initial_state(p) for p in params]
-    energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
-    bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0 for y, c in zip(initial, constants)]
-    limit = stability_limit(p0)
-    n_steps = round(duration_s / p0.time_step_s)
-    n_rows = sample_count(n_steps, every)
-    settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
-    accumulators = np.array([streaming.accumulator() for _ in params])
-    rows = np.empty((n_sets, n_rows if store else 0, len(OUTPUT_NAMES)))
-    status = np.empty((n_sets, kernel.STATUS_SIZE))
-    taken = np.zeros(n_sets, dtype=np.int64)
-    with _KERNEL_LOCK:
-        runner(
-            np.array(constants, dtype=float), np.array(initial, dtype=float), *spec, float(p0.time_step_s),
-            int(p0.substeps), float(limit), MAX_SUBSTEPS, int(n_steps), int(every), energy_index,
-            np.array(bases, dtype=float), settings, accumulators, rows, status, taken,
-        )  # fmt: skip
-    values = np.empty((n_sets, len(streaming.NAMES)))
-    for k in range(n_sets):
-        streaming.finish(accumulators[k], settings[k], values[k])
-    return SetRuns(
-        metrics={name: values[:, j] for j, name in enumerate(streaming.NAMES)},
-        failed_at_s=status[:, kernel.FAILED_AT].copy(),
-        failed_why=status[:, kernel.OUTCOME].astype(int),
-        most_substeps=status[:, kernel.MOST].astype(int),
-        last_q1_m=status[:, kernel.LAST_Q1].copy(),
-        samples=taken,
-        rows=rows if store else None,
-    )
+    table = None
+    if store:
+        table = np.empty((run.n_sets, run.n_rows, len(OUTPUT_NAMES)))
+        filled = np.zeros(run.n_sets, dtype=np.int64)
+    for taken in run.slices():
+        if table is not None:
+            for k in range(run.n_sets):
+                table[k, filled[k] : filled[k] + taken[k]] = run.rows[k, : taken[k]]
+            filled += taken
+    return run.result(table)

@@ -20,8 +20,6 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from ..analysis.streaming import SAMPLE_SIGNALS, add_sample
 from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
@@ -30,12 +28,14 @@ from .outputs import OUTPUT_NAMES
 from .profiles import ANGLE, profile_value
 from .stepping import NONFINITE, OK, TOO_STIFF
 
-#: Where run_set writes the outcome of a run: the time it failed (NaN: it ran through), the
-#: stepping outcome (stepping.OK, NONFINITE, ENERGY or TOO_STIFF), the most substeps one
-#: step took (on TOO_STIFF: the number the failing step would have needed) and the cylinder
-#: length at the end (or at the last good state), m.
-FAILED_AT, OUTCOME, MOST, LAST_Q1 = 0, 1, 2, 3
-STATUS_SIZE = 4
+#: Where run_set keeps a run between calls (status[k] of a batch): the time it failed (NaN:
+#: it ran through), the stepping outcome (stepping.OK, NONFINITE, ENERGY or TOO_STIFF), the
+#: most substeps one step took (on TOO_STIFF: the number the failing step would have needed),
+#: the cylinder length at the end (or at the last good state), m; then what a run carries from
+#: one slice of steps to the next: the controller's integral and holding flag, the command of
+#: the next step, the samples taken so far, and on a failure the index of the failed step.
+FAILED_AT, OUTCOME, MOST, LAST_Q1, INTEGRAL, HOLDING, NEXT_U, TAKEN, FAILED_STEP = range(9)
+STATUS_SIZE = 9
 #: Where the signals of the streaming metrics are among the outputs, in add_sample's order.
 SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
 
@@ -69,14 +69,19 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
     ``observe_values(t, y, c, u)`` its outputs as a tuple of floats in the order of
     simulation.OUTPUT_NAMES.
 
-    ``run_set(c, y0, profile, path, dt, min_substeps, limit, max_substeps, n_steps, every,
-    energy_index, energy_base, settings, metrics, rows, status)`` runs the set with
-    constants ``c`` from the state ``y0`` for ``n_steps`` steps of ``dt``, with the valve
-    command of ``profile`` and ``path`` (see command_value), and returns the
-    number of samples taken (at the start, every ``every`` steps and at the end, until a
-    failure). Each sample goes into the streaming ``metrics`` accumulator (with its
-    ``settings``) and, where ``rows`` has rows, into ``rows[sample]``; ``status`` receives
-    FAILED_AT, OUTCOME, MOST and LAST_Q1.
+    ``run_set(c, y, profile, path, dt, min_substeps, limit, max_substeps, n_steps, every,
+    energy_index, energy_base, settings, metrics, rows, status, first, last)`` runs the set with
+    constants ``c`` from rest for ``n_steps`` steps of ``dt``, with the valve command of
+    ``profile`` and ``path`` (see command_value), taking a sample at the start, every
+    ``every`` steps and at the end, until a failure. One call does the loop's passes ``first``
+    to ``last`` - 1 of 0 ... ``n_steps`` (pass 0 the start, pass i the i-th step): a run is
+    one call over (0, n_steps + 1) or several over consecutive slices, with the same result
+    bit for bit, so that a caller can return to Python between slices (Ctrl-C, progress,
+    streaming the rows out). ``y`` holds the state (the initial state before pass 0, then
+    the state after the last pass done, or the last good one), ``status`` the rest of what a
+    run carries (the slots above). Each sample goes into the streaming ``metrics``
+    accumulator (with its ``settings``) and, where ``rows`` has rows, into ``rows`` from row
+    0 at each call. Returns the number of samples this call took.
     """
 
     def run_set(
@@ -96,16 +101,25 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
         metrics: Any,
         rows: Any,
         status: Any,
+        first: int,
+        last: int,
     ) -> int:
         y = [v for v in y0]
-        control = np.zeros(2)
+        control = status[INTEGRAL : HOLDING + 1]
         half = 0.5 * dt
         store = rows.shape[0] > 0
-        status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
         t = 0.0
-        u = command_value(profile, path, control, c, y[0], dt, t + half)
-        taken = 0
-        for i in range(n_steps + 1):
+        if first == 0:
+            status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
+            status[TAKEN], status[FAILED_STEP] = 0.0, -1.0
+            control[0], control[1] = 0.0, 0.0
+            status[NEXT_U] = command_value(profile, path, control, c, y[0], dt, t + half)
+        elif status[OUTCOME] != OK:
+            return 0
+        u = status[NEXT_U]
+        base = int(status[TAKEN])
+        taken = base
+        for i in range(first, last):
             if i > 0:
                 t_start = (i - 1) * dt
                 _, outcome, most, y_new = _loop(
@@ -118,7 +132,8 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
                     status[FAILED_AT] = t_start if outcome == TOO_STIFF else t_start + dt
                     status[OUTCOME] = outcome
                     status[MOST] = most if outcome == TOO_STIFF else status[MOST]
-                    return taken
+                    status[FAILED_STEP] = i - 1
+                    break
                 status[MOST] = max(status[MOST], most)
                 y = y_new
                 t = i * dt
@@ -131,9 +146,14 @@ def set_runner(_loop: Callable[..., tuple], observe_values: Callable[..., tuple]
                 )  # fmt: skip
                 if store:
                     for j in range(len(o)):
-                        rows[taken, j] = o[j]
+                        rows[taken - base, j] = o[j]
                 taken += 1
-        status[LAST_Q1] = y[0]
-        return taken
+        if status[OUTCOME] == OK:
+            status[LAST_Q1] = y[0]
+        for j in range(len(y0)):
+            y0[j] = y[j]
+        status[NEXT_U] = u
+        status[TAKEN] = taken
+        return taken - base
 
     return run_set

@@ -8,12 +8,12 @@ model modules (:mod:`physical`, :mod:`paper`); this module only drives them.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import ConfigError, SimulationError
 from ..model import MODELS
 from ..model.geometry import within_triangle
 from ..model.parameters import Parameters
@@ -24,6 +24,8 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
 #: Most substeps the stability bound may ask for in one time step before a run stops.
 MAX_SUBSTEPS = 10_000
+#: Rows of one chunk of a streamed interpreted run (Simulator.samples).
+CHUNK_ROWS = 4096
 
 
 def stability_limit(p: Parameters) -> float:
@@ -35,6 +37,47 @@ def stability_limit(p: Parameters) -> float:
 def sample_count(n_steps: int, every: int) -> int:
     """Samples of a run of ``n_steps``: at the start, after every ``every`` steps and at the end."""
     return 1 + n_steps // every + (1 if n_steps % every else 0)
+
+
+def available_memory() -> int | None:
+    """Bytes of memory a process may still take (MemAvailable, within the cgroup's limit), or None."""
+    sizes = []
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            sizes += [int(line.split()[1]) * 1024 for line in handle if line.startswith("MemAvailable:")]
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        with (
+            open("/sys/fs/cgroup/memory.max", encoding="ascii") as limit,
+            open("/sys/fs/cgroup/memory.current", encoding="ascii") as used,
+        ):
+            text = limit.read().strip()
+            if text != "max":
+                sizes.append(int(text) - int(used.read().strip()))
+    except (OSError, ValueError):
+        pass
+    return min(sizes) if sizes else None
+
+
+def size_text(n_bytes: float) -> str:
+    """``n_bytes`` for people: 1.5 GiB, 182 TiB."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n_bytes < 1024 or unit == "PiB":
+            return f"{n_bytes:.3g} {unit}"
+        n_bytes /= 1024
+    raise AssertionError("unreachable")
+
+
+def check_fits(n_floats: float, what: str, advice: str) -> None:
+    """ConfigError, up front, where a table of ``n_floats`` float64 does not fit in the memory
+    available: the user learns the size at once instead of meeting the OOM killer later."""
+    available = available_memory()
+    needed = 8.0 * n_floats
+    if available is not None and needed > available:
+        raise ConfigError(
+            f"{what} needs {size_text(needed)} of memory, more than the {size_text(available)} available; {advice}"
+        )
 
 
 def absolute_tolerances(p: Parameters) -> list[float]:
@@ -77,6 +120,7 @@ class Simulator:
 
     def __init__(self, params: Parameters, jit: bool | None = None):
         self.jit = accelerate.available() if jit is None else jit
+        self.stopped: str | None = None  # why the last run(stop_on_error=True) ended early
         self._install(params)
         self.reset()
 
@@ -291,41 +335,61 @@ class Simulator:
         ``every`` steps. With ``stop_on_error``, a SimulationError ends the run early and the
         trajectory up to the last finite state is returned, with the reason in ``stopped``.
         """
+        chunks = list(self.samples(duration_s, command, every, stop_on_error))
+        columns = {name: np.concatenate([chunk[name] for chunk in chunks]) for name in OUTPUT_NAMES}
+        return Trajectory(columns, self.stopped, self.most_substeps)
+
+    def samples(
+        self,
+        duration_s: float,
+        command: Callable[[float], float],
+        every: int = 1,
+        stop_on_error: bool = False,
+        chunk_rows: int = CHUNK_ROWS,
+    ) -> Iterator[dict[str, np.ndarray]]:
+        """The samples of :meth:`run`, as columns of up to ``chunk_rows`` rows at a time: a run of
+        any length in flat memory. With ``stop_on_error``, ``stopped`` tells afterwards why the
+        run ended early (None: it ran through)."""
         if every < 1:
             raise ValueError("every must be >= 1")
         opening = feedback_free(command, self)
         n_steps = round(duration_s / self.params.time_step_s)
         half = 0.5 * self.params.time_step_s
-        n_rows = sample_count(n_steps, every)
         columns: dict[str, np.ndarray] = {}
+        self.stopped = None
+        row = 0
 
-        def record(row: int) -> None:
+        def record() -> None:
+            nonlocal row
             values = self.model.observe(self.t, self.y, self.constants, opening(self.t + half))
             if not columns:
                 for name in OUTPUT_NAMES:
-                    columns[name] = np.empty(n_rows, dtype=bool if isinstance(values[name], bool) else float)
+                    columns[name] = np.empty(chunk_rows, dtype=bool if isinstance(values[name], bool) else float)
             for name in OUTPUT_NAMES:
                 columns[name][row] = values[name]
+            row += 1
 
-        record(0)
-        row = 1
-        stopped = None
+        def flush() -> dict[str, np.ndarray]:
+            nonlocal row
+            chunk = {name: column[:row].copy() for name, column in columns.items()}
+            row = 0
+            return chunk
+
+        record()
         for i in range(1, n_steps + 1):
+            if row == chunk_rows:
+                yield flush()
             try:
                 self.step(opening(self.t + half))
             except SimulationError as exc:
                 if not stop_on_error:
                     raise
-                stopped = str(exc)
-                record(row)  # the last finite state
-                row += 1
+                self.stopped = str(exc)
+                record()  # the last finite state
                 break
             if i % every == 0 or i == n_steps:
-                record(row)
-                row += 1
-        if stopped is not None:
-            columns = {name: column[:row] for name, column in columns.items()}
-        return Trajectory(columns, stopped, self.most_substeps)
+                record()
+        yield flush()
 
 
 def feedback_free(command: Callable, sim: Simulator) -> Callable[[float], float]:
@@ -354,9 +418,123 @@ def simulate(
     from .commands import from_parameters
 
     command = command or from_parameters(params)
+    n_rows = sample_count(max(0, round(duration_s / params.time_step_s)), max(1, every))
+    check_fits(2 * n_rows * len(OUTPUT_NAMES), f"a run of {duration_s:g} s kept whole ({n_rows} samples)",
+               "sample less often (every), or stream the run (RunStream; boom-sim run does)")  # fmt: skip
     sim = Simulator(params, jit=jit)
     if sim.compiled and every >= 1 and params.method in integrators.BATCHED:
         runs = run_sets([params], duration_s, command, every, store=True)
         if runs is not None and math.isnan(runs.failed_at_s[0]):
             return Trajectory(runs.columns(0), None, int(runs.most_substeps[0]))
     return sim.run(duration_s, command, every)
+
+
+#: Most steps a run may take: t = i dt stays exact in a float up to 2**53 steps.
+MAX_STEPS = 2**53
+
+
+def step_count(params: Parameters, duration_s: float, option: str = "duration") -> int:
+    """The steps of a run of ``duration_s``: ConfigError for a duration that is not a positive,
+    finite number of seconds or that needs more than MAX_STEPS steps of the parameters' dt."""
+    if not (duration_s > 0 and math.isfinite(duration_s)):
+        raise ConfigError(f"{option} must be a positive number of seconds, got {duration_s}")
+    steps = duration_s / params.time_step_s
+    if steps > MAX_STEPS:
+        raise ConfigError(
+            f"{option} {duration_s:g} s is {steps:.3g} steps of {params.time_step_s:g} s, more than a run can take "
+            f"({MAX_STEPS:.3g}); choose a shorter duration or a larger time_step_s"
+        )
+    return round(steps)
+
+
+class RunStream:
+    """A run of ``params`` whose samples come out chunk by chunk as it goes (iterate it), in
+    flat memory however long the run; what :func:`simulate` keeps whole.
+
+    Compiled, the run goes through the run kernel in slices of bounded wall time (batch.KernelRun);
+    otherwise through :meth:`Simulator.samples`. After each chunk ``done_s`` is the simulated
+    time run so far; at the end ``most_substeps`` and ``metrics`` (the streaming metrics of
+    :mod:`..analysis.streaming` over every sample, with the parameters' closed-loop move) are
+    set. A run that fails raises its SimulationError, as :meth:`Simulator.run` does.
+    """
+
+    def __init__(
+        self, params: Parameters, duration_s: float, command: Callable | None = None, every: int = 1,
+        jit: bool | None = None,
+    ) -> None:  # fmt: skip
+        from .commands import from_parameters
+
+        self.params = params
+        self.duration_s = duration_s
+        self.n_steps = step_count(params, duration_s)
+        self.every = every
+        self.command = command or from_parameters(params)
+        self.jit = jit
+        self.done_s = 0.0
+        self.most_substeps = params.substeps
+        self.metrics: dict[str, float] = {}
+
+    def __iter__(self) -> Iterator[dict[str, np.ndarray]]:
+        from .batch import kernel_run
+
+        sim = Simulator(self.params, jit=self.jit)
+        run = None
+        if sim.compiled and self.params.method in integrators.BATCHED:
+            run = kernel_run([self.params], self.duration_s, self.command, self.every, store=True)
+        if run is None:
+            yield from self._interpreted(sim)
+        else:
+            yield from self._compiled(sim, run)
+
+    def _compiled(self, sim: Simulator, run) -> Iterator[dict[str, np.ndarray]]:
+        from . import kernel
+
+        dt = self.params.time_step_s
+        for taken in run.slices():
+            table = run.rows[0, : taken[0]]
+            self.done_s = min(run.done, run.n_steps) * dt
+            if len(table):
+                yield {
+                    name: table[:, j] != 0.0 if name in BOOLEAN_OUTPUTS else table[:, j].copy()
+                    for j, name in enumerate(OUTPUT_NAMES)
+                }
+        status = run.status[0]
+        if status[kernel.OUTCOME] != stepping.OK:
+            raise self._failure(sim, run.state[0], status)
+        self.done_s = run.n_steps * dt
+        self.most_substeps = int(status[kernel.MOST])
+        result = run.result()
+        self.metrics = {name: float(values[0]) for name, values in result.metrics.items()}
+
+    def _failure(self, sim: Simulator, y: np.ndarray, status: np.ndarray) -> SimulationError:
+        """The error of the step where the kernel stopped, as the Simulator words it: the
+        Simulator takes that step again from the same state and command (the same compiled step)."""
+        from . import kernel
+
+        failed = int(status[kernel.FAILED_STEP])
+        sim.y, sim.step_count = y.tolist(), failed
+        sim.t = sim._t_base + failed * self.params.time_step_s
+        sim.most_substeps = int(status[kernel.MOST])
+        try:
+            sim.step(float(status[kernel.NEXT_U]))
+        except SimulationError as exc:
+            return exc
+        return SimulationError(f"the run stopped at t = {status[kernel.FAILED_AT]:.6g} s (stepping outcome "
+                               f"{int(status[kernel.OUTCOME])}); {sim._step_advice()}")  # fmt: skip
+
+    def _interpreted(self, sim: Simulator) -> Iterator[dict[str, np.ndarray]]:
+        from ..analysis import streaming
+        from ..analysis.metrics import DEFAULT_LIFT_ANGLE_DEG, move_window
+
+        settings = streaming.settings(DEFAULT_LIFT_ANGLE_DEG, *move_window(self.params))
+        accumulator = streaming.accumulator()
+        for chunk in sim.samples(self.duration_s, self.command, self.every):
+            columns = [np.asarray(chunk[name], dtype=float).tolist() for name in streaming.SAMPLE_SIGNALS]
+            for row in zip(*columns):
+                streaming.add_sample(accumulator, settings, *row)
+            self.done_s = sim.t
+            yield chunk
+        self.most_substeps = sim.most_substeps
+        out = np.empty(len(streaming.NAMES))
+        streaming.finish(accumulator, settings, out)
+        self.metrics = dict(zip(streaming.NAMES, out.tolist()))
