@@ -37,9 +37,8 @@ needs_recover = pytest.mark.skipif(RECOVER is None, reason="boom-bag-recover not
 
 def _state(i: int, rng: random.Random) -> bytes:
     """Message i: its index in rod_position_m, the rest noise, so that chunks do not compress to nothing."""
-    return serialize_message(
-        DriveState(rod_position_m=float(i), p1_pa=rng.random(), p2_pa=rng.random(), rod_velocity_m_s=rng.random())
-    )
+    noise = ("rod_velocity_m_s", "piston_pressure_pa", "rod_pressure_pa")
+    return serialize_message(DriveState(rod_position_m=float(i), **{name: rng.random() for name in noise}))
 
 
 def _wait(condition, timeout_s: float = 60.0) -> bool:
