@@ -55,6 +55,7 @@ _HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK, _METADATA, _DATA_END = (
     0x0F,
 )
 _RECORD_HEAD = 9  # opcode (1 byte) and content length (uint64)
+_MESSAGE_HEAD = struct.Struct("<HIQQ")  # a message's channel id, sequence, log time, publish time
 
 
 class _CutError(Exception):
@@ -94,9 +95,6 @@ class _Cursor:
             key = inner.string()
             pairs[key] = inner.string()
         return pairs
-
-    def rest(self) -> memoryview:
-        return self.take(len(self.data) - self.pos)
 
 
 @dataclass
@@ -152,6 +150,15 @@ def _chunk_data(content: memoryview) -> memoryview:
 
 def _take_record(found: Salvage, opcode: int, content: memoryview) -> None:
     """Add a schema, channel or message record to ``found``."""
+    if opcode == _MESSAGE:  # the common case, read without the cursor's per-field checks
+        if len(content) < _MESSAGE_HEAD.size:
+            raise _CutError
+        cid, seq, log_ns, publish_ns = _MESSAGE_HEAD.unpack_from(content)
+        if cid in found.channels:
+            found.messages.append((cid, seq, log_ns, publish_ns, bytes(content[_MESSAGE_HEAD.size :])))
+        else:
+            found.orphans += 1
+        return
     cursor = _Cursor(content)
     if opcode == _SCHEMA:
         sid, name, encoding = cursor.uint(2), cursor.string(), cursor.string()
@@ -159,12 +166,6 @@ def _take_record(found: Salvage, opcode: int, content: memoryview) -> None:
     elif opcode == _CHANNEL:
         cid, sid, topic, encoding = cursor.uint(2), cursor.uint(2), cursor.string(), cursor.string()
         found.channels[cid] = (topic, encoding, sid, cursor.string_map())
-    elif opcode == _MESSAGE:
-        cid, seq, log_ns, publish_ns = cursor.uint(2), cursor.uint(4), cursor.uint(8), cursor.uint(8)
-        if cid in found.channels:
-            found.messages.append((cid, seq, log_ns, publish_ns, bytes(cursor.rest())))
-        else:
-            found.orphans += 1
 
 
 def _take_chunk(found: Salvage, content: memoryview) -> None:
