@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -53,6 +54,71 @@ def check_bag_path(path: Path) -> None:
         if _truncated(file):
             fix = f"run boom-bag-recover {path}" if path.is_dir() else "run boom-bag-recover on its bag folder"
             raise BagError(f"{file}: the file is truncated (its recorder was killed?); {fix} first")
+    if path.is_dir():
+        check_metadata(path / "metadata.yaml", files)
+
+
+#: What rosbags reads from metadata.yaml (rosbag2_bagfile_information), and the type it must have.
+_METADATA_KEYS = {
+    "version": int,
+    "storage_identifier": str,
+    "relative_file_paths": list,
+    "topics_with_message_count": list,
+    "duration": dict,
+    "starting_time": dict,
+    "message_count": int,
+}
+_TOPIC_KEYS = ("name", "type", "serialization_format")
+
+
+def check_metadata(file: Path, mcaps: list[Path]) -> None:
+    """Raise BagError naming what is wrong unless ``file`` is a readable rosbag2 metadata.yaml:
+    UTF-8 text, YAML that parses, and the shape a reader relies on. A damaged one is not
+    replaced here (it is the user's); the bag's .mcap file carries the same metadata."""
+    fix = (
+        f"read its MCAP file {mcaps[0]} directly (it carries the same metadata), or move the damaged file away "
+        "and run boom-bag-recover on the folder"
+        if len(mcaps) == 1
+        else "move the damaged file away and run boom-bag-recover on the folder"
+    )
+    try:
+        text = file.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise BagError(
+            f"{file}: is not UTF-8 text (byte {exc.start} is 0x{exc.object[exc.start]:02x}); {fix}"
+        ) from None
+    try:
+        content = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise BagError(f"{file}: is not valid YAML{where}; {fix}") from None
+    problem = _metadata_problem(content)
+    if problem:
+        raise BagError(f"{file}: is not rosbag2 bag metadata ({problem}); {fix}")
+
+
+def _metadata_problem(content: object) -> str | None:
+    """What is missing or of the wrong type in parsed metadata.yaml, or None."""
+    info = content.get("rosbag2_bagfile_information") if isinstance(content, dict) else None
+    if not isinstance(info, dict):
+        return "no rosbag2_bagfile_information mapping"
+    for key, kind in _METADATA_KEYS.items():
+        if not isinstance(info.get(key), kind) or isinstance(info.get(key), bool):
+            return f"{key} is missing or not a{'n' if kind is int else ''} {kind.__name__}"
+    if not all(isinstance(name, str) for name in info["relative_file_paths"]):
+        return "relative_file_paths holds something other than file names"
+    if not isinstance(info["duration"].get("nanoseconds"), int):
+        return "duration has no nanoseconds"
+    if not isinstance(info["starting_time"].get("nanoseconds_since_epoch"), int):
+        return "starting_time has no nanoseconds_since_epoch"
+    for entry in info["topics_with_message_count"]:
+        topic = entry.get("topic_metadata") if isinstance(entry, dict) else None
+        if not isinstance(topic, dict) or not all(isinstance(topic.get(k), str) for k in _TOPIC_KEYS):
+            return "a topic without name, type or serialization_format"
+        if not isinstance(entry.get("message_count"), int):
+            return f"topic {topic['name']} has no message_count"
+    return None
 
 
 def read_custom_data(bag: Path) -> dict[str, str] | None:
