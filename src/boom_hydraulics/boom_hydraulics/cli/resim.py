@@ -13,8 +13,11 @@ DriveState at each instant the node published one (rounded to the steps of a cha
 time_step_s), on the recorded topic (a namespaced run stays namespaced), and the original
 commands and parameter events, so both runs overlay sample for sample. Exact for runs
 recorded with publish_clock; with ROS-time stamps a command's time is known to within one
-publish period, and a run that was reset or paused cannot be replayed this way (the time
-origin moved). A run that cannot be simulated to its end writes nothing.
+publish period. A run whose drive was reset, or, on ROS-time stamps, paused, resumed or
+stepped, is refused (exit 2): its time line is not one continuous line from its origin
+(see bags.continuity). A run that cannot be simulated to its end writes nothing; an
+interrupted one (Ctrl-C: exit 130, SIGTERM: 143) neither, and a killed one's temporary
+folder is removed by the next run to the same --out.
 
 Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
 the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
@@ -27,9 +30,11 @@ not to the last bit.
 from __future__ import annotations
 
 import math
+import re
 import shutil
 import sys
 import tempfile
+import time
 from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -39,10 +44,11 @@ from typing import Any
 import yaml
 from rosbags.highlevel import AnyReader, AnyReaderError
 
+from ..bags import continuity
 from ..bags.encoding import DRIVE_STATE, drive_state_cdr
 from ..bags.reading import read_custom_data
-from ..bags.recording import BagRecorder, Topic, offered_qos, run_description
-from ..errors import BagError, ConfigError
+from ..bags.recording import BagRecorder, Topic, is_being_recorded, offered_qos, run_description
+from ..errors import BagError, ConfigError, RecordingError
 from ..files import check_apart
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
@@ -52,6 +58,10 @@ from ..solve.simulation import Simulator
 from .common import RaisingParser, run_main, summary
 
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
+DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
+#: The node's diagnostics status that counts resets, pauses and steps, and how far its origin moved.
+RUN_STATUS = "boom_sim: run"
+_RUN_KEYS = ("resets", "pauses", "step_calls", "clock_origin_shift_s")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 ARRAY_COMMAND = "std_msgs/msg/Float64MultiArray"
 PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
@@ -96,6 +106,28 @@ class RecordedRun:
     commands: list[Recorded]
     parameter_changes: list[Recorded]
     setpoints: list[tuple[int, float, float]] = field(default_factory=list)  # (stamp ns, rad, rad/s)
+    node: str | None = None  # the recording node's fully qualified name, where recorded
+    # the node's own count of what breaks the time line (its "boom_sim: run" diagnostics), the latest
+    run_counts: dict[str, float] = field(default_factory=dict)
+    # the recorded drive states' q1, v, a and supply energy, in stamp order (reset detection)
+    state_signals: tuple[list[float], ...] = ((), (), (), ())
+
+
+#: The DriveState fields the reset detection reads (bags.continuity.reset_from_states).
+_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "supply_energy_j")
+
+
+def _stamp_ns(msg: Any) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def _messages(reader: AnyReader, connections: Sequence[Any]):
+    """The messages of ``connections``, deserialised; none for no connections (rosbags reads an
+    empty list as every connection)."""
+    if not connections:
+        return
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        yield connection, log_ns, raw, reader.deserialize(raw, connection.msgtype)
 
 
 def _parameter_value(value: Any) -> Any:
@@ -104,6 +136,18 @@ def _parameter_value(value: Any) -> Any:
         return None
     raw = getattr(value, field_name)
     return [v.item() if hasattr(v, "item") else v for v in raw] if field_name.endswith("array_value") else raw
+
+
+def _run_values(values: Sequence[Any]) -> dict[str, float]:
+    """The counts of a "boom_sim: run" status (KeyValue text), those that read as numbers."""
+    out = {}
+    for kv in values:
+        if kv.key in _RUN_KEYS:
+            try:
+                out[kv.key] = float(kv.value)
+            except ValueError:
+                continue
+    return out
 
 
 def read_run(bag: Path) -> RecordedRun:
@@ -115,10 +159,9 @@ def read_run(bag: Path) -> RecordedRun:
     try:
         with AnyReader([bag]) as reader:
             states = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
-            state_ns = sorted(
-                msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                for c, _, raw in reader.messages(connections=states[:1])
-                if (msg := reader.deserialize(raw, c.msgtype))
+            recorded_states = sorted(
+                (_stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
+                for _, _, _, msg in _messages(reader, states[:1])
             )
             wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
             topics = [
@@ -129,13 +172,17 @@ def read_run(bag: Path) -> RecordedRun:
                 c for c in reader.connections if c.msgtype == JOINT_STATE and c.topic.endswith("/setpoint")
             ]
             setpoints = sorted(
-                (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg.position[0], msg.velocity[0])
-                for c, _, raw in reader.messages(connections=setpoint_topics[:1])
-                if (msg := reader.deserialize(raw, c.msgtype))
+                (_stamp_ns(msg), msg.position[0], msg.velocity[0])
+                for _, _, _, msg in _messages(reader, setpoint_topics[:1])
             )
+            run_counts: dict[str, float] = {}
+            diagnostics = [c for c in reader.connections if c.msgtype == DIAGNOSTICS]
+            for _, _, _, msg in _messages(reader, diagnostics):
+                for status in msg.status:
+                    if status.name == RUN_STATUS:
+                        run_counts.update(_run_values(status.values))
             commands, changes = [], []
-            for connection, log_ns, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, connection.msgtype)
+            for connection, log_ns, raw, msg in _messages(reader, wanted):
                 if connection.msgtype == PARAMETER_EVENT:
                     if node_name and msg.node != node_name:
                         continue
@@ -145,14 +192,17 @@ def read_run(bag: Path) -> RecordedRun:
                     continue
                 if connection.msgtype == VALVE_COMMAND:
                     # the node's rule: at its stamp, or when received if unstamped or already passed
-                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                    opening, at_ns = msg.opening, max(stamp_ns, log_ns)
+                    opening, at_ns = msg.opening, max(_stamp_ns(msg), log_ns)
                 else:
                     opening, at_ns = (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
                 commands.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening)))
             end_ns = reader.end_time
     except AnyReaderError as exc:
         raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
+    except (ValueError, KeyError, IndexError, AttributeError) as exc:  # a message of another layout than its type
+        raise BagError(
+            f"{bag}: a message does not fit its recorded type ({exc!r}); was it recorded by boom_sim?"
+        ) from None
     try:
         return RecordedRun(
             parameters=yaml.safe_load(custom["parameters"]),
@@ -161,14 +211,80 @@ def read_run(bag: Path) -> RecordedRun:
             command_timeout_s=float(custom["command_timeout_s"]),
             end_ns=end_ns,
             state_topic=states[0].topic if states else "/drive_state",
-            state_ns=state_ns,
+            state_ns=[row[0] for row in recorded_states],
             topics=topics,
             commands=commands,
             parameter_changes=sorted(changes, key=lambda r: r.at_ns),
             setpoints=setpoints,
+            node=node_name,
+            run_counts=run_counts,
+            state_signals=tuple(list(column) for column in zip(*recorded_states))[1:] or ((), (), (), ()),
         )
     except (KeyError, ValueError, yaml.YAMLError) as exc:
         raise BagError(f"{bag}: the recorded run description is unreadable ({exc})") from None
+
+
+_WHY = "a re-simulation replays the commands on one continuous time line from the run's origin"
+
+
+def check_calls(bag: Path) -> None:
+    """Raise ConfigError, saying why, if the node recorded calls of its services that broke the
+    run's time line: a reset jumps the state; on ROS-time stamps (a node without publish_clock)
+    a pause, resume or step also moved the node's time origin. With publish_clock the stamps
+    are simulated time itself, which pauses and steps do not break: those runs are re-simulated.
+    Read before the rest of the bag, from the recorded custom data and the events alone."""
+    custom = read_custom_data(bag) or {}
+    try:
+        origin_ns = int(custom.get("clock_origin_ns", "0"))
+    except ValueError:
+        return  # read_run names the unreadable description
+    sim_time = origin_ns == 0  # publish_clock: simulated time 0 is stamp 0
+    calls = continuity.recorded_calls(bag, custom.get("node"), origin_ns)
+    breaking = ("reset",) if sim_time else tuple(continuity.SERVICES)
+    found = continuity.Calls({s: n for s, n in calls.counts.items() if s in breaking}, calls.first_s)
+    if found.total():
+        fix = "Record the run without resets" + (
+            "" if sim_time else ", pauses or steps, or with publish_clock:=true, whose time line pauses and steps keep"
+        )
+        what = f"the run was {continuity.describe(found)}"
+        raise ConfigError(f"{bag}: {what}; {_WHY}, so it cannot reproduce this run. {fix}")
+
+
+def check_counts(bag: Path, run: RecordedRun) -> None:
+    """Raise ConfigError if the node's own diagnostics count resets, or, on ROS-time stamps,
+    pauses, steps or a moved time origin (a resume, a dropped backlog)."""
+    counts = run.run_counts
+    sim_time = run.clock_origin_ns == 0
+    found = continuity.Calls()
+    found.counts = {"reset": int(counts.get("resets", 0))}
+    if not sim_time:
+        found.counts.update(pause=int(counts.get("pauses", 0)), step=int(counts.get("step_calls", 0)))
+    if found.total():
+        what = f"the node counted {continuity.describe(found, with_times=False)} in its diagnostics"
+        raise ConfigError(f"{bag}: {what}; {_WHY}, so it cannot reproduce this run. Record the run without them")
+    shift_s = counts.get("clock_origin_shift_s", 0.0)
+    if not sim_time and abs(shift_s) > 0.5e-6:
+        raise ConfigError(
+            f"{bag}: the node's time origin moved by {shift_s:.6f} s during the run (it was resumed, or fell behind "
+            f"real time and dropped the backlog); {_WHY}, so it cannot reproduce this run. Record it with "
+            "publish_clock:=true, whose stamps are simulated time"
+        )
+
+
+def check_states(bag: Path, run: RecordedRun) -> None:
+    """Raise ConfigError if the recorded drive states show a reset (for bags from before the
+    node recorded its service calls, and for a reset by a ROS clock that jumped back)."""
+    check_counts(bag, run)
+    if not run.state_ns:
+        return
+    k = continuity.reset_from_states(run.state_ns, *run.state_signals)
+    if k is not None:
+        t = (run.state_ns[k] - run.clock_origin_ns) * 1e-9
+        raise ConfigError(
+            f"{bag}: the run appears to have been reset at t = {t:.3f} s (its supply energy, counted since start "
+            f"or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it cannot reproduce this "
+            "run. Record the run without resets"
+        )
 
 
 class _Resimulation:
@@ -254,15 +370,70 @@ def _grid(run: RecordedRun, time_step_s: float) -> list[int]:
     return [run.clock_origin_ns + round((k + 1) * tick_s * 1e9) for k in range(n_ticks)]
 
 
+#: An unfinished staging folder this old, with no live bag in it, was left by a killed run (s).
+STALE_AFTER_S = 60.0
+
+
+def _staging_pattern(out: Path) -> re.Pattern[str]:
+    """The names of the staging folders of runs to ``out``: ``.NAME.xxxxxxxx.partial`` (tempfile.mkdtemp)."""
+    return re.compile(rf"\.{re.escape(out.name)}\.[A-Za-z0-9_]{{8}}\.partial")
+
+
+def _left_by_a_killed_run(folder: Path) -> bool:
+    """A staging folder of ours whose run is gone: no MCAP file in it is held by a live
+    recorder, and it has one (or is old enough that its run would have made one)."""
+    mcaps = list(folder.glob("*/*.mcap"))
+    if any(is_being_recorded(f) for f in mcaps):
+        return False
+    return bool(mcaps) or time.time() - folder.stat().st_mtime > STALE_AFTER_S
+
+
+def remove_stale_staging(out: Path) -> list[Path]:
+    """Remove the staging folders that killed runs (SIGKILL, power loss) to this same ``out``
+    left beside it; only folders of this tool's own pattern for ``out``. Returns them."""
+    if not out.parent.is_dir():
+        return []
+    pattern = _staging_pattern(out)
+    removed = []
+    for folder in sorted(out.parent.iterdir()):
+        if folder.is_dir() and not folder.is_symlink() and pattern.fullmatch(folder.name):
+            if _left_by_a_killed_run(folder):
+                shutil.rmtree(folder, ignore_errors=True)
+                removed.append(folder)
+    return removed
+
+
+def _progress(total: int):
+    """A progress bar over the state instants, as boom-sweep shows it: on stderr, only when
+    it is a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="state", disable=None, file=sys.stderr, leave=False)
+
+
+def _write_failure(out: Path, recorder: BagRecorder) -> RecordingError:
+    """The one line for a new bag the disk did not take (full, I/O error): its name and the cause."""
+    cause = (recorder.error or "").removeprefix(f"{recorder.file}: ").split("; recording stopped")[0]
+    return RecordingError(
+        f"{out}: cannot write the new bag ({cause or 'the disk failed'}); nothing was written. "
+        f"Free space in {out.parent} or choose another --out"
+    )
+
+
 def resimulate(
     bag: Path, out: Path, config_file: Path | None = None, overrides: Mapping[str, Any] = ()
 ) -> tuple[Path, int]:
     """Write a new bag of the recorded commands through the model with the new parameters;
-    returns the bag and its DriveState count. Raises SimulationError if the run stops early."""
+    returns the bag and its DriveState count. Raises SimulationError if the run stops early,
+    ConfigError if the run cannot be re-simulated (reset, or paused on ROS-time stamps)."""
     check_apart(out, [bag] + ([config_file] if config_file else []))
     if out.exists():
         raise ConfigError(f"--out {out} exists already; name a new bag folder")
+    for folder in remove_stale_staging(out):
+        print(f"boom-resim: note: removed {folder}, left by an earlier run to {out} that was killed", file=sys.stderr)
+    check_calls(bag)
     run = read_run(bag)
+    check_states(bag, run)
     values = dict(run.parameters) if config_file is None else config.read_values(config_file)
     retired = sorted(name for name in values if name not in NAMES) if config_file is None else []
     if retired:  # recorded by an earlier version of the model: what it no longer has cannot apply
@@ -288,8 +459,12 @@ def resimulate(
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
-        with BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder:
-            for at_ns in instants:  # the recorded run's state instants: runs overlay sample for sample
+        with (
+            BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
+            _progress(len(instants)) as progress,
+        ):
+            for at_ns in instants:
+                progress.update()  # the recorded run's state instants: runs overlay sample for sample
                 steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
                 if steps <= 0:
                     continue
@@ -305,6 +480,10 @@ def resimulate(
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
                 recorder.write(run.state_topic, stamp_ns, drive_state_cdr(resim.sim.outputs(), stamp_ns))
+                if recorder.error is not None:  # the disk failed: stop here, nothing is kept
+                    break
+        if recorder.error is not None or not getattr(recorder, "finished", True):
+            raise _write_failure(out, recorder)
         (staging / "bag").rename(out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # created by this run
@@ -320,7 +499,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.add_argument("--out", type=Path, required=True, help="new bag folder (must not exist)")
         args = parser.parse_args(argv)
         overrides = dict(config.parse_assignment(s) for s in args.set)
-        folder, states = resimulate(args.bag, args.out, args.config, overrides)
+        folder, states = resimulate(args.bag, args.out, args.config, overrides)  # Ctrl-C, SIGTERM: nothing kept
         print(f"boom-resim: {states} drive states in {folder}")
         return 0
 
