@@ -6,6 +6,7 @@ prefix never keeps fewer messages. An interrupted run leaves a state a rerun fin
 
 from __future__ import annotations
 
+import fcntl
 import os
 import random
 import shutil
@@ -204,3 +205,21 @@ def test_a_damaged_file_beside_an_unfinished_one_is_still_refused(tmp_path, big_
     result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
     assert result.returncode == 1 and "exists already; move it out" in result.stderr
     assert (bag / f"{bag.name}_0.mcap.damaged").read_bytes() == b"the user's"
+
+
+def test_a_second_run_on_the_same_bag_is_refused_and_touches_nothing(tmp_path, big_file):
+    bag, _ = _killed(tmp_path, big_file)
+    busy = bag / f".{bag.name}_0.mcap.0123abcd.partial"
+    busy.write_bytes(b"the first run's file in progress")
+    fd = os.open(bag, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # what a run in progress holds
+        result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    finally:
+        os.close(fd)
+    assert result.returncode == 1
+    assert (
+        result.stderr.strip()
+        == f"boom-bag-recover: error: {bag}: another boom-bag-recover is working on it; wait for it to end"
+    )
+    assert busy.exists() and not (bag / "metadata.yaml").exists()

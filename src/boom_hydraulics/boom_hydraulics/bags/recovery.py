@@ -24,6 +24,7 @@ until it finishes or dies.
 
 from __future__ import annotations
 
+import fcntl
 import mmap
 import os
 import re
@@ -377,9 +378,26 @@ def _read(source: Path) -> Salvage:
 
 
 def recover(bag: Path) -> Recovery:
-    """Finish ``bag`` (folder) in place; see the module's description for the order of steps."""
+    """Finish ``bag`` (folder) in place; see the module's description for the order of steps.
+    One run at a time per bag (a lock on the folder): a second run would take the first
+    one's temporary files for leftovers."""
     if not bag.is_dir():
         raise BagError(f"{bag}: not a bag folder")
+    try:
+        fd = os.open(bag, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except OSError as exc:
+        raise BagError(f"{bag}: cannot open the bag folder ({exc.strerror})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise BagError(f"{bag}: another boom-bag-recover is working on it; wait for it to end") from None
+        return _recover(bag)
+    finally:
+        os.close(fd)
+
+
+def _recover(bag: Path) -> Recovery:
     name = _mcap_name(bag)
     target, kept = bag / name, bag / f"{name}{DAMAGED_SUFFIX}"
     if target.exists() and is_being_recorded(target):
