@@ -111,15 +111,100 @@ def _sparse_bag(folder, clock: bool = False):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, sig):
     _sparse_bag(tmp_path / "run")
+    rclpy.init()
+    node = rclpy.create_node("replay_signal_listener")
+    got = []
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    node.create_subscription(DriveState, "/drive_state", got.append, qos)
+    node.create_subscription(ValveCommand, "/valve_command", got.append, qos)
+    # by default it waits for these subscribers, so the first messages (t = 0) arrive
     proc = subprocess.Popen([BOOM_REPLAY, tmp_path / "run"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(3.0)  # started, published the first messages, waiting 20 s for the next
-    sent = time.monotonic()
-    proc.send_signal(sig)
-    out, err = proc.communicate(timeout=20)
+    try:
+        deadline = time.monotonic() + 30
+        while len(got) < 2 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        assert len(got) == 2, "the first messages did not arrive"
+        sent = time.monotonic()  # it is waiting 20 s for the next messages now
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        node.destroy_node()
+        rclpy.shutdown()
     # it waits in 50 ms slices; a bound far below the 20 s gap, loose for a loaded machine
     assert time.monotonic() - sent < 5.0
     assert proc.returncode == 0 and "Traceback" not in err
     assert "published 2 messages" in out
+
+
+def test_replay_waits_for_subscribers_by_default(tmp_path):
+    """As a user meets it: start boom-replay, then the listener; no message is lost to discovery."""
+    _bag(tmp_path / "run")
+    proc = subprocess.Popen(
+        [BOOM_REPLAY, tmp_path / "run", "--topics", "/drive_state"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    rclpy.init()
+    node = rclpy.create_node("late_listener")
+    received: list[float] = []
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    try:
+        node.create_subscription(DriveState, "/drive_state", lambda m: received.append(m.rod_position_m), qos)
+        deadline = time.monotonic() + 30
+        while proc.poll() is None and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.02)
+        for _ in range(20):
+            rclpy.spin_once(node, timeout_sec=0.02)
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+    out, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert len(received) == 60 and "published 60 messages" in out
+
+
+def test_replay_without_waiting_and_without_subscribers_replays_at_once(tmp_path):
+    _bag(tmp_path / "run")
+    result = subprocess.run([BOOM_REPLAY, tmp_path / "run", "--no-wait"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "published 61 messages" in result.stdout and "note" not in result.stderr
+
+
+def test_replay_without_subscribers_replays_after_the_wait_with_a_note(tmp_path):
+    _bag(tmp_path / "run")
+    result = subprocess.run(
+        [BOOM_REPLAY, tmp_path / "run", "--wait-timeout", "0.2"], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    assert "note: no subscriber on" in result.stderr and "replaying anyway" in result.stderr
+    assert "published 61 messages" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--start", "inf"], "--start inf"),
+        (["--start", "nan"], "--start nan"),
+        (["--start", "-1"], "--start -1"),
+        (["--rate", "0"], "--rate 0"),
+        (["--rate", "inf"], "--rate inf"),
+        (["--rate", "nan"], "--rate nan"),
+        (["--wait-timeout=-inf"], "--wait-timeout -inf"),
+        (["--wait-timeout", "0"], "--wait-timeout 0"),
+        (["--start", "5"], "--start 5 s is past the bag's end"),
+        (["--rate", "fast"], "invalid float value"),
+        (["--no-wait", "--wait-for-subscribers"], "not allowed with argument"),
+    ],
+)
+def test_bad_numbers_are_refused_in_one_line(tmp_path, args, option):
+    _bag(tmp_path / "run")
+    result = subprocess.run([BOOM_REPLAY, tmp_path / "run", *args], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert option in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and result.stderr.startswith("boom-replay: error: ")
 
 
 def test_replay_offers_the_recorded_qos_and_one_clock(tmp_path):

@@ -3,19 +3,24 @@
     boom-replay bags/20261122-044106_boom_sim
     boom-replay run.mcap --rate 4 --topics /drive_state /joint_states --start 2.5 --loop --clock
     boom-replay run.mcap --wait-for-subscribers --wait-timeout 60
+    boom-replay run.mcap --no-wait
 
 Messages keep their recorded spacing (divided by --rate); --start skips the first
 seconds. Each topic is offered the QoS its recorded publishers offered (as ros2 bag play
 does: their common profile, or reliable and volatile where they differed). --clock
 publishes /clock with each message's recorded time, so nodes with use_sim_time follow the
 bag; a bag that holds /clock itself is replayed with its own /clock only.
---wait-for-subscribers starts once every topic that has messages to replay has a
-subscriber, or fails after --wait-timeout seconds. SIGINT and SIGTERM stop it at once.
+By default it starts once every topic that has messages to replay has a subscriber, or
+after --wait-timeout seconds with a note naming the topics nobody subscribed to: DDS
+discovery takes a second or two, and messages published before it would be lost.
+--wait-for-subscribers fails instead when the wait times out; --no-wait starts at once.
+SIGINT and SIGTERM stop it at once.
 """
 
 from __future__ import annotations
 
 import importlib
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -67,14 +72,26 @@ def _sleep(seconds: float) -> bool:
     return rclpy.ok()
 
 
-def _wait_for_subscribers(node, publishers: Sequence, timeout_s: float) -> bool:
+#: How boom-replay waits for subscribers before it starts.
+WAITS = ("lenient", "strict", "none")
+
+
+def _wait_for_subscribers(node, publishers: Sequence, timeout_s: float, strict: bool) -> bool:
+    """Wait until every publisher has a subscriber; after ``timeout_s``, fail (strict) or go on
+    with a note. False if a signal shut the context down meanwhile."""
     deadline = time.monotonic() + timeout_s
     while any(p.get_subscription_count() == 0 for p in publishers):
         if not rclpy.ok():
             return False
         if time.monotonic() > deadline:
             topics = ", ".join(p.topic_name for p in publishers if p.get_subscription_count() == 0)
-            raise BagError(f"no subscriber appeared within {timeout_s:g} s on {topics} (--wait-timeout)")
+            if strict:
+                raise BagError(f"no subscriber appeared within {timeout_s:g} s on {topics} (--wait-timeout)")
+            print(
+                f"boom-replay: note: no subscriber on {topics} after {timeout_s:g} s; replaying anyway",
+                file=sys.stderr,
+            )
+            return True
         rclpy.spin_once(node, timeout_sec=_SLICE_S)
     return True
 
@@ -86,10 +103,11 @@ def replay(
     start_s: float,
     loop: bool,
     clock: bool,
-    wait: bool = False,
-    wait_timeout_s: float = 30.0,
+    wait: str = "lenient",
+    wait_timeout_s: float = 10.0,
 ) -> int:
-    """Publish the bag's messages; returns how many were published."""
+    """Publish the bag's messages; returns how many were published. ``wait``: one of
+    :data:`WAITS` (for subscribers, up to ``wait_timeout_s``: then go on, or fail; or not)."""
     check_bag_path(bag)
     try:
         reader = AnyReader([bag])
@@ -112,11 +130,15 @@ def replay(
         clock_pub = node.create_publisher(Clock, "/clock", 10) if clock and not has_clock else None
         if clock and has_clock:
             print("boom-replay: the bag has /clock; replaying its own", file=sys.stderr)
-        if wait:
-            waited_for = [publishers[c.id] for c in connections if c.msgcount > 0]
-            if not _wait_for_subscribers(node, waited_for, wait_timeout_s):
-                return published
         first = reader.start_time + round(start_s * 1e9)
+        if first >= reader.end_time:
+            length_s = (reader.end_time - reader.start_time) * 1e-9
+            raise ConfigError(f"--start {start_s:g} s is past the bag's end ({length_s:.3f} s of messages)")
+        if wait != "none":
+            waited_for = [publishers[c.id] for c in connections if c.msgcount > 0]
+            if not _wait_for_subscribers(node, waited_for, wait_timeout_s, strict=wait == "strict"):
+                return published
+        print(f"boom-replay: replaying {bag}", file=sys.stderr)
         while True:
             wall0 = time.monotonic()
             for connection, log_ns, raw in reader.messages(connections=connections, start=first):
@@ -140,6 +162,12 @@ def replay(
     return published
 
 
+def check_number(option: str, value: float, expected: str, fits) -> None:
+    """Raise ConfigError unless ``value`` is finite and ``fits``: one line naming the option."""
+    if not math.isfinite(value) or not fits(value):
+        raise ConfigError(f"{option} {value:g}: expected {expected}, a finite number")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     def body() -> int:
         parser = RaisingParser(prog="boom-replay", description=summary(__doc__))
@@ -149,17 +177,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.add_argument("--start", type=float, default=0.0, help="skip this many seconds from the start")
         parser.add_argument("--loop", action="store_true", help="play again and again until Ctrl-C")
         parser.add_argument("--clock", action="store_true", help="publish /clock with the recorded times")
-        parser.add_argument(
+        waiting = parser.add_mutually_exclusive_group()
+        waiting.add_argument(
             "--wait-for-subscribers",
-            action="store_true",
-            help="start once every topic with messages to replay has a subscriber",
+            action="store_const",
+            dest="wait",
+            const="strict",
+            default="lenient",
+            help="fail unless every topic with messages to replay has a subscriber within --wait-timeout "
+            "(by default it waits as long and then replays anyway)",
+        )
+        waiting.add_argument(
+            "--no-wait", action="store_const", dest="wait", const="none", help="start at once, subscribers or not"
         )
         parser.add_argument(
-            "--wait-timeout", type=float, default=30.0, help="seconds --wait-for-subscribers waits (default 30)"
+            "--wait-timeout", type=float, default=10.0, help="seconds to wait for subscribers (default 10)"
         )
         args = parser.parse_args(argv)
-        if not args.rate > 0 or args.start < 0 or not args.wait_timeout > 0:
-            raise ConfigError("--rate and --wait-timeout must be > 0 and --start >= 0")
+        check_number("--rate", args.rate, "a speed factor > 0", lambda v: v > 0)
+        check_number("--start", args.start, "a number of seconds >= 0", lambda v: v >= 0)
+        check_number("--wait-timeout", args.wait_timeout, "a number of seconds > 0", lambda v: v > 0)
         count = replay(
             args.bag,
             args.rate,
@@ -167,7 +204,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.start,
             args.loop,
             args.clock,
-            args.wait_for_subscribers,
+            args.wait,
             args.wait_timeout,
         )
         print(f"boom-replay: published {count} messages from {args.bag}")
