@@ -166,11 +166,29 @@ def test_an_unreachable_scheduler_is_named_and_leaves_no_folder(tmp_path):
     assert not (tmp_path / "s").exists()
 
 
-def test_a_folder_that_is_not_a_sweep_is_not_touched(tmp_path):
+def test_a_folder_holding_other_files_takes_the_sweep_and_keeps_them(tmp_path):
+    """--out . is fine: the sweep writes only its own names beside the user's files."""
     (tmp_path / "notes.txt").write_text("mine")
+    result = _sweep(
+        "--vary", "payload=0", "--duration", "0.5", "--lift-angle-deg", "8", "--no-plots", "--out", tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "batches",
+        "notes.txt",
+        "results.csv",
+        "results.npz",
+        "sweep.json",
+    ]
+
+
+def test_a_folder_holding_a_file_of_the_sweeps_names_but_no_sweep_is_not_touched(tmp_path):
+    (tmp_path / "results.csv").write_text("mine")
     result = _sweep("--vary", "payload=0", "--out", tmp_path)
-    assert result.returncode == 2 and "is not a sweep folder" in result.stderr
-    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "holds results.csv but no sweep.json" in result.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["results.csv"] and (tmp_path / "results.csv").read_text() == "mine"
 
 
 SPREAD = ["--vary", "piston_diameter=0.032,0.06", "--vary", "payload=0,200", "--duration", "3"]

@@ -25,10 +25,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shlex
+import signal
 import sys
+import threading
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +44,8 @@ from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..sweeps import recommend, sweep
 from ..sweeps.executors import DaskExecutor, LocalExecutor
-from ..sweeps.sampling import SAMPLES, parse_axis, resolve_name
-from ..sweeps.store import SweepStore, stored_request
+from ..sweeps.sampling import SAMPLES, parse_axis, point_count, resolve_name
+from ..sweeps.store import OUTPUTS, SweepStore, plot_names
 from .common import DefaultsFormatter, RaisingParser, run_main
 
 #: Points integrated together unless --batch-size says otherwise: larger batches spend
@@ -159,6 +163,27 @@ def _resume_command(argv: Sequence[str], out: Path, args: argparse.Namespace) ->
     return shlex.join(words)
 
 
+def check_numbers(args: argparse.Namespace) -> None:
+    """Refuse, in one line, numbers that make no sense, before anything is read or planned."""
+    for name in ("duration", "lift_angle_deg", "max_pressure_pa", "max_lift_time_s", "scheduler_timeout"):
+        value = getattr(args, name)
+        if value is not None and not math.isfinite(value):
+            raise ConfigError(f"--{name.replace('_', '-')} must be a finite number, got {value}")
+    sweep.check_duration(args.duration)
+    if not args.scheduler_timeout > 0:
+        raise ConfigError(f"--scheduler-timeout must be > 0 s, got {args.scheduler_timeout}")
+    for name, least in (("samples", 0), ("seed", 0), ("every", 1), ("batch_size", 1), ("workers", 1), ("top", 1)):
+        value = getattr(args, name)
+        if value is not None and value < least:
+            raise ConfigError(f"--{name.replace('_', '-')} must be a whole number >= {least}, got {value}")
+    cores = os.cpu_count() or 1
+    if args.workers is not None and args.workers > cores:
+        raise ConfigError(
+            f"--workers {args.workers}: this machine has {cores} cores, and each worker process runs on a share "
+            "of them; give at most that many, or --scheduler to use a larger cluster"
+        )
+
+
 def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None) -> None:
     """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
     names = list(table)
@@ -180,50 +205,124 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    configs = load_configs(args.config, args.set)
-    axes = [parse_axis(text) for text in args.vary]
+def _settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of sweep.request and sweep.plan that the options give."""
+    return {
+        "scenario": args.scenario,
+        "duration_s": args.duration,
+        "sample": args.sample,
+        "count": args.samples,
+        "seed": args.seed,
+        "lift_angle_deg": args.lift_angle_deg,
+        "every": args.every,
+    }
 
-    def make_plan(batch_size: int) -> sweep.Plan:
-        return sweep.plan(
-            configs,
-            axes,
-            scenario=args.scenario,
-            duration_s=args.duration,
-            sample=args.sample,
-            count=args.samples,
-            seed=args.seed,
-            lift_angle_deg=args.lift_angle_deg,
-            every=args.every,
-            batch_size=batch_size,
+
+def _batch_size(args: argparse.Namespace, stored: Mapping[str, Any] | None, points: int) -> int:
+    """Points a batch: those a resumed sweep began with, else --batch-size, or, with --workers and no
+    --batch-size, fewer than BATCH_SIZE where that gives every worker a batch."""
+    if args.batch_size is None and stored is not None:
+        return int(stored["batch_size"])  # resume in the batches it began with, wherever it runs now
+    if args.batch_size is None and args.workers:
+        share = math.ceil(points / args.workers)
+        return share if 0 < share < BATCH_SIZE else BATCH_SIZE
+    return args.batch_size or BATCH_SIZE
+
+
+def _stored_parts(store: SweepStore, plan: sweep.Plan) -> tuple[list[dict[str, np.ndarray]], set[int]]:
+    """The rows of the batches stored before, checked to be this plan's; and their indices."""
+    columns = ["point", "status", "reason", "failed_at_s", *sweep.METRIC_NAMES]
+    by_index = {b.index: b for b in plan.batches}
+    parts, done = [], set()
+    for index in sorted(store.done()):
+        batch = by_index.get(index)
+        if batch is None:
+            raise ConfigError(
+                f"{store.path(index)} is not a batch of this sweep (it has {len(plan.batches)}); move it out "
+                f"of {store.batches} and run the same command again"
+            )
+        rows = store.load(index, batch.points, columns)
+        if rows is not None:
+            parts.append(rows)
+            done.add(index)
+    return parts, done
+
+
+@dataclass
+class _Reached:
+    """How far a sweep got, for the line it ends with if it is interrupted."""
+
+    out: Path | None = None
+    store: SweepStore | None = None
+    plan: sweep.Plan | None = None
+
+    def interrupted(self, argv: Sequence[str], args: argparse.Namespace) -> str:
+        """What is kept, and how to go on."""
+        done = len(self.store.done()) if self.store is not None else 0
+        if self.out is None or done == 0:
+            return "boom-sweep: interrupted before a batch finished; nothing was stored"
+        total = f" of {len(self.plan.batches)}" if self.plan is not None else ""
+        return (
+            f"boom-sweep: interrupted; {done}{total} batches are stored in {self.out}; "
+            f"finish with: {_resume_command(argv, self.out, args)}"
         )
 
+
+def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """The sweep; Ctrl-C (or SIGTERM) at any moment ends it with one line and exit 130."""
+    reached = _Reached()
+    try:
+        return _sweep(args, argv, reached)
+    except KeyboardInterrupt:
+        print(reached.interrupted(argv, args), file=sys.stderr)
+        return 130
+
+
+def _sweep(args: argparse.Namespace, argv: Sequence[str], reached: _Reached) -> int:
+    check_numbers(args)
+    configs = load_configs(args.config, args.set)
+    axes = [parse_axis(text) for text in args.vary]
+    across = [resolve_name(name) for name in args.across]
     out = args.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
     check_apart(out, [Path(c) for c in args.config or []])
-    stored = stored_request(out) if args.resume else None
-    if args.batch_size is None and stored and isinstance(stored.get("batch_size"), int):
-        plan = make_plan(stored["batch_size"])  # resume in the batches it began with, wherever it runs now
-    else:
-        plan = make_plan(args.batch_size or BATCH_SIZE)
-        if args.batch_size is None and args.workers:  # a batch for every worker
-            share = math.ceil((plan.size - len(plan.invalid)) / args.workers)
-            if 0 < share < BATCH_SIZE:
-                plan = make_plan(share)
-    table_columns = [*plan.columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES]
-    constraints = constraints_of(args, table_columns)
-    across = [resolve_name(name) for name in args.across]
-    recommend.check_across(across, plan.columns)  # before the work, not after it
-    if args.top < 1:
-        raise ConfigError(f"--top must be >= 1, got {args.top}")
-    store = SweepStore(out, plan.request, args.resume)
-    parts = []
-    done = store.done()
-    for index in sorted(done):
-        rows = store.load(index)
-        if rows is None:
-            done.discard(index)
-        else:
-            parts.append(rows)
+    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
+    recommend.check_across(across, columns)  # before the work, not after it
+    constraints = constraints_of(args, [*columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES])
+    store = SweepStore(out, args.resume, [*OUTPUTS, *plot_names(columns)])
+    reached.out, reached.store = out, store
+    points = len(configs) * point_count(axes, args.sample, args.samples)
+    batch_size = _batch_size(args, store.stored, points)
+    settings = _settings(args)
+    cost = sweep.estimate(configs, axes, duration_s=args.duration, sample=args.sample, count=args.samples,
+                          batch_size=batch_size)  # fmt: skip
+    sweep.check_fits(cost)
+    if store.stored is not None:  # the folder's sweep must be this one: known before planning it
+        store.begin(sweep.request(configs, axes, batch_size=batch_size, **settings))
+    for path in store.removed:
+        print(f"boom-sweep: note: removed {path}, left unfinished by an earlier run that was stopped", file=sys.stderr)
+    if cost.plan_s >= 1:
+        print(
+            f"boom-sweep: planning {cost.points} points in {cost.batches} or more batches "
+            f"({sweep.duration_text(cost.plan_s)}); to run: {cost.run_time(cost.points, os.cpu_count() or 1)}",
+            file=sys.stderr,
+            flush=True,
+        )
+    plan = reached.plan = sweep.plan(configs, axes, batch_size=batch_size, **settings)
+    store.begin(plan.request)
+    return _run_plan(args, out, store, plan, cost, constraints, across)
+
+
+def _run_plan(
+    args: argparse.Namespace,
+    out: Path,
+    store: SweepStore,
+    plan: sweep.Plan,
+    cost: sweep.Estimate,
+    constraints: Sequence[recommend.Constraint],
+    across: Sequence[str],
+) -> int:
+    """Run what is not stored yet, storing each batch as it finishes; then the table, plots and ranking."""
+    parts, done = _stored_parts(store, plan)
     todo = [b for b in plan.batches if b.index not in done]
     executor = (
         DaskExecutor(args.scheduler, args.workers, args.scheduler_timeout)
@@ -234,8 +333,9 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     print(
         f"boom-sweep: {plan.size} points ({len(plan.invalid)} invalid) in {len(plan.batches)} batches of up to "
         f"{plan.request['batch_size']}; {len(plan.batches) - len(todo)} done before, {len(todo)} to run "
-        f"{executor.description}",
+        f"{executor.description} ({cost.run_time(sum(len(b.points) for b in todo), os.cpu_count() or 1)})",
         file=sys.stderr,
+        flush=True,
     )
     from tqdm import tqdm
 
@@ -247,19 +347,11 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         file=sys.stderr,
     )
     started = time.perf_counter()
-    try:
-        with executor, progress:
-            for batch, rows in executor.map(sweep.run_batch, todo):
-                store.save(batch.index, rows)
-                parts.append(rows)
-                progress.update(len(batch.points))
-    except KeyboardInterrupt:
-        print(
-            f"\nboom-sweep: interrupted; {len(store.done())} of {len(plan.batches)} batches are stored in {out}. "
-            f"Finish with:\n  {_resume_command(argv, out, args)}",
-            file=sys.stderr,
-        )
-        return 130
+    with executor, progress:
+        for batch, rows in executor.map(sweep.run_batch, todo):
+            store.save(batch.index, rows)
+            parts.append(rows)
+            progress.update(len(batch.points))
     seconds = time.perf_counter() - started
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
@@ -282,18 +374,24 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     return 0
 
 
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM ends a sweep as Ctrl-C does: what is stored stays, nothing is left half-written."""
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
 
     def body() -> int:
-        args = build_parser().parse_args(words)
-        for name in ("duration", "lift_angle_deg", "max_pressure_pa", "max_lift_time_s"):
-            value = getattr(args, name)
-            if value is not None and not math.isfinite(value):
-                raise ConfigError(f"--{name.replace('_', '-')} must be a finite number, got {value}")
-        return run(args, words)
+        return run(build_parser().parse_args(words), words)
 
-    return run_main("boom-sweep", body)
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        return run_main("boom-sweep", body)
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return run_main("boom-sweep", body)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ any order), so the caller can store every result as soon as it exists. Leaving t
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import uuid
 from collections.abc import Callable, Iterable, Iterator
@@ -31,6 +32,16 @@ def _environment(**values: str) -> Iterator[None]:
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
+
+
+def _close_quietly(clusters: Iterable[Any]) -> None:
+    """Close clusters whose start was interrupted (this executor never got hold of them), so that
+    distributed's exit hook does not try again and print a traceback about their half-made workers."""
+    logging.getLogger("asyncio").setLevel(logging.CRITICAL)  # the workers' start tasks that were cut off
+    for cluster in clusters:
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=1)
+        cluster.shutdown_on_close = False
 
 
 class LocalExecutor:
@@ -72,7 +83,9 @@ class DaskExecutor:
 
     def __enter__(self) -> DaskExecutor:
         from distributed import Client, LocalCluster
+        from distributed.deploy.spec import SpecCluster
 
+        before = set(SpecCluster._instances)
         try:
             if self.scheduler is not None:
                 self.client = Client(self.scheduler, timeout=f"{self.connect_s}s")
@@ -91,6 +104,10 @@ class DaskExecutor:
                 f"cannot reach {where}: {exc}; start one with 'dask scheduler' and 'dask worker ADDRESS', "
                 "or leave out --scheduler to run in this process"
             ) from None
+        except BaseException:  # Ctrl-C while the cluster starts: end what had started, quietly
+            self.__exit__()
+            _close_quietly(set(SpecCluster._instances) - before)
+            raise
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -11,6 +11,7 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..files import atomic_path
 from .recommend import TRADE_OFF, format_value, trade_off_front
 
 #: Metrics plotted against the varied parameters: (column, label, scale).
@@ -28,6 +29,12 @@ PLOTTED = (
     ("cavitation_s", "cavitation [s]", 1.0),
     ("relief_s", "relief open [s]", 1.0),
 )
+
+
+def _save(fig, path: Path) -> None:
+    """The figure as PNG at ``path``, whole or not at all (an interrupted plot leaves the old one)."""
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
 
 
 def _numeric(column: np.ndarray) -> bool:
@@ -55,7 +62,7 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
         + (f" by {color_by}" if color_by else "")
         + f", {int((~ok).sum())} others (x)"
     )
-    fig.savefig(path, dpi=100)
+    _save(fig, path)
     plt.close(fig)
 
 
@@ -100,7 +107,7 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
         f"Trade-off: {int(front.sum())} non-dominated of {int(ok.sum())} ok designs "
         "(lower lift time, energy and peak pressure are better)"
     )
-    fig.savefig(path, dpi=100)
+    _save(fig, path)
     plt.close(fig)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import difflib
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,11 +31,44 @@ SAMPLES = ("grid", "list", "random", "lhs")
 
 
 @dataclass(frozen=True)
+class Spacing(Sequence):
+    """``count`` values evenly spaced from ``low`` to ``high`` (in the logarithm with ``log``), computed
+    only when read: a sweep says how many points an axis gives, and refuses too many, before it holds them."""
+
+    low: float
+    high: float
+    count: int
+    log: bool = False
+
+    def _array(self) -> np.ndarray:
+        return (
+            np.geomspace(self.low, self.high, self.count) if self.log else np.linspace(self.low, self.high, self.count)
+        )
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __iter__(self) -> Iterator[float]:
+        return iter(self._array().tolist())
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return tuple(self)[index]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (Spacing, tuple, list)):
+            return len(self) == len(other) and tuple(self) == tuple(other)
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash((self.low, self.high, self.count, self.log))
+
+
+@dataclass(frozen=True)
 class Axis:
     """One varied parameter: explicit ``values``, or a range ``low``..``high`` (``log``: in the logarithm)."""
 
     name: str
-    values: tuple[Any, ...] | None = None
+    values: Sequence[Any] | None = None
     low: float | None = None
     high: float | None = None
     log: bool = False
@@ -43,6 +76,11 @@ class Axis:
     @property
     def is_range(self) -> bool:
         return self.values is None
+
+    def as_request(self) -> dict[str, Any]:
+        """The axis as a sweep's stored request keeps it (JSON: the values listed)."""
+        values = None if self.values is None else list(self.values)
+        return {"name": self.name, "values": values, "low": self.low, "high": self.high, "log": self.log}
 
 
 def resolve_name(text: str) -> str:
@@ -56,7 +94,7 @@ def resolve_name(text: str) -> str:
         raise ConfigError(f"'{text}' could mean {', '.join(matches)}; write the full parameter name")
     close = difflib.get_close_matches(text, NAMES, n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
-    raise ConfigError(f"unknown parameter '{text}'{hint} (boom-sim --help-params lists them)")
+    raise ConfigError(f"unknown parameter '{text}'{hint} (boom_sim --help lists them)")
 
 
 def _number(text: str, where: str) -> float:
@@ -107,9 +145,7 @@ def parse_axis(spec: str) -> Axis:
     count = _number(parts[2], where)
     if count < 1 or not count.is_integer():
         raise ConfigError(f"{where}: COUNT must be a whole number >= 1, got {parts[2]}")
-    n = int(count)
-    values = np.geomspace(low, high, n) if log else np.linspace(low, high, n)
-    return Axis(name, values=tuple(float(v) for v in values))
+    return Axis(name, values=Spacing(low, high, int(count), log))
 
 
 def _need_lists(axes: Sequence[Axis], sample: str) -> None:
@@ -135,31 +171,53 @@ def _scale(axis: Axis, unit: np.ndarray) -> np.ndarray:
     return axis.low + unit * (axis.high - axis.low)
 
 
+def point_count(axes: Sequence[Axis], sample: str = "grid", count: int = 0) -> int:
+    """How many points :func:`sample_points` gives, found without computing them.
+
+    Raises ConfigError where the axes do not fit the sample, as :func:`sample_points` would.
+    """
+    _check_sample(axes, sample)
+    if not axes:
+        return 1
+    if sample == "grid":
+        _need_lists(axes, sample)
+        return math.prod(len(a.values) for a in axes)
+    if sample == "list":
+        _need_lists(axes, sample)
+        lengths = {a.name: len(a.values) for a in axes}
+        if len(set(lengths.values())) > 1:
+            raise ConfigError(f"--sample list pairs the i-th values of every axis; their lengths differ: {lengths}")
+        return len(axes[0].values)
+    _need_ranges(axes, sample)
+    if count < 1:
+        raise ConfigError(f"--sample {sample} needs --samples N (N >= 1), got {count}")
+    return count
+
+
+def _check_sample(axes: Sequence[Axis], sample: str) -> None:
+    names = [a.name for a in axes]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"a parameter is varied twice: {', '.join(names)}")
+    if sample not in SAMPLES:
+        raise ConfigError(f"unknown sample '{sample}'; choose one of {', '.join(SAMPLES)}")
+
+
 def sample_points(axes: Sequence[Axis], sample: str = "grid", count: int = 0, seed: int = 0) -> list[dict[str, Any]]:
     """The points (one ``{name: value}`` per point) that ``axes`` span under ``sample``.
 
     ``count`` is the number of points of a random or Latin-hypercube sample; ``seed``
     makes them reproducible.
     """
+    point_count(axes, sample, count)  # checks the axes against the sample
     names = [a.name for a in axes]
-    if len(set(names)) != len(names):
-        raise ConfigError(f"a parameter is varied twice: {', '.join(names)}")
-    if sample not in SAMPLES:
-        raise ConfigError(f"unknown sample '{sample}'; choose one of {', '.join(SAMPLES)}")
     if not axes:
         return [{}]
     if sample == "grid":
-        _need_lists(axes, sample)
         return [dict(zip(names, combo)) for combo in itertools.product(*(a.values for a in axes))]
     if sample == "list":
-        _need_lists(axes, sample)
-        lengths = {a.name: len(a.values) for a in axes}
-        if len(set(lengths.values())) > 1:
-            raise ConfigError(f"--sample list pairs the i-th values of every axis; their lengths differ: {lengths}")
         return [dict(zip(names, combo)) for combo in zip(*(a.values for a in axes))]
-    _need_ranges(axes, sample)
-    if count < 1:
-        raise ConfigError(f"--sample {sample} needs --samples N (N >= 1)")
+    if seed < 0:
+        raise ConfigError(f"--seed must be a whole number >= 0, got {seed}")
     rng = np.random.default_rng(seed)
     if sample == "random":
         unit = rng.random((count, len(axes)))

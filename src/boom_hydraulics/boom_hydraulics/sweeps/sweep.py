@@ -11,8 +11,9 @@ value, so it runs the same in this process or on a Dask worker.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,12 +22,12 @@ from ..analysis import metrics as analysis
 from ..analysis import streaming
 from ..analysis.streaming import SAMPLE_SIGNALS
 from ..errors import BoomHydraulicsError, ConfigError
-from ..model.parameters import NAMES, Parameters, as_dict, from_mapping
+from ..model.parameters import NAMES, Parameters, as_dict, describe, from_mapping
 from ..solve import commands, stepping
 from ..solve.batch import SHARED, run_sets, simulate_batch
 from ..solve.integrators import BATCHED
 from ..solve.simulation import MAX_SUBSTEPS
-from .sampling import Axis, sample_points
+from .sampling import Axis, Spacing, point_count, sample_points
 
 #: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -63,6 +64,135 @@ STATUSES = ("ok", "incomplete", "failed", "invalid")
 BATCH_KEYS = (*SHARED, *(n for n in NAMES if n.startswith("command_")))
 
 
+#: Memory a point takes while a sweep runs, rounded up: its values and Parameters in the plan
+#: (2.2 kB, measured with tracemalloc on a one-axis plan of 100 000 points) and its table row.
+BYTES_PER_POINT = 4096
+
+#: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
+#: sweep's run time (2.7-3.3 M on 2 cores for batches of 1000 sets, README's performance table).
+STEPS_PER_CORE_S = 1.5e6
+
+#: Wall time planning takes per point (its Parameters checked and grouped into batches): 0.13 ms
+#: measured for 10 000 points on a loaded 2-core machine, rounded up.
+PLAN_S_PER_POINT = 2e-4
+
+#: Steps of one point beyond which float64 time no longer tells one step from the next.
+MAX_STEPS_PER_POINT = 2**53
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What a sweep will cost, known before any point is planned."""
+
+    points: int
+    batches: int  # at least: points that cannot share a batch (another time step, say) make more
+    steps: float  # state-steps of all points together (at least: the stability bound may add substeps)
+    memory_bytes: float  # to hold the plan and the table while the sweep runs
+
+    @property
+    def plan_s(self) -> float:
+        return self.points * PLAN_S_PER_POINT
+
+    def run_time(self, points: int, cores: int) -> str:
+        """The steps of ``points`` of these and how long they take, as a phrase."""
+        steps = self.steps * points / self.points if self.points else 0.0
+        seconds = steps / (STEPS_PER_CORE_S * max(1, cores))
+        rate = f"{STEPS_PER_CORE_S / 1e6:g} M steps/s on each of {cores} cores"
+        return f"{steps:.3g} steps, {duration_text(seconds)} at {rate}"
+
+
+def duration_text(seconds: float) -> str:
+    """A run time as a person reads it: about 40 s, 12 min, 35 h, 9 days, 2e+06 years; under a second."""
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= 2 * size:
+            return (
+                f"about {seconds / size:.2g} {unit}" if seconds / size >= 100 else f"about {seconds / size:.0f} {unit}"
+            )
+    return f"about {seconds:.0f} s" if seconds >= 1 else "under a second"
+
+
+def available_memory_bytes() -> float | None:
+    """Memory the system can give this process without swapping (MemAvailable), or None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _extreme(configs: Sequence[tuple[str, Parameters]], axes: Sequence[Axis], name: str, pick) -> float:
+    """The smallest (``pick=min``) or largest valid (positive) value that parameter ``name`` takes in
+    the sweep; values out of range make invalid points, which do not run."""
+    values = [float(v) for _, params in configs if (v := getattr(params, name)) > 0]
+    for axis in axes:
+        if axis.name != name:
+            continue
+        if axis.values is None:
+            ends: Sequence[Any] = (axis.low, axis.high)
+        else:
+            ends = (axis.values.low, axis.values.high) if isinstance(axis.values, Spacing) else axis.values
+        values += [float(v) for v in ends if isinstance(v, (int, float)) and v > 0]
+    return pick(values) if values else float(describe(name)["default"])
+
+
+def check_duration(duration_s: float) -> None:
+    """Raise ConfigError unless ``duration_s`` is a positive, finite number of seconds."""
+    if not (duration_s > 0 and math.isfinite(duration_s)):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s}")
+
+
+def estimate(
+    configs: Sequence[tuple[str, Parameters]],
+    axes: Sequence[Axis],
+    *,
+    duration_s: float,
+    sample: str = "grid",
+    count: int = 0,
+    batch_size: int = 1000,
+) -> Estimate:
+    """Points, batches, steps and memory of a sweep, without planning it (that takes about 1 ms a point).
+
+    Raises ConfigError for a duration whose steps float64 time cannot count.
+    """
+    check_duration(duration_s)
+    if batch_size < 1:
+        raise ConfigError(f"--batch-size must be >= 1, got {batch_size}")
+    points = len(configs) * point_count(axes, sample, count)
+    dt = _extreme(configs, axes, "time_step_s", min)
+    substeps = max(1.0, _extreme(configs, axes, "substeps", max))
+    per_point = duration_s / dt * substeps
+    if not per_point <= MAX_STEPS_PER_POINT:
+        raise ConfigError(
+            f"--duration {duration_s:g} s is {per_point:.3g} steps a point at time_step_s = {dt:g} s; "
+            f"simulated time cannot count more than 2**53 steps: give a duration of seconds to hours"
+        )
+    return Estimate(points, math.ceil(points / batch_size), points * per_point, points * float(BYTES_PER_POINT))
+
+
+def check_fits(cost: Estimate, available: float | None = None) -> None:
+    """Raise ConfigError, before anything is planned, if the sweep cannot be held in memory."""
+    free = available_memory_bytes() if available is None else available
+    if free is not None and cost.memory_bytes > free:
+        raise ConfigError(
+            f"{cost.points} points need about {_bytes_text(cost.memory_bytes)} of memory to plan and tabulate, "
+            f"and {_bytes_text(free)} is free; sweep fewer points (fewer values per axis, or a random or lhs "
+            "sample of fewer --samples), or split the sweep into several, each with its own --out"
+        )
+
+
+def _bytes_text(size: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size / 1e3:.3g} kB"
+
+
 @dataclass(frozen=True)
 class Batch:
     """Points that are integrated together."""
@@ -90,6 +220,63 @@ class Plan:
         return len(self.points)
 
 
+def _bases(configs: Sequence[tuple[str, Parameters]], scenario: str, duration_s: float) -> list[tuple[str, Parameters]]:
+    """Each config with the scenario's valve command applied, checked to run in a batch."""
+    drive = commands.scenario(scenario, duration_s)
+    bases = []
+    for name, params in configs:
+        try:
+            bases.append((name, from_mapping(drive, base=params)))
+        except ConfigError as exc:
+            raise ConfigError(f"scenario {scenario!r} does not fit config {name!r}: {exc}") from None
+    for base_name, base in bases:
+        if base.method not in BATCHED:
+            raise ConfigError(
+                f"config {base_name!r} uses method {base.method!r}; sweeps integrate with an explicit "
+                f"fixed step ({' or '.join(BATCHED)}): set method: rk4"
+            )
+    return bases
+
+
+def request(
+    configs: Sequence[tuple[str, Parameters]],
+    axes: Sequence[Axis],
+    *,
+    scenario: str = "lift",
+    duration_s: float = 5.0,
+    sample: str = "grid",
+    count: int = 0,
+    seed: int = 0,
+    lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
+    every: int = 1,
+    batch_size: int = 1000,
+) -> dict[str, Any]:
+    """What a sweep is asked, JSON-able, as :func:`plan` keeps it; checked, and found without
+    planning a point, so that a sweep folder can be matched against it before any planning."""
+    if not configs:
+        raise ConfigError("a sweep needs at least one config")
+    check_duration(duration_s)
+    if not (0 < lift_angle_deg < 180):
+        raise ConfigError(f"--lift-angle-deg must lie in (0, 180), got {lift_angle_deg}")
+    if every < 1 or batch_size < 1:
+        raise ConfigError(f"--every and --batch-size must be >= 1, got {every} and {batch_size}")
+    names = [name for name, _ in configs]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"two configs share the name {names}; give the files different names")
+    return {
+        "configs": {name: as_dict(base) for name, base in _bases(configs, scenario, duration_s)},
+        "axes": [a.as_request() for a in axes],
+        "sample": sample,
+        "count": count,
+        "seed": seed,
+        "scenario": scenario,
+        "duration_s": duration_s,
+        "lift_angle_deg": lift_angle_deg,
+        "every": every,
+        "batch_size": batch_size,
+    }
+
+
 def plan(
     configs: Sequence[tuple[str, Parameters]],
     axes: Sequence[Axis],
@@ -107,32 +294,15 @@ def plan(
 
     ``configs`` are (name, parameters) pairs; with more than one, the config name is a
     column of the table. Points whose parameters are invalid (a rod wider than its
-    piston, say) are kept with the reason and not run.
+    piston, say) are kept with the reason and not run. A sweep that cannot be held in
+    memory is refused before any point is planned (:func:`check_fits`).
     """
-    if not configs:
-        raise ConfigError("a sweep needs at least one config")
-    if not (duration_s > 0 and math.isfinite(duration_s)):
-        raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s}")
-    if not (0 < lift_angle_deg < 180):
-        raise ConfigError(f"--lift-angle-deg must lie in (0, 180), got {lift_angle_deg}")
-    if every < 1 or batch_size < 1:
-        raise ConfigError(f"--every and --batch-size must be >= 1, got {every} and {batch_size}")
-    names = [name for name, _ in configs]
-    if len(set(names)) != len(names):
-        raise ConfigError(f"two configs share the name {names}; give the files different names")
-    drive = commands.scenario(scenario, duration_s)
-    bases = []
-    for name, params in configs:
-        try:
-            bases.append((name, from_mapping(drive, base=params)))
-        except ConfigError as exc:
-            raise ConfigError(f"scenario {scenario!r} does not fit config {name!r}: {exc}") from None
-    for base_name, base in bases:
-        if base.method not in BATCHED:
-            raise ConfigError(
-                f"config {base_name!r} uses method {base.method!r}; sweeps integrate with an explicit "
-                f"fixed step ({' or '.join(BATCHED)}): set method: rk4"
-            )
+    asked = request(
+        configs, axes, scenario=scenario, duration_s=duration_s, sample=sample, count=count, seed=seed,
+        lift_angle_deg=lift_angle_deg, every=every, batch_size=batch_size,
+    )  # fmt: skip
+    check_fits(estimate(configs, axes, duration_s=duration_s, sample=sample, count=count, batch_size=batch_size))
+    bases = _bases(configs, scenario, duration_s)
     samples = sample_points(axes, sample, count, seed)
     columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
     points: list[dict[str, Any]] = []
@@ -163,19 +333,7 @@ def plan(
                     lift_angle_deg=lift_angle_deg,
                 )
             )
-    request = {
-        "configs": {name: as_dict(base) for name, base in bases},
-        "axes": [asdict(a) for a in axes],
-        "sample": sample,
-        "count": count,
-        "seed": seed,
-        "scenario": scenario,
-        "duration_s": duration_s,
-        "lift_angle_deg": lift_angle_deg,
-        "every": every,
-        "batch_size": batch_size,
-    }
-    return Plan(request, columns, tuple(points), invalid, tuple(batches))
+    return Plan(asked, columns, tuple(points), invalid, tuple(batches))
 
 
 def _hashable(value: Any) -> Any:

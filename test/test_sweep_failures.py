@@ -1,0 +1,180 @@
+"""boom-sweep's failure paths as a user meets them: one line, the documented exit status, and the
+folder left as it was (or holding only what the sweep names)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BOOM_SWEEP = shutil.which("boom-sweep")
+BOOM_SIM_NODE = shutil.which("boom_sim")
+pytestmark = pytest.mark.skipif(BOOM_SWEEP is None, reason="boom-sweep not on PATH (run through tools/with-env)")
+
+#: Two points of a short lift, a batch each: a real sweep folder in a few seconds.
+TWO = ["--vary", "payload=0,100", "--duration", "0.5", "--lift-angle-deg", "8", "--no-plots"]
+
+
+def _sweep(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([BOOM_SWEEP, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def _one_error(result: subprocess.CompletedProcess, status: int, words: str) -> None:
+    """The run ended with ``status`` and its stderr is one line: boom-sweep: error: ...words..."""
+    assert result.returncode == status, result.stderr
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith("boom-sweep: error: "), result.stderr
+    assert words in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def _contents(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> Path:
+    """A finished two-batch sweep folder; tests work on copies."""
+    out = tmp_path_factory.mktemp("finished") / "sweep"
+    result = _sweep(*TWO, "--batch-size", 1, "--out", out)
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+@pytest.fixture
+def copy(finished, tmp_path) -> Path:
+    target = tmp_path / "sweep"
+    shutil.copytree(finished, target)
+    return target
+
+
+@pytest.mark.parametrize("text", ["garbage{", "[1, 2]", "null", '{"format": 1, "request": [1]}', '{"format": 1}'])
+def test_a_damaged_sweep_description_is_one_line_and_changes_nothing(copy, text):
+    (copy / "sweep.json").write_text(text)
+    before = _contents(copy)
+    result = _sweep(*TWO, "--batch-size", 1, "--out", copy, "--resume")
+    _one_error(result, 1, f"{copy / 'sweep.json'} is damaged")
+    assert "2 batches stored beside it" in result.stderr
+    assert _contents(copy) == before
+    again = _sweep(*TWO, "--batch-size", 1, "--out", copy)  # without --resume: the same advice, not "pass --resume"
+    _one_error(again, 1, "is damaged")
+
+
+def test_a_foreign_batch_file_is_named_and_the_advice_leads_somewhere(copy, tmp_path):
+    """Another sweep's batch in batches/: --resume names it and says to move it (without --resume the
+    tool says --resume, which names the file again, never "rerun without --resume")."""
+    stray = copy / "batches" / "00007.npz"
+    shutil.copy(copy / "batches" / "00000.npz", stray)
+    before = _contents(copy)
+    resumed = _sweep(*TWO, "--out", copy, "--resume")
+    _one_error(resumed, 2, f"{stray} is not a batch of this sweep")
+    assert "move it out of" in resumed.stderr and "without --resume" not in resumed.stderr
+    _one_error(_sweep(*TWO, "--out", copy), 2, "pass --resume")
+    assert _contents(copy) == before
+    stray.rename(tmp_path / "moved.npz")  # as the line says
+    finished = _sweep(*TWO, "--out", copy, "--resume")
+    assert finished.returncode == 0, finished.stderr
+    assert "2 done before, 0 to run" in finished.stderr
+
+
+def test_a_batch_file_holding_other_points_is_named_and_kept(copy):
+    theirs = copy / "batches" / "00001.npz"
+    shutil.copy(copy / "batches" / "00000.npz", theirs)
+    before = _contents(copy)
+    result = _sweep(*TWO, "--out", copy, "--resume")
+    _one_error(result, 2, f"{theirs} is not this sweep's batch 1 (it holds points 0, not 1)")
+    assert _contents(copy) == before
+
+
+def test_a_cut_batch_file_is_kept_aside_and_computed_again(copy, finished):
+    cut = copy / "batches" / "00001.npz"
+    data = cut.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    result = _sweep(*TWO, "--out", copy, "--resume")
+    assert result.returncode == 0, result.stderr
+    assert "1 done before, 1 to run" in result.stderr
+    assert (copy / "batches" / "00001.npz.damaged").read_bytes() == data[: len(data) // 2]
+    with np.load(copy / "results.npz") as new, np.load(finished / "results.npz") as old:
+        assert np.array_equal(new["lift_time_s"], old["lift_time_s"], equal_nan=True)
+
+
+def test_stale_temporaries_of_a_killed_run_are_removed_and_nothing_else(copy):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a process id that no longer runs, as a SIGKILLed sweep's
+    ours = [
+        copy / f".results.csv.{dead.pid}-ab3_x9yz.partial",
+        copy / f".trade_off.png.{dead.pid}-qwertyui.partial.png",  # --no-plots now: not written again
+        copy / "batches" / f".00001.npz.{dead.pid}-k2j4h5g6.partial.npz",
+    ]
+    kept = [
+        copy / ".results.csv.mine",  # not a name the sweep makes
+        copy / f".notes.txt.{dead.pid}-abcdefgh.partial",  # not one of the sweep's files
+        copy / f".results.npz.{os.getpid()}-abcdefgh.partial.npz",  # its writer still runs
+    ]
+    for path in ours + kept:
+        path.write_bytes(b"half")
+    result = _sweep(*TWO, "--out", copy, "--resume")
+    assert result.returncode == 0, result.stderr
+    assert not any(p.exists() for p in ours)
+    assert all(p.read_bytes() == b"half" for p in kept)
+    assert result.stderr.count("left unfinished by an earlier run that was stopped") == 3
+
+
+def test_a_billion_points_are_refused_at_once_with_their_size(tmp_path):
+    result = _sweep("--vary", "piston_diameter=0.04:0.08:1000000000", "--out", tmp_path / "s", timeout=60)
+    _one_error(result, 2, "1000000000 points need about 4.1 TB of memory")
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_large_sweep_says_its_size_before_planning_and_stops_on_ctrl_c(tmp_path):
+    out = tmp_path / "s"
+    args = ["--vary", "payload=0:200:400", "--vary", "piston_diameter=0.04:0.08:100", "--out", out]
+    process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
+    first = process.stderr.readline()  # planning 40 000 points takes seconds: the size comes first
+    assert first.startswith("boom-sweep: planning 40000 points in 40 or more batches"), first
+    assert "to run: 2e+08 steps" in first
+    process.send_signal(signal.SIGINT)
+    rest = process.stderr.read()
+    assert process.wait(timeout=60) == 130
+    assert rest == "boom-sweep: interrupted before a batch finished; nothing was stored\n"
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--duration", "1e300"], "cannot count more than 2**53 steps"),
+        (["--duration", "-1"], "--duration must be a positive number"),
+        (["--duration", "inf"], "--duration must be a finite number"),
+        (["--lift-angle-deg", "nan"], "--lift-angle-deg must be a finite number"),
+        (["--max-pressure-pa", "inf"], "--max-pressure-pa must be a finite number"),
+        (["--scheduler-timeout", "nan"], "--scheduler-timeout must be a finite number"),
+        (["--samples", "-5"], "--samples must be a whole number >= 0"),
+        (["--sample", "lhs", "--vary", "payload=0:9", "--samples", "3", "--seed", "-1"], "--seed must be"),
+        (["--every", "0"], "--every must be a whole number >= 1"),
+        (["--batch-size", "-3"], "--batch-size must be a whole number >= 1"),
+        (["--workers", "0"], "--workers must be a whole number >= 1"),
+        (["--workers", "100000"], "--workers 100000: this machine has"),
+        (["--top", "0"], "--top must be a whole number >= 1"),
+        (["--vary", "payload=0:200:-4"], "COUNT must be a whole number >= 1"),
+        (["--vary", "payload=0:inf:4"], "not a finite number"),
+        (["--samples", "1e9"], "invalid int value"),
+    ],
+)
+def test_an_absurd_number_is_one_line_exit_2_and_no_folder(tmp_path, args, words):
+    result = _sweep(*args, "--out", tmp_path / "s", timeout=60)
+    _one_error(result, 2, words)
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_unknown_parameter_points_to_a_command_that_lists_them(tmp_path):
+    result = _sweep("--vary", "piston_size=0.04,0.06", "--out", tmp_path / "s", timeout=60)
+    _one_error(result, 2, "(boom_sim --help lists them)")
+    if BOOM_SIM_NODE is not None:  # and that command does list them
+        listing = subprocess.run([BOOM_SIM_NODE, "--help"], capture_output=True, text=True, timeout=60)
+        assert listing.returncode == 0 and "piston_diameter_m" in listing.stdout
