@@ -141,6 +141,10 @@ def _trajectory(points: list[tuple[float, float]]) -> JointTrajectory:
     return msg
 
 
+def _stamp_s(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
 def test_a_joint_trajectory_is_followed_within_a_degree(mover, client):
     """Positions only: linear between points, as joint_trajectory_controller does. Tolerance:
     1 degree while moving at up to 0.2 rad/s, 2 x dead-band at the end."""
@@ -148,10 +152,12 @@ def test_a_joint_trajectory_is_followed_within_a_degree(mover, client):
     points = [(1.0, 0.3), (2.5, 0.6), (4.0, 0.4)]
     received = len(client.states)
     mover.trajectories.publish(_trajectory(points))
-    client.spin_for(5.5)
-    states = client.states[received:]
-    t0 = next(s for s in states if s.valve_command != 0.0)  # the trajectory's start, give or take a step
+    # a state's stamp is its simulated instant: wait for simulated time, whatever the machine's load
+    assert client.spin_until(lambda: any(s.valve_command != 0.0 for s in client.states[received:]), timeout=30)
+    t0 = next(s for s in client.states[received:] if s.valve_command != 0.0)  # the start, give or take a step
     begin = t0.header.stamp.sec + t0.header.stamp.nanosec * 1e-9
+    assert client.spin_until(lambda: _stamp_s(client.last()) - begin > 5.5, timeout=60)
+    states = client.states[received:]
     knots = [(0.0, start), *points]
 
     def expected(t: float) -> float:

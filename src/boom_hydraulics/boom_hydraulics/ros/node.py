@@ -520,11 +520,15 @@ class BoomSimNode(Node):
     def _back_to_rest(self, why: str, rod_position_m: float | None = None) -> None:
         """The drive at rest (at ``rod_position_m``, default q1(0)), valve closed, goals ended
         with ``why``; simulated time runs on. Raises SimulationError for a position outside the stroke."""
+        stopped = self.failure is not None
         self.sim.reset(rod_position_m, keep_time=True)
         self.motion.stop(why)
         self.drive.reset()
         self.failure = None
-        self.pacer.rebase(self.sim.step_count, self.sim.params.time_step_s)  # time runs on from here
+        if stopped:  # a stopped simulation stood still, as a paused one does: it goes on from now
+            self._restart_clock()
+        else:  # time runs on from here, tied to the clock as before
+            self.pacer.rebase(self.sim.step_count, self.sim.params.time_step_s)
 
     def _pace_factor(self) -> float:
         """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
@@ -807,20 +811,16 @@ def _shield_signals() -> None:
 def _finish(node: BoomSimNode) -> None:
     """Stop the loop, finish the bag and say where it is, then leave the ROS graph."""
     node.stopping.set()
-    node.loop.join(timeout=5.0)
+    if node.loop.is_alive():
+        node.loop.join(timeout=5.0)
     if node.record_pending:
         print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
     recorder = node.recorder
     if recorder is not None:
         folder = recorder.close()
         counts = ", ".join(f"{t} {n}" for t, n in recorder.counts.items() if n)
-        if recorder.error is not None:
-            print(
-                f"boom_sim: error: recording failed: {recorder.error}; run boom-bag-recover {folder} "
-                "to bring back every complete chunk",
-                file=sys.stderr,
-                flush=True,
-            )
+        if recorder.error is not None:  # (it says how to recover the bag)
+            print(f"boom_sim: error: recording failed: {recorder.error}", file=sys.stderr, flush=True)
         else:
             print(f"boom_sim: bag {folder} ({counts})", flush=True)
     node.motion.destroy()
@@ -862,6 +862,13 @@ def main(args: list[str] | None = None) -> None:
         return
     try:
         node.start()
+    except BoomHydraulicsError as exc:  # the bag cannot be started (a full disk, a read-only folder)
+        node.motion.destroy()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        print(f"boom_sim: error: {exc}", file=sys.stderr, flush=True)
+        raise SystemExit(1) from None
+    try:
         node.motion.spin_in_background()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
