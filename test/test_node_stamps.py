@@ -89,8 +89,8 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(clien
     assert max(abs(a - b) for a, b in common) < 1e-6
 
 
-def test_a_stale_command_is_refused_with_the_reason_and_counted(client):
-    proc = start_node("command_timeout_s:=0.5")
+def test_a_stale_command_is_refused_with_the_reason_and_counted(client, tmp_path):
+    proc = start_node("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)
@@ -103,6 +103,12 @@ def test_a_stale_command_is_refused_with_the_reason_and_counted(client):
     finally:
         out = stop_process(proc)
     assert "older than command_timeout_s = 0.5 s, it is stale" in out
+    # boom-resim applies the same rule: the stale command never acts there either
+    (bag,) = (tmp_path / "bags").iterdir()
+    result = subprocess.run([RESIM, str(bag), "--out", str(tmp_path / "again")], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    valves = {valve for _, _, valve in _states(tmp_path / "again")}
+    assert 0.3 in valves and 0.7 not in valves
 
 
 def test_use_sim_time_is_start_only_and_step_is_bounded(node, client):

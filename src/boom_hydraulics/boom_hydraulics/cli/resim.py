@@ -53,7 +53,7 @@ from ..files import check_apart
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
 from ..model.setpoints import SetpointPath
-from ..solve.command_queue import CommandedDrive, valve_opening
+from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from .common import RaisingParser, run_main, summary
 
@@ -89,6 +89,7 @@ class Recorded:
     raw: bytes
     opening: float = math.nan  # commands
     changes: dict[str, Any] = field(default_factory=dict)  # parameter events
+    stamp_ns: int = 0  # a ValveCommand's header stamp (0: unset)
 
 
 @dataclass
@@ -192,10 +193,13 @@ def read_run(bag: Path) -> RecordedRun:
                     continue
                 if connection.msgtype == VALVE_COMMAND:
                     # the node's rule: at its stamp, or when received if unstamped or already passed
-                    opening, at_ns = msg.opening, max(_stamp_ns(msg), log_ns)
+                    stamp_ns = _stamp_ns(msg)
+                    opening, at_ns = msg.opening, max(stamp_ns, log_ns)
                 else:
-                    opening, at_ns = (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
-                commands.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening)))
+                    stamp_ns, opening, at_ns = 0, (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
+                commands.append(
+                    Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening), stamp_ns=stamp_ns)
+                )
             end_ns = reader.end_time
     except AnyReaderError as exc:
         raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
@@ -302,10 +306,23 @@ class _Resimulation:
         """Simulated time of a time on the node's clock."""
         return (at_ns - self.run.clock_origin_ns) * 1e-9
 
+    def _timeout_at(self, at_ns: int) -> float:
+        """The command timeout in effect at ``at_ns`` (the recorded changes of it included)."""
+        timeout_s = self.run.command_timeout_s
+        for change in self.run.parameter_changes:
+            if change.at_ns <= at_ns and "command_timeout_s" in change.changes:
+                timeout_s = float(change.changes["command_timeout_s"])
+        return timeout_s
+
     def _push(self, command: Recorded) -> None:
         u = valve_opening(command.opening, self.sim.params.mode)
-        if u is not None:
-            self.drive.push(self.seconds(command.at_ns), u)
+        if u is None:
+            return
+        if command.stamp_ns and stale(
+            self.seconds(command.stamp_ns), self.seconds(command.log_ns), self._timeout_at(command.log_ns)
+        ):
+            return  # the node refused it as stale when it arrived
+        self.drive.push(self.seconds(command.at_ns), u)
 
     def take_over(self, control: Control) -> None:
         """The controller drives from now along the recorded setpoints (from where the boom is)."""
