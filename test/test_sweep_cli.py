@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import shlex
 import shutil
 import signal
 import subprocess
@@ -115,22 +116,34 @@ def test_resume_reuses_finished_batches_and_runs_only_the_rest(tmp_path):
     assert changed.returncode == 2 and "differs in: lift_angle_deg" in changed.stderr
 
 
-def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(tmp_path):
+@pytest.mark.parametrize(
+    ("stop", "status", "why"),
+    [(signal.SIGINT, 130, "interrupted (Ctrl-C)"), (signal.SIGTERM, 143, "terminated (SIGTERM)")],
+)
+def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(tmp_path, stop, status, why):
     out = tmp_path / "sweep"
-    # 8 batches of a 10-minute lift: about half a second each, compiled, so Ctrl-C lands midway
+    # 8 batches of a 10-minute lift: about half a second each, compiled, so the signal lands midway
     args = ["--vary", "payload=0:200:8", "--duration", "600", "--batch-size", "1", "--no-plots", "--out", out]
     process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     # finished batches only: a batch being written is a hidden .partial.npz until it is whole
     while not list((out / "batches").glob("[0-9]*.npz")) and time.monotonic() < deadline:
         time.sleep(0.1)
-    process.send_signal(signal.SIGINT)
+    process.send_signal(stop)
     _, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130, stderr
+    assert process.returncode == status, stderr
     kept = list((out / "batches").glob("[0-9]*.npz"))
     assert 1 <= len(kept) < 8
-    assert "--resume" in stderr and str(out) in stderr
-    assert not (out / "results.csv").exists()
+    last = stderr.splitlines()[-1]
+    assert last.startswith(f"boom-sweep: error: {why}; ") and f"of 8 batches are stored in {out}" in last, stderr
+    assert last.endswith(" --resume") and shlex.split(last.partition("finish with: ")[2])[1:] == [
+        *map(str, args),
+        "--resume",
+    ]
+    assert stderr.count("error") == 1 and "Traceback" not in stderr, stderr
+    # nothing half-written: only whole batches and the description, no temporaries
+    assert sorted(p.name for p in out.iterdir()) == ["batches", "sweep.json"]
+    assert sorted(p.name for p in (out / "batches").iterdir()) == sorted(p.name for p in kept)
     resumed = _sweep(*args, "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert f"{len(kept)} done before, {8 - len(kept)} to run" in resumed.stderr

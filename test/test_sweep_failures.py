@@ -141,7 +141,7 @@ def test_a_large_sweep_says_its_size_before_planning_and_stops_on_ctrl_c(tmp_pat
     process.send_signal(signal.SIGINT)
     rest = process.stderr.read()
     assert process.wait(timeout=60) == 130
-    assert rest == "boom-sweep: interrupted before a batch finished; nothing was stored\n"
+    assert rest == "boom-sweep: error: interrupted (Ctrl-C) before a batch finished; nothing was stored\n"
     assert not out.exists()
 
 
@@ -178,3 +178,18 @@ def test_an_unknown_parameter_points_to_a_command_that_lists_them(tmp_path):
     if BOOM_SIM_NODE is not None:  # and that command does list them
         listing = subprocess.run([BOOM_SIM_NODE, "--help"], capture_output=True, text=True, timeout=60)
         assert listing.returncode == 0 and "piston_diameter_m" in listing.stdout
+
+
+@pytest.mark.parametrize("where", [[], ["--workers", "2"]], ids=["this process", "local Dask cluster"])
+def test_ctrl_c_in_a_long_batch_ends_with_one_line_and_stores_nothing_half_made(tmp_path, where):
+    """A batch of a day-long lift cannot finish: Ctrl-C lands inside it (or while the cluster starts)."""
+    out = tmp_path / "s"
+    args = ["--vary", "payload=0,100", "--duration", "1e5", *where, "--out", out]
+    process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True)
+    line = process.stderr.readline()
+    assert "0 done before, " in line and " to run " in line, line
+    process.send_signal(signal.SIGINT)
+    rest = process.stderr.read()
+    assert process.wait(timeout=60) == 130
+    assert rest == "boom-sweep: error: interrupted (Ctrl-C) before a batch finished; nothing was stored\n"
+    assert not out.exists()

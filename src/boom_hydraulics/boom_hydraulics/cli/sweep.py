@@ -18,7 +18,14 @@ or on a Dask cluster (``--scheduler``), with identical results. OUT receives:
 - ``sweep.json`` and ``batches/``: what was asked and each finished batch, so that an
   interrupted sweep finishes with ``--resume`` without redoing them.
 
-Errors in arguments or configs print one line and exit 2.
+OUT may hold other files (``--out .``): the sweep writes only the names above there, and refuses
+a folder where one of them exists without a ``sweep.json``. Every failure ends in one line,
+``boom-sweep: error: ...``: bad arguments, configs or numbers, a folder holding another sweep or
+a batch file that is not this sweep's exit 2; a damaged ``sweep.json``, a failing point set on a
+cluster or a disk error exit 1; Ctrl-C exits 130 and SIGTERM 143, keeping every finished batch
+and naming the command that finishes the sweep. The size (points, batches, steps and a time
+at a nominal rate) is said before planning a large sweep, and one that cannot fit in memory is
+refused before anything is planned.
 """
 
 from __future__ import annotations
@@ -29,7 +36,6 @@ import os
 import shlex
 import signal
 import sys
-import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -46,7 +52,7 @@ from ..sweeps import recommend, sweep
 from ..sweeps.executors import DaskExecutor, LocalExecutor
 from ..sweeps.sampling import SAMPLES, parse_axis, point_count, resolve_name
 from ..sweeps.store import OUTPUTS, SweepStore, plot_names
-from .common import DefaultsFormatter, RaisingParser, run_main
+from .common import DefaultsFormatter, RaisingParser, Terminated, run_main
 
 #: Points integrated together unless --batch-size says otherwise: larger batches spend
 #: less of their time in numpy's per-call overhead (bench/bench_sweep.py).
@@ -256,25 +262,29 @@ class _Reached:
     store: SweepStore | None = None
     plan: sweep.Plan | None = None
 
-    def interrupted(self, argv: Sequence[str], args: argparse.Namespace) -> str:
-        """What is kept, and how to go on."""
+    def interrupted(self, argv: Sequence[str], args: argparse.Namespace, why: str) -> str:
+        """What stopped the sweep, what is kept, and how to go on."""
         done = len(self.store.done()) if self.store is not None else 0
         if self.out is None or done == 0:
-            return "boom-sweep: interrupted before a batch finished; nothing was stored"
+            return f"boom-sweep: error: {why} before a batch finished; nothing was stored"
         total = f" of {len(self.plan.batches)}" if self.plan is not None else ""
         return (
-            f"boom-sweep: interrupted; {done}{total} batches are stored in {self.out}; "
+            f"boom-sweep: error: {why}; {done}{total} batches are stored in {self.out}; "
             f"finish with: {_resume_command(argv, self.out, args)}"
         )
 
 
 def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    """The sweep; Ctrl-C (or SIGTERM) at any moment ends it with one line and exit 130."""
+    """The sweep; Ctrl-C (exit 130) or SIGTERM (143, see run_main) at any moment ends it with one line
+    saying what is stored and the command that finishes it; a batch being written is not kept."""
     reached = _Reached()
     try:
         return _sweep(args, argv, reached)
+    except Terminated:
+        print(reached.interrupted(argv, args, "terminated (SIGTERM)"), file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
-        print(reached.interrupted(argv, args), file=sys.stderr)
+        print(reached.interrupted(argv, args, "interrupted (Ctrl-C)"), file=sys.stderr)
         return 130
 
 
@@ -374,24 +384,13 @@ def _run_plan(
     return 0
 
 
-def _terminate(signum: int, frame: object) -> None:
-    """SIGTERM ends a sweep as Ctrl-C does: what is stored stays, nothing is left half-written."""
-    raise KeyboardInterrupt
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
 
     def body() -> int:
         return run(build_parser().parse_args(words), words)
 
-    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
-        return run_main("boom-sweep", body)
-    previous = signal.signal(signal.SIGTERM, _terminate)
-    try:
-        return run_main("boom-sweep", body)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    return run_main("boom-sweep", body)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
@@ -110,12 +111,28 @@ class DaskExecutor:
             raise
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, kind: type | None = None, *exc: object) -> None:
+        if kind is not None and issubclass(kind, KeyboardInterrupt):
+            self._stop_now()
         if self.client is not None:
             self.client.close()
         if self.cluster is not None:
             self.cluster.close()
         self.client = self.cluster = None
+
+    def _stop_now(self) -> None:
+        """On Ctrl-C or SIGTERM: kill the local workers' processes at once. A task in the run kernel
+        cannot be cancelled, and the cluster would wait for it (4 s) before killing them itself;
+        their results are not wanted, and what they computed is not ours to store. Quiet, too:
+        the cluster's warnings about cancelled tasks are no news to the user."""
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+        logging.getLogger("asyncio").setLevel(logging.CRITICAL)
+        if self.cluster is None:
+            return  # a remote cluster's workers are not ours; cancelling the tasks is all we may do
+        for nanny in list(getattr(self.cluster, "workers", {}).values()):
+            with contextlib.suppress(Exception):
+                if nanny.pid:
+                    os.kill(nanny.pid, signal.SIGKILL)
 
     def map(self, fn: Callable[[Item], Any], items: Iterable[Item]) -> Iterator[tuple[Item, Any]]:
         from distributed import as_completed
