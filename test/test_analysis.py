@@ -97,8 +97,11 @@ def test_boom_analyze_writes_signals_metrics_and_plots(tmp_path):
     with (out / "a.csv").open() as handle:
         header = next(csv.reader(handle))
     assert header[:3] == ["t [s]", "q1 [m]", "v [m/s]"] and "p1 [Pa]" in header
-    metrics = json.loads((out / "a.metrics.json").read_text())
+    metrics = json.loads((out / "a.metrics.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c}: not JSON"))
     assert metrics["lift_m"] == pytest.approx(analysis.metrics(tr.columns)["lift_m"])
+    expected = analysis.metrics(tr.columns)
+    undefined = [name for name, value in expected.items() if not math.isfinite(value)]
+    assert undefined and all(metrics[name] is None for name in undefined)  # null where a metric has no value
     for png in ("dynamics.png", "drive.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -75,3 +75,45 @@ def test_a_file_is_whole_or_absent_and_gets_the_usual_mode(tmp_path):
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # not mkstemp's private 0600
     with pytest.raises(ConfigError, match="is a folder"):
         write_csv(tmp_path, ["a"], [])
+
+
+def _dead_pid() -> int:
+    import subprocess
+
+    child = subprocess.Popen(["true"])
+    child.wait()
+    return child.pid
+
+
+def test_a_stopped_runs_staging_folder_is_removed_and_an_old_one_named(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = out / f".partial-{_dead_pid()}-k2j_x9"
+    stale.mkdir()
+    (stale / "a.csv").write_text("half")
+    live = out / f".partial-{os.getpid()}-k2j_x9"  # a run of this process: still going
+    live.mkdir()
+    old = out / ".partial-q8w2e1"  # left by a version that put no process id in the name
+    old.mkdir()
+    with results_folder(out) as stage:
+        (stage / "a.csv").write_text("whole")
+    assert sorted(p.name for p in out.iterdir()) == sorted(["a.csv", live.name, old.name])
+    err = capsys.readouterr().err
+    assert f"removed {stale}" in err and f"{old} holds the unfinished results of an earlier run" in err
+
+
+def test_an_os_error_names_the_target_not_the_temporary_file(tmp_path):
+    import errno
+
+    target = tmp_path / "result.csv"
+    with pytest.raises(OSError) as caught, atomic_path(target) as tmp:
+        raise OSError(errno.ENOSPC, "No space left on device")  # a write on a full disk names no file
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(target)
+    with pytest.raises(OSError) as caught, atomic_path(target) as tmp:
+        tmp.write_text("x")
+        raise OSError(errno.EIO, "Input/output error", str(tmp))
+    assert caught.value.filename == str(target)
+    with pytest.raises(OSError) as caught, results_folder(tmp_path / "out") as stage:
+        raise OSError(errno.ENOSPC, "No space left on device", str(stage / "a.png"))
+    assert caught.value.filename == str(tmp_path / "out" / "a.png")
+    assert list(tmp_path.iterdir()) == []

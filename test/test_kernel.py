@@ -77,3 +77,38 @@ def test_a_sweep_without_numba_gives_the_compiled_sweeps_table(monkeypatch):
     assert compiled["status"].tolist() == numpy_batch["status"].tolist() == ["ok", "ok", "incomplete", "incomplete"]
     for name in sweep.METRIC_NAMES:
         np.testing.assert_allclose(compiled[name], numpy_batch[name], rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+@pytest.mark.parametrize("case", ["closed-loop", "sine-euler"])
+def test_a_run_split_into_slices_equals_the_run_in_one_call(case, monkeypatch):
+    from boom_hydraulics.solve import batch
+
+    base, profile = CASES[case]
+    params = from_mapping(commands.parse_profile(profile), base=base)
+    sets = [params, with_updates(params, payload_mass_kg=150.0)]
+
+    def run(first: int, growth: int):
+        monkeypatch.setattr(batch, "FIRST_SLICE", first)
+        monkeypatch.setattr(batch, "next_slice", lambda passes, seconds, most: min(most, growth))
+        return batch.run_sets(sets, 1.2, commands.from_parameters(params), 7, store=True)
+
+    whole = run(10**9, 10**9)  # one kernel call over every step
+    sliced = run(3, 11)  # 110 calls of 11 steps: the controller, command and samples carried over
+    for k in range(len(sets)):
+        for name in OUTPUT_NAMES:
+            assert np.array_equal(whole.columns(k)[name], sliced.columns(k)[name]), name
+    for name, values in whole.metrics.items():
+        assert np.array_equal(values, sliced.metrics[name], equal_nan=True), name
+    for field in ("failed_at_s", "failed_why", "most_substeps", "last_q1_m", "samples"):
+        assert np.array_equal(getattr(whole, field), getattr(sliced, field), equal_nan=True), field
+
+
+def test_a_failing_set_in_slices_stops_where_it_does_in_one_call(monkeypatch):
+    from boom_hydraulics.solve import batch
+
+    fig8 = config.load(CONFIG / "paper_fig8.yaml")
+    whole = run_sets([fig8], 3.0, commands.constant(1.0), every=10, store=True)
+    monkeypatch.setattr(batch, "next_slice", lambda passes, seconds, most: 13)
+    sliced = run_sets([fig8], 3.0, commands.constant(1.0), every=10, store=True)
+    assert sliced.failed_at_s[0] == whole.failed_at_s[0] and sliced.samples[0] == whole.samples[0]
+    assert np.array_equal(sliced.columns(0)["q1"], whole.columns(0)["q1"])

@@ -13,6 +13,8 @@ The rules every tool follows:
 from __future__ import annotations
 
 import csv
+import json
+import math
 import os
 import shutil
 import sys
@@ -244,6 +246,27 @@ def csv_column(values: np.ndarray) -> list[str]:
     if values.dtype.kind == "f":
         return list(map(repr, values.astype(float).tolist()))
     return [csv_cell(value) for value in values]
+
+
+def json_ready(value: Any) -> Any:
+    """``value`` with every NaN or infinite float as None: JSON has no NaN (JSON.parse, jq and
+    Foxglove reject it), and null says "no value" to every reader."""
+    if isinstance(value, Mapping):
+        return {str(key): json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def json_text(value: Any) -> str:
+    """Strict JSON of ``value`` (non-finite numbers as null, see :func:`json_ready`), indented."""
+    return json.dumps(json_ready(value), indent=2, allow_nan=False) + "\n"
 
 
 def write_bytes(path: Path, data: bytes) -> None:

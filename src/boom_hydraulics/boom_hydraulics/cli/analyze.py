@@ -4,11 +4,11 @@
     boom-analyze run1/ run2/ --out out/compare      # runs overlaid in the plots
 
 Per bag: <name>.csv (one column per signal, with units; time in s from the run's origin),
-<name>.npz and <name>.metrics.json; for all bags together: dynamics.png (rod
-displacement, velocity, acceleration, piston-chamber pressure: the panels of the paper's
-Figs. 8-10) and drive.png (rod-chamber pressure, rod force, valve). Only these files are
-written into the results folder, each whole or not at all; nothing else in it is touched,
-and a folder that is or holds one of the bags is refused.
+<name>.npz and <name>.metrics.json (strict JSON: a metric without a value is null); for
+all bags together: dynamics.png (rod displacement, velocity, acceleration, piston-chamber
+pressure: the panels of the paper's Figs. 8-10) and drive.png (rod-chamber pressure, rod
+force, valve). Only these files are written into the results folder, each whole or not at
+all; nothing else in it is touched, and a folder that is or holds one of the bags is refused.
 
 Runs are overlaid on a common time axis (--align): t = 0 at the recorded time origin, the
 node's simulated time 0 (default; a boom-resim bag shares its source's origin), at the
@@ -17,7 +17,6 @@ first opening of the valve, or at each run's first message.
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,7 +27,7 @@ from ..analysis import metrics as analysis
 from ..analysis import plots
 from ..bags.reading import ALIGNMENTS, read_drive_states
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, results_folder, write_csv, write_npz
+from ..files import check_apart, csv_cell, json_text, results_folder, write_csv, write_npz
 from ..solve.simulation import OUTPUTS
 from .common import RaisingParser, run_main, summary
 
@@ -59,7 +58,7 @@ def analyze(bags: Sequence[Path], out: Path, align: str = "origin") -> dict[str,
         for label, signals in runs:
             write_signals(tmp, label, signals)
             results[label] = analysis.metrics(signals)
-            (tmp / f"{label}.metrics.json").write_text(json.dumps(results[label], indent=2) + "\n")
+            (tmp / f"{label}.metrics.json").write_text(json_text(results[label]))
         plots.dynamics(runs, tmp / "dynamics.png")
         plots.drive(runs, tmp / "drive.png")
     return results

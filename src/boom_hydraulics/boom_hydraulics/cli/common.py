@@ -50,9 +50,9 @@ def _terminate(signum: int, frame: object) -> None:
 
 #: What to do about the OSErrors a user meets writing results.
 _ADVICE = {
-    errno.ENOSPC: "the disk is full; free some space or write to another disk",
+    errno.ENOSPC: "the disk is full: free some space or write to another disk",
     errno.EDQUOT: "the disk quota is used up; free some space or write elsewhere",
-    errno.EROFS: "the file system is read-only; write somewhere else",
+    errno.EROFS: "write to a folder on a writable disk instead",
     errno.EACCES: "no permission; write somewhere you may, or change the permissions",
     errno.EPERM: "not permitted; write somewhere you may",
     errno.ENOENT: "no such file or folder; check the path",

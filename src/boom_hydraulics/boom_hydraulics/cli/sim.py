@@ -30,7 +30,7 @@ from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve import commands
-from ..solve.simulation import OUTPUTS, RunStream, check_fits
+from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
 from .common import RaisingParser, run_main
 
 
@@ -57,8 +57,7 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
 
 def cmd_run(args: argparse.Namespace) -> int:
     params = load_parameters(args)
-    if not (args.duration > 0 and math.isfinite(args.duration)):
-        raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration}")
+    step_count(params, args.duration, "--duration")  # a positive, finite duration a run can take
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
     stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)

@@ -1,0 +1,178 @@
+"""Long runs as a user meets them: Ctrl-C and SIGTERM stop them within a second, a full or
+read-only disk and absurd sizes give one line, and what a stopped run left is cleaned up."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from conftest import CONFIG
+
+BOOM_SIM = shutil.which("boom-sim")
+pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
+ROOT_ONLY = pytest.mark.skipif(os.geteuid() != 0, reason="mounting a small tmpfs needs root")
+#: A failure guard only: the tests wait for events, and a run stops within a second of a signal.
+GUARD_S = 60
+
+
+def _run(*args, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([BOOM_SIM, *map(str, args)], capture_output=True, text=True, timeout=GUARD_S, **kwargs)
+
+
+def _one_error_line(stderr: str) -> str:
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("boom-sim: error: ") and "Traceback" not in stderr, stderr
+    return lines[0]
+
+
+def _default_sigint() -> None:
+    """The child takes Ctrl-C even where this test run was started with SIGINT ignored (a
+    background job of a script): Python then installs its KeyboardInterrupt handler."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _wait_for_rows(folder: Path, process: subprocess.Popen) -> Path:
+    """The run's temporary CSV, once rows have reached it (the run is in its stepping loop)."""
+    deadline = time.monotonic() + GUARD_S
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()
+        partial = [p for p in folder.iterdir() if p.name.endswith(".partial")]
+        if partial and partial[0].stat().st_size > 10_000:
+            return partial[0]
+        time.sleep(0.05)
+    raise AssertionError("the run wrote no rows within the guard time")
+
+
+@pytest.mark.parametrize(
+    ("sig", "status", "word"), [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")]
+)
+def test_a_signal_stops_a_long_run_with_one_line_and_no_file(tmp_path, sig, status, word):
+    out = tmp_path / "long.csv"
+    process = subprocess.Popen(
+        [BOOM_SIM, "run", "--duration", "1e6", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,
+    )
+    try:
+        partial = _wait_for_rows(tmp_path, process)
+        assert partial.name.startswith(".long.csv.")  # streamed under a temporary name
+        process.send_signal(sig)
+        stdout, stderr = process.communicate(timeout=GUARD_S)
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == status
+    assert word in _one_error_line(stderr) and stdout == ""
+    assert list(tmp_path.iterdir()) == []  # neither the CSV nor its temporary file
+
+
+@ROOT_ONLY
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["run", "--duration", "5"],
+        ["statics", "--points", "20000"],
+        ["urdf"],
+    ],
+    ids=["run", "statics", "urdf"],
+)
+@pytest.mark.parametrize("disk", ["full", "read-only"])
+def test_a_full_or_read_only_disk_names_the_file_asked_for(tmp_path, args, disk):
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    options = "size=64k" if disk == "full" else "ro,size=64k"
+    subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(mount)], check=True)
+    try:
+        if disk == "full":
+            with (mount / "filler").open("wb", buffering=0) as filler:  # the user's file, filling the disk
+                with pytest.raises(OSError):
+                    while True:
+                        filler.write(b"x" * 4096)
+        before = sorted(p.name for p in mount.iterdir())
+        out = mount / "result.out"
+        result = _run(*args, "--config", CONFIG / "default.yaml", "--out", out)
+        assert result.returncode == 1
+        line = _one_error_line(result.stderr)
+        assert f"error: {out}: " in line and ".partial" not in line
+        assert ("disk is full" if disk == "full" else "Read-only file system") in line
+        assert sorted(p.name for p in mount.iterdir()) == before  # nothing of this run is left
+    finally:
+        subprocess.run(["umount", str(mount)], check=True)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--duration", "inf"], "--duration must be a positive number of seconds"),
+        (["run", "--duration", "nan"], "--duration must be a positive number of seconds"),
+        (["run", "--duration", "-5"], "--duration must be a positive number of seconds"),
+        (["run", "--duration", "1e300"], "more than a run can take"),
+        (["run", "--duration", "1", "--dt", "nan"], "time_step_s"),
+        (["run", "--duration", "1", "--set", "payload_mass_kg=nan"], "payload_mass_kg"),
+        (["statics", "--points", "1000000000000"], "of memory, more than the"),
+    ],
+)
+def test_absurd_sizes_and_nan_inputs_are_refused_up_front(tmp_path, args, message):
+    out = tmp_path / "never.csv"
+    result = _run(*args, "--out", out)
+    assert result.returncode == 2
+    assert message in _one_error_line(result.stderr)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _dead_pid() -> int:
+    """The id of a process that has ended (a short-lived child, waited for)."""
+    child = subprocess.Popen(["true"])
+    child.wait()
+    return child.pid
+
+
+def test_the_leftovers_of_a_killed_run_are_removed_by_the_next_with_a_note(tmp_path):
+    out = tmp_path / "run.csv"
+    stale = tmp_path / f".run.csv.{_dead_pid()}-abc123_x.partial"
+    stale.write_text("half a table")
+    live = tmp_path / f".run.csv.{os.getpid()}-abc123_x.partial"  # a run still writing: not ours to remove
+    live.write_text("being written")
+    other = tmp_path / ".run.csv.notes.partial"  # not a name boom-sim makes
+    other.write_text("the user's")
+    result = _run("run", "--duration", "0.2", "--out", out)
+    assert result.returncode == 0, result.stderr
+    assert (
+        result.stderr.strip()
+        == f"boom-sim: note: removed {stale}, the unfinished run.csv of an earlier run that was stopped"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, live.name, other.name])
+
+
+def test_a_sigkilled_run_leaves_a_file_that_the_next_run_removes(tmp_path):
+    out = tmp_path / "long.csv"
+    process = subprocess.Popen([BOOM_SIM, "run", "--duration", "1e6", "--out", str(out)], stderr=subprocess.PIPE)
+    try:
+        partial = _wait_for_rows(tmp_path, process)
+    finally:
+        process.kill()
+        process.wait()
+    assert partial.exists()  # SIGKILL: nobody cleaned up
+    result = _run("run", "--duration", "0.2", "--out", out)
+    assert result.returncode == 0 and f"removed {partial}" in result.stderr
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]
+
+
+def test_strict_json_has_null_for_metrics_without_a_value():
+    from boom_hydraulics.files import json_text
+
+    text = json_text({"oscillation_hz": float("nan"), "settling_s": float("inf"), "lift_m": 0.25, "ok": True})
+    assert json.loads(text, parse_constant=lambda name: pytest.fail(f"{name} is not JSON")) == {
+        "oscillation_hz": None,
+        "settling_s": None,
+        "lift_m": 0.25,
+        "ok": True,
+    }
