@@ -141,3 +141,45 @@ def test_two_signals_at_once_still_finish_the_bag_with_status_0(client, tmp_path
     (bag,) = tmp_path.iterdir()
     assert (bag / "metadata.yaml").is_file()
     assert len(_states(bag)) > 5
+
+
+def test_commands_a_flood_drops_are_counted_in_diagnostics(node, client):
+    """The sensor-data queue keeps the last few commands of a flood; what it drops is counted."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from boom_hydraulics_msgs.msg import ValveCommand
+
+    flood = client.node.create_publisher(
+        ValveCommand, "valve_command", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+    assert client.spin_until(lambda: flood.get_subscription_count() > 0, timeout=60)
+    client.node.destroy_publisher(
+        client.pub
+    )  # the flood's publisher is the topic's only one: its sequence numbers tell the gaps
+
+    def counts() -> tuple[int, int]:
+        values = _values(client, "commands")
+        return int(values.get("received", 0)), int(values.get("lost", 0))
+
+    def send_until_received() -> bool:
+        flood.publish(ValveCommand(opening=0.0))
+        return client.spin_until(lambda: counts()[0] > 0, timeout=0.2)
+
+    assert client.spin_until(send_until_received, timeout=30)  # discovery is complete both ways
+    client.diagnostics.clear()
+    assert client.spin_until(lambda: len(client.diagnostics) >= 2, timeout=30)  # it has seen the lone publisher
+    before = counts()
+    sent = 20_000
+    for _ in range(sent):
+        flood.publish(ValveCommand(opening=0.0))
+    client.spin_for(0.5)
+    flood.publish(ValveCommand(opening=0.0))  # the last one shows a gap at the flood's end too
+
+    def accounted() -> bool:  # (the middleware may drop some before the sequence numbers can tell)
+        received, lost = counts()
+        return received - before[0] + lost - before[1] >= 0.95 * (sent + 1)
+
+    assert client.spin_until(accounted, timeout=60), (before, counts())
+    received, lost = counts()
+    assert received - before[0] + lost - before[1] <= sent + 1, (before, counts())
+    assert int(_values(client, "commands")["lost"]) > 0

@@ -36,7 +36,6 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -183,17 +182,13 @@ class BoomSimNode(Node):
             self.resolve_topic_name("commands"): Float64MultiArray,
         }
         self.commands_received = self.commands_stale = self.commands_lost = self.commands_refused = 0
-        lost = SubscriptionEventCallbacks(message_lost=self._on_commands_lost)
+        # commands lost in a flood (the sensor-data queue keeps the last 5): gaps in a lone
+        # publisher's sequence numbers (Fast DDS raises no message-lost event)
+        self._sole_publisher = dict.fromkeys(self.command_topics, False)
+        self._last_sequence: dict[str, int] = {}
+        self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True)
         self.create_subscription(
-            ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True, event_callbacks=lost
-        )
-        self.create_subscription(
-            Float64MultiArray,
-            "commands",
-            self.on_command_array,
-            qos_profile_sensor_data,
-            raw=True,
-            event_callbacks=lost,
+            Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data, raw=True
         )
         self.resets = self.pauses = self.steps_paused = 0  # calls of ~/reset, ~/pause (true), ~/step
         self.origin_shift_s = 0.0  # how far dropped backlogs moved the time origin of command stamps
@@ -440,21 +435,37 @@ class BoomSimNode(Node):
             self.commands_refused += 1
             self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
 
-    def _on_commands_lost(self, info: Any) -> None:
-        """The middleware dropped commands before this node could take them (a flood)."""
-        with self.lock:
-            self.commands_lost += info.total_count_change
+    def _count_lost(self, topic: str, info: dict) -> None:
+        """Count the commands a lone publisher sent that never reached this node."""
+        sequence = info.get("publication_sequence_number")
+        if not sequence or not self._sole_publisher[topic]:
+            return
+        last = self._last_sequence.get(topic)
+        if last is not None and sequence > last + 1:
+            self.commands_lost += sequence - last - 1
+        self._last_sequence[topic] = sequence
+
+    def _watch_publishers(self) -> None:
+        """Once a second: which command topics have one publisher (whose gaps are losses)."""
+        for topic in self.command_topics:
+            sole = self.count_publishers(topic) == 1
+            if sole != self._sole_publisher[topic]:
+                self._sole_publisher[topic] = sole
+                self._last_sequence.pop(topic, None)
 
     @_locked
     def on_command(self, data: bytes, info: dict) -> None:
         topic = self.resolve_topic_name("valve_command")
         self._record_received(topic, data, info)
+        self._count_lost(topic, info)
         msg = deserialize_message(data, ValveCommand)
         self._accept(msg.opening, msg.header.stamp)
 
     @_locked
     def on_command_array(self, data: bytes, info: dict) -> None:
-        self._record_received(self.resolve_topic_name("commands"), data, info)
+        topic = self.resolve_topic_name("commands")
+        self._record_received(topic, data, info)
+        self._count_lost(topic, info)
         msg = deserialize_message(data, Float64MultiArray)
         if len(msg.data) != 1:
             self.get_logger().warning(
@@ -710,6 +721,8 @@ class BoomSimNode(Node):
         """Once a second: diagnostics, and the command topics' publishers for the bag."""
         if self.recorder is not None:
             self._watch_command_topics()
+        with self.lock:
+            self._watch_publishers()
         self.publish_diagnostics()
 
     @_locked
