@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import shutil
 import subprocess
 
@@ -154,3 +155,22 @@ def test_a_settling_hump_is_not_an_oscillation():
     hump = 1.0 - np.exp(-3 * t) + 0.3 * np.exp(-((t - 0.5) ** 2) / 0.02)
     frequency, damping = analysis.oscillation(t, hump, ripple=1e-3)
     assert math.isnan(frequency) and math.isnan(damping)
+
+
+@pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
+@pytest.mark.skipif(os.geteuid() != 0, reason="mounting a small tmpfs needs root")
+def test_a_full_disk_names_the_result_file_and_leaves_no_staging_folder(tmp_path):
+    _record(tmp_path / "a", _trajectory())
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)], check=True)
+    try:
+        out = disk / "results"
+        result = subprocess.run([BOOM_ANALYZE, tmp_path / "a", "--out", out], capture_output=True, text=True)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 1 and len(lines) == 1 and "Traceback" not in result.stderr
+        assert lines[0].startswith(f"boom-analyze: error: {out}/") and "No space left on device" in lines[0]
+        assert ".partial" not in lines[0]
+        assert list(disk.iterdir()) == []  # neither the staging folder nor the results folder it made
+    finally:
+        subprocess.run(["umount", str(disk)], check=True)

@@ -141,10 +141,19 @@ def paper(out: Path, duration_s: float) -> None:
         raise ConfigError(f"--duration must be a number of simulated seconds in (0, 60], got {duration_s:g}")
     config_dir = _config_dir()
     check_apart(out, [config_dir / name for name in ("default.yaml", *CASES.values())])
-    with results_folder(out) as tmp:
-        statics_figures(tmp, config.load(config_dir / "default.yaml"))
-        dynamic_figures(tmp, config_dir, duration_s)
-        solver_figure(tmp, config_dir)
+    from tqdm import tqdm
+
+    stages = [
+        ("statics", lambda tmp: statics_figures(tmp, config.load(config_dir / "default.yaml"))),
+        ("fig8-fig10", lambda tmp: dynamic_figures(tmp, config_dir, duration_s)),
+        ("solver study", lambda tmp: solver_figure(tmp, config_dir)),
+    ]
+    # progress on stderr where it is a terminal, as boom-sweep shows it
+    with tqdm(total=len(stages), unit="stage", disable=None, file=sys.stderr) as progress, results_folder(out) as tmp:
+        for name, stage in stages:
+            progress.set_description(f"boom-study: {name}")
+            stage(tmp)
+            progress.update(1)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
