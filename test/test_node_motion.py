@@ -220,3 +220,22 @@ def test_a_closed_loop_run_resimulates_and_answers_what_if(client, tmp_path):
     held = (heavy["t"] > heavy["t"][0]) & (np.abs(heavy["alpha"] - math.radians(30.0)) < 2 * DEADBAND + 5e-4)
     assert held.any()
     assert heavy["u"][-1] == 0.0
+
+
+def test_a_burst_of_goals_is_answered_every_one(mover, client):
+    """100 goals at once, each preempting the one before: every goal and every result gets an
+    answer (the server keeps 1000 requests; a client that bursts must keep as many itself)."""
+    deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    burst = ActionClient(
+        client.node, MoveBoom, "/boom_sim/move_boom", goal_service_qos_profile=deep, result_service_qos_profile=deep
+    )
+    assert burst.wait_for_server(timeout_sec=20)
+    sent = [burst.send_goal_async(MoveBoom.Goal(target_angle_rad=0.3 + 0.001 * k)) for k in range(100)]
+    assert client.spin_until(lambda: all(f.done() for f in sent), timeout=60), sum(f.done() for f in sent)
+    handles = [f.result() for f in sent]
+    assert all(h.accepted for h in handles)
+    results = [h.get_result_async() for h in handles]
+    assert client.spin_until(lambda: all(f.done() for f in results), timeout=120), sum(f.done() for f in results)
+    statuses = [f.result().status for f in results]
+    assert statuses[:-1] == [GoalStatus.STATUS_ABORTED] * 99  # each preempted by the next
+    assert statuses[-1] == GoalStatus.STATUS_SUCCEEDED

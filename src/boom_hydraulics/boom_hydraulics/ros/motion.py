@@ -23,7 +23,9 @@ executor of its own, in which a goal's execute callback waits for that. The main
 its single-threaded executor: rclpy's coroutine callbacks would poll while they wait, and a
 multi-threaded executor for the whole node costs about 0.5 ms per callback (measured: a
 200 Hz /clock took 100 % of a core that way, 41 % single-threaded). The helper node keeps
-wall time: goal status stamps are wall time also under use_sim_time.
+wall time: goal status stamps are wall time also under use_sim_time. Its services keep up
+to 1000 requests waiting (rclpy's default is 10), so a burst of goals is answered goal by
+goal; a client that sends such bursts needs as deep a queue of its own.
 """
 
 from __future__ import annotations
@@ -56,6 +58,8 @@ DEFAULT_TIMEOUT_S = 5.0
 FEEDBACK_EVERY_TICKS = 10
 
 SUCCEEDED, ABORTED, CANCELED = "succeeded", "aborted", "canceled"
+#: The action's services keep this many requests waiting (rclpy's default keeps 10).
+SERVICE_QUEUE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 @dataclass
@@ -97,6 +101,11 @@ class Motion:
             handle_accepted_callback=self._on_accepted,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
             callback_group=ReentrantCallbackGroup(),
+            # a burst of goals (each preempting the one before) must not overflow the services'
+            # default queue of 10 requests, or the clients wait for answers that never come
+            goal_service_qos_profile=SERVICE_QUEUE,
+            result_service_qos_profile=SERVICE_QUEUE,
+            cancel_service_qos_profile=SERVICE_QUEUE,
         )
         node.create_subscription(
             JointTrajectory,
