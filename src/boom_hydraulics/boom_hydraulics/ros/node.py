@@ -272,32 +272,57 @@ class BoomSimNode(Node):
         """An integer for a float parameter becomes that float, before rclpy checks the type."""
         return [ros_parameters.typed(p) for p in changes]
 
-    @_locked
     def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """Validate a change as a whole (cross-field checks too); refuse it with the reason."""
+        """Validate a change as a whole (cross-field checks too); refuse it with the reason.
+        A new method or mode is compiled (or loaded) first, while the loop goes on stepping,
+        so that applying it holds the loop up for no longer than a tick."""
+        with self.lock:
+            refusal, new_params = self._check_changes(changes)
+        if refusal is not None:
+            return refusal
+        current = self.sim.params
+        if (
+            new_params is not None
+            and self.sim.jit
+            and (new_params.mode, new_params.method)
+            != (
+                current.mode,
+                current.method,
+            )
+        ):
+            warm = Simulator(new_params, jit=True)
+            warm.step(0.0, 0)
+            warm.outputs()
+        with self.lock:
+            return self._apply_changes(changes, new_params)
+
+    def _check_changes(self, changes: list[Parameter]) -> tuple[SetParametersResult | None, Any]:
+        """(a refusal or None, the model parameters after the change or None)."""
         model_changes = {p.name: ros_parameters.plain(p.value) for p in changes if p.name in NAMES}
         node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
         for p in changes:
             if p.name == "use_sim_time" and bool(p.value) != self.follow_clock:
-                return SetParametersResult(
-                    successful=False,
-                    reason="use_sim_time is start-only: the clock a run follows is chosen when it starts; "
-                    "restart the node with -p use_sim_time:=" + ("true" if p.value else "false"),
+                reason = (
+                    "use_sim_time is start-only: the clock a run follows is chosen when it starts; "
+                    "restart the node with -p use_sim_time:=" + ("true" if p.value else "false")
                 )
+                return SetParametersResult(successful=False, reason=reason), None
         try:
             for name, value in node_changes.items():
                 ros_parameters.check_node_parameter(name, value)
             new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
         except ConfigError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
+            return SetParametersResult(successful=False, reason=str(exc)), None
+        return None, new_params
+
+    def _apply_changes(self, changes: list[Parameter], new_params: Any) -> SetParametersResult:
+        """Apply a checked change (the caller holds the lock)."""
+        node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
         dt_before = self.sim.params.time_step_s
         if new_params is not None:
             if new_params.mode != "physical":
                 self.motion.stop("mode changed to paper, which has no position control")
             self.sim.set_parameters(new_params)
-            if self.sim.jit:  # compile (or load) a new method's steps now, not in the next tick
-                self.sim.step(0.0, 0)
-                self.sim.outputs()
             self.drive.parameters_changed()
             self._description_due = True
         if node_changes:
@@ -311,8 +336,7 @@ class BoomSimNode(Node):
         if "real_time_factor" in node_changes:
             self._restart_clock()  # a new pace: simulated time follows the clock afresh from here
         elif new_params is not None or node_changes:
-            # the time origin stays: the change takes no simulated time, and the steps it
-            # held up (a new method's compile) are worked off as a late tick would be
+            # the time origin stays: the change takes no simulated time
             self.pacer.rebase(self.sim.step_count, dt_before)
         # the node-clock time of the simulated instant the change takes effect at
         self._changed_at_ns = self._sim_instant_ns()
