@@ -845,23 +845,26 @@ def _shield_signals() -> None:
         signal.signal(signum, note)
 
 
-def _finish(node: BoomSimNode) -> None:
-    """Stop the loop, finish the bag and say where it is, then leave the ROS graph."""
+def _finish(node: BoomSimNode) -> bool:
+    """Stop the loop, finish the bag and say where it is, then leave the ROS graph; False
+    when the recording failed (the bag is left for boom-bag-recover)."""
     node.stopping.set()
     if node.loop.is_alive():
         node.loop.join(timeout=5.0)
     if node.record_pending:
         print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
-    recorder = node.recorder
+    recorder, recorded = node.recorder, True
     if recorder is not None:
         folder = recorder.close()
         counts = ", ".join(f"{t} {n}" for t, n in recorder.counts.items() if n)
         if recorder.error is not None:  # (it says how to recover the bag)
             print(f"boom_sim: error: recording failed: {recorder.error}", file=sys.stderr, flush=True)
+            recorded = False
         else:
             print(f"boom_sim: bag {folder} ({counts})", flush=True)
     node.motion.destroy()
     node.destroy_node()
+    return recorded
 
 
 def main(args: list[str] | None = None) -> None:
@@ -918,8 +921,10 @@ def main(args: list[str] | None = None) -> None:
             raise
     finally:
         _shield_signals()
-        _finish(node)
+        recorded = _finish(node)
         rclpy.try_shutdown()
+    if not recorded:
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":
