@@ -335,8 +335,8 @@ class Simulator:
         ``every`` steps. With ``stop_on_error``, a SimulationError ends the run early and the
         trajectory up to the last finite state is returned, with the reason in ``stopped``.
         """
-        chunks = list(self.samples(duration_s, command, every, stop_on_error))
-        columns = {name: np.concatenate([chunk[name] for chunk in chunks]) for name in OUTPUT_NAMES}
+        n_rows = sample_count(round(duration_s / self.params.time_step_s), every) if every >= 1 else 1
+        (columns,) = self.samples(duration_s, command, every, stop_on_error, chunk_rows=n_rows)  # one chunk: all
         return Trajectory(columns, self.stopped, self.most_substeps)
 
     def samples(
@@ -371,7 +371,8 @@ class Simulator:
 
         def flush() -> dict[str, np.ndarray]:
             nonlocal row
-            chunk = {name: column[:row].copy() for name, column in columns.items()}
+            chunk = {name: column[:row] for name, column in columns.items()}
+            columns.clear()  # the next chunk gets fresh arrays: this one is the caller's, uncopied
             row = 0
             return chunk
 
