@@ -88,6 +88,10 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
     assert min(s for _, s in samples) >= 100.0 and max(s for _, s in samples) <= phases["end"] + 0.01
     assert len(half) > 50 and _rate(half) == pytest.approx(0.5, abs=0.08)
     assert len(double) > 50 and _rate(double) == pytest.approx(2.0, abs=0.25)
+    # states come at publish_rate_hz of the clock's time, whatever its pace: 10 ms of it apart
+    for phase in (half, double):
+        spacings = sorted(b - a for (_, a), (_, b) in itertools.pairwise(phase))
+        assert spacings[len(spacings) // 2] == pytest.approx(0.01, abs=1e-6), spacings
     # a stopped clock stops the physics: nothing is published for the 3 s it stands still
     # (the largest wall-time gap between states stamped near the stop: which state is the last
     # before it depends on where the clock's last tick fell between two publishing instants)

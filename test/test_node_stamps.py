@@ -183,3 +183,17 @@ def test_commands_a_flood_drops_are_counted_in_diagnostics(node, client):
     received, lost = counts()
     assert received - before[0] + lost - before[1] <= sent + 1, (before, counts())
     assert int(_values(client, "commands")["lost"]) > 0
+
+
+@pytest.mark.parametrize("after_s", [0.0, 0.4, 0.9, 1.6])
+def test_a_ctrl_c_during_start_up_ends_without_a_traceback(after_s):
+    """Whether it lands while Python loads rclpy and numba, while the model compiles or once
+    it runs (the instants sample the start-up; none is waited for as an event)."""
+    import time
+
+    proc = start_node()
+    time.sleep(after_s)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=60)
+    assert "Traceback" not in out and "KeyboardInterrupt" not in out, out
+    assert proc.returncode in (0, -signal.SIGINT), out  # (-2: before Python had its handler)

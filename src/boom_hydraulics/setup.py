@@ -27,7 +27,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "boom_sim = boom_hydraulics.ros.node:main",
+            "boom_sim = boom_hydraulics.ros.boom_sim:main",
             "boom-sim = boom_hydraulics.cli.sim:main",
             "boom-demo = boom_hydraulics.ros.demo:main",
             "boom-analyze = boom_hydraulics.cli.analyze:main",
