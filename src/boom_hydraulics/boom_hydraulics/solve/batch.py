@@ -239,7 +239,7 @@ class KernelRun:
 
     def __init__(
         self, runner: Callable[..., None], params: Sequence[Parameters], spec: tuple, duration_s: float, every: int,
-        lift_angle_deg: float, store: bool,
+        lift_angle_deg: float, store: bool, slice_rows: int | None = None,
     ) -> None:  # fmt: skip
         p0 = params[0]
         model = MODELS[p0.mode]
@@ -264,7 +264,9 @@ class KernelRun:
             int(every), energy_index, np.array(bases, dtype=float), self.settings, self.accumulators,
         )  # fmt: skip
         width = len(OUTPUT_NAMES)
-        slice_rows = max(2, SLICE_FLOATS // (self.n_sets * width)) if store else 0
+        if slice_rows is None:
+            slice_rows = SLICE_FLOATS // (self.n_sets * width)
+        slice_rows = max(2, slice_rows) if store else 0
         self.most_passes = max(1, (slice_rows - 2) * every) if store else self.n_steps + 1
         self.rows = np.empty((self.n_sets, slice_rows, width))  # the rows of the last slice
 
@@ -315,9 +317,11 @@ def kernel_run(
     every: int = 1,
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     store: bool = False,
+    slice_rows: int | None = None,
 ) -> KernelRun | None:
     """The sets prepared for the compiled kernel (see :func:`run_sets`), or None where numba
-    is not available (or switched off) or the kernel cannot evaluate ``command``."""
+    is not available (or switched off) or the kernel cannot evaluate ``command``. With
+    ``store``, a slice takes at most ``slice_rows`` samples per set (default: SLICE_FLOATS in all)."""
     _check_shared(params)
     if every < 1:
         raise ConfigError(f"every must be >= 1, got {every}")
@@ -326,7 +330,7 @@ def kernel_run(
     spec = kernel_command(command, len(params))
     if runner is None or spec is None:
         return None
-    return KernelRun(runner, params, spec, duration_s, every, lift_angle_deg, store)
+    return KernelRun(runner, params, spec, duration_s, every, lift_angle_deg, store, slice_rows)
 
 
 def run_sets(

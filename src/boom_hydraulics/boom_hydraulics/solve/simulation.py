@@ -24,8 +24,8 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
 #: Most substeps the stability bound may ask for in one time step before a run stops.
 MAX_SUBSTEPS = 10_000
-#: Rows of one chunk of a streamed interpreted run (Simulator.samples).
-CHUNK_ROWS = 4096
+#: Rows of one chunk of a streamed run (RunStream, Simulator.samples): a few MB as CSV text.
+CHUNK_ROWS = 8192
 
 
 def stability_limit(p: Parameters) -> float:
@@ -481,7 +481,9 @@ class RunStream:
         sim = Simulator(self.params, jit=self.jit)
         run = None
         if sim.compiled and self.params.method in integrators.BATCHED:
-            run = kernel_run([self.params], self.duration_s, self.command, self.every, store=True)
+            run = kernel_run(
+                [self.params], self.duration_s, self.command, self.every, store=True, slice_rows=CHUNK_ROWS
+            )
         if run is None:
             yield from self._interpreted(sim)
         else:
