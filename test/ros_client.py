@@ -55,6 +55,24 @@ class Client:
                 self.command(opening)
             rclpy.spin_once(self.node, timeout_sec=0.02)
 
+    def sim_s(self) -> float:
+        """The newest state's stamp, s: its simulated instant on the node's clock."""
+        stamp = self.states[-1].header.stamp
+        return stamp.sec + stamp.nanosec * 1e-9
+
+    def spin_sim(self, seconds: float, opening: float | None = None) -> None:
+        """Spin until the node's states show ``seconds`` more of simulated time, publishing
+        ``opening`` at about 50 Hz if given. A state's stamp is its simulated instant, so a
+        loaded machine only makes this take longer, never changes what it covers."""
+        assert self.spin_until(lambda: bool(self.states), 60), "no drive_state from the node"
+        end = self.sim_s() + seconds - 1e-9
+        deadline = time.monotonic() + 60.0 + 20.0 * seconds
+        while self.sim_s() < end:
+            assert time.monotonic() < deadline, f"simulated time stood still at {self.sim_s():.3f} s"
+            if opening is not None:
+                self.command(opening)
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
     def command(self, opening: float, stamp_s: float | None = None) -> None:
         msg = ValveCommand(opening=opening)
         if stamp_s is not None:

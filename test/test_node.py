@@ -28,12 +28,12 @@ pytestmark = [
 def test_openings_hold_extend_and_retract(node, client):
     assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the node"
     q0, alpha0 = client.last().rod_position_m, client.last().boom_angle_rad
-    client.spin_for(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
+    client.spin_sim(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
     assert abs(client.last().rod_position_m - q0) < 5e-4
-    client.spin_for(1.0, opening=1.0)
+    client.spin_sim(1.0, opening=1.0)
     up = client.last()
     assert up.rod_position_m > q0 + 0.05 and up.boom_angle_rad > alpha0 + 0.1
-    client.spin_for(1.0, opening=-1.0)
+    client.spin_sim(1.0, opening=-1.0)
     down = client.last()
     assert down.rod_position_m < up.rod_position_m - 0.05
     assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
@@ -49,18 +49,18 @@ def test_openings_hold_extend_and_retract(node, client):
 
 def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(node, client):
     assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_for(0.3, opening=0.8)
-    client.spin_for(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
+    client.spin_sim(0.3, opening=0.8)
+    client.spin_sim(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
     assert client.last().valve_command == pytest.approx(0.8)
     assert client.last().rod_velocity_m_s > 0.02
-    client.spin_for(1.0)  # no commands: the spring-centred valve closes
+    client.spin_sim(1.0)  # no commands: the spring-centred valve closes
     assert client.last().valve_command == 0.0
     assert node.poll() is None  # still running
 
 
 def test_out_of_range_opening_is_clamped(node, client):
     assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_for(0.3, opening=7.0)
+    client.spin_sim(0.3, opening=7.0)
     assert client.last().valve_command == 1.0
 
 
@@ -113,10 +113,11 @@ def test_signals_end_the_node_cleanly(client, sig):
 
 def test_diagnostics_report_the_end_stop(node, client):
     assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_for(3.5, opening=1.0)  # drive into the upper end stop (about 2 s away)
+    client.spin_sim(3.5, opening=1.0)  # drive into the upper end stop (about 2 s away)
     assert client.last().at_end_stop
-    client.spin_for(1.2, opening=1.0)  # diagnostics come at 1 Hz
-    assert any("at_end_stop" in s.message for d in client.diagnostics for s in d.status)
+    assert client.spin_until(  # diagnostics come at 1 Hz
+        lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), timeout=30
+    )
 
 
 def test_fast_run_with_clock_equals_the_headless_simulation(client):
@@ -203,7 +204,7 @@ def test_a_broken_energy_balance_stops_the_node_and_is_reported(client):
     proc = start_node("method:=euler", "substeps:=3", "spool_time_constant_s:=0.0", "command_timeout_s:=0.0")
     try:
         assert client.spin_until(lambda: len(client.states) > 3)
-        client.spin_for(0.6, opening=1.0)
+        client.spin_sim(0.6, opening=1.0)
         client.command(0.0)  # closing the valve on the moving boom rings the oil springs
 
         def stopped() -> list[str]:
@@ -281,6 +282,6 @@ def test_recording_holds_every_published_and_received_message(client, tmp_path, 
 def test_command_timeout_changed_at_run_time_takes_effect(node, client):
     assert client.spin_until(lambda: len(client.states) > 5)
     assert client.set_parameter("command_timeout_s", 0.0).successful  # never close by itself
-    client.spin_for(0.3, opening=0.6)
-    client.spin_for(1.0)  # no commands for twice the start value of 0.5 s
+    client.spin_sim(0.3, opening=0.6)
+    client.spin_sim(1.0)  # no commands for twice the start value of 0.5 s
     assert client.last().valve_command == pytest.approx(0.6)

@@ -81,7 +81,7 @@ def test_move_boom_reaches_30_degrees_and_holds_it(mover, client):
     assert abs(result.final_error_rad) <= 2 * DEADBAND
     assert 1.0 < result.duration_s < 6.0 and result.supply_energy_j > 100.0
     assert len(mover.feedback) >= 5 and all(abs(f.error_rad) < 0.5 for f in mover.feedback)
-    client.spin_for(2.0)  # it holds: the valve stays closed and the boom where it is
+    client.spin_sim(2.0)  # it holds: the valve stays closed and the boom where it is
     recent = client.states[-100:]
     assert all(abs(s.boom_angle_rad - target) <= 2 * DEADBAND + 5e-4 for s in recent)
     assert all(s.valve_command == 0.0 for s in recent)
@@ -89,23 +89,23 @@ def test_move_boom_reaches_30_degrees_and_holds_it(mover, client):
 
 def test_cancel_stops_the_boom_and_closes_the_valve(mover, client):
     handle = mover.send(math.radians(60.0))
-    client.spin_for(1.0)
+    client.spin_sim(1.0)
     moving = client.last()
     assert moving.boom_rate_rad_s > 0.1
     cancel = handle.cancel_goal_async()
     assert client.spin_until(cancel.done, 10)
     answer = mover.result(handle)
     assert answer.status == GoalStatus.STATUS_CANCELED
-    client.spin_for(1.0)  # the closed valve stops the boom (after a short ring on the oil's spring)
+    client.spin_sim(1.0)  # the closed valve stops the boom (after a short ring on the oil's spring)
     stopped = client.last()
     assert stopped.valve_command == 0.0 and abs(stopped.boom_rate_rad_s) < 0.01
-    client.spin_for(1.0)
+    client.spin_sim(1.0)
     assert abs(client.last().boom_angle_rad - stopped.boom_angle_rad) < 1e-3
 
 
 def test_a_second_goal_preempts_the_first(mover, client):
     first = mover.send(math.radians(50.0))
-    client.spin_for(0.7)
+    client.spin_sim(0.7)
     second = mover.send(math.radians(15.0))
     assert second.accepted
     answer = mover.result(first)
@@ -124,8 +124,8 @@ def test_a_goal_outside_the_stroke_is_rejected_with_a_reason(mover, client):
 
 def test_a_valve_command_overrides_and_aborts_the_goal(mover, client):
     handle = mover.send(math.radians(50.0))
-    client.spin_for(0.5)
-    client.spin_for(0.6, opening=-0.5)  # the operator lowers the boom
+    client.spin_sim(0.5)
+    client.spin_sim(0.6, opening=-0.5)  # the operator lowers the boom
     answer = mover.result(handle)
     assert answer.status == GoalStatus.STATUS_ABORTED and "operator override" in answer.result.message
     assert client.last().valve_command == -0.5 and client.last().boom_rate_rad_s < 0.0
@@ -176,8 +176,8 @@ def test_a_joint_trajectory_is_followed_within_a_degree(mover, client):
 
 def test_a_valve_command_overrides_a_trajectory(mover, client):
     mover.trajectories.publish(_trajectory([(3.0, 0.9)]))
-    client.spin_for(1.0)
-    client.spin_for(0.6, opening=-0.4)
+    client.spin_sim(1.0)
+    client.spin_sim(0.6, opening=-0.4)
     assert client.spin_until(lambda: mover.logged("joint trajectory aborted: operator override"), 5)
     assert client.last().valve_command == -0.4 and client.last().boom_rate_rad_s < 0.0
 
@@ -196,13 +196,13 @@ def test_a_closed_loop_run_resimulates_and_answers_what_if(client, tmp_path):
     try:
         mover = Mover(client)
         assert mover.result(mover.send(math.radians(30.0))).status == GoalStatus.STATUS_SUCCEEDED
-        client.spin_for(0.5)
+        client.spin_sim(0.5)
         second = mover.send(math.radians(45.0))
-        client.spin_for(0.4)
+        client.spin_sim(0.4)
         cancel = second.cancel_goal_async()
         assert client.spin_until(cancel.done, 10)
         assert mover.result(second).status == GoalStatus.STATUS_CANCELED
-        client.spin_for(0.5)
+        client.spin_sim(0.5)
     finally:
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=20)
