@@ -118,7 +118,10 @@ def test_bad_bags_give_one_line_and_write_nothing(tmp_path, case):
     elif case == "truncated":
         _record(tmp_path / "run", _trajectory())
         data = (tmp_path / "run" / "run_0.mcap").read_bytes()
-        bag, message = tmp_path / "cut.mcap", "truncated (its recorder was killed?); run boom-bag-recover"
+        bag, message = (
+            tmp_path / "cut.mcap",
+            "truncated (its recorder was killed, or its disk was full); run boom-bag-recover",
+        )
         bag.write_bytes(data[: len(data) // 2])
     else:
         with BagRecorder(tmp_path / "other", [Topic("/valve_command", "boom_hydraulics_msgs/msg/ValveCommand")]) as rec:

@@ -47,13 +47,15 @@ def check_bag_path(path: Path) -> None:
         raise BagError(f"{path}: is still being recorded; read it once its recorder has finished")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise BagError(
-            f"{path}: has no metadata.yaml: its recorder was killed before finishing it; "
-            f"run boom-bag-recover {path} first"
+            f"{path}: has no metadata.yaml: its recording did not finish (the recorder was killed, "
+            f"or its disk was full); run boom-bag-recover {path} first"
         )
     for file in files:
         if _truncated(file):
             fix = f"run boom-bag-recover {path}" if path.is_dir() else "run boom-bag-recover on its bag folder"
-            raise BagError(f"{file}: the file is truncated (its recorder was killed?); {fix} first")
+            raise BagError(
+                f"{file}: the file is truncated (its recorder was killed, or its disk was full); {fix} first"
+            )
     if path.is_dir():
         check_metadata(path / "metadata.yaml", files)
 
