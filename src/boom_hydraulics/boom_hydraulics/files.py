@@ -71,7 +71,7 @@ def remove_created(created: Sequence[Path]) -> None:
             break  # not empty (someone else's files): keep it and everything above it
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
     """True unless no process ``pid`` runs on this machine (then its temporary files are stale)."""
     try:
         os.kill(pid, 0)
@@ -94,7 +94,7 @@ def _stale_owner(name: str, prefix: str, suffix: str) -> int | None:
     pid, dash, tail = name[len(prefix) : len(name) - len(suffix)].partition("-")
     if not (dash and pid.isdigit() and tail and all(ch.isalnum() or ch == "_" for ch in tail)):
         return None
-    return None if _alive(int(pid)) else int(pid)
+    return None if process_alive(int(pid)) else int(pid)
 
 
 def _remove_stale_files(path: Path, suffix: str) -> None:

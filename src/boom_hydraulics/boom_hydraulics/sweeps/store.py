@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BoomHydraulicsError, ConfigError
-from ..files import write_bytes, write_npz
+from ..files import process_alive, write_bytes, write_npz
 
 MANIFEST = "sweep.json"
 BATCHES = "batches"
@@ -93,15 +93,6 @@ def _batch_files(folder: Path) -> dict[int, Path]:
     return {int(p.stem): p for p in folder.glob("[0-9]*.npz") if p.stem.isdigit()}
 
 
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OverflowError):
-        return True
-    return True
-
 
 def remove_stale_temporaries(folder: Path, names: Sequence[str]) -> list[Path]:
     """Remove the temporaries that a killed sweep (SIGKILL, a power cut) left of its own files in
@@ -120,7 +111,7 @@ def remove_stale_temporaries(folder: Path, names: Sequence[str]) -> list[Path]:
             continue
         for path in sorted(where.iterdir()):
             match = pattern.fullmatch(path.name)
-            if match and not _running(int(match["pid"])) and path.is_file() and not path.is_symlink():
+            if match and not process_alive(int(match["pid"])) and path.is_file() and not path.is_symlink():
                 path.unlink(missing_ok=True)
                 removed.append(path)
     return removed
