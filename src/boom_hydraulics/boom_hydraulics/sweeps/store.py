@@ -93,6 +93,7 @@ def _batch_files(folder: Path) -> dict[int, Path]:
     return {int(p.stem): p for p in folder.glob("[0-9]*.npz") if p.stem.isdigit()}
 
 
+
 def remove_stale_temporaries(folder: Path, names: Sequence[str]) -> list[Path]:
     """Remove the temporaries that a killed sweep (SIGKILL, a power cut) left of its own files in
     ``folder`` and its ``batches/``: hidden ``.NAME.PID-XXXXXXXX.partial`` files of the sweep's
