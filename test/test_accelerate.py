@@ -73,8 +73,29 @@ def test_the_compiled_model_is_cached_on_disk_and_a_new_process_loads_it(tmp_pat
     assert (first[1], first[2]) == (0, 1)  # compiled, and written
     assert (again[1], again[2]) == (1, 0)  # loaded, not compiled
     assert first[0] == again[0]  # bit for bit the same step
-    (module,) = tmp_path.glob("boom_compiled_physical_rk4_*.py")  # keyed on a hash of its source
-    assert "do not edit" in module.read_text() and list((tmp_path / "__pycache__").glob("*.nbi"))
+    (folder,) = [f for f in tmp_path.iterdir() if first[3].startswith(str(f))]  # keyed on a hash of the sources
+    assert list(folder.rglob("physical_kernel.steps_rk4-*.nbi"))
+
+
+def test_the_cache_folder_follows_every_source_of_the_kernel(tmp_path, monkeypatch):
+    from boom_hydraulics import jit
+    from boom_hydraulics.solve import physical_kernel
+
+    monkeypatch.setenv("BOOM_HYDRAULICS_CACHE", str(tmp_path))
+    copies = []
+    for path in physical_kernel.SOURCES:  # the same files, one at a time with a changed line
+        copy = tmp_path / "src" / path.relative_to(jit.PACKAGE)
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_bytes(path.read_bytes())
+        copies.append(copy)
+    monkeypatch.setattr(jit, "PACKAGE", tmp_path / "src")
+    key = jit.cache_folder(copies)
+    assert key == jit.cache_folder(copies) and key.parent == tmp_path
+    for copy in copies:
+        text = copy.read_bytes()
+        copy.write_bytes(text + b"# changed\n")
+        assert jit.cache_folder(copies) != key, copy.name
+        copy.write_bytes(text)
 
 
 def test_an_unwritable_cache_folder_falls_back_and_still_compiles(tmp_path):

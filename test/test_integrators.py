@@ -59,3 +59,11 @@ def test_rk45_agrees_with_rk4_in_physical_mode():
     rk45 = _final(with_updates(Parameters(), method="rk45", rtol=1e-9, atol_scale=1e-11), 1.5, command)
     assert rk45[0] == pytest.approx(rk4[0], rel=1e-6)
     assert rk45[1] == pytest.approx(rk4[1], rel=1e-5)
+
+
+def test_the_parameter_schema_offers_the_registered_methods():
+    """The methods a params file may name are the solver's (model/ names them without importing it)."""
+    from boom_hydraulics.model import parameters
+    from boom_hydraulics.solve import integrators
+
+    assert tuple(getattr(parameters, "METHOD_NAMES", parameters.METHODS)) == tuple(integrators.METHODS)

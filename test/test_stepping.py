@@ -134,8 +134,8 @@ def test_without_the_bound_rk4_diverges_and_the_energy_guard_stops_it():
     c = physical.constants(p)
     y = physical.initial_state(p)
     base = physical.energy(y, c) - y[physical.ENERGY_STATES[0]]
-    run = stepping.fixed_stepper(integrators.rk4_step, physical.derivative, physical.stiffness_rate, physical.energy)
-    done, outcome, _, _ = run(0.0, y, c, 1.0, 1e-3, 1, 0.0, 1, 3000, physical.ENERGY_STATES[0], base)
+    f = (integrators.rk4_step, physical.derivative, physical.stiffness_rate, physical.energy)
+    done, outcome, _, _ = stepping.advance(*f, 0.0, y, c, 1.0, 1e-3, 1, 0.0, 1, 3000, physical.ENERGY_STATES[0], base)
     assert outcome in (stepping.ENERGY, stepping.NONFINITE) and done < 3000
 
 

@@ -13,19 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from . import streaming
-
-#: The boom rise (degrees) a lift has to achieve, unless the caller names another.
-DEFAULT_LIFT_ANGLE_DEG = 20.0
-
-
-def move_window(p: Any) -> tuple[float, float, float]:
-    """(start s, end s, target rad) of the first move of a closed-loop ``angle`` scenario
-    (Parameters ``p``): from its time until the next move's; NaN start for open loop."""
-    if p is None or p.command_profile != "angle":
-        return math.nan, math.inf, math.nan
-    times = p.command_times_s
-    return times[0], times[1] if len(times) > 1 else math.inf, p.command_angles_rad[0]
+from ..solve import streaming
+from ..solve.streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
 
 def streamed(

@@ -31,6 +31,7 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
+from ..jit import jitable
 from .geometry import boom_angle_rad, cos_boom_angle, lever_rad_per_m
 from .hydraulics import larger, smaller
 
@@ -78,6 +79,7 @@ def initial_control_state(like: Num = 0.0) -> ControlState:
     return ControlState(integral=zero, holding=zero)
 
 
+@jitable
 def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Num]:
     """Boom rates (rad/s) at full opening, lifting and lowering, at cylinder length ``q1_m``
     (the feedforward's plant model; ``c``: physical-mode Constants)."""
@@ -90,6 +92,7 @@ def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Nu
     return lever * smaller(v_up, c.pump_max_flow / c.s1), lever * smaller(v_down, c.pump_max_flow / c.s2)
 
 
+@jitable
 def position_command(
     g: Gains,
     s: ControlState,

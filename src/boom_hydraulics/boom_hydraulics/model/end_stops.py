@@ -7,11 +7,13 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..jit import jitable
 from .hydraulics import pos
 
 Num = Any  # float or numpy.ndarray
 
 
+@jitable
 def end_stop_force_n(
     q1_m: Num, velocity_m_s: Num, min_length_m: Num, max_length_m: Num, stiffness_n_m: Num, damping_n_s_m2: Num
 ) -> Num:
@@ -30,6 +32,7 @@ def end_stop_force_n(
     return push_out - push_in
 
 
+@jitable
 def end_stop_energy_j(q1_m: Num, min_length_m: Num, max_length_m: Num, stiffness_n_m: Num) -> Num:
     """Elastic energy stored in the end stops, k d^2 / 2, J."""
     d_low = pos(min_length_m - q1_m)

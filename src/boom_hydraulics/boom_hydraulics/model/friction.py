@@ -13,20 +13,25 @@ import math
 from types import ModuleType
 from typing import Any
 
+from ..jit import jitable
+
 Num = Any  # float or numpy.ndarray
 
 
+@jitable
 def paper_friction_n(velocity_m_s: Num, coulomb_n: Num, viscous_n_s_m: Num) -> Num:
     """F_mp + b_d v: the Fig. 7 listing's friction, a constant force whatever the direction."""
     return coulomb_n + viscous_n_s_m * velocity_m_s
 
 
+@jitable
 def stribeck_level(velocity_m_s: Num, coulomb_n: Num, static_n: Num, stribeck_m_s: Num, xp: ModuleType = math) -> Num:
     """g(v) = F_c + (F_s - F_c) exp(-(v / v_st)^2): the sliding friction at speed v, N (Stribeck curve)."""
     ratio = velocity_m_s / stribeck_m_s
     return coulomb_n + (static_n - coulomb_n) * xp.exp(-ratio * ratio)
 
 
+@jitable
 def bristle_rate(velocity_m_s: Num, bristle: Num, level_ratio: Num, presliding_m: Num) -> Num:
     """ds/dt of the LuGre seal model, 1/s, with s = z / z_ba the bristle deflection over the
     presliding displacement (s = 1 is the breakaway deflection).
@@ -38,6 +43,7 @@ def bristle_rate(velocity_m_s: Num, bristle: Num, level_ratio: Num, presliding_m
     return (velocity_m_s - abs(velocity_m_s) * bristle / level_ratio) / presliding_m
 
 
+@jitable
 def seal_friction_n(
     velocity_m_s: Num,
     bristle: Num,

@@ -15,25 +15,31 @@ import math
 from types import ModuleType
 from typing import Any
 
+from ..jit import jitable
+
 Num = Any  # float or numpy.ndarray
 
 
+@jitable
 def xi(q1_m: Num, a_m: float, b_m: float) -> Num:
     """xi = cos(theta) = (a^2 + b^2 - q1^2) / (2ab): law of cosines in AOK (eq. 1, under eq. 10)."""
     return (a_m * a_m + b_m * b_m - q1_m * q1_m) / (2.0 * a_m * b_m)
 
 
+@jitable
 def within_triangle(q1_m: float, a_m: float, b_m: float) -> bool:
     """True where the cylinder length lies strictly inside (|b - a|, a + b): where the
     triangle of eq. 1 exists and the model can be evaluated."""
     return abs(b_m - a_m) < q1_m < a_m + b_m
 
 
+@jitable
 def boom_angle_rad(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType = math) -> Num:
     """alpha: boom elevation above the horizontal, rad (eq. 4)."""
     return xp.acos(xi(q1_m, a_m, b_m)) - math.pi / 2.0 + xp.acos(h_m / b_m)  # eq. 2-4
 
 
+@jitable
 def cos_boom_angle(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType = math) -> Num:
     """cos(alpha) without arccos (eq. 4): alpha = theta - (pi/2 - alpha2), so
     cos(alpha) = cos(theta) sin(alpha2) + sin(theta) cos(alpha2) = xi sqrt(1 - (h/b)^2) + sqrt(1 - xi^2) h/b.
@@ -43,11 +49,13 @@ def cos_boom_angle(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType
     return x * xp.sqrt(1.0 - hb * hb) + xp.sqrt(1.0 - x * x) * hb
 
 
+@jitable
 def rod_boom_angle_rad(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -> Num:
     """phi: angle between the rod axis and the boom, rad (eq. 5)."""
     return xp.acos((a_m * a_m + q1_m * q1_m - b_m * b_m) / (2.0 * a_m * q1_m))  # eq. 5
 
 
+@jitable
 def lever_rad_per_m(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -> Num:
     """k = d(alpha)/dq1 = q1 / (a b sqrt(1 - xi^2)) = 1 / (a sin(phi)), rad/m.
 
@@ -58,6 +66,7 @@ def lever_rad_per_m(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) ->
     return q1_m / (a_m * b_m * xp.sqrt(1.0 - x * x))
 
 
+@jitable
 def lever_derivative(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -> Num:
     """dk/dq1 = 1 / (ab s) - q1^2 xi / (a^2 b^2 s^3), s = sqrt(1 - xi^2), rad/m^2."""
     x = xi(q1_m, a_m, b_m)
@@ -67,6 +76,7 @@ def lever_derivative(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -
     return 1.0 / (ab * s) - q1_m * q1_m * x / (ab * ab * s2 * s)
 
 
+@jitable
 def gravity_moment_nm(
     alpha_rad: Num, boom_mass_kg: Num, payload_mass_kg: Num, boom_length_m: float, g_m_s2: float, xp: ModuleType = math
 ) -> Num:
@@ -74,6 +84,7 @@ def gravity_moment_nm(
     return (0.5 * boom_mass_kg + payload_mass_kg) * boom_length_m * g_m_s2 * xp.cos(alpha_rad)
 
 
+@jitable
 def static_rod_force_n(
     q1_m: Num,
     a_m: float,
@@ -128,16 +139,19 @@ def outside_stroke(p: Any, angle_rad: float, what: str = "target") -> str | None
     )
 
 
+@jitable
 def piston_area_m2(diameter_m: Num) -> Num:
     """S1 = pi D^2 / 4 (also eq. 17 for the throttle area)."""
     return math.pi * diameter_m * diameter_m / 4.0
 
 
+@jitable
 def annulus_area_m2(piston_diameter_m: Num, rod_diameter_m: Num) -> Num:
     """S2 = pi (D^2 - d^2) / 4: rod-side effective area."""
     return math.pi * (piston_diameter_m * piston_diameter_m - rod_diameter_m * rod_diameter_m) / 4.0
 
 
+@jitable
 def holding_pressure_pa(
     force_n: Num, piston_diameter_m: Num, rod_side_pressure_pa: Num = 0.0, rod_diameter_m: Num = 0.0
 ) -> Num:

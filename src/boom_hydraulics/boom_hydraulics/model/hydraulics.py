@@ -12,32 +12,39 @@ import math
 from types import ModuleType
 from typing import Any
 
+from ..jit import jitable
+
 Num = Any  # float or numpy.ndarray
 
 #: Added to an open area coefficient so that a closed valve divides by no zero, m^3/(s Pa^0.5).
 _TINY_COEFF = 1e-30
 
 
+@jitable
 def pos(z: Num) -> Num:
     """max(z, 0) for floats and arrays alike."""
     return 0.5 * (z + abs(z))
 
 
+@jitable
 def smaller(x: Num, y: Num) -> Num:
     """min(x, y) for floats and arrays alike (exact, also when y is huge; y finite)."""
     return x + (y - x) * (y < x)
 
 
+@jitable
 def larger(x: Num, y: Num) -> Num:
     """max(x, y) for floats and arrays alike."""
     return x + pos(y - x)
 
 
+@jitable
 def orifice_coefficient(discharge_coefficient: Num, area_m2: Num, density_kg_m3: Num) -> Num:
     """K = mu f sqrt(2 / rho), so that turbulent flow is Q = K sqrt(dp), m^3/(s Pa^0.5) (eq. 14)."""
     return discharge_coefficient * area_m2 * (2.0 / density_kg_m3) ** 0.5
 
 
+@jitable
 def turbulent_orifice_flow(k: Num, dp_pa: Num, xp: ModuleType = math) -> Num:
     """Q = mu f sqrt(2 |dp| / rho) sign(dp), m^3/s: the paper's orifice law (eq. 14, 15).
 
@@ -46,6 +53,7 @@ def turbulent_orifice_flow(k: Num, dp_pa: Num, xp: ModuleType = math) -> Num:
     return k * xp.copysign(xp.sqrt(abs(dp_pa)), dp_pa)  # eq. 14
 
 
+@jitable
 def orifice_flow(k: Num, dp_pa: Num, transition_pa2: Num, xp: ModuleType = math) -> Num:
     """Orifice flow with a laminar-turbulent transition, m^3/s.
 
@@ -57,6 +65,7 @@ def orifice_flow(k: Num, dp_pa: Num, transition_pa2: Num, xp: ModuleType = math)
     return k * dp_pa / xp.sqrt(xp.sqrt(dp_pa * dp_pa + transition_pa2))  # (..)^(1/4); pow is slow on arrays
 
 
+@jitable
 def orifice_pressure_drop(k: Num, flow_m3_s: Num, transition_pa2: Num, xp: ModuleType = math) -> Num:
     """Inverse of :func:`orifice_flow` for flow >= 0: the dp that passes ``flow_m3_s``, Pa.
 
@@ -67,11 +76,13 @@ def orifice_pressure_drop(k: Num, flow_m3_s: Num, transition_pa2: Num, xp: Modul
     return xp.sqrt(0.5 * r4 * (1.0 + xp.sqrt(1.0 + 4.0 * transition_pa2 / r4)))
 
 
+@jitable
 def chamber_pressure_rate(bulk_modulus_pa: Num, volume_m3: Num, inflow_m3_s: Num, volume_rate_m3_s: Num) -> Num:
     """dp/dt = E / V (Q_in - dV/dt), Pa/s (eq. 12 for the piston chamber, eq. 13 for the rod one)."""
     return bulk_modulus_pa / volume_m3 * (inflow_m3_s - volume_rate_m3_s)  # eq. 12, 13
 
 
+@jitable
 def chamber_pressure_pa(liquid_state_pa: Num, floor_pa: Num) -> Num:
     """Pressure of a cavitating chamber from its state z: max(z, p_cav), Pa.
 
@@ -81,6 +92,7 @@ def chamber_pressure_pa(liquid_state_pa: Num, floor_pa: Num) -> Num:
     return floor_pa + pos(liquid_state_pa - floor_pa)
 
 
+@jitable
 def chamber_state_rate(
     bulk_modulus_pa: Num,
     volume_m3: Num,
@@ -102,11 +114,13 @@ def chamber_state_rate(
     return chamber_pressure_rate(bulk_modulus_pa, volume_m3, inflow_m3_s, volume_rate_m3_s) + void_term
 
 
+@jitable
 def void_volume_m3(bulk_modulus_pa: Num, volume_m3: Num, liquid_state_pa: Num, floor_pa: Num) -> Num:
     """Volume of the void in a cavitating chamber, (p_cav - z) V / E where z < p_cav, m^3."""
     return pos(floor_pa - liquid_state_pa) * volume_m3 / bulk_modulus_pa
 
 
+@jitable
 def load_holding_flow(
     port_inflow_m3_s: Num, pilot_opening: Num, chamber_pa: Num, tank_pa: Num, seat_leakage_m3_s_pa: Num
 ) -> Num:
@@ -121,6 +135,7 @@ def load_holding_flow(
     )
 
 
+@jitable
 def relief_flow(pressure_pa: Num, cracking_pa: Num, conductance_m3_s_pa: Num) -> Num:
     """Port relief valve to tank: Q = G (p - p_crack) above its cracking pressure, m^3/s.
 
@@ -129,6 +144,7 @@ def relief_flow(pressure_pa: Num, cracking_pa: Num, conductance_m3_s_pa: Num) ->
     return conductance_m3_s_pa * pos(pressure_pa - cracking_pa)
 
 
+@jitable
 def valve_flows(
     opening: Num,
     p_supply_pa: Num,
@@ -158,6 +174,7 @@ def valve_flows(
     return q_pa, q_at, q_pb, q_bt
 
 
+@jitable
 def supply_pressure(
     opening: Num,
     p_set_pa: Num,

@@ -18,21 +18,25 @@ import math
 from types import ModuleType
 from typing import Any
 
+from ..jit import jitable
 from .geometry import cos_boom_angle, lever_derivative, lever_rad_per_m, xi
 
 Num = Any  # float or numpy.ndarray
 
 
+@jitable
 def boom_inertia_kgm2(boom_mass_kg: Num, payload_mass_kg: Num, boom_length_m: Num) -> Num:
     """J_c1 = m1 L1^2 / 3 + mb L1^2: boom as a rod about its end plus a point payload (eq. 8)."""
     return boom_mass_kg * boom_length_m * boom_length_m / 3.0 + payload_mass_kg * boom_length_m * boom_length_m
 
 
+@jitable
 def effective_mass_kg(inertia_kgm2: Num, lever_rad_per_m: Num) -> Num:
     """m(q1) = J k^2: the boom's inertia seen at the rod (m_np of eq. 11, kg)."""
     return inertia_kgm2 * lever_rad_per_m * lever_rad_per_m
 
 
+@jitable
 def rod_acceleration(
     q1_m: Num,
     v_m_s: Num,
@@ -56,6 +60,7 @@ def rod_acceleration(
     return acceleration_at_lever(v_m_s, rod_force_n, inertia_kgm2, moment, k, lever_derivative(q1_m, a_m, b_m, xp))
 
 
+@jitable
 def acceleration_at_lever(
     v_m_s: Num, rod_force_n: Num, inertia_kgm2: Num, moment_nm: Num, lever: Num, lever_slope: Num
 ) -> Num:
@@ -63,6 +68,7 @@ def acceleration_at_lever(
     return (rod_force_n - moment_nm * lever) / (inertia_kgm2 * lever * lever) - (lever_slope / lever) * v_m_s * v_m_s
 
 
+@jitable
 def load_force_n(
     q1_m: Num,
     v_m_s: Num,
@@ -85,6 +91,7 @@ def load_force_n(
     return mass * acc_m_s2 + mass * lever_derivative(q1_m, a_m, b_m, xp) / k * v_m_s * v_m_s + moment * k
 
 
+@jitable
 def paper_load_force_n(
     q1_m: Num,
     v_m_s: Num,
@@ -111,6 +118,7 @@ def paper_load_force_n(
     return inertia + weight  # eq. 10, second line
 
 
+@jitable
 def paper_acceleration(
     q1_m: Num,
     v_m_s: Num,

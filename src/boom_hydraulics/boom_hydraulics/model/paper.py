@@ -16,10 +16,12 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
+from ..jit import jitable
 from .friction import paper_friction_n
 from .geometry import boom_angle_rad, lever_rad_per_m, piston_area_m2, rod_boom_angle_rad
 from .hydraulics import chamber_pressure_rate, orifice_coefficient, pos, turbulent_orifice_flow
 from .mechanics import boom_inertia_kgm2, paper_acceleration, paper_load_force_n
+from .outputs import by_name
 from .parameters import Parameters
 
 Num = Any  # float or numpy.ndarray
@@ -110,6 +112,7 @@ class Terms(NamedTuple):
     loss: Num  # (p_n - p1) Q, W
 
 
+@jitable(inline="always")
 def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     q1, v, p1 = y[0], y[1], y[2]
     u_open = pos(u)  # the paper's valve connects pump to piston chamber only
@@ -131,53 +134,63 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     return Terms(u_open, flow, dp1, acc, c.p_n * flow, (c.p_n - p1) * flow)
 
 
-def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
-    """dy/dt of the listing for valve opening ``u``."""
+@jitable
+def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """dy/dt of the listing for valve opening ``u`` (a tuple: compiled, it stays on the stack)."""
     terms = _terms(y, c, u, xp)
-    return [y[1], terms.acc, terms.dp1, terms.power, terms.loss]
+    return (y[1], terms.acc, terms.dp1, terms.power, terms.loss)
 
 
+@jitable
 def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     """Paper mode checks no energy balance (see ENERGY_STATES)."""
     return 0.0 * y[0]
 
 
+@jitable
 def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = math) -> Num:
     """Paper mode steps as the listing does, at the user's step: no stability bound (see STABILITY_BOUND)."""
     return 0.0 * y[0]
 
 
-def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
-    """Outputs of DriveState at state ``y``; rod-side quantities are 0 (not modelled)."""
+@jitable
+def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """Outputs of DriveState at state ``y`` as a tuple in the order of model.outputs.OUTPUT_NAMES
+    (flags 1.0 or 0.0); rod-side quantities are 0 (not modelled)."""
     terms = _terms(y, c, u, xp)
     q1, v, acc = y[0], y[1], terms.acc
     zero = 0.0 * q1
-    return {
-        "t": t,
-        "q1": q1,
-        "v": v,
-        "a": acc,
-        "alpha": boom_angle_rad(q1, c.a, c.b, c.h, xp),
-        "alpha_rate": lever_rad_per_m(q1, c.a, c.b, xp) * v,
-        "p1": y[2],
-        "p2": zero,
-        "q_in1": terms.flow,
-        "q_in2": zero,
-        "f_hyd": y[2] * c.s1,
-        "f_friction": paper_friction_n(v, c.coulomb, c.viscous),
-        "f_load": paper_load_force_n(
+    return (
+        t,  # t
+        q1,  # q1
+        v,  # v
+        acc,  # a
+        boom_angle_rad(q1, c.a, c.b, c.h, xp),  # alpha
+        lever_rad_per_m(q1, c.a, c.b, xp) * v,  # alpha_rate
+        y[2],  # p1
+        zero,  # p2
+        terms.flow,  # q_in1
+        zero,  # q_in2
+        y[2] * c.s1,  # f_hyd
+        paper_load_force_n(
             q1, v, acc, c.inertia, c.boom_mass, c.payload_mass, c.boom_length, c.g, c.a, c.b, xp
-        ),  # eq. 10
-        "u": u,
-        "x_v": terms.opening,
-        "p_supply": c.p_n + zero,
-        "power": terms.power,
-        "supply_energy": y[3],
-        "valve_loss_energy": y[4],
-        "void1": zero,
-        "void2": zero,
-        "at_end_stop": zero != zero,
-        "cavitation": y[2] < 0.0,
-        "relief_open": zero != zero,
-        "pump_saturated": zero != zero,
-    }
+        ),  # f_load, eq. 10
+        paper_friction_n(v, c.coulomb, c.viscous),  # f_friction
+        u,  # u
+        terms.opening,  # x_v
+        c.p_n + zero,  # p_supply
+        terms.power,  # power
+        y[3],  # supply_energy
+        y[4],  # valve_loss_energy
+        zero,  # void1
+        zero,  # void2
+        1.0 * (zero != zero),  # at_end_stop
+        1.0 * (y[2] < 0.0),  # cavitation
+        1.0 * (zero != zero),  # relief_open
+        1.0 * (zero != zero),  # pump_saturated
+    )
+
+
+def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
+    """The outputs by name (flags as booleans): :func:`outputs` through model.outputs.by_name."""
+    return by_name(outputs(t, y, c, u, xp))

@@ -21,6 +21,7 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
+from ..jit import jitable
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_level
 from .geometry import (
@@ -46,6 +47,7 @@ from .hydraulics import (
     void_volume_m3,
 )
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
+from .outputs import by_name
 from .parameters import Parameters
 
 Num = Any  # float or numpy.ndarray
@@ -204,6 +206,7 @@ class Terms(NamedTuple):
     loss: Num  # power dissipated in the valve, the load-holding valve and the reliefs, W
 
 
+@jitable
 def chamber_volumes(q1: Num, c: Constants, xp: ModuleType = math) -> tuple[Num, Num, Num, Num]:
     """(V1, V2, dV1/dq1, dV2/dq1): dead plus swept volume of each chamber, m^3 and m^2.
 
@@ -219,6 +222,7 @@ def chamber_volumes(q1: Num, c: Constants, xp: ModuleType = math) -> tuple[Num, 
     return c.v1_dead * e1 + c.s1 * pos(d1), c.v2_dead * e2 + c.s2 * pos(d2), c.s1 * e1, -c.s2 * e2
 
 
+@jitable(inline="always")
 def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     """Every intermediate quantity of one evaluation, shared by derivative and observe."""
     q1, v, x_v, s = y[0], y[1], y[4], y[7]
@@ -280,6 +284,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     )
 
 
+@jitable
 def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     """H: the energy stored in the drive, J: kinetic and potential energy of boom and
     payload, spring, seal bristles, end stops, and the compression of the oil
@@ -299,6 +304,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     )
 
 
+@jitable
 def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     """dH/dt along the model's own derivative (the chain rule through :func:`energy`), W."""
     q1, v, s = y[0], y[1], y[7]
@@ -318,11 +324,13 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     )
 
 
-def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> list:
-    """dy/dt of the physical model for valve command ``u`` (held over the step)."""
+@jitable
+def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """dy/dt of the physical model for valve command ``u`` (held over the step), as a tuple
+    (compiled, it stays on the stack)."""
     terms = _terms(y, c, u, xp)
     rate = _energy_rate(y, c, terms)
-    return [
+    return (
         y[1],
         terms.acc,
         terms.dz1,
@@ -333,9 +341,10 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.bristle_rate,
         rate,
         abs(rate),
-    ]
+    )
 
 
+@jitable
 def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = math) -> Num:
     """An estimate of the largest eigenvalue magnitude of the Jacobian over the next ``dt``, 1/s.
 
@@ -376,37 +385,44 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
-def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
-    """Every output of DriveState at state ``y`` (SI units; see DriveOutputs)."""
+@jitable
+def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """Every output of DriveState at state ``y`` (SI units; see DriveOutputs), as a tuple in the order of
+    model.outputs.OUTPUT_NAMES (flags 1.0 or 0.0)."""
     terms = _terms(y, c, u, xp)
     q1, v, acc = y[0], y[1], terms.acc
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     void1 = void_volume_m3(c.bulk_modulus, terms.vol1, y[2], c.p_cav)
     void2 = void_volume_m3(c.bulk_modulus, terms.vol2, y[3], c.p_cav)
-    return {
-        "t": t,
-        "q1": q1,
-        "v": v,
-        "a": acc,
-        "alpha": boom_angle_rad(q1, c.a, c.b, c.h, xp),
-        "alpha_rate": k * v,
-        "p1": terms.p1,
-        "p2": terms.p2,
-        "q_in1": terms.q_in1,
-        "q_in2": terms.q_in2,
-        "f_hyd": terms.f_hyd,
-        "f_load": load_force_n(q1, v, acc, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp),
-        "f_friction": terms.f_friction,
-        "u": u,
-        "x_v": terms.spool,
-        "p_supply": terms.p_supply,
-        "power": terms.power,
-        "supply_energy": y[5],
-        "valve_loss_energy": y[6],
-        "void1": void1,
-        "void2": void2,
-        "at_end_stop": (q1 <= c.q_min) | (q1 >= c.q_max),  # in contact (the force starts from zero)
-        "cavitation": (y[2] < c.p_cav) | (y[3] < c.p_cav),
-        "relief_open": (terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0),
-        "pump_saturated": terms.p_supply < c.p_supply,
-    }
+    return (
+        t,  # t
+        q1,  # q1
+        v,  # v
+        acc,  # a
+        boom_angle_rad(q1, c.a, c.b, c.h, xp),  # alpha
+        k * v,  # alpha_rate
+        terms.p1,  # p1
+        terms.p2,  # p2
+        terms.q_in1,  # q_in1
+        terms.q_in2,  # q_in2
+        terms.f_hyd,  # f_hyd
+        load_force_n(q1, v, acc, c.inertia, c.weight_coeff, c.a, c.b, c.h, xp),  # f_load
+        terms.f_friction,  # f_friction
+        u,  # u
+        terms.spool,  # x_v
+        terms.p_supply,  # p_supply
+        terms.power,  # power
+        y[5],  # supply_energy
+        y[6],  # valve_loss_energy
+        void1,  # void1
+        void2,  # void2
+        1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
+        1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
+        1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
+        1.0 * (terms.p_supply < c.p_supply),  # pump_saturated
+    )
+
+
+def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
+    """The outputs by name (flags as booleans): :func:`outputs` through model.outputs.by_name."""
+    return by_name(outputs(t, y, c, u, xp))

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from ..jit import jitable
+
 #: The peak rate of a quintic rest-to-rest segment over duration T is PEAK_RATIO |delta| / T.
 PEAK_RATIO = 1.875
 #: Interpolation between knots: linear (positions only), cubic or quintic Hermite.
@@ -90,6 +92,7 @@ class SetpointPath:
         return cached
 
 
+@jitable
 def last_at_or_before(times_s: Any, t: float) -> int:
     """Index of the last of the ascending ``times_s`` at or before ``t`` (-1 if none), as
     bisect_right - 1 (written out: numba compiles it)."""
@@ -103,6 +106,7 @@ def last_at_or_before(times_s: Any, t: float) -> int:
     return low - 1
 
 
+@jitable
 def setpoint_at(times_s: Any, angles_rad: Any, rates_rad_s: Any, order: int, t_s: float) -> tuple[float, float]:
     """Angle and rate at ``t_s`` of one set's knots (sequences of floats): the scalar form of
     :meth:`SetpointPath.evaluate`, which the compiled run kernel also calls."""
@@ -117,6 +121,7 @@ def setpoint_at(times_s: Any, angles_rad: Any, rates_rad_s: Any, order: int, t_s
     return _segment(order, w, span, angles_rad[i], angles_rad[i + 1], rates_rad_s[i], rates_rad_s[i + 1])
 
 
+@jitable
 def _segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -> tuple[Any, Any]:
     """Angle and rate at fraction ``w`` of a segment of duration ``span`` from (a0, r0) to
     (a1, r1): linear, cubic Hermite, or quintic Hermite with zero end accelerations."""

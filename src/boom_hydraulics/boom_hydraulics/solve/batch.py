@@ -18,19 +18,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis import streaming
-from ..analysis.metrics import DEFAULT_LIFT_ANGLE_DEG, move_window
 from ..errors import ConfigError
 from ..model import MODELS
 from ..model.parameters import Parameters
 from ..model.setpoints import LINEAR
-from . import accelerate, integrators, kernel, stepping
+from . import accelerate, integrators, kernel, stepping, streaming
 from .closed_loop import PositionLoop
 from .commands import Profile
 from .integrators import BATCHED
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 from .profiles import ANGLE
 from .simulation import MAX_SUBSTEPS, sample_count, stability_limit
+from .streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
 
@@ -74,7 +73,7 @@ def simulate_batch(
     Returns each of ``outputs`` (names of :data:`simulation.OUTPUT_NAMES`) as an array of
     shape (samples, sets), sampled at the start and every ``every`` steps. Each time step
     takes as many substeps as each set's stability bound needs (at least ``substeps``; see
-    stepping.fixed_stepper), as its single run would; the most any set took since the previous
+    stepping.advance), as its single run would; the most any set took since the previous
     sample is reported per sample in ``substeps``. A set whose
     state turns non-finite, whose energy balance breaks, or that needs more than
     MAX_SUBSTEPS is frozen at its last good state from then on and reported in

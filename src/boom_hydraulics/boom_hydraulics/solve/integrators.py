@@ -1,6 +1,6 @@
 """Time integrators behind one interface: ``advance(fun, t, y, dt) -> y(t + dt)``.
 
-``fun(t, y, *args)`` returns dy/dt as a list (``args`` as in scipy's solve_ivp). A state
+``fun(t, y, *args)`` returns dy/dt as a sequence (``args`` as in scipy's solve_ivp). A state
 ``y`` is a list of components, each a float (one simulation) or a numpy array (a batch
 of simulations integrated together), so the same fixed-step code serves both. Methods:
 
@@ -21,11 +21,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..errors import SimulationError
+from ..jit import compiled_as, jitable
 
 Derivative = Callable[..., list]
 
@@ -40,27 +41,70 @@ class Integrator(Protocol):
         ...
 
 
+def stage(y: Sequence, h: float, k: Sequence) -> list:
+    """y + h k, component by component (a list; compiled, a tuple of the state's size, which
+    numba keeps on the stack where a list would go to the heap)."""
+    return [yi + h * ki for yi, ki in zip(y, k)]
+
+
+def rk4_combination(y: Sequence, h6: float, k1: Sequence, k2: Sequence, k3: Sequence, k4: Sequence) -> list:
+    """y + h/6 (k1 + 2 k2 + 2 k3 + k4), component by component (compiled, as :func:`stage`)."""
+    return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
+
+
+@compiled_as(stage)
+def _stage_compiled(y: Any, h: Any, k: Any) -> Callable[..., Any]:
+    """:func:`stage` as compiled code runs it: the same sums, written into a copy of the tuple
+    (the implementation's annotations are those of this typing function, as numba asks)."""
+    from numba.cpython.unsafe.tuple import tuple_setitem
+
+    def into_tuple(y: Any, h: Any, k: Any) -> Callable[..., Any]:
+        out = y
+        for i in range(len(y)):
+            out = tuple_setitem(out, i, y[i] + h * k[i])
+        return out
+
+    return into_tuple
+
+
+@compiled_as(rk4_combination)
+def _rk4_combination_compiled(y: Any, h6: Any, k1: Any, k2: Any, k3: Any, k4: Any) -> Callable[..., Any]:
+    """:func:`rk4_combination` as compiled code runs it (see :func:`_stage_compiled`)."""
+    from numba.cpython.unsafe.tuple import tuple_setitem
+
+    def into_tuple(y: Any, h6: Any, k1: Any, k2: Any, k3: Any, k4: Any) -> Callable[..., Any]:
+        out = y
+        for i in range(len(y)):
+            out = tuple_setitem(out, i, y[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]))
+        return out
+
+    return into_tuple
+
+
+@jitable
 def euler_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
     """y + h f(t, y)."""
     k1 = fun(t, y, *args)
-    return [yi + h * ki for yi, ki in zip(y, k1)]
+    return stage(y, h, k1)
 
 
+@jitable
 def rk4_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
     """Classical RK4: y + h/6 (k1 + 2 k2 + 2 k3 + k4) (the listing's rk4Step)."""
     h2 = 0.5 * h
     k1 = fun(t, y, *args)
-    k2 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k1)], *args)
-    k3 = fun(t + h2, [yi + h2 * ki for yi, ki in zip(y, k2)], *args)
-    k4 = fun(t + h, [yi + h * ki for yi, ki in zip(y, k3)], *args)
+    k2 = fun(t + h2, stage(y, h2, k1), *args)
+    k3 = fun(t + h2, stage(y, h2, k2), *args)
+    k4 = fun(t + h, stage(y, h, k3), *args)
     h6 = h / 6.0
-    return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
+    return rk4_combination(y, h6, k1, k2, k3, k4)
 
 
 #: ROS2's gamma = 1 + 1/sqrt(2): the method is L-stable (its amplification tends to 0 for stiff modes).
 ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
 
 
+@jitable
 def ros2_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) -> list:
     """ROS2: (I - g h J) k1 = f(y); (I - g h J) k2 = f(y + h k1) - 2 k1; y + h (3 k1 + k2) / 2.
 

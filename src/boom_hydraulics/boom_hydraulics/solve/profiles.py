@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ..jit import jitable
 from ..model.setpoints import last_at_or_before
 
 #: Profile kinds (the ``command_profile`` parameter); ANGLE is the closed loop of kernel.
@@ -17,6 +18,7 @@ CONSTANT, STEPS, RAMP, SINE, ANGLE = 0, 1, 2, 3, 4
 KINDS = {"constant": CONSTANT, "steps": STEPS, "ramp": RAMP, "sine": SINE, "angle": ANGLE}
 
 
+@jitable
 def profile_value(
     kind: int, times_s: Any, values: Any, offset: float, amplitude: float, frequency_hz: float, t: float
 ) -> float:

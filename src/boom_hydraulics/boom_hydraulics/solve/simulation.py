@@ -7,6 +7,7 @@ model modules (:mod:`physical`, :mod:`paper`); this module only drives them.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -30,7 +31,7 @@ CHUNK_ROWS = 8192
 
 def stability_limit(p: Parameters) -> float:
     """The limit on dt x rate of the parameters' method where their model asks for stability
-    substeps (see stepping.fixed_stepper), else 0 (no automatic substeps)."""
+    substeps (see stepping.advance), else 0 (no automatic substeps)."""
     return (integrators.METHODS[p.method].stability_limit or 0.0) if MODELS[p.mode].STABILITY_BOUND else 0.0
 
 
@@ -138,7 +139,9 @@ class Simulator:
         self._limit = stability_limit(params)
         if self._method.step is not None:
             model = self.model
-            self._run = stepping.fixed_stepper(self._method.step, model.derivative, model.stiffness_rate, model.energy)
+            self._run = functools.partial(
+                stepping.advance, self._method.step, model.derivative, model.stiffness_rate, model.energy
+            )  # the compiled kernels' loop, interpreted
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
         self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
         self._constants_row = np.array(self.constants, dtype=float)  # what the compiled calls take
@@ -526,8 +529,8 @@ class RunStream:
                                f"{int(status[kernel.OUTCOME])}); {sim._step_advice()}")  # fmt: skip
 
     def _interpreted(self, sim: Simulator) -> Iterator[dict[str, np.ndarray]]:
-        from ..analysis import streaming
-        from ..analysis.metrics import DEFAULT_LIFT_ANGLE_DEG, move_window
+        from . import streaming
+        from .streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
         settings = streaming.settings(DEFAULT_LIFT_ANGLE_DEG, *move_window(self.params))
         accumulator = streaming.accumulator()

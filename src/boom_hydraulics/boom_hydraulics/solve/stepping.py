@@ -1,6 +1,6 @@
 """The fixed-step loop: stability-bound substeps and the energy-balance guard.
 
-The loop that :func:`fixed_stepper` builds takes ``n`` time steps of ``dt`` with a fixed-step method.
+:func:`advance` takes ``n`` time steps of ``dt`` with a fixed-step method.
 Before each step it asks the model for its fastest rate (``stiffness_rate``) and splits the
 step into as many substeps as the method's stability limit needs (at least ``min_substeps``),
 so that ``dt`` stays the output and command step whatever the parameters. After each step it
@@ -8,7 +8,8 @@ checks that the state is finite and that the stored energy changed by what the m
 flowed (the energy balance); a step that fails either is not taken.
 
 It is written in the subset of Python that numba compiles, so the interpreted and the
-compiled paths (see accelerate) run this same code.
+compiled paths (the kernel modules, :mod:`physical_kernel` and :mod:`paper_kernel`) run this
+same code.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from typing import Any
+
+from ..jit import jitable
 
 #: Outcomes of the stepping loop.
 OK, NONFINITE, ENERGY, TOO_STIFF = 0, 1, 2, 3
@@ -26,67 +29,61 @@ ENERGY_TOLERANCE = 0.01
 ENERGY_SLACK_J = 1.0
 
 
+@jitable
 def balance_broken(stored_j: Any, flowed_j: Any, flowed_abs_j: Any, base_j: Any) -> Any:
     """True where the stored energy H no longer matches H0 + W (floats or arrays alike):
     |H - W - (H0 - W0)| > ENERGY_TOLERANCE |W| + ENERGY_SLACK_J."""
     return abs(stored_j - flowed_j - base_j) > ENERGY_TOLERANCE * flowed_abs_j + ENERGY_SLACK_J
 
 
-def fixed_stepper(
+@jitable
+def advance(
     step: Callable[..., list],
     derivative: Callable[..., list],
     stiffness_rate: Callable[..., float],
     energy: Callable[..., float],
-    broken: Callable[..., bool] = balance_broken,
-) -> Callable[..., tuple[int, int, int, list]]:
-    """The stepping loop of one method and model (a closure, so that numba compiles the
-    functions into it as constants and inlines them; ``broken`` is :func:`balance_broken`,
-    compiled for the compiled loop).
+    t0: float,
+    y: Any,
+    c: Any,
+    u: float,
+    dt: float,
+    min_substeps: int,
+    limit: float,
+    max_substeps: int,
+    n: int,
+    energy_index: int,
+    energy_base: float,
+) -> tuple[int, int, int, Any]:
+    """Up to ``n`` steps of ``dt`` from ``y`` at ``t0`` with valve command ``u``, by the
+    method's ``step`` on the model's ``derivative``, ``stiffness_rate`` and ``energy`` (compiled,
+    these are the functions themselves, called by name: see the kernel modules).
 
-    ``run(t0, y, c, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base)``
-    takes up to ``n`` steps of ``dt`` from ``y`` at ``t0`` with valve command ``u``.
     ``limit`` is the method's stability limit on dt * rate (0: no automatic substeps);
     ``energy_index`` the index of W in the state (-1: no energy check) and ``energy_base``
-    the value of H - W that the balance keeps. It returns (steps taken, outcome, most
+    the value of H - W that the balance keeps. Returns (steps taken, outcome, most
     substeps used in one step, state after the steps taken); on TOO_STIFF the third value
     is the number of substeps the step would have needed.
     """
-
-    def run(
-        t0: float,
-        y: list,
-        c: Any,
-        u: float,
-        dt: float,
-        min_substeps: int,
-        limit: float,
-        max_substeps: int,
-        n: int,
-        energy_index: int,
-        energy_base: float,
-    ) -> tuple[int, int, int, list]:
-        most = min_substeps
-        for i in range(n):
-            substeps = min_substeps
-            if limit > 0.0:
-                needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
-                if needed > max_substeps:
-                    return i, TOO_STIFF, needed, y
-                substeps = max(substeps, needed)
-            most = max(most, substeps)
-            h = dt / substeps
-            t = t0 + i * dt
-            y_new = y
-            for j in range(substeps):
-                y_new = step(derivative, t + j * h, y_new, h, (c, u))
-            for value in y_new:
-                if not math.isfinite(value):
-                    return i, NONFINITE, most, y
-            if energy_index >= 0 and broken(
-                energy(y_new, c), y_new[energy_index], y_new[energy_index + 1], energy_base
-            ):
-                return i, ENERGY, most, y
-            y = y_new
-        return n, OK, most, y
-
-    return run
+    most = min_substeps
+    for i in range(n):
+        substeps = min_substeps
+        if limit > 0.0:
+            needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
+            if needed > max_substeps:
+                return i, TOO_STIFF, needed, y
+            substeps = max(substeps, needed)
+        most = max(most, substeps)
+        h = dt / substeps
+        t = t0 + i * dt
+        y_new = y
+        for j in range(substeps):
+            y_new = step(derivative, t + j * h, y_new, h, (c, u))
+        for value in y_new:
+            if not math.isfinite(value):
+                return i, NONFINITE, most, y
+        if energy_index >= 0 and balance_broken(
+            energy(y_new, c), y_new[energy_index], y_new[energy_index + 1], energy_base
+        ):
+            return i, ENERGY, most, y
+        y = y_new
+    return n, OK, most, y

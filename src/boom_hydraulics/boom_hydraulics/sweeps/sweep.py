@@ -19,14 +19,13 @@ from typing import Any
 import numpy as np
 
 from ..analysis import metrics as analysis
-from ..analysis import streaming
-from ..analysis.streaming import SAMPLE_SIGNALS
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import NAMES, Parameters, as_dict, describe, from_mapping
-from ..solve import commands, stepping
+from ..solve import commands, stepping, streaming
 from ..solve.batch import SHARED, run_sets, simulate_batch
 from ..solve.integrators import BATCHED
 from ..solve.simulation import MAX_SUBSTEPS
+from ..solve.streaming import SAMPLE_SIGNALS
 from .sampling import Axis, Spacing, point_count, sample_points
 
 #: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).

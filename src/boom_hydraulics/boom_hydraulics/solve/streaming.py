@@ -6,7 +6,8 @@ the hold after the valve closes and the turning points of its ringing. :func:`fi
 turns it into the metrics :data:`NAMES`. Memory stays the same however long the run: the
 compiled batch kernel runs this for every parameter set while integrating, and
 :mod:`metrics` runs it over stored signals (a bag, a trajectory), so both give the same
-numbers. Written in the subset of Python that numba compiles.
+numbers. Written in the subset of Python that numba compiles (marked jitable: the
+run loop of :mod:`kernel` compiles it into itself).
 
 Definitions (SI):
 
@@ -38,8 +39,11 @@ Definitions (SI):
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+
+from ..jit import jitable
 
 #: The metrics, in the order :func:`finish` writes them.
 NAMES = (
@@ -116,6 +120,20 @@ def accumulator() -> np.ndarray:
     return m
 
 
+#: The boom rise (degrees) a lift has to achieve, unless the caller names another.
+DEFAULT_LIFT_ANGLE_DEG = 20.0
+
+
+def move_window(p: Any) -> tuple[float, float, float]:
+    """(start s, end s, target rad) of the first move of a closed-loop ``angle`` scenario
+    (Parameters ``p``): from its time until the next move's; NaN start for open loop."""
+    if p is None or p.command_profile != "angle":
+        return math.nan, math.inf, math.nan
+    times = p.command_times_s
+    return times[0], times[1] if len(times) > 1 else math.inf, p.command_angles_rad[0]
+
+
+@jitable
 def _crossing(
     m: np.ndarray, slot: int, first: bool, t: float, rise: float, level: float, supply: float, loss: float
 ) -> None:
@@ -135,6 +153,7 @@ def _crossing(
     m[slot + 2] = m[LOSS_PREV] + v * (loss - m[LOSS_PREV])
 
 
+@jitable
 def _turn(m: np.ndarray, value: float, t: float, is_max: bool) -> None:
     """A confirmed turning point of the ringing: count maxima, log the swing from the last one."""
     if not math.isnan(m[LAST_TURN]):
@@ -152,6 +171,7 @@ def _turn(m: np.ndarray, value: float, t: float, is_max: bool) -> None:
         m[LAST_MAX_T] = t
 
 
+@jitable
 def _ringing(m: np.ndarray, t: float, x: float, ripple: float) -> None:
     """Follow ``x`` for turning points (a peak detector with hysteresis ``ripple``)."""
     if m[HOLD_N] == 1.0:
@@ -178,6 +198,7 @@ def _ringing(m: np.ndarray, t: float, x: float, ripple: float) -> None:
             m[DIRECTION], m[EXTREME], m[EXTREME_T] = 1.0, x, t
 
 
+@jitable
 def _move(m: np.ndarray, s: np.ndarray, t: float, alpha: float) -> None:
     """A sample inside the closed-loop move's window."""
     target = s[TARGET]
@@ -194,6 +215,7 @@ def _move(m: np.ndarray, s: np.ndarray, t: float, alpha: float) -> None:
     m[MOVE_LAST] = alpha
 
 
+@jitable
 def add_sample(
     m: np.ndarray,
     s: np.ndarray,
@@ -253,11 +275,13 @@ def add_sample(
     m[SUPPLY], m[LOSS] = supply_j, loss_j
 
 
+@jitable
 def _decrement(n: float, first: float, last: float) -> float:
     """Logarithmic decrement per cycle from the first and last of ``n`` swings one cycle apart."""
     return (first - last) / (n - 1.0) if n >= 2.0 else math.nan
 
 
+@jitable
 def finish(m: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
     """Write the metrics :data:`NAMES` of the samples taken into ``out`` (NaN where undefined)."""
     for k in range(len(out)):

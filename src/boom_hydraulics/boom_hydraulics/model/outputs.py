@@ -1,0 +1,53 @@
+"""The outputs of a simulation: every quantity the node publishes and a run records.
+
+A model's ``outputs`` gives them as one tuple of floats in the order of :data:`OUTPUT_NAMES`,
+flags as 1.0 or 0.0 (what compiled code keeps in a row of a table); its ``observe`` gives
+them by name, flags as booleans (:func:`by_name`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: Output names, units and descriptions, in the order of CSV columns.
+OUTPUTS: tuple[tuple[str, str, str], ...] = (
+    ("t", "s", "simulated time"),
+    ("q1", "m", "cylinder length q1"),
+    ("v", "m/s", "rod velocity"),
+    ("a", "m/s^2", "rod acceleration"),
+    ("alpha", "rad", "boom elevation (eq. 4)"),
+    ("alpha_rate", "rad/s", "boom angular rate"),
+    ("p1", "Pa", "piston-chamber pressure"),
+    ("p2", "Pa", "rod-chamber pressure"),
+    ("q_in1", "m^3/s", "flow into the piston chamber"),
+    ("q_in2", "m^3/s", "flow into the rod chamber"),
+    ("f_hyd", "N", "hydraulic rod force p1 S1 - p2 S2"),
+    ("f_load", "N", "load force of eq. 10"),
+    ("f_friction", "N", "seal friction force, opposing the motion"),
+    ("u", "1", "valve command"),
+    ("x_v", "1", "spool position applied"),
+    ("p_supply", "Pa", "pressure at the valve P port"),
+    ("power", "W", "hydraulic power drawn from the supply"),
+    ("supply_energy", "J", "energy drawn from the supply"),
+    ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),
+    ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
+    ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
+    ("at_end_stop", "bool", "rod against an end stop"),
+    ("cavitation", "bool", "a chamber at the cavitation floor"),
+    ("relief_open", "bool", "a relief valve passes flow"),
+    ("pump_saturated", "bool", "pump at its maximum flow"),
+)
+OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+#: Outputs that are flags (0.0 or 1.0 in a table of floats).
+BOOLEAN_OUTPUTS = tuple(name for name, unit, _ in OUTPUTS if unit == "bool")
+#: Where the flags are among the outputs.
+_FLAG_INDICES = tuple(i for i, name in enumerate(OUTPUT_NAMES) if name in BOOLEAN_OUTPUTS)
+
+
+def by_name(values: tuple) -> dict[str, Any]:
+    """The outputs ``values`` (in the order of OUTPUT_NAMES) by name, flags as booleans
+    (floats or arrays alike)."""
+    out = dict(zip(OUTPUT_NAMES, values))
+    for i in _FLAG_INDICES:
+        out[OUTPUT_NAMES[i]] = values[i] != 0.0
+    return out
