@@ -33,13 +33,15 @@ from __future__ import annotations
 import itertools
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory
@@ -48,9 +50,8 @@ from boom_hydraulics_msgs.action import MoveBoom
 
 from ..model.geometry import outside_stroke
 from ..model.setpoints import SetpointPath, move
-
-if TYPE_CHECKING:
-    from .node import BoomSimNode
+from ..solve.command_queue import CommandedDrive
+from ..solve.simulation import Simulator
 
 #: A goal that has not settled this long after its planned end is aborted (MoveBoom timeout_s = 0).
 DEFAULT_TIMEOUT_S = 5.0
@@ -77,25 +78,41 @@ class Goal:
     ticks: int = 0
 
 
-class Motion:
-    """The node's position interfaces (see the module docstring)."""
+@dataclass(frozen=True)
+class Plant:
+    """What position goals need of the node: the drive they hand the valve to, the lock that
+    guards it, the simulation (its time and outputs), the log, whether the node stops, whether
+    the simulation has failed, and how a stamp maps to simulated time."""
 
-    def __init__(self, node: BoomSimNode) -> None:
-        self.node = node
+    lock: threading.RLock
+    sim: Simulator
+    drive: CommandedDrive
+    logger: RcutilsLogger
+    stopping: threading.Event
+    failure: Callable[[], str | None]
+    stamp_to_sim_time: Callable[[Any], float | None]
+
+
+class Motion:
+    """The node's position interfaces (see the module docstring). The node wires
+    :meth:`on_trajectory` to ``~/joint_trajectory`` and :meth:`on_override` to the drive."""
+
+    def __init__(self, plant: Plant, node_name: str, namespace: str) -> None:
+        """``node_name``, ``namespace``: the main node's (the action is named after it)."""
+        self.plant = plant
         self.goal: Goal | None = None  # the goal that drives the valve
         self._accepted: dict[int, Goal] = {}  # by id of the goal handle, until its execute callback takes it
         self.trajectory = False  # a ~/joint_trajectory drives the valve
-        node.drive.on_override = self._on_override
         self.action_node = Node(  # the process's --ros-args (params, use_sim_time) are the main node's
-            f"_{node.get_name()}_move_boom",
-            namespace=node.get_namespace(),
+            f"_{node_name}_move_boom",
+            namespace=namespace,
             use_global_arguments=False,
             start_parameter_services=False,
         )
         self.server = ActionServer(
             self.action_node,
             MoveBoom,
-            f"{node.get_fully_qualified_name()}/move_boom",
+            f"{namespace.rstrip('/')}/{node_name}/move_boom",
             execute_callback=self._execute,
             goal_callback=self._on_goal,
             handle_accepted_callback=self._on_accepted,
@@ -106,12 +123,6 @@ class Motion:
             goal_service_qos_profile=SERVICE_QUEUE,
             result_service_qos_profile=SERVICE_QUEUE,
             cancel_service_qos_profile=SERVICE_QUEUE,
-        )
-        node.create_subscription(
-            JointTrajectory,
-            "~/joint_trajectory",
-            self._on_trajectory,
-            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
         )
 
     def spin_in_background(self) -> threading.Thread:
@@ -136,11 +147,11 @@ class Motion:
     # --- goals ----------------------------------------------------------------------------
     def _refusal(self, target_rad: float, speed_rad_s: float, timeout_s: float) -> str | None:
         """Why a goal cannot be taken, or None."""
-        p = self.node.sim.params
+        p = self.plant.sim.params
         if p.mode != "physical":
             return "position control needs mode: physical (paper mode's valve only lifts)"
-        if self.node.failure:
-            return f"the simulation stopped ({self.node.failure}); call ~/reset first"
+        if self.plant.failure():
+            return f"the simulation stopped ({self.plant.failure()}); call ~/reset first"
         if not all(math.isfinite(x) for x in (target_rad, speed_rad_s, timeout_s)):
             return "target_angle_rad, max_speed_rad_s and timeout_s must be finite"
         if speed_rad_s < 0.0 or timeout_s < 0.0:
@@ -148,39 +159,39 @@ class Motion:
         return outside_stroke(p, target_rad)
 
     def _on_goal(self, request: MoveBoom.Goal) -> GoalResponse:
-        with self.node.lock:
+        with self.plant.lock:
             why = self._refusal(request.target_angle_rad, request.max_speed_rad_s, request.timeout_s)
         if why is not None:
-            self.node.get_logger().warning(f"MoveBoom goal rejected: {why}")
+            self.plant.logger.warning(f"MoveBoom goal rejected: {why}")
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     def _on_accepted(self, handle: ServerGoalHandle) -> None:
-        node = self.node
+        plant = self.plant
         request = handle.request
-        with node.lock:
+        with plant.lock:
             self._finish(ABORTED, "preempted by a newer MoveBoom goal")
             self._drop_trajectory("preempted by a MoveBoom goal")
-            p, sim = node.sim.params, node.sim
+            p, sim = plant.sim.params, plant.sim
             why = self._refusal(request.target_angle_rad, request.max_speed_rad_s, request.timeout_s)
             if why is not None:  # things changed since the goal was accepted (a failure, a new mode)
-                energy = 0.0 if node.failure else float(sim.outputs()["supply_energy"])
+                energy = 0.0 if plant.failure() else float(sim.outputs()["supply_energy"])
                 self.goal = Goal(handle, request.target_angle_rad, sim.t, sim.t, sim.t, energy)
                 self._accepted[id(handle)] = self.goal
                 self._finish(ABORTED, why)
                 handle.execute()
                 return
             speed = request.max_speed_rad_s or p.control_max_speed_rad_s
-            angle, rate = node.drive.setpoint()
+            angle, rate = plant.drive.setpoint()
             path = move(sim.t, angle, rate, request.target_angle_rad, speed)
-            node.drive.follow(path)
+            plant.drive.follow(path)
             end_s = float(path.end_s[0])
             timeout = request.timeout_s or DEFAULT_TIMEOUT_S
             self.goal = Goal(
-                handle, request.target_angle_rad, sim.t, end_s, end_s + timeout, node.sim.outputs()["supply_energy"]
+                handle, request.target_angle_rad, sim.t, end_s, end_s + timeout, plant.sim.outputs()["supply_energy"]
             )
             self._accepted[id(handle)] = self.goal
-            node.get_logger().info(
+            plant.logger.info(
                 f"MoveBoom: {math.degrees(angle):.2f} -> {math.degrees(request.target_angle_rad):.2f} deg "
                 f"at up to {speed:g} rad/s, planned {end_s - sim.t:.2f} s"
             )
@@ -188,11 +199,11 @@ class Motion:
 
     def _execute(self, handle: ServerGoalHandle) -> MoveBoom.Result:
         """Wait (in an executor thread) until the loop finishes the goal; report how it ended."""
-        with self.node.lock:
+        with self.plant.lock:
             goal = self._accepted.pop(id(handle))
         while not goal.done.wait(0.5):
-            if self.node.stopping.is_set():
-                with self.node.lock:
+            if self.plant.stopping.is_set():
+                with self.plant.lock:
                     if self.goal is goal:
                         self._finish(ABORTED, "the node is shutting down")
         outcome, result = goal.outcome
@@ -204,46 +215,46 @@ class Motion:
         goal, self.goal = self.goal, None
         if goal is None:
             return
-        out = self.node.sim.outputs() if self.node.failure is None else None
-        result = MoveBoom.Result(message=message, duration_s=self.node.sim.t - goal.started_s)
+        out = self.plant.sim.outputs() if self.plant.failure() is None else None
+        result = MoveBoom.Result(message=message, duration_s=self.plant.sim.t - goal.started_s)
         if out is not None:
             result.final_error_rad = goal.target_rad - float(out["alpha"])
             result.supply_energy_j = float(out["supply_energy"]) - goal.energy_j
         text = f"MoveBoom {outcome}: {message} (error {math.degrees(result.final_error_rad):.3f} deg)"
         if outcome == SUCCEEDED:  # (rclpy fixes a call site's severity: one call per level)
-            self.node.get_logger().info(text)
+            self.plant.logger.info(text)
         else:
-            self.node.get_logger().warning(text)
+            self.plant.logger.warning(text)
         goal.outcome = (outcome, result)
         goal.done.set()
 
     # --- trajectories ---------------------------------------------------------------------
-    def _on_trajectory(self, msg: JointTrajectory) -> None:
-        node = self.node
-        with node.lock:
+    def on_trajectory(self, msg: JointTrajectory) -> None:
+        plant = self.plant
+        with plant.lock:
             why, path = self._plan_trajectory(msg)
             if why is not None:
-                node.get_logger().warning(f"joint trajectory ignored: {why}")
+                plant.logger.warning(f"joint trajectory ignored: {why}")
                 return
             self._finish(ABORTED, "preempted by a joint trajectory")
-            node.drive.follow(path)
+            plant.drive.follow(path)
             self.trajectory = True
 
     def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None]:
-        node = self.node
-        p, sim = node.sim.params, node.sim
+        plant = self.plant
+        p, sim = plant.sim.params, plant.sim
         if p.mode != "physical":
             return "position control needs mode: physical", None
-        if node.failure:
-            return f"the simulation stopped ({node.failure}); call ~/reset first", None
-        angle, rate = node.drive.setpoint()
+        if plant.failure():
+            return f"the simulation stopped ({plant.failure()}); call ~/reset first", None
+        angle, rate = plant.drive.setpoint()
         if not msg.points:  # JTC: an empty trajectory stops where the boom is
-            return None, SetpointPath.of([sim.t], [float(node.sim.outputs()["alpha"])])
+            return None, SetpointPath.of([sim.t], [float(plant.sim.outputs()["alpha"])])
         if "boom_joint" not in msg.joint_names:
             return f"it names {list(msg.joint_names)}; this node drives boom_joint", None
         j = list(msg.joint_names).index("boom_joint")
         stamp = msg.header.stamp
-        start = node.stamp_to_sim_time(stamp)
+        start = plant.stamp_to_sim_time(stamp)
         start = sim.t if start is None else max(start, sim.t)
         times = [start + pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
         try:
@@ -262,7 +273,7 @@ class Motion:
         if times[0] > sim.t:  # from where the setpoint is now to the first point
             times, positions = [sim.t, *times], [angle, *positions]
             rates = [rate, *rates] if rates is not None else None
-        node.get_logger().info(
+        plant.logger.info(
             f"joint trajectory: {len(msg.points)} points over {times[-1] - sim.t:.2f} s "
             f"({'cubic' if rates is not None else 'linear'})"
         )
@@ -271,10 +282,10 @@ class Motion:
     def _drop_trajectory(self, why: str) -> None:
         if self.trajectory:
             self.trajectory = False
-            self.node.get_logger().warning(f"joint trajectory aborted: {why}")
+            self.plant.logger.warning(f"joint trajectory aborted: {why}")
 
     # --- from the drive and the loop ------------------------------------------------------
-    def _on_override(self) -> None:
+    def on_override(self) -> None:
         """A valve command took the valve from the controller (caller holds the lock)."""
         self._finish(ABORTED, "operator override: a valve command arrived on valve_command")
         self._drop_trajectory("operator override: a valve command arrived on valve_command")
@@ -286,18 +297,18 @@ class Motion:
 
     def after_steps(self) -> None:
         """After the loop's steps (caller holds the lock): feedback, cancel, success, timeout."""
-        goal, node = self.goal, self.node
+        goal, plant = self.goal, self.plant
         if goal is None:
             return
-        if node.failure is not None:
-            self.stop(f"the simulation stopped: {node.failure}")
+        if plant.failure() is not None:
+            self.stop(f"the simulation stopped: {plant.failure()}")
             return
         if goal.handle.is_cancel_requested:
-            node.drive.let_go()
+            plant.drive.let_go()
             self._finish(CANCELED, "canceled: the valve is closed and the load-holding valve holds the boom")
             return
-        t = node.sim.t
-        loop = node.drive.loop
+        t = plant.sim.t
+        loop = plant.drive.loop
         if loop is None:  # (the override already finished it)
             return
         if t >= goal.end_s and float(loop.state.holding) == 1.0:
@@ -308,7 +319,7 @@ class Motion:
             return
         goal.ticks += 1
         if goal.ticks % FEEDBACK_EVERY_TICKS == 0:
-            alpha = float(node.sim.outputs()["alpha"])
+            alpha = float(plant.sim.outputs()["alpha"])
             feedback = MoveBoom.Feedback(
                 angle_rad=alpha, setpoint_rad=loop.setpoint[0], error_rad=goal.target_rad - alpha
             )

@@ -25,73 +25,54 @@ from __future__ import annotations
 
 import functools
 import math
-import signal
-import sys
 import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterEvent, SetParametersResult
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_parameter_events,
-    qos_profile_sensor_data,
-)
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
 from ..bags import cdr
-from ..bags.encoding import parameter_event_cdr, setpoint_cdr
-from ..bags.recording import BagRecorder, Topic, new_bag_folder, offered_qos, run_description
-from ..errors import BoomHydraulicsError, ConfigError, SimulationError
+from ..bags.encoding import setpoint_cdr
+from ..bags.recording import run_description
+from ..errors import ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
-from ..solve.command_queue import CommandedDrive, stale, valve_opening
-from ..solve.pacing import Pacer
+from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
 from . import messages
 from . import node_parameters as ros_parameters
+from .clock import ClockMode, Follow, NodeClock
+from .commands import CommandIntake
+from .diagnostics import RunCounts, diagnostics
 from .markers import crane_markers
-from .motion import Motion
+from .motion import Motion, Plant
+from .recording import NodeRecording
 
-_NODE_ATTRIBUTES = {
-    "publish_rate_hz": "rate_hz",
-    "real_time_factor": "rtf",
-    "command_timeout_s": "timeout_s",
-    "max_catch_up_s": "max_catch_up_s",
-}
-PARAMETER_EVENTS = "/parameter_events"
 #: Markers go out at most this often (they are for eyes, not for control).
 MARKERS_HZ = 20.0
-#: A ROS clock that steps back by more than this is a jump back (a world reset), s.
-CLOCK_JUMP_S = 1e-3
 #: The most simulated time one ~/step call may take, s: the executor serves nothing else
 #: meanwhile, so a larger request is refused with how to get there.
 STEP_CALL_LIMIT_S = 10.0
-
-
-def _type_name(msg_type: Any) -> str:
-    """'pkg/msg/Type' of a generated message class."""
-    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+#: Parameters every rclpy node declares itself (rclpy's time source and type description service).
+_RCLPY_OWN = ("use_sim_time", "start_type_description_service")
 
 
 def _locked(method: Callable) -> Callable:
@@ -105,53 +86,39 @@ def _locked(method: Callable) -> Callable:
     return wrapper
 
 
-def _qos_time(duration: Any) -> QosTime:
-    sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
-    return QosTime(sec=sec, nsec=nsec)
-
-
-def offer_of(profile: Any) -> Qos:
-    """A discovered publisher's QoS profile (rclpy) as rosbag2 records it."""
-    return Qos(
-        history=QosHistory(int(profile.history)),
-        depth=profile.depth,
-        reliability=QosReliability(int(profile.reliability)),
-        durability=QosDurability(int(profile.durability)),
-        deadline=_qos_time(profile.deadline),
-        lifespan=_qos_time(profile.lifespan),
-        liveliness=QosLiveliness(int(profile.liveliness)),
-        liveliness_lease_duration=_qos_time(profile.liveliness_lease_duration),
-        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
-    )
-
-
 class BoomSimNode(Node):
-    """Thin ROS shell around :class:`Simulator`."""
+    """Thin ROS shell around :class:`Simulator`: the topics, services and parameters, wired
+    to the clock (:mod:`.clock`), the command intake (:mod:`.commands`), the position goals
+    (:mod:`.motion`), the bag (:mod:`.recording`) and the diagnostics (:mod:`.diagnostics`)."""
 
     def __init__(self) -> None:
-        super().__init__("boom_sim")
+        # the start values (params files and -p) arrive as parameters, read through the public API
+        super().__init__("boom_sim", automatically_declare_parameters_from_overrides=True)
         self._declare_parameters()
-        self._read_node_parameters()
-        params = from_mapping({name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES})
-        self.publish_clock = bool(self.get_parameter("publish_clock").value)
-        self.follow_clock = bool(self.get_parameter("use_sim_time").value)
-        if self.follow_clock and self.publish_clock:
-            raise ConfigError(
-                "use_sim_time and publish_clock are both true: this node either follows /clock (use_sim_time, "
-                "another node publishes it) or publishes it (publish_clock); set one of them to false"
-            )
+        params = from_mapping(
+            {name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES if self.has_parameter(name)}
+        )
+        mode = ClockMode.of(
+            bool(self.get_parameter("publish_clock").value), bool(self.get_parameter("use_sim_time").value)
+        )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.jit:  # compile (or load from the cache) the steps and the outputs before the clock starts
             self.sim.step(0.0, 0)
             self.sim.outputs()
-        self.drive = CommandedDrive(self.sim, self.timeout_s)
+        self.drive = CommandedDrive(self.sim, float(self.get_parameter("command_timeout_s").value))
         self.lock = threading.RLock()
         self.stopping = threading.Event()
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
         self._substeps_logged = self.sim.most_substeps  # the substeps the log has told about
-        # on a shared clock the backlog is worked off, never dropped: simulated time stays the clock's
-        self.pacer = Pacer(self.rate_hz, self._pace_factor(), self.max_catch_up_s, drop_backlog=not self.follow_clock)
+        self.clock = NodeClock(
+            mode,
+            self.get_clock(),
+            self.sim,
+            float(self.get_parameter("publish_rate_hz").value),
+            float(self.get_parameter("real_time_factor").value),
+            float(self.get_parameter("max_catch_up_s").value),
+        )
 
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.state_pub = self.create_publisher(DriveState, "drive_state", state_qos)
@@ -169,45 +136,63 @@ class BoomSimNode(Node):
             if self.get_parameter("publish_robot_description").value
             else None
         )
-        self._markers_every = max(1, round(self.rate_hz / MARKERS_HZ))
+        self._markers_every = max(1, round(self.clock.rate_hz / MARKERS_HZ))
         self._ticks = 0
-        self._clock_seen_s = 0.0  # the latest ROS time the loop saw (use_sim_time)
         self._description_due = False  # a parameter change asks for robot_description again
+        self._checked: Any = None  # the model parameters on_set checked, for post_set to apply
+        self._changed_at_ns = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
-        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if self.publish_clock else None
-        # best-effort subscriptions accept commands from reliable and best-effort publishers;
-        # raw: the bytes as received are recorded, and parsed once here
-        self.command_topics = {
+        self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if mode is ClockMode.PUBLISHED else None
+
+        command_topics = {
             self.resolve_topic_name("valve_command"): ValveCommand,
             self.resolve_topic_name("commands"): Float64MultiArray,
         }
-        self.commands_received = self.commands_stale = self.commands_lost = self.commands_refused = 0
-        # commands lost in a flood (the sensor-data queue keeps the last 5): gaps in a lone
-        # publisher's sequence numbers (Fast DDS raises no message-lost event)
-        self._sole_publisher = dict.fromkeys(self.command_topics, False)
-        self._last_sequence: dict[str, int] = {}
+        self.recording = NodeRecording(
+            self,
+            self.clock.now_ns,
+            command_topics,
+            record=bool(self.get_parameter("record").value),
+            folder=self.get_parameter("record_folder").value,
+            chunk_kib=self.get_parameter("record_chunk_kib").value,
+            flush_s=float(self.get_parameter("record_flush_s").value),
+        )
+        self.commands = CommandIntake(
+            command_topics, self.drive, self.clock, self.get_logger(), self.recording.received
+        )
+        # best-effort subscriptions accept commands from reliable and best-effort publishers;
+        # raw: the bytes as received are recorded, and parsed once there
         self.create_subscription(ValveCommand, "valve_command", self.on_command, qos_profile_sensor_data, raw=True)
         self.create_subscription(
             Float64MultiArray, "commands", self.on_command_array, qos_profile_sensor_data, raw=True
         )
-        self.resets = self.pauses = self.steps_paused = 0  # calls of ~/reset, ~/pause (true), ~/step
-        self.origin_shift_s = 0.0  # how far dropped backlogs moved the time origin of command stamps
-        self.recording_error: str | None = None
+        self.run_counts = RunCounts()
         self.create_service(Reset, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.create_service(Step, "~/step", self.on_step)
         self.add_pre_set_parameters_callback(self.before_set_parameters)
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.after_set_parameters)
-        self.motion = Motion(self)
 
-        self._restart_clock()
-        # The bag starts with the stepping (its time origin, simulated time 0): at start() on
-        # the node's own clock, at the first /clock on a shared one. Commands received before
-        # it are kept for it.
-        self.recorder: BagRecorder | None = None
-        self.record_pending = bool(self.get_parameter("record").value)
-        self._early_commands: list[tuple[str, bytes, dict]] = []
+        plant = Plant(
+            self.lock,
+            self.sim,
+            self.drive,
+            self.get_logger(),
+            self.stopping,
+            lambda: self.failure,
+            self.clock.stamp_to_sim_time,
+        )
+        self.motion = Motion(plant, self.get_name(), self.get_namespace())
+        self.drive.on_override = self.motion.on_override
+        self.create_subscription(
+            JointTrajectory,
+            "~/joint_trajectory",
+            self.motion.on_trajectory,
+            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
+        )
+
+        self.clock.restart()
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -216,13 +201,14 @@ class BoomSimNode(Node):
                 "the command_* parameters describe boom-sim's headless scenario; this node takes "
                 "its valve commands on valve_command and commands"
             )
+        rtf = self.clock.rtf
         pace = (
             "following the ROS clock (use_sim_time)"
-            if self.follow_clock
-            else f"real-time factor {self.rtf:g}{' (as fast as possible)' if self.rtf == 0 else ''}"
+            if mode is ClockMode.FOLLOWED
+            else f"real-time factor {rtf:g}{' (as fast as possible)' if rtf == 0 else ''}"
         )
         self.get_logger().info(
-            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.rate_hz:g} Hz, {pace}, "
+            f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.clock.rate_hz:g} Hz, {pace}, "
             f"{'compiled' if self.sim.compiled else 'interpreted'}"
         )
 
@@ -230,43 +216,59 @@ class BoomSimNode(Node):
         """Start stepping: simulated time 0 is now (on the node's own clock; on a shared one,
         the first /clock), so that a command stamped in ROS time acts at its stamp."""
         with self.lock:
-            if not self.follow_clock:
-                self._restart_clock()
+            if not self.clock.follows:
+                self.clock.restart()
                 self._begin_recording()
             self.publish_description()
         self.loop.start()
 
     def _begin_recording(self) -> None:
-        """Open the bag, if asked for, at the time origin, with the commands received before it."""
-        if not self.record_pending:
-            return
-        self.record_pending = False
-        self.recorder = self._start_recording()
-        for topic, data, info in self._early_commands:
-            self._record_received(topic, data, info)
-        self._early_commands.clear()
+        """Open the bag, if asked for, at the time origin: every topic this node publishes."""
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
+        pubs += [self.markers_pub, self.setpoint_pub]
+        pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
+        if self.recording.pending:
+            description = run_description(
+                self.sim.params,
+                self.clock.origin_ns,
+                self.clock.rate_hz,
+                self.drive.timeout_s,
+                node=self.get_fully_qualified_name(),
+            )
+            self.recording.begin(pubs, description)
+
+    def destroy(self) -> None:
+        """Leave the ROS graph: the action's helper node, then this node."""
+        self.motion.destroy()
+        self.destroy_node()
 
     # --- parameters -----------------------------------------------------------------------
     def _declare_parameters(self) -> None:
         """Declare every parameter, typed (an integer for a float is taken as that float),
-        after refusing keys for this node that name no parameter."""
-        overrides = self._parameter_overrides  # rclpy: this node's values from files and -p
-        ros_parameters.check_known(overrides)
-        for name in overrides:
-            overrides[name] = ros_parameters.typed(overrides[name])
+        from the start values rclpy declared, after refusing keys for this node that name no
+        parameter, values of another type, and values out of range."""
+        given = {name: self.get_parameter(name) for name in self.list_parameters([], 0).names}
+        ros_parameters.check_known(given)
+        for name in _RCLPY_OWN:  # (rclpy declared them with the start value; refuse what it only logs)
+            if given[name].type_ is not Parameter.Type.BOOL:
+                raise InvalidParameterTypeException(given[name], Parameter.Type.BOOL.name)
+        for name in given:
+            if name not in _RCLPY_OWN:
+                self.undeclare_parameter(name)  # declared again below, with its descriptor
+        given = {name: ros_parameters.typed(p) for name, p in given.items()}
         # our checks first: they name the unit and the fix, where rclpy's range check does not
-        from_mapping({name: ros_parameters.plain(p.value) for name, p in overrides.items() if name in NAMES})
-        for name, p in overrides.items():
+        from_mapping({name: ros_parameters.plain(p.value) for name, p in given.items() if name in NAMES})
+        for name, p in given.items():
             if name in ros_parameters.NODE_PARAMETERS:
                 ros_parameters.check_node_parameter(name, p.value)
         for name in ros_parameters.all_names():
-            self.declare_parameter(name, ros_parameters.default(name), ros_parameters.descriptor(name))
-
-    def _read_node_parameters(self) -> None:
-        self.rate_hz = float(self.get_parameter("publish_rate_hz").value)
-        self.rtf = float(self.get_parameter("real_time_factor").value)
-        self.timeout_s = float(self.get_parameter("command_timeout_s").value)
-        self.max_catch_up_s = float(self.get_parameter("max_catch_up_s").value)
+            descriptor = ros_parameters.descriptor(name)
+            value = ros_parameters.default(name)
+            if name in given:  # as rclpy checks a start value against the declared type
+                value = given[name].value
+                if given[name].type_.value != descriptor.type:
+                    raise InvalidParameterTypeException(given[name], Parameter.Type(descriptor.type).name)
+            self.declare_parameter(name, value, descriptor, ignore_override=True)
 
     def before_set_parameters(self, changes: list[Parameter]) -> list[Parameter]:
         """An integer for a float parameter becomes that float, before rclpy checks the type."""
@@ -274,8 +276,9 @@ class BoomSimNode(Node):
 
     def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Validate a change as a whole (cross-field checks too); refuse it with the reason.
-        A new method or mode is compiled (or loaded) first, while the loop goes on stepping,
-        so that applying it holds the loop up for no longer than a tick."""
+        A new method or mode is compiled (or loaded) here, while the loop goes on stepping,
+        so that applying it (:meth:`after_set_parameters`) holds the loop up for no longer than a tick."""
+        self._checked = None
         with self.lock:
             refusal, new_params = self._check_changes(changes)
         if refusal is not None:
@@ -293,15 +296,15 @@ class BoomSimNode(Node):
             warm = Simulator(new_params, jit=True)
             warm.step(0.0, 0)
             warm.outputs()
-        with self.lock:
-            return self._apply_changes(changes, new_params)
+        self._checked = new_params
+        return SetParametersResult(successful=True)
 
     def _check_changes(self, changes: list[Parameter]) -> tuple[SetParametersResult | None, Any]:
         """(a refusal or None, the model parameters after the change or None)."""
         model_changes = {p.name: ros_parameters.plain(p.value) for p in changes if p.name in NAMES}
         node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
         for p in changes:
-            if p.name == "use_sim_time" and bool(p.value) != self.follow_clock:
+            if p.name == "use_sim_time" and bool(p.value) != self.clock.follows:
                 reason = (
                     "use_sim_time is start-only: the clock a run follows is chosen when it starts; "
                     "restart the node with -p use_sim_time:=" + ("true" if p.value else "false")
@@ -315,7 +318,20 @@ class BoomSimNode(Node):
             return SetParametersResult(successful=False, reason=str(exc)), None
         return None, new_params
 
-    def _apply_changes(self, changes: list[Parameter], new_params: Any) -> SetParametersResult:
+    def after_set_parameters(self, changes: list[Parameter]) -> None:
+        """Apply the change on_set checked; record it as rclpy announces it on /parameter_events,
+        stamped with the node-clock time of the simulated instant it took effect at (boom-resim
+        applies it there); publish the robot description again when a dimension changed."""
+        new_params, self._checked = self._checked, None
+        with self.lock:
+            self._apply_changes(changes, new_params)
+        if self._description_due:
+            self._description_due = False
+            self.publish_description()
+        changed = [(p.name, p.type_.value, ros_parameters.plain(p.value)) for p in changes]
+        self.recording.parameter_event(self._changed_at_ns, changed)
+
+    def _apply_changes(self, changes: list[Parameter], new_params: Any) -> None:
         """Apply a checked change (the caller holds the lock)."""
         node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
         dt_before = self.sim.params.time_step_s
@@ -327,176 +343,32 @@ class BoomSimNode(Node):
             self._description_due = True
         if node_changes:
             self.get_logger().info(f"node parameters changed: {node_changes}")
-            for name, value in node_changes.items():  # rclpy stores them after this returns
-                setattr(self, _NODE_ATTRIBUTES[name], float(value))
-            self.drive.timeout_s = self.timeout_s  # the drive applies it
-            self.pacer.rate_hz, self.pacer.real_time_factor = self.rate_hz, self._pace_factor()
-            self._markers_every = max(1, round(self.rate_hz / MARKERS_HZ))
-            self.pacer.max_catch_up_s = self.max_catch_up_s
+            clock = self.clock
+            value = {
+                "publish_rate_hz": clock.rate_hz,
+                "real_time_factor": clock.rtf,
+                "command_timeout_s": self.drive.timeout_s,
+                "max_catch_up_s": clock.pacer.max_catch_up_s,
+            }
+            value.update({name: float(v) for name, v in node_changes.items()})
+            self.drive.timeout_s = value["command_timeout_s"]  # the drive applies it
+            clock.set_pace(value["publish_rate_hz"], value["real_time_factor"], value["max_catch_up_s"])
+            self._markers_every = max(1, round(clock.rate_hz / MARKERS_HZ))
         if "real_time_factor" in node_changes:
-            self._restart_clock()  # a new pace: simulated time follows the clock afresh from here
+            self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
         elif new_params is not None or node_changes:
-            # the time origin stays: the change takes no simulated time
-            self.pacer.rebase(self.sim.step_count, dt_before)
+            self.clock.rebase(dt_before)  # the time origin stays: the change takes no simulated time
         # the node-clock time of the simulated instant the change takes effect at
-        self._changed_at_ns = self._sim_instant_ns()
-        return SetParametersResult(successful=True)
-
-    def after_set_parameters(self, changes: list[Parameter]) -> None:
-        """Record the change as rclpy announces it on /parameter_events, stamped with the
-        node-clock time of the simulated instant it took effect at (boom-resim applies it there);
-        publish the robot description again when a dimension changed."""
-        if self._description_due:
-            self._description_due = False
-            self.publish_description()
-        if self.recorder is None:
-            return
-        changed = [(p.name, p.type_.value, ros_parameters.plain(p.value)) for p in changes]
-        data = parameter_event_cdr(self.get_fully_qualified_name(), self._changed_at_ns, changed)
-        self.recorder.write(PARAMETER_EVENTS, self._now_ns(), data)
-
-    # --- recording ------------------------------------------------------------------------
-    def _start_recording(self) -> BagRecorder:
-        """A bag of every topic this node publishes, its parameter changes, and every command
-        it receives (each command topic once its first publisher shows up)."""
-        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        pubs += [self.markers_pub, self.setpoint_pub]
-        pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
-        topics = [Topic(p.topic_name, _type_name(p.msg_type), (offer_of(p.qos_profile),)) for p in pubs]
-        events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
-        topics.append(Topic(PARAMETER_EVENTS, _type_name(ParameterEvent), (events_qos,)))
-        recorder = BagRecorder(
-            new_bag_folder(self.get_parameter("record_folder").value, self.get_fully_qualified_name()),
-            topics,
-            chunk_size=round(self.get_parameter("record_chunk_kib").value * 1024),
-            custom_data=run_description(
-                self.sim.params, self._origin_ns(), self.rate_hz, self.timeout_s, node=self.get_fully_qualified_name()
-            ),
-            flush_s=float(self.get_parameter("record_flush_s").value),
-        )
-        self.get_logger().info(f"recording to {recorder.folder}")
-        return recorder
-
-    def _origin_ns(self) -> int:
-        return self.clock_origin_ns
-
-    def _sim_instant_ns(self) -> int:
-        """The node-clock time of the simulated instant now (integer ns: float seconds of the
-        epoch would round it to a quarter of a microsecond)."""
-        return self.clock_origin_ns + round(self.sim.t * 1e9)
-
-    def _offers(self, topic: str) -> tuple[Qos, ...]:
-        """What the publishers of ``topic`` offer (as ``ros2 bag record`` records it)."""
-        return tuple(offer_of(info.qos_profile) for info in self.get_publishers_info_by_topic(topic))
-
-    def _watch_command_topics(self) -> None:
-        """Declare a command topic once it has a publisher; keep its offers up to date."""
-        for topic, msg_type in self.command_topics.items():
-            offers = self._offers(topic)
-            if offers and topic not in self.recorder.topics:
-                self.recorder.add_topic(Topic(topic, _type_name(msg_type), offers))
-            self.recorder.add_offers(topic, offers)
-
-    def _record_received(self, topic: str, data: bytes, info: dict) -> None:
-        """Log a received command at its receive time on the node's clock, as rosbag2 does
-        (its header stamp stays inside the message); publish time: when it was sent."""
-        if self.record_pending:
-            self._early_commands.append((topic, data, info))
-            return
-        if self.recorder is None:
-            return
-        if topic not in self.recorder.topics:
-            offers = self._offers(topic) or (offered_qos(),)
-            self.recorder.add_topic(Topic(topic, _type_name(self.command_topics[topic]), offers))
-        received = self._now_ns()
-        self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
-
-    def _publish(self, messages: list[tuple[Any, Any]], log_ns: int) -> None:
-        """Publish (publisher, message) pairs, then record them all: a tick cut short by
-        shutdown leaves no partial tick in the bag. While recording, each message is
-        serialised once, and the bytes published are the bytes recorded. A message given as
-        CDR bytes is published and recorded as those bytes."""
-        if self.recorder is None:
-            for publisher, msg in messages:
-                publisher.publish(msg)
-            return
-        serialised = [
-            (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
-        ]
-        for publisher, data in serialised:
-            publisher.publish(data)
-        for publisher, data in serialised:
-            self.recorder.write(publisher.topic_name, log_ns, data)
+        self._changed_at_ns = self.clock.sim_instant_ns()
 
     # --- commands -------------------------------------------------------------------------
-    def stamp_to_sim_time(self, stamp: Any) -> float | None:
-        """Simulated time a command stamp means; None for a zero (unset) stamp."""
-        if stamp.sec == 0 and stamp.nanosec == 0:
-            return None
-        return (stamp.sec * 1_000_000_000 + stamp.nanosec - self.clock_origin_ns) * 1e-9
-
-    def _accept(self, opening: float, stamp: Any | None) -> None:
-        u = valve_opening(opening, self.sim.params.mode)
-        if u is None:
-            self.get_logger().warning(f"ignored non-finite valve opening {opening}", throttle_duration_sec=1.0)
-            return
-        if u != opening:
-            self.get_logger().warning(f"valve opening {opening} clamped to {u:g}", throttle_duration_sec=1.0)
-        self.commands_received += 1
-        at = self.stamp_to_sim_time(stamp) if stamp is not None else None
-        if at is not None:
-            received_s = (self._now_ns() - self.clock_origin_ns) * 1e-9  # by the log time the bag keeps
-            if stale(at, received_s, self.timeout_s):
-                self.commands_stale += 1
-                self.get_logger().warning(
-                    f"ignored a valve command stamped {received_s - at:.3f} s before it arrived: older than "
-                    f"command_timeout_s = {self.timeout_s:g} s, it is stale; stamp commands with the time they are "
-                    "meant for (a zero stamp: now), or raise command_timeout_s",
-                    throttle_duration_sec=1.0,
-                )
-                return
-        if not self.drive.push(self.sim.t if at is None else at, u):
-            self.commands_refused += 1
-            self.get_logger().warning("too many future-stamped commands waiting; refused", throttle_duration_sec=1.0)
-
-    def _count_lost(self, topic: str, info: dict) -> None:
-        """Count the commands a lone publisher sent that never reached this node."""
-        sequence = info.get("publication_sequence_number")
-        if not sequence or not self._sole_publisher[topic]:
-            return
-        last = self._last_sequence.get(topic)
-        if last is not None and sequence > last + 1:
-            self.commands_lost += sequence - last - 1
-        self._last_sequence[topic] = sequence
-
-    def _watch_publishers(self) -> None:
-        """Once a second: which command topics have one publisher (whose gaps are losses)."""
-        for topic in self.command_topics:
-            sole = self.count_publishers(topic) == 1
-            if sole != self._sole_publisher[topic]:
-                self._sole_publisher[topic] = sole
-                self._last_sequence.pop(topic, None)
-
     @_locked
     def on_command(self, data: bytes, info: dict) -> None:
-        topic = self.resolve_topic_name("valve_command")
-        self._record_received(topic, data, info)
-        self._count_lost(topic, info)
-        msg = deserialize_message(data, ValveCommand)
-        self._accept(msg.opening, msg.header.stamp)
+        self.commands.on_valve_command(data, info)
 
     @_locked
     def on_command_array(self, data: bytes, info: dict) -> None:
-        topic = self.resolve_topic_name("commands")
-        self._record_received(topic, data, info)
-        self._count_lost(topic, info)
-        msg = deserialize_message(data, Float64MultiArray)
-        if len(msg.data) != 1:
-            self.get_logger().warning(
-                f"'commands' expects one value (the valve opening), got {len(msg.data)}", throttle_duration_sec=1.0
-            )
-            return
-        self._accept(msg.data[0], None)
+        self.commands.on_command_array(data, info)
 
     # --- services -------------------------------------------------------------------------
     @_locked
@@ -507,7 +379,7 @@ class BoomSimNode(Node):
             response.success, response.message = False, str(exc)
             return response
         response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
-        self.resets += 1
+        self.run_counts.resets += 1
         self.publish_state()
         self.publish_diagnostics()  # the bag keeps the count at once: boom-resim reads it
         return response
@@ -519,9 +391,9 @@ class BoomSimNode(Node):
             return response
         self.paused = request.data
         if self.paused:
-            self.pauses += 1
+            self.run_counts.pauses += 1
         else:
-            self._restart_clock()
+            self.clock.restart()
         response.success, response.message = True, "paused" if self.paused else "resumed"
         self.publish_diagnostics()  # the bag keeps the count at once: boom-resim reads it
         return response
@@ -544,7 +416,7 @@ class BoomSimNode(Node):
                 response.sim_time_s = self.sim.t
                 return response
             self.advance(steps)
-            self.steps_paused += 1
+            self.run_counts.step_calls += 1
             response.success, response.message = self.failure is None, self.failure or "ok"
             self.publish_state()
             self.publish_diagnostics()
@@ -561,50 +433,28 @@ class BoomSimNode(Node):
         self.drive.reset()
         self.failure = None
         if stopped:  # a stopped simulation stood still, as a paused one does: it goes on from now
-            self._restart_clock()
+            self.clock.restart()
         else:  # time runs on from here, tied to the clock as before
-            self.pacer.rebase(self.sim.step_count, self.sim.params.time_step_s)
-
-    def _pace_factor(self) -> float:
-        """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
-        return 1.0 if self.follow_clock else self.rtf
-
-    def _pace_clock_s(self) -> float:
-        """The clock simulated time follows: the ROS clock (use_sim_time) or the steady clock."""
-        if self.follow_clock:
-            return self.get_clock().now().nanoseconds * 1e-9
-        return time.monotonic()
-
-    def _restart_clock(self) -> None:
-        """Tie simulated time to the clock from now on: at the start (or the first /clock), a
-        resume, a new real-time factor and a jump back of the ROS clock."""
-        self.pacer.restart(self._pace_clock_s(), self.sim.step_count)
-        # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
-        now_ns = self.get_clock().now().nanoseconds
-        self.clock_origin_ns = 0 if self.publish_clock else now_ns - round(self.sim.t * 1e9)
-        self._clock_seen_s = now_ns * 1e-9
+            self.clock.rebase(self.sim.params.time_step_s)
 
     def _follow_ros_clock(self) -> bool:
-        """use_sim_time: whether the loop may step now. No /clock yet: wait. A jump back (a
-        world reset): the drive goes back to rest, as ~/reset does, and follows the clock from there."""
-        now = self.get_clock().now().nanoseconds * 1e-9
-        if now <= 0.0:
+        """use_sim_time: whether the loop may step now. No /clock yet: wait. The first /clock
+        starts the bag. A jump back (a world reset): the drive goes back to rest, as ~/reset
+        does, and follows the clock from there."""
+        seen_s = self.clock.seen_s
+        follow = self.clock.follow()
+        if follow is Follow.WAIT:
             return False
-        if self._clock_seen_s <= 0.0:  # the first /clock
-            self._restart_clock()
-            if self.record_pending:
-                self._begin_recording()
-                self.publish_description()  # (transient local: published again, so the bag has it)
-            return True
-        if now < self._clock_seen_s - CLOCK_JUMP_S:
+        if follow is Follow.FIRST and self.recording.pending:
+            self._begin_recording()
+            self.publish_description()  # (transient local: published again, so the bag has it)
+        elif follow is Follow.JUMPED_BACK:
             self.get_logger().warning(
-                f"the ROS clock jumped back from {self._clock_seen_s:.3f} s to {now:.3f} s: "
+                f"the ROS clock jumped back from {seen_s:.3f} s to {self.clock.read_s:.3f} s: "
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
             self._back_to_rest("the ROS clock jumped back")
-            self._restart_clock()
-            return True
-        self._clock_seen_s = max(self._clock_seen_s, now)
+            self.clock.restart()
         return True
 
     def advance(self, steps: int) -> None:
@@ -629,15 +479,7 @@ class BoomSimNode(Node):
         """Tick at ``publish_rate_hz`` of wall time (back to back at real_time_factor 0)."""
         deadline = time.monotonic()
         while not self.stopping.is_set():
-            if self.rtf == 0 and not self.follow_clock:
-                time.sleep(0)  # let the executor thread take commands between ticks
-            else:
-                deadline += 1.0 / self.rate_hz
-                delay = deadline - time.monotonic()
-                if delay > 0:
-                    self.stopping.wait(delay)
-                else:
-                    deadline = time.monotonic()  # a late tick: no burst of ticks to catch up
+            deadline = self.clock.wait_for_tick(deadline, self.stopping)
             try:
                 with self.lock:
                     self.on_tick()
@@ -651,30 +493,27 @@ class BoomSimNode(Node):
     def on_tick(self) -> None:
         if self.paused or self.failure:
             return
-        if self.follow_clock and not self._follow_ros_clock():
+        clock = self.clock
+        if clock.follows and not self._follow_ros_clock():
             return
         dt = self.sim.params.time_step_s
-        tick = self.pacer.due(self._pace_clock_s(), self.sim.step_count, dt)
+        tick = clock.due()
         if tick.dropped_s:  # cannot keep up: the pacer gave up the backlog beyond max_catch_up_s
-            behind_s = tick.steps * dt / self.pacer.real_time_factor + tick.dropped_s
+            behind_s = tick.steps * dt / clock.pacer.real_time_factor + tick.dropped_s
             self.get_logger().warning(
-                f"{behind_s:.3f} s behind {'the ROS clock' if self.follow_clock else 'real time'}; "
-                "dropping the backlog",
+                f"{behind_s:.3f} s behind {'the ROS clock' if clock.follows else 'real time'}; dropping the backlog",
                 throttle_duration_sec=5.0,
             )
-            if not self.publish_clock:
-                self.clock_origin_ns += round(tick.dropped_s * 1e9)  # ROS-time stamps map to the later sim time
-                self.origin_shift_s += tick.dropped_s
         if tick.steps <= 0:
             return
-        if self.follow_clock:
-            self._advance_publishing(tick.steps, self.pacer.per_tick(dt))
+        if clock.follows:
+            self._advance_publishing(tick.steps, clock.pacer.per_tick(dt))
         else:
             self.advance(tick.steps)
             if self.failure is None:
                 self.publish_state()
-        self.pacer.settled(self.sim.step_count, dt)
-        self._watch_recorder()
+        clock.pacer.settled(self.sim.step_count, dt)
+        self.recording.watch()
 
     def _advance_publishing(self, steps: int, per_tick: int) -> None:
         """Take ``steps`` steps, publishing at every multiple of ``per_tick`` steps: on a shared
@@ -686,40 +525,16 @@ class BoomSimNode(Node):
             if self.failure is None and self.sim.step_count % per_tick == 0:
                 self.publish_state()
 
-    def _watch_recorder(self) -> None:
-        """A recording that failed (a full disk) stops with one error line; the run goes on."""
-        if self.recorder is not None and self.recording_error is None and self.recorder.error is not None:
-            self.recording_error = self.recorder.error
-            self.get_logger().error(f"recording stopped: {self.recording_error}; the simulation goes on")
-
     # --- output ------------------------------------------------------------------------------
-    def _now_ns(self) -> int:
-        """Now on the node's clock: simulated time when it publishes /clock, ROS time otherwise."""
-        if self.publish_clock:
-            return round(self.sim.t * 1e9)
-        if not self.follow_clock:
-            return time.time_ns()  # ROS time without use_sim_time is the system clock (cheaper to read)
-        return self.get_clock().now().nanoseconds
-
-    def _state_stamp_ns(self) -> int:
-        """The header stamp of the state now: the node-clock time of this simulated instant
-        (command stamps map back through the same origin, so a state and a command stamped
-        alike mean one instant). Where simulated time runs at another pace than ROS time
-        (real_time_factor other than 1, without publish_clock), the time it is published."""
-        if self.publish_clock:
-            return round(self.sim.t * 1e9)
-        if self.follow_clock or self.rtf == 1.0:
-            return self._sim_instant_ns()
-        return self._now_ns()
-
     def publish_state(self) -> None:
         out = self.sim.outputs()
         if not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
-        stamp_ns = self._state_stamp_ns()
+        clock = self.clock
+        stamp_ns = clock.state_stamp_ns()
         if self.clock_pub is not None:
-            self._publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
-        log_ns = stamp_ns if self.publish_clock else self._now_ns()  # when it is published
+            self.recording.publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
+        log_ns = stamp_ns if clock.publishes else clock.now_ns()  # when it is published
         p = self.sim.params
         piston, rod = messages.chamber_pressures(out, stamp_ns)
         tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
@@ -734,198 +549,35 @@ class BoomSimNode(Node):
         self._ticks += 1
         if self._ticks % self._markers_every == 0:
             tick.append((self.markers_pub, crane_markers(out, Time(nanoseconds=stamp_ns).to_msg(), p)))
-        self._publish(tick, log_ns)
+        self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:
         """The URDF of the current parameters on robot_description (transient local)."""
         if self.description_pub is not None:
-            self._publish([(self.description_pub, String(data=urdf(self.sim.params)))], self._now_ns())
+            self.recording.publish([(self.description_pub, String(data=urdf(self.sim.params)))], self.clock.now_ns())
 
     def on_second(self) -> None:
         """Once a second: diagnostics, and the command topics' publishers for the bag."""
-        if self.recorder is not None:
-            self._watch_command_topics()
+        self.recording.watch_command_topics()
         with self.lock:
-            self._watch_publishers()
+            self.commands.watch_publishers(self.count_publishers)
         self.publish_diagnostics()
 
     @_locked
     def publish_diagnostics(self) -> None:
-        out = self.sim.outputs() if self.failure is None else {}
-        array = DiagnosticArray()
-        stamp_ns = self._now_ns()
-        array.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
-
-        def status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
-            return DiagnosticStatus(
-                level=level,
-                name=f"boom_sim: {name}",
-                message=message,
-                hardware_id="boom_hydraulics",
-                values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
-            )
-
-        if self.failure:
-            array.status.append(status("simulation", DiagnosticStatus.ERROR, f"stopped: {self.failure}"))
-        else:
-            # resting on an end stop is normal; cavitation and an open relief valve are not
-            warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
-            notes = ["at_end_stop"] if out.get("at_end_stop") else []
-            array.status.append(
-                status(
-                    "drive",
-                    DiagnosticStatus.WARN if warnings else DiagnosticStatus.OK,
-                    ", ".join(warnings + notes) or "ok",
-                    sim_time_s=f"{self.sim.t:.3f}",
-                    paused=self.paused,
-                    substeps_most=self.sim.most_substeps,
-                    energy_residual_j=f"{self.sim.energy_residual():.4g}",
-                )
-            )
-        pacer = self.pacer
-        behind = pacer.lag_s > 2.0 / self.rate_hz
-        array.status.append(
-            status(
-                "real-time",
-                DiagnosticStatus.WARN if (behind or pacer.late_ticks) else DiagnosticStatus.OK,
-                "cannot keep up" if (behind or pacer.late_ticks) else "ok",
-                lag_s=f"{pacer.lag_s:.4f}",
-                clock_error_s=f"{pacer.clock_error_s:.6f}",
-                dropped_backlogs=pacer.late_ticks,
-                real_time_factor=self.rtf,
-            )
+        clock = self.clock
+        stamp_ns = clock.now_ns()
+        array = diagnostics(
+            stamp_ns,
+            self.sim,
+            self.failure,
+            self.paused,
+            clock.pacer,
+            clock.rate_hz,
+            clock.rtf,
+            self.commands.counts,
+            self.run_counts,
+            clock.origin_shift_s,
+            self.recording.status() if self.recording.recorder is not None else None,
         )
-        pacer.late_ticks = 0
-        dropped = self.commands_stale + self.commands_lost + self.commands_refused
-        array.status.append(
-            status(
-                "commands",
-                DiagnosticStatus.WARN if dropped else DiagnosticStatus.OK,
-                "some commands were not applied" if dropped else "ok",
-                received=self.commands_received,
-                stale=self.commands_stale,  # older than command_timeout_s when received
-                lost=self.commands_lost,  # dropped by the middleware before the node took them
-                refused=self.commands_refused,  # the queue of future commands was full
-            )
-        )
-        # what a re-simulation of the bag must know: boom-resim refuses a run with resets or pauses
-        array.status.append(
-            status(
-                "run",
-                DiagnosticStatus.OK,
-                "ok",
-                resets=self.resets,
-                pauses=self.pauses,
-                step_calls=self.steps_paused,
-                clock_origin_shift_s=f"{self.origin_shift_s:.6f}",
-            )
-        )
-        if self.recorder is not None:
-            self._watch_recorder()
-            if self.recording_error is not None:
-                array.status.append(status("recording", DiagnosticStatus.ERROR, f"stopped: {self.recording_error}"))
-            else:
-                array.status.append(status("recording", DiagnosticStatus.OK, "ok", folder=str(self.recorder.folder)))
-        self._publish([(self.diag_pub, array)], stamp_ns)
-
-
-def _fail(message: str) -> None:
-    print(f"boom_sim: error: {message}", file=sys.stderr, flush=True)
-    raise SystemExit(2)
-
-
-def _shield_signals() -> None:
-    """From the first SIGINT or SIGTERM on, a second one (a terminal's Ctrl-C and the one
-    ros2 launch forwards arrive together) must not interrupt finishing the bag."""
-
-    def note(_signum: int, _frame: Any) -> None:
-        print("boom_sim: still finishing; it ends by itself", file=sys.stderr, flush=True)
-
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, note)
-
-
-def _finish(node: BoomSimNode) -> bool:
-    """Stop the loop, finish the bag and say where it is, then leave the ROS graph; False
-    when the recording failed (the bag is left for boom-bag-recover)."""
-    node.stopping.set()
-    if node.loop.is_alive():
-        node.loop.join(timeout=5.0)
-    if node.record_pending:
-        print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
-    recorder, recorded = node.recorder, True
-    if recorder is not None:
-        folder = recorder.close()
-        counts = ", ".join(f"{t} {n}" for t, n in recorder.counts.items() if n)
-        if recorder.error is not None:  # (it says how to recover the bag)
-            print(f"boom_sim: error: recording failed: {recorder.error}", file=sys.stderr, flush=True)
-            recorded = False
-        else:
-            print(f"boom_sim: bag {folder} ({counts})", flush=True)
-    node.motion.destroy()
-    node.destroy_node()
-    return recorded
-
-
-def main(args: list[str] | None = None) -> None:
-    argv = sys.argv if args is None else args
-    if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
-        print(ros_parameters.usage())
-        return
-    try:
-        for path in ros_parameters.params_files(argv):
-            ros_parameters.check_params_file(path)
-    except ConfigError as exc:
-        _fail(str(exc))
-    # The loop thread must get the GIL soon after its deadline; CPython's default 5 ms
-    # switch interval showed as a 16 ms p99 tick period at 100 Hz.
-    sys.setswitchinterval(0.0005)
-    try:
-        rclpy.init(args=args)
-    except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
-        _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
-    try:
-        node = BoomSimNode()
-    except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
-        rclpy.try_shutdown()
-        _fail(str(exc))
-    except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
-        _shield_signals()
-        rclpy.try_shutdown()
-        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
-        return
-    except Exception:
-        if rclpy.ok():
-            raise
-        _shield_signals()  # a signal shut the context down under the start-up: a clean stop too
-        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
-        return
-    try:
-        node.start()
-    except BoomHydraulicsError as exc:  # the bag cannot be started (a full disk, a read-only folder)
-        node.motion.destroy()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        print(f"boom_sim: error: {exc}", file=sys.stderr, flush=True)
-        raise SystemExit(1) from None
-    try:
-        node.motion.spin_in_background()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        # SIGINT/SIGTERM shut the context down; the executor may then fail building its
-        # wait set (RCLError) instead of raising ExternalShutdownException: that is a
-        # clean shutdown too. Anything else is a real error.
-        if rclpy.ok():
-            raise
-    finally:
-        _shield_signals()
-        recorded = _finish(node)
-        rclpy.try_shutdown()
-    if not recorded:
-        raise SystemExit(1)
-
-
-if __name__ == "__main__":
-    main()
+        self.recording.publish([(self.diag_pub, array)], stamp_ns)

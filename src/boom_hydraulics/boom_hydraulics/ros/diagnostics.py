@@ -1,0 +1,119 @@
+"""The node's /diagnostics, once a second and after each service call that changes the run.
+
+Four statuses (five while recording): the drive (or the failure that stopped it), real time
+(lag, clock error, dropped backlogs), the commands (received and not applied), the run
+(resets, pauses, ~/step calls and the shift of the time origin: what boom-resim must know of
+a bag) and the recording.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.time import Time
+
+from ..solve.pacing import Pacer
+from ..solve.simulation import Simulator
+from .commands import CommandCounts
+
+
+@dataclass
+class RunCounts:
+    """Calls that change a run: boom-resim refuses a bag with resets or pauses."""
+
+    resets: int = 0  # ~/reset
+    pauses: int = 0  # ~/pause with data: true
+    step_calls: int = 0  # ~/step
+
+
+def _status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
+    return DiagnosticStatus(
+        level=level,
+        name=f"boom_sim: {name}",
+        message=message,
+        hardware_id="boom_hydraulics",
+        values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+    )
+
+
+def diagnostics(
+    stamp_ns: int,
+    sim: Simulator,
+    failure: str | None,
+    paused: bool,
+    pacer: Pacer,
+    rate_hz: float,
+    real_time_factor: float,
+    commands: CommandCounts,
+    run: RunCounts,
+    origin_shift_s: float,
+    recording: tuple[str | None, str] | None,
+) -> DiagnosticArray:
+    """The array at ``stamp_ns``; ``recording``: (its error or None, its folder) while recording.
+    Reading the pacer's dropped backlogs resets their count."""
+    array = DiagnosticArray()
+    array.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+    if failure:
+        array.status.append(_status("simulation", DiagnosticStatus.ERROR, f"stopped: {failure}"))
+    else:
+        out = sim.outputs()
+        # resting on an end stop is normal; cavitation and an open relief valve are not
+        warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
+        notes = ["at_end_stop"] if out.get("at_end_stop") else []
+        array.status.append(
+            _status(
+                "drive",
+                DiagnosticStatus.WARN if warnings else DiagnosticStatus.OK,
+                ", ".join(warnings + notes) or "ok",
+                sim_time_s=f"{sim.t:.3f}",
+                paused=paused,
+                substeps_most=sim.most_substeps,
+                energy_residual_j=f"{sim.energy_residual():.4g}",
+            )
+        )
+    behind = pacer.lag_s > 2.0 / rate_hz
+    array.status.append(
+        _status(
+            "real-time",
+            DiagnosticStatus.WARN if (behind or pacer.late_ticks) else DiagnosticStatus.OK,
+            "cannot keep up" if (behind or pacer.late_ticks) else "ok",
+            lag_s=f"{pacer.lag_s:.4f}",
+            clock_error_s=f"{pacer.clock_error_s:.6f}",
+            dropped_backlogs=pacer.late_ticks,
+            real_time_factor=real_time_factor,
+        )
+    )
+    pacer.late_ticks = 0
+    dropped = commands.stale + commands.lost + commands.refused
+    array.status.append(
+        _status(
+            "commands",
+            DiagnosticStatus.WARN if dropped else DiagnosticStatus.OK,
+            "some commands were not applied" if dropped else "ok",
+            received=commands.received,
+            stale=commands.stale,  # older than command_timeout_s when received
+            lost=commands.lost,  # dropped by the middleware before the node took them
+            refused=commands.refused,  # the queue of future commands was full
+        )
+    )
+    # what a re-simulation of the bag must know: boom-resim refuses a run with resets or pauses
+    array.status.append(
+        _status(
+            "run",
+            DiagnosticStatus.OK,
+            "ok",
+            resets=run.resets,
+            pauses=run.pauses,
+            step_calls=run.step_calls,
+            clock_origin_shift_s=f"{origin_shift_s:.6f}",
+        )
+    )
+    if recording is not None:
+        error, folder = recording
+        if error is not None:
+            array.status.append(_status("recording", DiagnosticStatus.ERROR, f"stopped: {error}"))
+        else:
+            array.status.append(_status("recording", DiagnosticStatus.OK, "ok", folder=folder))
+    return array

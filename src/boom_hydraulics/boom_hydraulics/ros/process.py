@@ -1,0 +1,110 @@
+"""The ``boom_sim`` process: check the arguments, start the node, spin, and shut down.
+
+A bad params file or ``-p`` value is one line and exit status 2; a bag that cannot be started,
+or a recording that failed, exit status 1; a SIGINT or SIGTERM while the node starts or runs
+is a clean stop (0), and from the first one on a second one cannot interrupt finishing the bag.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from typing import Any
+
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+
+from ..errors import BoomHydraulicsError, ConfigError
+from . import node_parameters as ros_parameters
+from .node import BoomSimNode
+
+
+def _fail(message: str) -> None:
+    print(f"boom_sim: error: {message}", file=sys.stderr, flush=True)
+    raise SystemExit(2)
+
+
+def _shield_signals() -> None:
+    """From the first SIGINT or SIGTERM on, a second one (a terminal's Ctrl-C and the one
+    ros2 launch forwards arrive together) must not interrupt finishing the bag."""
+
+    def note(_signum: int, _frame: Any) -> None:
+        print("boom_sim: still finishing; it ends by itself", file=sys.stderr, flush=True)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, note)
+
+
+def _finish(node: BoomSimNode) -> bool:
+    """Stop the loop, finish the bag and say where it is, then leave the ROS graph; False
+    when the recording failed (the bag is left for boom-bag-recover)."""
+    node.stopping.set()
+    if node.loop.is_alive():
+        node.loop.join(timeout=5.0)
+    recorded = node.recording.finish()
+    node.destroy()
+    return recorded
+
+
+def main(args: list[str] | None = None) -> None:
+    argv = sys.argv if args is None else args
+    if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
+        print(ros_parameters.usage())
+        return
+    try:
+        for path in ros_parameters.params_files(argv):
+            ros_parameters.check_params_file(path)
+    except ConfigError as exc:
+        _fail(str(exc))
+    # The loop thread must get the GIL soon after its deadline; CPython's default 5 ms
+    # switch interval showed as a 16 ms p99 tick period at 100 Hz.
+    sys.setswitchinterval(0.0005)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
+        _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
+    try:
+        node = BoomSimNode()
+    except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
+        rclpy.try_shutdown()
+        _fail(str(exc))
+    except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
+        _shield_signals()
+        rclpy.try_shutdown()
+        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        return
+    except Exception:
+        if rclpy.ok():
+            raise
+        _shield_signals()  # a signal shut the context down under the start-up: a clean stop too
+        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        return
+    try:
+        node.start()
+    except BoomHydraulicsError as exc:  # the bag cannot be started (a full disk, a read-only folder)
+        node.destroy()
+        rclpy.try_shutdown()
+        print(f"boom_sim: error: {exc}", file=sys.stderr, flush=True)
+        raise SystemExit(1) from None
+    try:
+        node.motion.spin_in_background()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        # SIGINT/SIGTERM shut the context down; the executor may then fail building its
+        # wait set (RCLError) instead of raising ExternalShutdownException: that is a
+        # clean shutdown too. Anything else is a real error.
+        if rclpy.ok():
+            raise
+    finally:
+        _shield_signals()
+        recorded = _finish(node)
+        rclpy.try_shutdown()
+    if not recorded:
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main()
