@@ -53,9 +53,9 @@ from ..files import check_apart
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
 from ..model.setpoints import SetpointPath
+from ..programs import RaisingParser, run_main, summary
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
-from .common import RaisingParser, run_main, summary
 
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"

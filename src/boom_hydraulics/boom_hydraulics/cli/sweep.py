@@ -48,11 +48,11 @@ from ..errors import ConfigError
 from ..files import check_apart, csv_cell, write_bytes, write_csv, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
+from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main
 from ..sweeps import recommend, sweep
 from ..sweeps.executors import DaskExecutor, LocalExecutor
 from ..sweeps.sampling import SAMPLES, parse_axis, point_count, resolve_name
 from ..sweeps.store import OUTPUTS, SweepStore, plot_names
-from .common import DefaultsFormatter, RaisingParser, Terminated, run_main
 
 #: Points integrated together unless --batch-size says otherwise: larger batches spend
 #: less of their time in numpy's per-call overhead (bench/bench_sweep.py).
