@@ -1,6 +1,6 @@
 # boom_hydraulics: two commands for a newcomer (see README).
 #   make run    set up if needed, then run the node with the default scenario
-#   make test   set up if needed, then run the whole test suite
+#   make test   set up if needed, check the import floors, then run the whole test suite
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
@@ -14,7 +14,7 @@ BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name packag
 	$(wildcard config/*.yaml) \
 	tools/build tools/cmake/drop_missing_include_dirs.cmake
 
-.PHONY: setup run node test lint bench clean
+.PHONY: setup run node test lint imports bench clean
 
 setup: $(BUILD_STAMP)
 
@@ -36,12 +36,16 @@ run: setup
 node: setup
 	$(WITH_ENV) boom_sim --ros-args --params-file config/default.yaml
 
-test: setup
+test: setup imports
 	$(WITH_ENV) python -m pytest -q test
 
-lint: setup
+lint: setup imports
 	$(WITH_ENV) ruff check src test bench
 	$(WITH_ENV) ruff format --check src test bench
+
+# the floors of the package never loop back (.importlinter); before the tests, so CI checks it
+imports: setup
+	$(WITH_ENV) lint-imports --no-cache
 
 bench: setup
 	$(WITH_ENV) python bench/bench_model.py

@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics.bags.reading import read_drive_states  # noqa: E402
-from boom_hydraulics.cli import resim  # noqa: E402
+from boom_hydraulics.resim import resimulation as resim  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_RESIM = shutil.which("boom-resim")
@@ -101,8 +101,8 @@ def test_a_bag_from_an_earlier_model_is_resimulated_without_its_retired_paramete
     friction_smoothing_velocity_m_s and end_stop_damping_n_s_m: they are named and left out."""
     read_run = resim.read_run
 
-    def older(bag):
-        run = read_run(bag)
+    def older(bag, description):
+        run = read_run(bag, description)
         run.parameters.update(friction_smoothing_velocity_m_s=0.001, end_stop_damping_n_s_m=2e6)
         return run
 

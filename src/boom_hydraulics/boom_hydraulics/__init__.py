@@ -9,9 +9,15 @@ this), so the node, the headless tools, tests and studies all drive the same cor
   the compiled and the batched paths;
 - :mod:`.bags`: writing, reading and recovering rosbag2/MCAP bags, without ROS;
 - :mod:`.analysis`: run metrics, plots, the paper's studies;
-- :mod:`.sweeps`: design sweeps: sampling, batches, storage, executors, recommendation;
+- :mod:`.sweeps`: design sweeps: sampling, batches, storage, executors, recommendation,
+  and the run of a whole sweep;
+- :mod:`.resim`: re-simulation of a recorded run with other parameters;
 - :mod:`.ros`: the node, its parameters and messages, replay and the demo;
-- :mod:`.cli`: the command-line tools, one module each.
+- :mod:`.cli`: the command-line tools' arguments, one module each;
+- :mod:`.programs`: what every command-line program shares (one-line errors, exit codes).
+
+The floors (top to bottom: cli; ros; sweeps | resim; analysis; bags | solve; model;
+files | programs; errors) are checked by import-linter (``.importlinter``, ``make lint``).
 """
 
 __version__ = "0.1.0"

@@ -13,6 +13,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from ..errors import BagError
 from .encoding import DRIVE_STATE, DRIVE_STATE_FIELDS, FLAGS
 from .recording import CUSTOM_DATA_RECORD, MCAP_MAGIC, is_being_recorded
+from .run_description import RunDescription
 
 #: How runs are put on a common time axis: t = 0 at the recorded time origin (simulated
 #: time 0 of the node), at the first opening of the valve, or at the first message.
@@ -129,6 +130,18 @@ def read_custom_data(bag: Path) -> dict[str, str] | None:
     return _custom_data(bag)
 
 
+def read_run_description(bag: Path) -> RunDescription:
+    """The run description of ``bag`` (see :mod:`.run_description`); BagError, with what to
+    do, if it has none (not recorded by boom_sim) or one that does not read."""
+    custom = read_custom_data(bag)
+    if custom is None:
+        raise BagError(f"{bag}: no run description (custom data); was it recorded by boom_sim?")
+    try:
+        return RunDescription.from_custom_data(custom)
+    except (KeyError, ValueError, yaml.YAMLError) as exc:
+        raise BagError(f"{bag}: the recorded run description is unreadable ({exc})") from None
+
+
 def _custom_data(bag: Path) -> dict[str, str] | None:
     try:
         with mcap_files(bag)[0].open("rb") as handle:
@@ -182,9 +195,9 @@ def read_drive_states(bag: str | Path, align: str = "origin") -> dict[str, np.nd
 
 def _origin_ns(path: Path, align: str, stamp_ns: np.ndarray, u: np.ndarray) -> int:
     if align == "origin":
-        custom = _custom_data(path) or {}  # the bag was checked by the caller
-        if "clock_origin_ns" in custom:
-            return int(custom["clock_origin_ns"])
+        origin_ns = RunDescription.origin_in(_custom_data(path) or {})  # the bag was checked by the caller
+        if origin_ns is not None:
+            return origin_ns
     if align == "command":
         opened = np.nonzero(u != 0.0)[0]
         if len(opened):

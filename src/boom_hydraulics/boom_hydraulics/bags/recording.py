@@ -52,7 +52,8 @@ from rosbags.rosbag2.metadata import dump_qos_v9
 
 from ..errors import RecordingError
 from ..files import atomic_path
-from ..model.parameters import Parameters, as_dict
+from ..model.parameters import Parameters
+from .run_description import RunDescription
 
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 writes in Jazzy
 ROS_DISTRO = "jazzy"
@@ -150,17 +151,21 @@ def message_definition(msgtype: str) -> str:
 
 # --- bag folders ------------------------------------------------------------------------
 def run_description(
-    params: Parameters, clock_origin_ns: int, publish_rate_hz: float, command_timeout_s: float, **extra: str
+    params: Parameters,
+    clock_origin_ns: int,
+    publish_rate_hz: float,
+    command_timeout_s: float,
+    *,
+    node: str | None = None,
+    resimulated_from: str | None = None,
 ) -> dict[str, str]:
     """The custom data a bag carries so that its run can be simulated again (boom-resim):
-    the parameters, the stamp of simulated time 0, the publish rate and the command timeout."""
-    return {
-        "parameters": yaml.safe_dump(as_dict(params), sort_keys=False),
-        "clock_origin_ns": str(clock_origin_ns),
-        "publish_rate_hz": repr(publish_rate_hz),
-        "command_timeout_s": repr(command_timeout_s),
-        **extra,
-    }
+    :class:`~.run_description.RunDescription` of the parameters, the stamp of simulated
+    time 0, the publish rate and the command timeout."""
+    description = RunDescription.of(
+        params, clock_origin_ns, publish_rate_hz, command_timeout_s, node=node, resimulated_from=resimulated_from
+    )
+    return description.to_custom_data()
 
 
 def new_bag_folder(parent: str | Path, name: str = "boom_sim") -> Path:

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..bags.recovery import Recovery, recover
-from .common import RaisingParser, run_main, summary
+from ..programs import RaisingParser, run_main, summary
 
 
 def report(result: Recovery) -> str:

@@ -29,9 +29,9 @@ from ..files import atomic_path, check_apart, csv_column, write_bytes, write_csv
 from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
+from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
-from .common import RaisingParser, run_main
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:

@@ -28,7 +28,7 @@ from ..analysis import plots, studies
 from ..errors import BoomHydraulicsError, ConfigError
 from ..files import check_apart, results_folder
 from ..model import config
-from .common import RaisingParser, run_main
+from ..programs import RaisingParser, run_main
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"  # the package's config/ (symlink in src)
 DIAMETERS_M = (0.032, 0.04, 0.05, 0.063, 0.08)

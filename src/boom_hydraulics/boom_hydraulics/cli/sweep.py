@@ -36,29 +36,14 @@ import os
 import shlex
 import signal
 import sys
-import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, write_bytes, write_csv, write_npz
-from ..model import config
-from ..model.parameters import Parameters, from_mapping
-from ..sweeps import recommend, sweep
-from ..sweeps.executors import DaskExecutor, LocalExecutor
-from ..sweeps.sampling import SAMPLES, parse_axis, point_count, resolve_name
-from ..sweeps.store import OUTPUTS, SweepStore, plot_names
-from .common import DefaultsFormatter, RaisingParser, Terminated, run_main
-
-#: Points integrated together unless --batch-size says otherwise: larger batches spend
-#: less of their time in numpy's per-call overhead (bench/bench_sweep.py).
-BATCH_SIZE = 1000
-
-UNITS = {name: unit for name, unit, _ in sweep.METRICS}
+from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main
+from ..sweeps import sweep
+from ..sweeps.runner import BATCH_SIZE, Reached, SweepOptions, run_sweep
+from ..sweeps.sampling import SAMPLES
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -141,25 +126,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def load_configs(files: Sequence[str], assignments: Sequence[str]) -> list[tuple[str, Parameters]]:
-    """(name, parameters) per config file (or the defaults), with the --set overrides."""
-    overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in assignments)
-    if not files:
-        return [("default", from_mapping(overrides))]
-    return [(Path(f).stem, config.load(f, overrides)) for f in files]
-
-
-def constraints_of(args: argparse.Namespace, columns: Sequence[str]) -> list[recommend.Constraint]:
-    found = [recommend.parse_constraint(text, columns) for text in args.require]
-    if args.max_pressure_pa is not None:
-        found.append(recommend.Constraint("peak_pressure_pa", "<=", args.max_pressure_pa))
-    if args.max_lift_time_s is not None:
-        found.append(recommend.Constraint("lift_time_s", "<=", args.max_lift_time_s))
-    if args.no_cavitation:
-        found.append(recommend.Constraint("cavitation_s", "==", 0.0))
-    return found
-
-
 def _resume_command(argv: Sequence[str], out: Path, args: argparse.Namespace) -> str:
     words = ["boom-sweep", *argv]
     if args.out is None:
@@ -190,198 +156,23 @@ def check_numbers(args: argparse.Namespace) -> None:
         )
 
 
-def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None) -> None:
-    """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
-    names = list(table)
-    index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
-    write_csv(path_csv, names, ([csv_cell(table[n][i]) for n in names] for i in index))
-    write_npz(path_csv.with_suffix(".npz"), {n: np.asarray(table[n])[index] for n in names})
-
-
-def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
-    status = np.asarray(table["status"])
-    counts = ", ".join(f"{int((status == s).sum())} {s}" for s in sweep.STATUSES if (status == s).any())
-    lines = [f"{len(status)} points: {counts}"]
-    ok = np.nonzero(status == "ok")[0]
-    if len(ok):
-        for metric, label in (("lift_time_s", "fastest lift"), ("lift_energy_j", "least lift energy")):
-            best = ok[np.nanargmin(np.asarray(table[metric], float)[ok])]
-            where = ", ".join(f"{c}={recommend.format_value(table[c][best])}" for c in columns) or "the one point"
-            lines.append(f"  {label}: {float(table[metric][best]):.4g} {UNITS[metric]} at {where}")
-    return "\n".join(lines)
-
-
-def _settings(args: argparse.Namespace) -> dict[str, Any]:
-    """The keyword arguments of sweep.request and sweep.plan that the options give."""
-    return {
-        "scenario": args.scenario,
-        "duration_s": args.duration,
-        "sample": args.sample,
-        "count": args.samples,
-        "seed": args.seed,
-        "lift_angle_deg": args.lift_angle_deg,
-        "every": args.every,
-    }
-
-
-def _batch_size(args: argparse.Namespace, stored: Mapping[str, Any] | None, points: int) -> int:
-    """Points a batch: those a resumed sweep began with, else --batch-size, or, with --workers and no
-    --batch-size, fewer than BATCH_SIZE where that gives every worker a batch."""
-    if args.batch_size is None and stored is not None:
-        return int(stored["batch_size"])  # resume in the batches it began with, wherever it runs now
-    if args.batch_size is None and args.workers:
-        share = math.ceil(points / args.workers)
-        return share if 0 < share < BATCH_SIZE else BATCH_SIZE
-    return args.batch_size or BATCH_SIZE
-
-
-def _stored_parts(store: SweepStore, plan: sweep.Plan) -> tuple[list[dict[str, np.ndarray]], set[int]]:
-    """The rows of the batches stored before, checked to be this plan's; and their indices."""
-    columns = ["point", "status", "reason", "failed_at_s", *sweep.METRIC_NAMES]
-    by_index = {b.index: b for b in plan.batches}
-    parts, done = [], set()
-    for index in sorted(store.done()):
-        batch = by_index.get(index)
-        if batch is None:
-            raise ConfigError(
-                f"{store.path(index)} is not a batch of this sweep (it has {len(plan.batches)}); move it out "
-                f"of {store.batches} and run the same command again"
-            )
-        rows = store.load(index, batch.points, columns)
-        if rows is not None:
-            parts.append(rows)
-            done.add(index)
-    return parts, done
-
-
-@dataclass
-class _Reached:
-    """How far a sweep got, for the line it ends with if it is interrupted."""
-
-    out: Path | None = None
-    store: SweepStore | None = None
-    plan: sweep.Plan | None = None
-
-    def interrupted(self, argv: Sequence[str], args: argparse.Namespace, why: str) -> str:
-        """What stopped the sweep, what is kept, and how to go on."""
-        done = len(self.store.done()) if self.store is not None else 0
-        if self.out is None or done == 0:
-            return f"boom-sweep: error: {why} before a batch finished; nothing was stored"
-        total = f" of {len(self.plan.batches)}" if self.plan is not None else ""
-        return (
-            f"boom-sweep: error: {why}; {done}{total} batches are stored in {self.out}; "
-            f"finish with: {_resume_command(argv, self.out, args)}"
-        )
-
-
 def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """The sweep; Ctrl-C (exit 130) or SIGTERM (143, see run_main) at any moment ends it with one line
     saying what is stored and the command that finishes it; a batch being written is not kept."""
-    reached = _Reached()
+    reached = Reached()
+
+    def finish(out: Path) -> str:
+        return _resume_command(argv, out, args)
+
     try:
-        return _sweep(args, argv, reached)
+        check_numbers(args)
+        return run_sweep(SweepOptions(**vars(args)), reached)
     except Terminated:
-        print(reached.interrupted(argv, args, "terminated (SIGTERM)"), file=sys.stderr)
+        print(reached.interrupted("terminated (SIGTERM)", finish), file=sys.stderr)
         return 128 + signal.SIGTERM
     except KeyboardInterrupt:
-        print(reached.interrupted(argv, args, "interrupted (Ctrl-C)"), file=sys.stderr)
+        print(reached.interrupted("interrupted (Ctrl-C)", finish), file=sys.stderr)
         return 130
-
-
-def _sweep(args: argparse.Namespace, argv: Sequence[str], reached: _Reached) -> int:
-    check_numbers(args)
-    configs = load_configs(args.config, args.set)
-    axes = [parse_axis(text) for text in args.vary]
-    across = [resolve_name(name) for name in args.across]
-    out = args.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
-    check_apart(out, [Path(c) for c in args.config or []])
-    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
-    recommend.check_across(across, columns)  # before the work, not after it
-    constraints = constraints_of(args, [*columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES])
-    store = SweepStore(out, args.resume, [*OUTPUTS, *plot_names(columns)])
-    reached.out, reached.store = out, store
-    points = len(configs) * point_count(axes, args.sample, args.samples)
-    batch_size = _batch_size(args, store.stored, points)
-    settings = _settings(args)
-    cost = sweep.estimate(configs, axes, duration_s=args.duration, sample=args.sample, count=args.samples,
-                          batch_size=batch_size)  # fmt: skip
-    sweep.check_fits(cost)
-    if store.stored is not None:  # the folder's sweep must be this one: known before planning it
-        store.begin(sweep.request(configs, axes, batch_size=batch_size, **settings))
-    for path in store.removed:
-        print(f"boom-sweep: note: removed {path}, left unfinished by an earlier run that was stopped", file=sys.stderr)
-    if cost.plan_s >= 1:
-        print(
-            f"boom-sweep: planning {cost.points} points in {cost.batches} or more batches "
-            f"({sweep.duration_text(cost.plan_s)}); to run: {cost.run_time(cost.points, os.cpu_count() or 1)}",
-            file=sys.stderr,
-            flush=True,
-        )
-    plan = reached.plan = sweep.plan(configs, axes, batch_size=batch_size, **settings)
-    store.begin(plan.request)
-    return _run_plan(args, out, store, plan, cost, constraints, across)
-
-
-def _run_plan(
-    args: argparse.Namespace,
-    out: Path,
-    store: SweepStore,
-    plan: sweep.Plan,
-    cost: sweep.Estimate,
-    constraints: Sequence[recommend.Constraint],
-    across: Sequence[str],
-) -> int:
-    """Run what is not stored yet, storing each batch as it finishes; then the table, plots and ranking."""
-    parts, done = _stored_parts(store, plan)
-    todo = [b for b in plan.batches if b.index not in done]
-    executor = (
-        DaskExecutor(args.scheduler, args.workers, args.scheduler_timeout)
-        if (args.scheduler or args.workers) is not None
-        else LocalExecutor()
-    )
-    runnable = plan.size - len(plan.invalid)
-    print(
-        f"boom-sweep: {plan.size} points ({len(plan.invalid)} invalid) in {len(plan.batches)} batches of up to "
-        f"{plan.request['batch_size']}; {len(plan.batches) - len(todo)} done before, {len(todo)} to run "
-        f"{executor.description} ({cost.run_time(sum(len(b.points) for b in todo), os.cpu_count() or 1)})",
-        file=sys.stderr,
-        flush=True,
-    )
-    from tqdm import tqdm
-
-    progress = tqdm(
-        total=runnable,
-        initial=sum(len(b.points) for b in plan.batches if b.index in done),
-        unit="pt",
-        disable=None if args.progress is None else not args.progress,
-        file=sys.stderr,
-    )
-    started = time.perf_counter()
-    with executor, progress:
-        for batch, rows in executor.map(sweep.run_batch, todo):
-            store.save(batch.index, rows)
-            parts.append(rows)
-            progress.update(len(batch.points))
-    seconds = time.perf_counter() - started
-    table = sweep.assemble(plan, parts)
-    table["front"] = recommend.trade_off_front(table).astype(np.int64)
-    write_table(table, out / "results.csv")
-    written = ["results.csv", "results.npz"]
-    if not args.no_plots:
-        from ..sweeps.plots import plot_all
-
-        written += [p.name for p in plot_all(table, plan.columns, out)]
-    ran = sum(len(b.points) for b in todo)
-    rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
-    print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
-    print(_summary(table, plan.columns))
-    if args.recommend or constraints or args.across:
-        rec = recommend.recommend(table, constraints, plan.columns, across)
-        text = recommend.format_table(rec, args.top)
-        write_bytes(out / "recommendation.txt", text.encode())
-        write_table(rec.table, out / "recommendation.csv", rows=rec.rows)
-        print(text, end="")
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -34,9 +34,9 @@ from rclpy.signals import SignalHandlerOptions
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
-from ..cli.analyze import main as analyze_main
-from ..cli.common import RaisingParser, run_main, summary
+from ..analysis.recordings import analyze, default_results_folder, report
 from ..errors import ConfigError
+from ..programs import RaisingParser, run_main, summary
 from ..solve.commands import CYCLE
 
 
@@ -174,7 +174,14 @@ def demo(argv: list[str] | None) -> int:
     if not new_bags:
         print(f"boom-demo: error: boom_sim recorded no bag in {args.bags}", file=sys.stderr)
         return 1
-    return analyze_main([str(new_bags[-1])])
+    return run_main("boom-analyze", lambda: _analyze(new_bags[-1]))
+
+
+def _analyze(bag: Path) -> int:
+    """The new bag analysed as ``boom-analyze BAG`` does it (its output and its errors' lines)."""
+    out = default_results_folder(bag)
+    print(report(analyze([bag], out), out))
+    return 0
 
 
 def _drive(node_proc: subprocess.Popen, stopper: Stopper, duration_s: float) -> int | None:

@@ -34,8 +34,8 @@ from rosbags.interfaces import Connection, QosDurability, QosReliability
 from rosgraph_msgs.msg import Clock
 
 from ..bags.reading import check_bag_path
-from ..cli.common import RaisingParser, run_main, summary
 from ..errors import BagError, ConfigError
+from ..programs import RaisingParser, run_main, summary
 
 _SLICE_S = 0.05  # the longest a wait goes without looking for a shutdown
 

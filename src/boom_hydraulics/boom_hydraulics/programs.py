@@ -1,4 +1,5 @@
-"""What the command-line tools share: arguments that fail as one line, and exit codes.
+"""What the command-line programs share (cli/ and the ROS ones, boom-replay and boom-demo):
+arguments that fail as one line, and exit codes.
 
 Exit codes: 0 done, 1 the work failed (a simulation, a file, a bag), 2 bad arguments or
 configuration (ConfigError), 130 interrupted (Ctrl-C, SIGINT), 143 terminated (SIGTERM).
@@ -14,7 +15,7 @@ import signal
 import sys
 from collections.abc import Callable
 
-from ..errors import BoomHydraulicsError, ConfigError
+from .errors import BoomHydraulicsError, ConfigError
 
 
 class RaisingParser(argparse.ArgumentParser):

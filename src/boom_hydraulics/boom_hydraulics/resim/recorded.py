@@ -1,0 +1,196 @@
+"""A boom_sim bag read as a run to simulate again: its description, the valve commands and
+parameter changes with the instants they act at, the setpoints of the position controller,
+the published state instants, and the node's own counts of what breaks the time line."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rosbags.highlevel import AnyReader, AnyReaderError
+
+from ..bags.encoding import DRIVE_STATE
+from ..bags.recording import Topic, offered_qos
+from ..bags.run_description import RunDescription
+from ..errors import BagError
+
+VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
+DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
+#: The node's diagnostics status that counts resets, pauses and steps, and how far its origin moved.
+RUN_STATUS = "boom_sim: run"
+_RUN_KEYS = ("resets", "pauses", "step_calls", "clock_origin_shift_s")
+JOINT_STATE = "sensor_msgs/msg/JointState"
+ARRAY_COMMAND = "std_msgs/msg/Float64MultiArray"
+PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
+#: ParameterValue.type -> the field that holds the value (rcl_interfaces/msg/ParameterType)
+_VALUE_FIELDS = {
+    1: "bool_value",
+    2: "integer_value",
+    3: "double_value",
+    4: "string_value",
+    5: "byte_array_value",
+    6: "bool_array_value",
+    7: "integer_array_value",
+    8: "double_array_value",
+    9: "string_array_value",
+}
+
+
+@dataclass
+class Recorded:
+    """One recorded message to copy into the new bag: when it acts, when it was logged."""
+
+    at_ns: int  # on the node's clock: when it takes effect
+    log_ns: int
+    topic: str
+    raw: bytes
+    opening: float = math.nan  # commands
+    changes: dict[str, Any] = field(default_factory=dict)  # parameter events
+    stamp_ns: int = 0  # a ValveCommand's header stamp (0: unset)
+
+
+@dataclass
+class RecordedRun:
+    """What a node recorded about its run, enough to run it again."""
+
+    description: RunDescription  # the parameters, time origin, publish rate, command timeout, node
+    end_ns: int
+    state_topic: str
+    state_ns: list[int]  # the instants the node published DriveState at
+    topics: list[Topic]  # of the commands and parameter events, with their recorded offers
+    commands: list[Recorded]
+    parameter_changes: list[Recorded]
+    setpoints: list[tuple[int, float, float]] = field(default_factory=list)  # (stamp ns, rad, rad/s)
+    # the node's own count of what breaks the time line (its "boom_sim: run" diagnostics), the latest
+    run_counts: dict[str, float] = field(default_factory=dict)
+    # the recorded drive states' q1, v, a and supply energy, in stamp order (reset detection)
+    state_signals: tuple[list[float], ...] = ((), (), (), ())
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        return self.description.parameters
+
+    @property
+    def clock_origin_ns(self) -> int:
+        return self.description.clock_origin_ns
+
+    @property
+    def publish_rate_hz(self) -> float:
+        return self.description.publish_rate_hz
+
+    @property
+    def command_timeout_s(self) -> float:
+        return self.description.command_timeout_s
+
+    @property
+    def node(self) -> str | None:
+        """The recording node's fully qualified name, where recorded."""
+        return self.description.node
+
+
+#: The DriveState fields the reset detection reads (bags.continuity.reset_from_states).
+_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "supply_energy_j")
+
+
+def _stamp_ns(msg: Any) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def _messages(reader: AnyReader, connections: Sequence[Any]):
+    """The messages of ``connections``, deserialised; none for no connections (rosbags reads an
+    empty list as every connection)."""
+    if not connections:
+        return
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        yield connection, log_ns, raw, reader.deserialize(raw, connection.msgtype)
+
+
+def _parameter_value(value: Any) -> Any:
+    field_name = _VALUE_FIELDS.get(value.type)
+    if field_name is None:
+        return None
+    raw = getattr(value, field_name)
+    return [v.item() if hasattr(v, "item") else v for v in raw] if field_name.endswith("array_value") else raw
+
+
+def _run_values(values: Sequence[Any]) -> dict[str, float]:
+    """The counts of a "boom_sim: run" status (KeyValue text), those that read as numbers."""
+    out = {}
+    for kv in values:
+        if kv.key in _RUN_KEYS:
+            try:
+                out[kv.key] = float(kv.value)
+            except ValueError:
+                continue
+    return out
+
+
+def read_run(bag: Path, description: RunDescription) -> RecordedRun:
+    """The valve commands, parameter changes, setpoints and states a boom_sim node recorded in
+    ``bag``, whose run description (bags.reading.read_run_description) is ``description``."""
+    node_name = description.node
+    try:
+        with AnyReader([bag]) as reader:
+            states = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
+            recorded_states = sorted(
+                (_stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
+                for _, _, _, msg in _messages(reader, states[:1])
+            )
+            wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
+            topics = [
+                Topic(c.topic, c.msgtype, tuple(getattr(c.ext, "offered_qos_profiles", ())) or (offered_qos(),))
+                for c in wanted
+            ]
+            setpoint_topics = [
+                c for c in reader.connections if c.msgtype == JOINT_STATE and c.topic.endswith("/setpoint")
+            ]
+            setpoints = sorted(
+                (_stamp_ns(msg), msg.position[0], msg.velocity[0])
+                for _, _, _, msg in _messages(reader, setpoint_topics[:1])
+            )
+            run_counts: dict[str, float] = {}
+            diagnostics = [c for c in reader.connections if c.msgtype == DIAGNOSTICS]
+            for _, _, _, msg in _messages(reader, diagnostics):
+                for status in msg.status:
+                    if status.name == RUN_STATUS:
+                        run_counts.update(_run_values(status.values))
+            commands, changes = [], []
+            for connection, log_ns, raw, msg in _messages(reader, wanted):
+                if connection.msgtype == PARAMETER_EVENT:
+                    if node_name and msg.node != node_name:
+                        continue
+                    values = {p.name: _parameter_value(p.value) for p in msg.changed_parameters}
+                    at_ns = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec
+                    changes.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), changes=values))
+                    continue
+                if connection.msgtype == VALVE_COMMAND:
+                    # the node's rule: at its stamp, or when received if unstamped or already passed
+                    stamp_ns = _stamp_ns(msg)
+                    opening, at_ns = msg.opening, max(stamp_ns, log_ns)
+                else:
+                    stamp_ns, opening, at_ns = 0, (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
+                commands.append(
+                    Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening), stamp_ns=stamp_ns)
+                )
+            end_ns = reader.end_time
+    except AnyReaderError as exc:
+        raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
+    except (ValueError, KeyError, IndexError, AttributeError) as exc:  # a message of another layout than its type
+        raise BagError(
+            f"{bag}: a message does not fit its recorded type ({exc!r}); was it recorded by boom_sim?"
+        ) from None
+    return RecordedRun(
+        description=description,
+        end_ns=end_ns,
+        state_topic=states[0].topic if states else "/drive_state",
+        state_ns=[row[0] for row in recorded_states],
+        topics=topics,
+        commands=commands,
+        parameter_changes=sorted(changes, key=lambda r: r.at_ns),
+        setpoints=setpoints,
+        run_counts=run_counts,
+        state_signals=tuple(list(column) for column in zip(*recorded_states))[1:] or ((), (), (), ()),
+    )

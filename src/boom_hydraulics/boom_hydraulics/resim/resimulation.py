@@ -1,0 +1,201 @@
+"""A recorded session's valve commands fed into the model again, "what if" (``boom-resim``).
+
+The bag's own parameters (stored by the node) are the base; --config replaces them, --set
+changes single ones. Parameters changed while the node ran (recorded from its
+/parameter_events) change at the same simulated instants here, with the --set values kept
+on top. Commands apply by the node's rule (command_queue): at their header stamp, or when
+received if unstamped or already passed; with its command timeout. The new bag has a
+DriveState at each instant the node published one (rounded to the steps of a changed
+time_step_s), on the recorded topic (a namespaced run stays namespaced), and the original
+commands and parameter events, so both runs overlay sample for sample. Exact for runs
+recorded with publish_clock; with ROS-time stamps a command's time is known to within one
+publish period. A run whose drive was reset, or, on ROS-time stamps, paused, resumed or
+stepped, is refused (exit 2): its time line is not one continuous line from its origin
+(see bags.continuity). A run that cannot be simulated to its end writes nothing; an
+interrupted one (Ctrl-C: exit 130, SIGTERM: 143) neither, and a killed one's temporary
+folder is removed by the next run to the same --out.
+
+Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
+the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
+setpoints here too (cubic between ticks, from where the boom was when control began), with
+the new parameters' gains and cylinder; it lets go where the recording shows it let go. The
+setpoint between two ticks is interpolated, so such a run matches its recording closely but
+not to the last bit.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import tempfile
+from collections import deque
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..bags.encoding import DRIVE_STATE, drive_state_cdr
+from ..bags.reading import read_run_description
+from ..bags.recording import BagRecorder, Topic
+from ..bags.run_description import RunDescription
+from ..errors import ConfigError, RecordingError
+from ..files import check_apart
+from ..model import config
+from ..model.parameters import NAMES, from_mapping
+from ..model.setpoints import SetpointPath
+from ..solve.command_queue import CommandedDrive, stale, valve_opening
+from ..solve.simulation import Simulator
+from .control import Control, control_stretches
+from .recorded import Recorded, RecordedRun, read_run
+from .refusals import check_calls, check_states
+from .staging import remove_stale_staging
+
+
+class _Resimulation:
+    """The recorded run's commands and parameter changes through a simulator."""
+
+    def __init__(self, run: RecordedRun, values: Mapping[str, Any], overrides: Mapping[str, Any]) -> None:
+        self.run, self.overrides = run, dict(overrides)
+        self.sim = Simulator(from_mapping(values))
+        self.drive = CommandedDrive(self.sim, run.command_timeout_s)
+        self.pending = deque(run.parameter_changes)
+        for command in run.commands:
+            self._push(command)
+
+    def seconds(self, at_ns: int) -> float:
+        """Simulated time of a time on the node's clock."""
+        return (at_ns - self.run.clock_origin_ns) * 1e-9
+
+    def _timeout_at(self, at_ns: int) -> float:
+        """The command timeout in effect at ``at_ns`` (the recorded changes of it included)."""
+        timeout_s = self.run.command_timeout_s
+        for change in self.run.parameter_changes:
+            if change.at_ns <= at_ns and "command_timeout_s" in change.changes:
+                timeout_s = float(change.changes["command_timeout_s"])
+        return timeout_s
+
+    def _push(self, command: Recorded) -> None:
+        u = valve_opening(command.opening, self.sim.params.mode)
+        if u is None:
+            return
+        if command.stamp_ns and stale(
+            self.seconds(command.stamp_ns), self.seconds(command.log_ns), self._timeout_at(command.log_ns)
+        ):
+            return  # the node refused it as stale when it arrived
+        self.drive.push(self.seconds(command.at_ns), u)
+
+    def take_over(self, control: Control) -> None:
+        """The controller drives from now along the recorded setpoints (from where the boom is)."""
+        angle, rate = self.drive.setpoint()
+        times = [self.sim.t] + [self.seconds(ns) for ns, _, _ in control.samples]
+        angles = [angle] + [a for _, a, _ in control.samples]
+        rates = [rate] + [r for _, _, r in control.samples]
+        self.drive.follow(SetpointPath.of(times, angles, rates))
+
+    def apply_changes(self) -> None:
+        """Parameter changes due by now (the node applies them between ticks)."""
+        half_step = 0.5 * self.sim.params.time_step_s
+        while self.pending and self.seconds(self.pending[0].at_ns) <= self.sim.t + half_step:
+            changes = self.pending.popleft().changes
+            model = {k: v for k, v in changes.items() if k in NAMES and k not in self.overrides}
+            if model:
+                try:
+                    self.sim.set_parameters(from_mapping(model, base=self.sim.params))
+                except ConfigError as exc:
+                    raise ConfigError(f"a recorded parameter change does not fit the new parameters: {exc}") from None
+            if "command_timeout_s" in changes:
+                self.drive.timeout_s = float(changes["command_timeout_s"])
+
+
+def _grid(run: RecordedRun, time_step_s: float) -> list[int]:
+    """State instants at the recorded publish rate, for a bag without DriveState."""
+    tick_s = max(1, round(1.0 / (run.publish_rate_hz * time_step_s))) * time_step_s
+    n_ticks = int((run.end_ns - run.clock_origin_ns) * 1e-9 / tick_s)
+    return [run.clock_origin_ns + round((k + 1) * tick_s * 1e9) for k in range(n_ticks)]
+
+
+def _progress(total: int):
+    """A progress bar over the state instants, as boom-sweep shows it: on stderr, only when
+    it is a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="state", disable=None, file=sys.stderr, leave=False)
+
+
+def _write_failure(out: Path, recorder: BagRecorder) -> RecordingError:
+    """The one line for a new bag the disk did not take (full, I/O error): its name and the cause."""
+    cause = (recorder.error or "").removeprefix(f"{recorder.file}: ").split("; recording stopped")[0]
+    return RecordingError(
+        f"{out}: cannot write the new bag ({cause or 'the disk failed'}); nothing was written. "
+        f"Free space in {out.parent} or choose another --out"
+    )
+
+
+def resimulate(
+    bag: Path, out: Path, config_file: Path | None = None, overrides: Mapping[str, Any] = ()
+) -> tuple[Path, int]:
+    """Write a new bag of the recorded commands through the model with the new parameters;
+    returns the bag and its DriveState count. Raises SimulationError if the run stops early,
+    ConfigError if the run cannot be re-simulated (reset, or paused on ROS-time stamps)."""
+    check_apart(out, [bag] + ([config_file] if config_file else []))
+    if out.exists():
+        raise ConfigError(f"--out {out} exists already; name a new bag folder")
+    for folder in remove_stale_staging(out):
+        print(f"boom-resim: note: removed {folder}, left by an earlier run to {out} that was killed", file=sys.stderr)
+    description = read_run_description(bag)
+    check_calls(bag, description)
+    run = read_run(bag, description)
+    check_states(bag, run)
+    values = dict(run.parameters) if config_file is None else config.read_values(config_file)
+    retired = sorted(name for name in values if name not in NAMES) if config_file is None else []
+    if retired:  # recorded by an earlier version of the model: what it no longer has cannot apply
+        print(
+            f"boom-resim: note: {bag} holds parameters this version no longer has ({', '.join(retired)}); "
+            "they are left out, and the model's defaults stand in for what replaced them",
+            file=sys.stderr,
+        )
+        values = {name: value for name, value in values.items() if name in NAMES}
+    values.update(dict(overrides))
+    resim = _Resimulation(run, values, overrides)
+    params = resim.sim.params
+    instants = run.state_ns or _grid(run, params.time_step_s)
+    custom = RunDescription.of(
+        params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
+    ).to_custom_data()
+    recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
+    stretches = control_stretches(run.setpoints, instants)
+    starts = {c.start_ns: c for c in stretches}
+    releases = {c.release_ns for c in stretches if c.release_ns != instants[-1]}
+    now_ns = run.clock_origin_ns
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    try:
+        topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
+        with (
+            BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
+            _progress(len(instants)) as progress,
+        ):
+            for at_ns in instants:
+                progress.update()  # the recorded run's state instants: runs overlay sample for sample
+                steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
+                if steps <= 0:
+                    continue
+                resim.apply_changes()  # the node changes parameters between ticks, at a state instant
+                if now_ns in starts:  # a goal or trajectory was taken between these instants
+                    resim.take_over(starts[now_ns])
+                resim.drive.advance(steps)  # a SimulationError ends it: nothing is written
+                if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
+                    resim.drive.let_go()
+                now_ns = at_ns
+                stamp_ns = run.clock_origin_ns + round(resim.sim.t * 1e9)
+                while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
+                    message = recorded.popleft()
+                    recorder.write(message.topic, message.log_ns, message.raw)
+                recorder.write(run.state_topic, stamp_ns, drive_state_cdr(resim.sim.outputs(), stamp_ns))
+                if recorder.error is not None:  # the disk failed: stop here, nothing is kept
+                    break
+        if recorder.error is not None or not getattr(recorder, "finished", True):
+            raise _write_failure(out, recorder)
+        (staging / "bag").rename(out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # created by this run
+    return out, recorder.counts[run.state_topic]

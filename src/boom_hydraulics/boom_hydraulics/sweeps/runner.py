@@ -1,0 +1,265 @@
+"""A design sweep run to its end: the configs, the plan and its batches on an executor
+(this process, local workers or a Dask cluster), each finished batch stored, then the
+results table, the plots and the recommendation (the library side of ``boom-sweep``; its
+options and their checks are cli.sweep's).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..files import check_apart, csv_cell, write_bytes, write_csv, write_npz
+from ..model import config
+from ..model.parameters import Parameters, from_mapping
+from . import recommend, sweep
+from .executors import DaskExecutor, LocalExecutor
+from .sampling import parse_axis, point_count, resolve_name
+from .store import OUTPUTS, SweepStore, plot_names
+
+#: Points integrated together unless --batch-size says otherwise: larger batches spend
+#: less of their time in numpy's per-call overhead (bench/bench_sweep.py).
+BATCH_SIZE = 1000
+
+UNITS = {name: unit for name, unit, _ in sweep.METRICS}
+
+
+@dataclass(frozen=True)
+class SweepOptions:
+    """What to sweep, how, where it runs and what to recommend: boom-sweep's options, by the
+    names of their attributes (``cli.sweep.build_parser``; its help tells each one)."""
+
+    config: Sequence[str] = ()  # params files; none: the built-in values
+    set: Sequence[str] = ()  # KEY=VALUE overrides
+    vary: Sequence[str] = ()  # the axes, NAME=SPEC
+    sample: str = "grid"
+    samples: int = 0
+    seed: int = 0
+    scenario: str = "lift"
+    duration: float = 5.0  # s
+    lift_angle_deg: float = 20.0
+    every: int = 1
+    batch_size: int | None = None
+    scheduler: str | None = None
+    workers: int | None = None
+    scheduler_timeout: float = 10.0  # s
+    out: Path | None = None
+    resume: bool = False
+    no_plots: bool = False
+    progress: bool | None = None
+    recommend: bool = False
+    max_pressure_pa: float | None = None
+    max_lift_time_s: float | None = None
+    no_cavitation: bool = False
+    require: Sequence[str] = ()
+    across: Sequence[str] = ()
+    top: int = 10
+
+
+def load_configs(files: Sequence[str], assignments: Sequence[str]) -> list[tuple[str, Parameters]]:
+    """(name, parameters) per config file (or the defaults), with the --set overrides."""
+    overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in assignments)
+    if not files:
+        return [("default", from_mapping(overrides))]
+    return [(Path(f).stem, config.load(f, overrides)) for f in files]
+
+
+def constraints_of(options: SweepOptions, columns: Sequence[str]) -> list[recommend.Constraint]:
+    found = [recommend.parse_constraint(text, columns) for text in options.require]
+    if options.max_pressure_pa is not None:
+        found.append(recommend.Constraint("peak_pressure_pa", "<=", options.max_pressure_pa))
+    if options.max_lift_time_s is not None:
+        found.append(recommend.Constraint("lift_time_s", "<=", options.max_lift_time_s))
+    if options.no_cavitation:
+        found.append(recommend.Constraint("cavitation_s", "==", 0.0))
+    return found
+
+
+def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None) -> None:
+    """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
+    names = list(table)
+    index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
+    write_csv(path_csv, names, ([csv_cell(table[n][i]) for n in names] for i in index))
+    write_npz(path_csv.with_suffix(".npz"), {n: np.asarray(table[n])[index] for n in names})
+
+
+def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
+    status = np.asarray(table["status"])
+    counts = ", ".join(f"{int((status == s).sum())} {s}" for s in sweep.STATUSES if (status == s).any())
+    lines = [f"{len(status)} points: {counts}"]
+    ok = np.nonzero(status == "ok")[0]
+    if len(ok):
+        for metric, label in (("lift_time_s", "fastest lift"), ("lift_energy_j", "least lift energy")):
+            best = ok[np.nanargmin(np.asarray(table[metric], float)[ok])]
+            where = ", ".join(f"{c}={recommend.format_value(table[c][best])}" for c in columns) or "the one point"
+            lines.append(f"  {label}: {float(table[metric][best]):.4g} {UNITS[metric]} at {where}")
+    return "\n".join(lines)
+
+
+def _settings(options: SweepOptions) -> dict[str, Any]:
+    """The keyword arguments of sweep.request and sweep.plan that the options give."""
+    return {
+        "scenario": options.scenario,
+        "duration_s": options.duration,
+        "sample": options.sample,
+        "count": options.samples,
+        "seed": options.seed,
+        "lift_angle_deg": options.lift_angle_deg,
+        "every": options.every,
+    }
+
+
+def _batch_size(options: SweepOptions, stored: Mapping[str, Any] | None, points: int) -> int:
+    """Points a batch: those a resumed sweep began with, else --batch-size, or, with --workers and no
+    --batch-size, fewer than BATCH_SIZE where that gives every worker a batch."""
+    if options.batch_size is None and stored is not None:
+        return int(stored["batch_size"])  # resume in the batches it began with, wherever it runs now
+    if options.batch_size is None and options.workers:
+        share = math.ceil(points / options.workers)
+        return share if 0 < share < BATCH_SIZE else BATCH_SIZE
+    return options.batch_size or BATCH_SIZE
+
+
+def _stored_parts(store: SweepStore, plan: sweep.Plan) -> tuple[list[dict[str, np.ndarray]], set[int]]:
+    """The rows of the batches stored before, checked to be this plan's; and their indices."""
+    columns = ["point", "status", "reason", "failed_at_s", *sweep.METRIC_NAMES]
+    by_index = {b.index: b for b in plan.batches}
+    parts, done = [], set()
+    for index in sorted(store.done()):
+        batch = by_index.get(index)
+        if batch is None:
+            raise ConfigError(
+                f"{store.path(index)} is not a batch of this sweep (it has {len(plan.batches)}); move it out "
+                f"of {store.batches} and run the same command again"
+            )
+        rows = store.load(index, batch.points, columns)
+        if rows is not None:
+            parts.append(rows)
+            done.add(index)
+    return parts, done
+
+
+@dataclass
+class Reached:
+    """How far a sweep got, for the line it ends with if it is interrupted."""
+
+    out: Path | None = None
+    store: SweepStore | None = None
+    plan: sweep.Plan | None = None
+
+    def interrupted(self, why: str, finish: Callable[[Path], str]) -> str:
+        """What stopped the sweep, what is kept, and how to go on (``finish(out)``: the command
+        that finishes the sweep stored in ``out``)."""
+        done = len(self.store.done()) if self.store is not None else 0
+        if self.out is None or done == 0:
+            return f"boom-sweep: error: {why} before a batch finished; nothing was stored"
+        total = f" of {len(self.plan.batches)}" if self.plan is not None else ""
+        return (
+            f"boom-sweep: error: {why}; {done}{total} batches are stored in {self.out}; finish with: {finish(self.out)}"
+        )
+
+
+def run_sweep(options: SweepOptions, reached: Reached) -> int:
+    """The sweep the options describe, recording in ``reached`` how far it got (for the line an
+    interruption ends with); 0 when done. Numbers are checked by the caller (cli.sweep)."""
+    configs = load_configs(options.config, options.set)
+    axes = [parse_axis(text) for text in options.vary]
+    across = [resolve_name(name) for name in options.across]
+    out = options.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
+    check_apart(out, [Path(c) for c in options.config or []])
+    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
+    recommend.check_across(across, columns)  # before the work, not after it
+    constraints = constraints_of(options, [*columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES])
+    store = SweepStore(out, options.resume, [*OUTPUTS, *plot_names(columns)])
+    reached.out, reached.store = out, store
+    points = len(configs) * point_count(axes, options.sample, options.samples)
+    batch_size = _batch_size(options, store.stored, points)
+    settings = _settings(options)
+    cost = sweep.estimate(configs, axes, duration_s=options.duration, sample=options.sample, count=options.samples,
+                          batch_size=batch_size)  # fmt: skip
+    sweep.check_fits(cost)
+    if store.stored is not None:  # the folder's sweep must be this one: known before planning it
+        store.begin(sweep.request(configs, axes, batch_size=batch_size, **settings))
+    for path in store.removed:
+        print(f"boom-sweep: note: removed {path}, left unfinished by an earlier run that was stopped", file=sys.stderr)
+    if cost.plan_s >= 1:
+        print(
+            f"boom-sweep: planning {cost.points} points in {cost.batches} or more batches "
+            f"({sweep.duration_text(cost.plan_s)}); to run: {cost.run_time(cost.points, os.cpu_count() or 1)}",
+            file=sys.stderr,
+            flush=True,
+        )
+    plan = reached.plan = sweep.plan(configs, axes, batch_size=batch_size, **settings)
+    store.begin(plan.request)
+    return _run_plan(options, out, store, plan, cost, constraints, across)
+
+
+def _run_plan(
+    options: SweepOptions,
+    out: Path,
+    store: SweepStore,
+    plan: sweep.Plan,
+    cost: sweep.Estimate,
+    constraints: Sequence[recommend.Constraint],
+    across: Sequence[str],
+) -> int:
+    """Run what is not stored yet, storing each batch as it finishes; then the table, plots and ranking."""
+    parts, done = _stored_parts(store, plan)
+    todo = [b for b in plan.batches if b.index not in done]
+    executor = (
+        DaskExecutor(options.scheduler, options.workers, options.scheduler_timeout)
+        if (options.scheduler or options.workers) is not None
+        else LocalExecutor()
+    )
+    runnable = plan.size - len(plan.invalid)
+    print(
+        f"boom-sweep: {plan.size} points ({len(plan.invalid)} invalid) in {len(plan.batches)} batches of up to "
+        f"{plan.request['batch_size']}; {len(plan.batches) - len(todo)} done before, {len(todo)} to run "
+        f"{executor.description} ({cost.run_time(sum(len(b.points) for b in todo), os.cpu_count() or 1)})",
+        file=sys.stderr,
+        flush=True,
+    )
+    from tqdm import tqdm
+
+    progress = tqdm(
+        total=runnable,
+        initial=sum(len(b.points) for b in plan.batches if b.index in done),
+        unit="pt",
+        disable=None if options.progress is None else not options.progress,
+        file=sys.stderr,
+    )
+    started = time.perf_counter()
+    with executor, progress:
+        for batch, rows in executor.map(sweep.run_batch, todo):
+            store.save(batch.index, rows)
+            parts.append(rows)
+            progress.update(len(batch.points))
+    seconds = time.perf_counter() - started
+    table = sweep.assemble(plan, parts)
+    table["front"] = recommend.trade_off_front(table).astype(np.int64)
+    write_table(table, out / "results.csv")
+    written = ["results.csv", "results.npz"]
+    if not options.no_plots:
+        from .plots import plot_all
+
+        written += [p.name for p in plot_all(table, plan.columns, out)]
+    ran = sum(len(b.points) for b in todo)
+    rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
+    print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
+    print(_summary(table, plan.columns))
+    if options.recommend or constraints or options.across:
+        rec = recommend.recommend(table, constraints, plan.columns, across)
+        text = recommend.format_table(rec, options.top)
+        write_bytes(out / "recommendation.txt", text.encode())
+        write_table(rec.table, out / "recommendation.csv", rows=rec.rows)
+        print(text, end="")
+    return 0
