@@ -132,7 +132,9 @@ class BoomSimNode(Node):
         super().__init__("boom_sim")
         self._declare_parameters()
         self._read_node_parameters()
-        params = from_mapping({name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES})
+        params = from_mapping(
+            {name: ros_parameters.plain(self.get_parameter(name).value) for name in ros_parameters.MODEL_NAMES}
+        )
         self.publish_clock = bool(self.get_parameter("publish_clock").value)
         self.follow_clock = bool(self.get_parameter("use_sim_time").value)
         if self.follow_clock and self.publish_clock:
@@ -211,7 +213,7 @@ class BoomSimNode(Node):
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
-        if any(getattr(p, name) != ros_parameters.default(name) for name in ros_parameters.SCENARIO):
+        if self._ignored_scenario:
             self.get_logger().info(
                 "the command_* parameters describe boom-sim's headless scenario; this node takes "
                 "its valve commands on valve_command and commands"
@@ -254,6 +256,8 @@ class BoomSimNode(Node):
         ros_parameters.check_known(overrides)
         for name in overrides:
             overrides[name] = ros_parameters.typed(overrides[name])
+        # the scenario (command_*) is boom-sim's: not declared, and said once to be ignored
+        self._ignored_scenario = ros_parameters.ignored_scenario({n: p.value for n, p in overrides.items()})
         # our checks first: they name the unit and the fix, where rclpy's range check does not
         from_mapping({name: ros_parameters.plain(p.value) for name, p in overrides.items() if name in NAMES})
         for name, p in overrides.items():
