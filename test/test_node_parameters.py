@@ -17,7 +17,7 @@ from rclpy.parameter import Parameter, parameter_dict_from_yaml_file, parameter_
 from ros_client import Client  # noqa: E402
 
 from boom_hydraulics.model import config  # noqa: E402
-from boom_hydraulics.ros.node_parameters import START_ONLY  # noqa: E402
+from boom_hydraulics.ros.node_parameters import SCENARIO, START_ONLY  # noqa: E402
 
 pytestmark = [
     pytest.mark.usefixtures("ros_context"),
@@ -65,17 +65,21 @@ def test_a_namespaced_node_takes_the_shipped_params_file(crane1):
     assert (payload.type, payload.double_value) == (ParameterType.PARAMETER_DOUBLE, 60.0)  # -p 60 stays a double
 
 
-def test_integers_for_floats_stay_doubles_and_arrays_can_be_set(crane1):
+def test_integers_for_floats_stay_doubles(crane1):
     (result,) = _set(crane1, Parameter("payload_mass_kg", Parameter.Type.INTEGER, 120))
     assert result.successful, result.reason
     (value,) = _get(crane1, "payload_mass_kg")
     assert (value.type, value.double_value) == (ParameterType.PARAMETER_DOUBLE, 120.0)
+
+
+def test_the_node_declares_no_scenario_parameter(crane1):
+    """The command_* keys are boom-sim's headless scenario: the node, which takes its commands
+    from topics, lists none, and a set of one is refused as undeclared."""
+    names = crane1.call(crane1.list, ListParameters.Request()).result.names
+    assert "payload_mass_kg" in names and "control_position_gain_1_rad" in names and "method" in names
+    assert not [name for name in names if name in SCENARIO]
     (result,) = _set(crane1, Parameter("command_values", Parameter.Type.DOUBLE_ARRAY, [0.5]))
-    assert result.successful, result.reason
-    (result,) = _set(crane1, Parameter("command_times_s", Parameter.Type.INTEGER_ARRAY, [0]))
-    assert result.successful, result.reason
-    values = _get(crane1, "command_values", "command_times_s")
-    assert [list(v.double_array_value) for v in values] == [[0.5], [0.0]]
+    assert not result.successful and "undeclared" in result.reason
 
 
 def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
@@ -91,8 +95,6 @@ def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
     assert (diameter.floating_point_range[0].from_value, diameter.floating_point_range[0].to_value) == (0.0, 1.0)
     assert "[m]" in diameter.description
     assert clock_desc.read_only and folder.read_only and "at start only" in folder.additional_constraints
-    (scenario,) = crane1.call(crane1.describe, DescribeParameters.Request(names=["command_values"])).descriptors
-    assert "headless scenario" in scenario.additional_constraints  # not silently ignored
 
 
 def _load_file(client: Client, path) -> tuple[list[Parameter], list]:
@@ -125,10 +127,13 @@ def test_the_nodes_own_dump_loads_back_apart_from_read_only_ones(crane1, tmp_pat
 
 @pytest.mark.parametrize("name", ["paper_fig9.yaml", "default.yaml", "paper_fig8.yaml"])
 def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
-    """``ros2 param load /crane1/boom_sim config/NAME``: every value, as rclpy reads the file."""
+    """``ros2 param load /crane1/boom_sim config/NAME``: every value the node declares, as rclpy
+    reads the file; the file's scenario (command_*, for boom-sim) is refused as undeclared."""
     loaded, results = _load_file(crane1, CONFIG / name)
-    assert all(r.successful for r in results), [(p.name, r.reason) for p, r in zip(loaded, results) if not r.successful]
-    expected = config.read_values(CONFIG / name)
+    failed = [(p.name, r.reason) for p, r in zip(loaded, results) if not r.successful]
+    assert {n for n, _ in failed} == {p.name for p in loaded if p.name in SCENARIO}, failed
+    assert all("undeclared" in reason for _, reason in failed), failed
+    expected = {n: v for n, v in config.read_values(CONFIG / name).items() if n not in SCENARIO}
     got = _get(crane1, *expected)
     assert {n: parameter_value_to_python(v) for n, v in zip(expected, got)} == expected
 
@@ -143,6 +148,7 @@ def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
         (None, ["-p", "payload_mass_kg:=1e300"], "'payload_mass_kg'"),
         (None, ["-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc"], "payload_mass_kg:=abc would not be used"),
         ("/**:\n  ros__parameters:\n    rtol: 1.0e-06\n", ["-p", "rtol:=tight"], "rtol:=tight would not be used"),
+        ("/**:\n  ros__parameters:\n    command_value: 1.5\n", [], "'command_value' is 1.5"),  # checked, if ignored
     ],
 )
 def test_a_bad_start_is_one_line_and_exit_2(tmp_path, params_file, extra, message):
@@ -159,3 +165,23 @@ def test_a_bad_start_is_one_line_and_exit_2(tmp_path, params_file, extra, messag
     assert len(lines) == 1 and lines[0].startswith("boom_sim: error:") and message in lines[0], lines
     if "kgg" in message:
         assert "did you mean 'payload_mass_kg'?" in lines[0]
+
+
+def test_a_params_file_with_a_scenario_starts_the_node_which_says_once_it_ignores_it(tmp_path):
+    """The command_* keys are boom-sim's: the node starts, declares none of them, and says so once."""
+    path = tmp_path / "scenario.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    command_profile: steps\n    command_times_s: [0, 2]\n"
+                    "    command_values: [1.0, 0.0]\n    payload_mass_kg: 60\n")  # fmt: skip
+    args = [BOOM_SIM, "--ros-args", "--params-file", str(path), "-p", "record:=false", "-p", "jit:=false"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = []
+    try:
+        for line in proc.stdout:  # up to the start-up line that names the mode (or the end of the output)
+            lines.append(line)
+            if "physical mode, rk4" in line:
+                break
+    finally:
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=20)
+    assert "physical mode, rk4" in lines[-1], [*lines, rest]
+    assert sum("describe boom-sim's headless scenario" in line for line in lines + rest.splitlines()) == 1

@@ -114,3 +114,39 @@ def test_payload_changes_between_steps():
     assert sim.params.payload_mass_kg == 120.0 and sim.y[0] == q_before
     sim.step(0.0, 200)  # the closed valve now holds a heavier boom: it sinks a little
     assert sim.y[0] < q_before
+
+
+def test_every_parameter_is_in_one_group_by_what_it_configures():
+    from boom_hydraulics.model.parameters import GROUPS, NAMES, group_of, names_in
+
+    assert GROUPS == ("plant", "solver", "controller", "scenario")
+    assert sorted(n for g in GROUPS for n in names_in(g)) == sorted(NAMES)  # each name once
+    assert names_in("solver") == ("method", "time_step_s", "substeps", "rtol", "atol_scale")
+    assert names_in("controller") == tuple(n for n in NAMES if n.startswith("control_"))
+    assert names_in("scenario") == tuple(n for n in NAMES if n.startswith("command_"))
+    assert group_of("mode") == group_of("payload_mass_kg") == "plant"
+    with pytest.raises(ValueError, match="unknown parameter group 'valve'"):
+        names_in("valve")
+
+
+def test_the_method_names_live_in_the_model_without_the_solver():
+    """model/ defines the names; the solver's registry implements exactly them (test_layers)."""
+    from boom_hydraulics.model.parameters import METHOD_NAMES, METHODS, describe
+
+    assert METHODS == tuple(METHOD_NAMES) == describe("method")["choices"] == ("euler", "rk4", "rk45", "ros2")
+    assert all(METHOD_NAMES.values())
+
+
+def test_the_sweep_batches_on_the_solver_keys_it_shares_and_the_scenario_group():
+    from boom_hydraulics.model.parameters import names_in
+    from boom_hydraulics.sweeps.sweep import BATCH_KEYS
+
+    assert BATCH_KEYS == ("mode", "method", "time_step_s", "substeps", *names_in("scenario"))
+
+
+def test_a_scenario_that_does_not_fit_the_plant_is_refused():
+    """The scenario is checked against the plant it drives: its mode and its stroke."""
+    with pytest.raises(ConfigError, match=r"'angle' \(closed-loop control\) needs mode: physical"):
+        from_mapping({"mode": "paper", "command_profile": "angle"})
+    with pytest.raises(ConfigError, match=r"target boom angle 1.5000 rad .* outside the stroke"):
+        from_mapping({"command_profile": "angle", "command_angles_rad": [1.5]})

@@ -141,3 +141,43 @@ def test_a_p_value_rcl_uses_or_one_overridden_later_passes(argv, kept):
 def test_a_p_value_rcl_does_not_use_is_refused(argv):
     with pytest.raises(ConfigError, match=r"-p payload_mass_kg:=abc would not be used: .*rcl keeps 50\.0"):
         node_parameters.check_known(_overrides(payload_mass_kg=50.0), argv=["boom_sim", *argv])
+
+
+def test_the_node_declares_every_group_but_the_scenario():
+    from boom_hydraulics.model.parameters import names_in
+
+    declared = node_parameters.all_names()
+    assert set(node_parameters.SCENARIO) == set(names_in("scenario")) and not set(declared) & set(names_in("scenario"))
+    assert set(declared) == set(NAMES) - set(names_in("scenario")) | set(node_parameters.NODE_PARAMETERS)
+    usage = node_parameters.usage()
+    assert "command_" not in usage.split("Model parameters")[1].split("\n\n")[0]  # the list, not the note after it
+    assert "payload_mass_kg" in usage and "ignores them" in usage
+
+
+def test_a_params_file_may_set_the_scenario_but_not_a_name_that_is_no_parameter():
+    node_parameters.check_known(_overrides(command_value=0.5, payload_mass_kg=60.0), argv=["boom_sim"])
+    with pytest.raises(ConfigError, match=r"unknown parameter 'command_valu' .*did you mean 'command_value'"):
+        node_parameters.check_known(["command_valu"], argv=["boom_sim"])
+
+
+def test_the_node_names_the_scenario_values_it_ignores():
+    assert node_parameters.ignored_scenario(as_dict(Parameters())) == ()  # default.yaml: nothing to say
+    values = {"command_value": 0.5, "command_times_s": [0.0], "payload_mass_kg": 60.0}
+    assert node_parameters.ignored_scenario(values) == ("command_value",)
+
+
+def test_the_reference_table_lists_every_parameter_once_with_its_group_and_range():
+    from boom_hydraulics.model.parameters import group_of
+
+    rows = node_parameters.markdown_reference().splitlines()
+    assert rows[0] == "| Name | Group | Type | Default | Unit | Range | Start only | Description |"
+    cells = {row.split(" | ")[0].strip("| `"): row.split(" | ") for row in rows[2:]}
+    assert len(rows) - 2 == len(cells) == len(NAMES) + len(node_parameters.NODE_PARAMETERS)
+    for name in NAMES:
+        assert cells[name][1] == group_of(name), name
+    assert cells["payload_mass_kg"][2:6] == ["float", "`50.0`", "kg", "[0, 100000]"]
+    assert cells["time_step_s"][5] == "(0, 0.1]" and cells["rtol"][3] == "`1.0e-06`"  # as a params file writes it
+    assert cells["method"][5] == "one of: euler, rk4, rk45, ros2"
+    assert cells["record_folder"][1:7] == ["node", "str", "`bags`", "", "", "yes"]
+    assert [name for name in cells if cells[name][1] == "scenario"] == list(node_parameters.SCENARIO)  # last
+    assert list(cells)[-len(node_parameters.SCENARIO) :] == list(node_parameters.SCENARIO)

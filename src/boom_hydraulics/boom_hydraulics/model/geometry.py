@@ -27,9 +27,16 @@ def xi(q1_m: Num, a_m: float, b_m: float) -> Num:
 
 
 @jitable
+def triangle_bounds_m(a_m: float, b_m: float) -> tuple[float, float]:
+    """(|b - a|, a + b): the cylinder lengths at which the triangle of eq. 1 degenerates
+    (sin(phi) = 0, infinite rod force); the model holds strictly between them, m."""
+    return abs(b_m - a_m), a_m + b_m
+
+
+@jitable
 def within_triangle(q1_m: float, a_m: float, b_m: float) -> bool:
-    """True where the cylinder length lies strictly inside (|b - a|, a + b): where the
-    triangle of eq. 1 exists and the model can be evaluated."""
+    """True where the cylinder length lies strictly inside (|b - a|, a + b) (see
+    :func:`triangle_bounds_m`): where the triangle of eq. 1 exists and the model can be evaluated."""
     return abs(b_m - a_m) < q1_m < a_m + b_m
 
 

@@ -4,6 +4,13 @@ The defaults are the paper's printed values where the paper gives one (its symbo
 in the description) and realistic components for what only the physical mode adds. The
 shipped ``config/default.yaml`` spells out the same values; a test keeps the two equal.
 
+Each parameter belongs to one group, by what it configures (:data:`GROUPS`): the plant
+(the crane and its hydraulics, and which model of them), the solver (how the equations
+are integrated), the controller (the position loop's gains) and the scenario (the valve
+command of a headless run: boom-sim and boom-sweep; the node takes its commands from
+topics). The group is in each field's metadata; :func:`group_of` and :func:`names_in`
+tell them. The names stay flat, as the ROS parameters and the params files spell them.
+
 One :class:`Parameters` instance is immutable and always valid: :func:`from_mapping` and
 :func:`with_updates` build a new one or raise :class:`ConfigError`, so an error never
 leaves a set half-applied.
@@ -20,11 +27,18 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..solve.integrators import METHODS as _METHODS
-from .geometry import outside_stroke
+from .geometry import outside_stroke, triangle_bounds_m
 
 MODES = ("physical", "paper")
-METHODS = tuple(_METHODS)  # the solver's registry of integration methods
+#: The integration methods, by name, with what each is. The solver's registry
+#: (solve.integrators.METHODS) implements exactly these, in this order; a test keeps them equal.
+METHOD_NAMES: dict[str, str] = {
+    "euler": "explicit Euler, first order",
+    "rk4": "classic Runge-Kutta, fourth order (the paper's)",
+    "rk45": "Dormand-Prince 5(4), adaptive with error control",
+    "ros2": "Rosenbrock ROS2, second order, L-stable (stiff settings)",
+}
+METHODS = tuple(METHOD_NAMES)
 COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 
 #: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
@@ -32,7 +46,14 @@ COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 GEOMETRY_CLEARANCE_M = 0.005
 
 
+#: What a parameter configures: the plant (crane, cylinder, oil, valve, supply; the model of
+#: them), the solver (integration), the controller (position loop) and the scenario (the
+#: headless run's valve command, ``command_*``).
+GROUPS = ("plant", "solver", "controller", "scenario")
+
+
 def _param(
+    group: str,
     default: Any,
     unit: str,
     description: str,
@@ -42,8 +63,9 @@ def _param(
     low_inclusive: bool = False,
     choices: tuple[str, ...] | None = None,
 ) -> Any:
-    """A dataclass field that carries its unit, description and allowed range."""
+    """A dataclass field that carries its group, unit, description and allowed range."""
     meta = {
+        "group": group,
         "unit": unit,
         "description": description,
         "low": low,
@@ -56,26 +78,42 @@ def _param(
     return field(default=default, metadata=meta)
 
 
+def _plant(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    return _param("plant", default, unit, description, **limits)
+
+
+def _solver(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    return _param("solver", default, unit, description, **limits)
+
+
+def _controller(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    return _param("controller", default, unit, description, **limits)
+
+
+def _scenario(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    return _param("scenario", default, unit, description, **limits)
+
+
 @dataclass(frozen=True)
 class Parameters:
     """The full parameter set of one simulation (SI units; pressures absolute in physical mode)."""
 
-    # --- model selection and integration -------------------------------------------------
-    mode: str = _param(
+    # --- model selection (plant) and integration (solver) --------------------------------
+    mode: str = _plant(
         "physical",
         "",
         "Model: 'physical' (corrected equations, both chambers, valve, end stops) or "
         "'paper' (the paper's Fig. 7 listing as printed)",
         choices=MODES,
     )
-    method: str = _param(
+    method: str = _solver(
         "rk4",
         "",
         "Integrator: euler, rk4 (the paper's), rk45 (adaptive) or ros2 (implicit, for stiff settings)",
         choices=METHODS,
     )
-    time_step_s: float = _param(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0, high=0.1)
-    substeps: int = _param(
+    time_step_s: float = _solver(0.001, "s", "Output/physics step dt (paper: 0.001 s)", low=0.0, high=0.1)
+    substeps: int = _solver(
         1,
         "",
         "Least integrator steps per time step; physical mode adds more where the explicit stability bound asks",
@@ -83,8 +121,8 @@ class Parameters:
         low_inclusive=True,
         high=10000,
     )
-    rtol: float = _param(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0, high=0.1)
-    atol_scale: float = _param(
+    rtol: float = _solver(1e-6, "", "Relative tolerance of the adaptive rk45 method", low=0.0, high=0.1)
+    atol_scale: float = _solver(
         1e-8,
         "",
         "Absolute tolerance of rk45 as a fraction of each state's scale (m, m/s, supply pressure, 1, J)",
@@ -93,36 +131,36 @@ class Parameters:
     )
 
     # --- geometry (eq. 1-5) --------------------------------------------------------------
-    a_m: float = _param(0.4, "m", "a: boom pivot O to rod eye K on the boom", low=0.0, high=20.0)
-    b_m: float = _param(1.4, "m", "b: boom pivot O to cylinder base A on the column", low=0.0, high=20.0)
-    boom_length_m: float = _param(2.0, "m", "L1: boom length, pivot to load", low=0.0, high=50.0)
-    support_height_m: float = _param(
+    a_m: float = _plant(0.4, "m", "a: boom pivot O to rod eye K on the boom", low=0.0, high=20.0)
+    b_m: float = _plant(1.4, "m", "b: boom pivot O to cylinder base A on the column", low=0.0, high=20.0)
+    boom_length_m: float = _plant(2.0, "m", "L1: boom length, pivot to load", low=0.0, high=50.0)
+    support_height_m: float = _plant(
         1.307, "m", "h: boom support height (printed 1.307 m; 1.3 m under Fig. 2)", low=0.0, high=20.0
     )
-    gravity_m_s2: float = _param(9.81, "m/s^2", "g: acceleration of free fall", low=0.0, high=30.0)
+    gravity_m_s2: float = _plant(9.81, "m/s^2", "g: acceleration of free fall", low=0.0, high=30.0)
 
     # --- masses (eq. 6, 8) ---------------------------------------------------------------
-    boom_mass_kg: float = _param(100.0, "kg", "m1: boom mass, concentrated at L1/2", low=0.0, high=1.0e5)
-    payload_mass_kg: float = _param(
+    boom_mass_kg: float = _plant(100.0, "kg", "m1: boom mass, concentrated at L1/2", low=0.0, high=1.0e5)
+    payload_mass_kg: float = _plant(
         50.0, "kg", "mb: payload mass at the boom tip (L1)", low=0.0, low_inclusive=True, high=1.0e5
     )
 
     # --- cylinder ------------------------------------------------------------------------
-    piston_diameter_m: float = _param(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)
-    rod_diameter_m: float = _param(
+    piston_diameter_m: float = _plant(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)
+    rod_diameter_m: float = _plant(
         0.022, "m", "d: rod diameter (S2 = pi (D^2 - d^2) / 4); physical mode", low=0.0, high=1.0
     )
-    cylinder_min_length_m: float = _param(
+    cylinder_min_length_m: float = _plant(
         1.05, "m", "Retracted cylinder length (lower end stop), eye to eye; physical mode", low=0.0, high=40.0
     )
-    cylinder_max_length_m: float = _param(
+    cylinder_max_length_m: float = _plant(
         1.75, "m", "Extended cylinder length (upper end stop), eye to eye; physical mode", low=0.0, high=40.0
     )
-    initial_length_m: float = _param(1.37, "m", "q1(0): initial cylinder length", low=0.0, high=40.0)
-    initial_velocity_m_s: float = _param(
+    initial_length_m: float = _plant(1.37, "m", "q1(0): initial cylinder length", low=0.0, high=40.0)
+    initial_velocity_m_s: float = _plant(
         0.0, "m/s", "dq1/dt(0): initial rod velocity", low=-10.0, low_inclusive=True, high=10.0
     )
-    piston_dead_volume_m3: float = _param(
+    piston_dead_volume_m3: float = _plant(
         1.0e-4,
         "m^3",
         "V1: piston-side volume at full retraction incl. hoses (physical); "
@@ -130,21 +168,21 @@ class Parameters:
         low=0.0,
         high=0.1,
     )
-    rod_dead_volume_m3: float = _param(
+    rod_dead_volume_m3: float = _plant(
         1.0e-4, "m^3", "V2: rod-side volume at full extension incl. hoses; physical mode", low=0.0, high=0.1
     )
 
     # --- friction and spring (eq. 11) ----------------------------------------------------
-    coulomb_friction_n: float = _param(
+    coulomb_friction_n: float = _plant(
         100.0, "N", "F_mp: Coulomb (semi-dry) friction of piston and rod", low=0.0, low_inclusive=True, high=1.0e6
     )
-    static_friction_n: float = _param(
+    static_friction_n: float = _plant(
         150.0, "N", "Breakaway (stiction) friction; physical mode", low=0.0, low_inclusive=True, high=1.0e6
     )
-    stribeck_velocity_m_s: float = _param(
+    stribeck_velocity_m_s: float = _plant(
         0.01, "m/s", "Velocity scale of the fall from stiction to Coulomb friction", low=0.0, high=10.0
     )
-    friction_presliding_m: float = _param(
+    friction_presliding_m: float = _plant(
         3.0e-4,
         "m",
         "Presliding displacement of the seals at breakaway: below the breakaway force the rod deflects "
@@ -152,7 +190,7 @@ class Parameters:
         low=0.0,
         high=0.1,
     )
-    friction_presliding_damping_n_s_m: float = _param(
+    friction_presliding_damping_n_s_m: float = _plant(
         2.0e4,
         "N s/m",
         "Damping of the seals' presliding (LuGre sigma1): acts near rest only, fading above the Stribeck velocity; "
@@ -161,21 +199,21 @@ class Parameters:
         low_inclusive=True,
         high=1.0e9,
     )
-    viscous_friction_n_s_m: float = _param(
+    viscous_friction_n_s_m: float = _plant(
         1000.0, "N s/m", "b_d: viscous friction coefficient", low=0.0, low_inclusive=True, high=1.0e8
     )
-    spring_stiffness_n_m: float = _param(
+    spring_stiffness_n_m: float = _plant(
         0.0, "N/m", "c: spring stiffness (paper: 2000, on q1 itself)", low=0.0, low_inclusive=True, high=1.0e9
     )
-    spring_free_length_m: float = _param(
+    spring_free_length_m: float = _plant(
         1.4, "m", "Spring free length; physical mode (paper mode uses c * q1)", low=0.0, low_inclusive=True, high=40.0
     )
 
     # --- end stops (physical mode) -------------------------------------------------------
-    end_stop_stiffness_n_m: float = _param(
+    end_stop_stiffness_n_m: float = _plant(
         1.0e8, "N/m", "End-stop contact stiffness (cushion, stop and mounts)", low=0.0, high=1.0e13
     )
-    end_stop_damping_n_s_m2: float = _param(
+    end_stop_damping_n_s_m2: float = _plant(
         1.0e9,
         "N s/m^2",
         "End-stop Hunt-Crossley damping lambda: F = k d + lambda d d' (grows with the penetration d, so the "
@@ -186,15 +224,15 @@ class Parameters:
     )
 
     # --- fluid ---------------------------------------------------------------------------
-    density_kg_m3: float = _param(860.0, "kg/m^3", "rho: oil density", low=0.0, high=5000.0)
-    bulk_modulus_pa: float = _param(
+    density_kg_m3: float = _plant(860.0, "kg/m^3", "rho: oil density", low=0.0, high=5000.0)
+    bulk_modulus_pa: float = _plant(
         1.0e9,
         "Pa",
         "E: effective bulk modulus of oil, hoses and air (paper prints 1.45 MPa / 14.5 MPa)",
         low=0.0,
         high=1.0e11,
     )
-    cavitation_pressure_pa: float = _param(
+    cavitation_pressure_pa: float = _plant(
         5.0e3,
         "Pa",
         "Cavitation floor of chamber pressures (absolute); physical mode",
@@ -204,18 +242,18 @@ class Parameters:
     )
 
     # --- valve (eq. 14, 15, 17) ----------------------------------------------------------
-    orifice_diameter_m: float = _param(
+    orifice_diameter_m: float = _plant(
         0.002, "m", "D_dr: throttle diameter at full opening, per flow path (eq. 17)", low=0.0, high=0.1
     )
-    discharge_coefficient: float = _param(0.62, "", "mu: orifice discharge coefficient", low=0.0, high=1.0)
-    transition_pressure_pa: float = _param(
+    discharge_coefficient: float = _plant(0.62, "", "mu: orifice discharge coefficient", low=0.0, high=1.0)
+    transition_pressure_pa: float = _plant(
         3.0e5,
         "Pa",
         "Pressure drop below which orifice flow turns laminar (finite dQ/dp); physical mode",
         low=0.0,
         high=1.0e7,
     )
-    valve_leakage_m3_s_pa: float = _param(
+    valve_leakage_m3_s_pa: float = _plant(
         1.0e-13,
         "m^3/(s Pa)",
         "Laminar leakage conductance of each closed valve path; physical mode",
@@ -223,10 +261,10 @@ class Parameters:
         low_inclusive=True,
         high=1.0e-8,
     )
-    spool_time_constant_s: float = _param(
+    spool_time_constant_s: float = _plant(
         0.02, "s", "First-order spool lag (0: none); physical mode", low=0.0, low_inclusive=True, high=10.0
     )
-    load_holding_valve: str = _param(
+    load_holding_valve: str = _plant(
         "piston_side",
         "",
         "Load-holding valve: 'piston_side' (a pilot-operated check valve in the piston-chamber line, "
@@ -234,7 +272,7 @@ class Parameters:
         "and its leakage lets the boom creep down)",
         choices=("piston_side", "none"),
     )
-    load_holding_leakage_m3_s_pa: float = _param(
+    load_holding_leakage_m3_s_pa: float = _plant(
         2.0e-16,
         "m^3/(s Pa)",
         "Seat leakage of the closed load-holding valve (2e-16: about 5 drops/min at 20 MPa); physical mode",
@@ -244,11 +282,11 @@ class Parameters:
     )
 
     # --- supply ---------------------------------------------------------------------------
-    supply_pressure_pa: float = _param(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0, high=1.0e8)
-    tank_pressure_pa: float = _param(
+    supply_pressure_pa: float = _plant(16.0e6, "Pa", "p_n: supply (pump) pressure", low=0.0, high=1.0e8)
+    tank_pressure_pa: float = _plant(
         1.0e5, "Pa", "p_37: tank/drain pressure (absolute); physical mode", low=0.0, low_inclusive=True, high=1.0e7
     )
-    ambient_pressure_pa: float = _param(
+    ambient_pressure_pa: float = _plant(
         1.01325e5,
         "Pa",
         "Ambient (atmospheric) pressure on the rod's end: it pushes the rod in with p_amb (S1 - S2); physical mode",
@@ -256,22 +294,22 @@ class Parameters:
         low_inclusive=True,
         high=1.0e7,
     )
-    pump_max_flow_m3_s: float = _param(
+    pump_max_flow_m3_s: float = _plant(
         5.0e-4, "m^3/s", "Maximum pump flow; above it the supply pressure drops", low=0.0, high=0.1
     )
-    relief_pressure_pa: float = _param(
+    relief_pressure_pa: float = _plant(
         18.0e6, "Pa", "Cracking pressure of the port relief valves on both chambers", low=0.0, high=1.0e8
     )
-    relief_range_pa: float = _param(
+    relief_range_pa: float = _plant(
         3.0e6, "Pa", "Pressure rise over which a relief valve opens fully", low=0.0, high=1.0e8
     )
-    relief_rated_flow_m3_s: float = _param(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
+    relief_rated_flow_m3_s: float = _plant(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
     # --- closed-loop position control (see model/control.py) ------------------------------
-    control_position_gain_1_rad: float = _param(
+    control_position_gain_1_rad: float = _controller(
         4.0, "1/rad", "Kp: valve opening per rad of boom-angle error; physical mode", low=0.0, high=1000.0
     )
-    control_integral_gain_1_rad_s: float = _param(
+    control_integral_gain_1_rad_s: float = _controller(
         2.0,
         "1/(rad s)",
         "Ki: valve opening per rad s of integrated angle error (anti-windup: it grows only within 2 degrees "
@@ -280,7 +318,7 @@ class Parameters:
         low_inclusive=True,
         high=1000.0,
     )
-    control_deadband_rad: float = _param(
+    control_deadband_rad: float = _controller(
         0.002,
         "rad",
         "With the setpoint at rest, the valve closes once the angle error is inside this and opens again "
@@ -289,7 +327,7 @@ class Parameters:
         low_inclusive=True,
         high=0.5,
     )
-    control_max_speed_rad_s: float = _param(
+    control_max_speed_rad_s: float = _controller(
         0.3,
         "rad/s",
         "Peak boom rate of a move to a target angle (MoveBoom default, angle scenario)",
@@ -298,7 +336,7 @@ class Parameters:
     )
 
     # --- valve command profile (the headless scenario) -----------------------------------
-    command_profile: str = _param(
+    command_profile: str = _scenario(
         "constant",
         "",
         "Valve command over time: constant, steps (hold each value from its time), "
@@ -306,16 +344,16 @@ class Parameters:
         "at command_times_s)",
         choices=COMMAND_PROFILES,
     )
-    command_value: float = _param(
+    command_value: float = _scenario(
         1.0, "", "Opening of the constant profile, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
     )
-    command_times_s: list = _param(  # noqa: RUF009
+    command_times_s: list = _scenario(  # noqa: RUF009
         [0.0], "s", "Breakpoint times of steps/ramp (increasing)", low=0.0, low_inclusive=True, high=1.0e6
     )
-    command_values: list = _param(  # noqa: RUF009
+    command_values: list = _scenario(  # noqa: RUF009
         [1.0], "", "Openings at command_times_s, in [-1, 1]", low=-1.0, low_inclusive=True, high=1.0
     )
-    command_angles_rad: list = _param(  # noqa: RUF009
+    command_angles_rad: list = _scenario(  # noqa: RUF009
         [0.5236],
         "rad",
         "Angle profile: boom-angle targets at command_times_s, each reached by a move at up to control_max_speed_rad_s",
@@ -323,9 +361,9 @@ class Parameters:
         low_inclusive=True,
         high=1.6,
     )
-    command_offset: float = _param(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
-    command_amplitude: float = _param(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
-    command_frequency_hz: float = _param(0.5, "Hz", "Sine profile: frequency", low=0.0, high=1000.0)
+    command_offset: float = _scenario(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
+    command_amplitude: float = _scenario(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
+    command_frequency_hz: float = _scenario(0.5, "Hz", "Sine profile: frequency", low=0.0, high=1000.0)
 
     def __post_init__(self) -> None:
         _check_fields(self)
@@ -337,8 +375,21 @@ NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Parameters))
 _FIELDS = {f.name: f for f in dataclasses.fields(Parameters)}
 
 
+def group_of(name: str) -> str:
+    """The group (one of :data:`GROUPS`) parameter ``name`` belongs to."""
+    return _FIELDS[name].metadata["group"]
+
+
+def names_in(group: str) -> tuple[str, ...]:
+    """The parameters of ``group`` (one of :data:`GROUPS`), in declaration order."""
+    if group not in GROUPS:
+        raise ValueError(f"unknown parameter group {group!r}; choose one of {', '.join(GROUPS)}")
+    return tuple(name for name in NAMES if group_of(name) == group)
+
+
 def describe(name: str) -> dict[str, Any]:
-    """Metadata of one parameter: unit, description, low, high, choices, default."""
+    """Metadata of one parameter: group, unit, description, low, high, low_inclusive, choices,
+    default and type."""
     f = _FIELDS[name]
     default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
     return {**f.metadata, "default": default, "type": _kind(f)}
@@ -398,6 +449,12 @@ def _check_fields(p: Parameters) -> None:
 
 
 def _check_cross_fields(p: Parameters) -> None:
+    _check_plant(p)
+    _check_scenario(p)
+
+
+def _check_plant(p: Parameters) -> None:
+    """The plant's parameters fit together: areas, the triangle of eq. 1, the stroke, pressures, friction."""
     if p.rod_diameter_m >= p.piston_diameter_m:
         raise ConfigError(
             f"rod_diameter_m ({p.rod_diameter_m} m) must be smaller than piston_diameter_m "
@@ -407,7 +464,7 @@ def _check_cross_fields(p: Parameters) -> None:
         raise ConfigError(
             f"support_height_m ({p.support_height_m} m) must be smaller than b_m ({p.b_m} m): eq. 3 takes arccos(h / b)"
         )
-    q_low, q_high = abs(p.b_m - p.a_m), p.a_m + p.b_m
+    q_low, q_high = triangle_bounds_m(p.a_m, p.b_m)
     lo, hi = q_low + GEOMETRY_CLEARANCE_M, q_high - GEOMETRY_CLEARANCE_M
     if not lo <= p.cylinder_min_length_m < p.cylinder_max_length_m <= hi:
         raise ConfigError(
@@ -448,6 +505,10 @@ def _check_cross_fields(p: Parameters) -> None:
             f"static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "
             f"({p.coulomb_friction_n} N): breakaway friction is the larger one"
         )
+
+
+def _check_scenario(p: Parameters) -> None:
+    """The headless scenario's valve command fits the plant: its mode, its stroke."""
     times, values = p.command_times_s, p.command_values
     if p.command_profile == "angle":
         _check_angle_profile(p)

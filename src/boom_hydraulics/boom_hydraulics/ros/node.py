@@ -96,7 +96,7 @@ class BoomSimNode(Node):
         super().__init__("boom_sim", automatically_declare_parameters_from_overrides=True)
         self._declare_parameters()
         params = from_mapping(
-            {name: ros_parameters.plain(self.get_parameter(name).value) for name in NAMES if self.has_parameter(name)}
+            {name: ros_parameters.plain(self.get_parameter(name).value) for name in ros_parameters.MODEL_NAMES}
         )
         mode = ClockMode.of(
             bool(self.get_parameter("publish_clock").value), bool(self.get_parameter("use_sim_time").value)
@@ -196,7 +196,7 @@ class BoomSimNode(Node):
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
-        if any(getattr(p, name) != ros_parameters.default(name) for name in ros_parameters.SCENARIO):
+        if self._ignored_scenario:
             self.get_logger().info(
                 "the command_* parameters describe boom-sim's headless scenario; this node takes "
                 "its valve commands on valve_command and commands"
@@ -256,6 +256,8 @@ class BoomSimNode(Node):
             if name not in _RCLPY_OWN:
                 self.undeclare_parameter(name)  # declared again below, with its descriptor
         given = {name: ros_parameters.typed(p) for name, p in given.items()}
+        # the scenario (command_*) is boom-sim's: not declared, and said once to be ignored
+        self._ignored_scenario = ros_parameters.ignored_scenario({n: p.value for n, p in given.items()})
         # our checks first: they name the unit and the fix, where rclpy's range check does not
         from_mapping({name: ros_parameters.plain(p.value) for name, p in given.items() if name in NAMES})
         for name, p in given.items():

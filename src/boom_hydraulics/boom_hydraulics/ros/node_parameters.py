@@ -1,12 +1,15 @@
 """The bridge between the model's parameters and ROS 2 parameters of the ``boom_sim`` node.
 
-- Every model parameter (:mod:`parameters`) and every node parameter below is declared
+- Every model parameter the node uses (:data:`MODEL_NAMES`: the plant, solver and
+  controller groups of :mod:`parameters`) and every node parameter below is declared
   with a descriptor: description with unit, type, range, and ``read_only`` for those that
   apply at start only. ``ros2 param describe`` shows all of it.
 - Values are typed as the parameter is: an integer given for a float parameter (``ros2
   param set ... payload_mass_kg 120``, ``-p x:=50``, ``50`` in a params file) is taken as
   that float, and the parameter stays a double.
 - A key for this node that names no parameter refuses the start, naming the closest one.
+  The scenario group (``command_*``: boom-sim's and boom-sweep's headless valve command)
+  is not declared: a params file may set it, for the CLI, and the node says it ignores it.
 - A params file that is missing or malformed is named in one line before rclpy reads it.
 """
 
@@ -24,7 +27,7 @@ from rclpy.parameter import Parameter
 
 from ..errors import ConfigError
 from ..model import config
-from ..model.parameters import NAMES, describe
+from ..model.parameters import GROUPS, NAMES, describe, group_of, names_in
 
 #: Parameters of the node itself (not of the model): name -> (default, unit, description, low, high).
 NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
@@ -81,8 +84,11 @@ START_ONLY = frozenset(
     }
 )
 
-#: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics.
-SCENARIO = tuple(name for name in NAMES if name.startswith("command_"))
+#: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics,
+#: so it declares none of these; a params file may still set them (for the CLI).
+SCENARIO = names_in("scenario")
+#: The model parameters the node declares and uses: every group but the scenario.
+MODEL_NAMES = tuple(name for name in NAMES if group_of(name) != "scenario")
 
 #: Parameters every rclpy node has, or may be given, beside ours.
 _STANDARD = frozenset({"use_sim_time", "start_type_description_service"})
@@ -126,10 +132,6 @@ def descriptor(name: str) -> ParameterDescriptor:
         constraints.append(f"greater than {low:g}")
     if name in START_ONLY:
         constraints.append("at start only: set it in a params file or with -p, then restart")
-    if name in SCENARIO:
-        constraints.append(
-            "the headless scenario of boom-sim and boom-sweep; the node takes valve commands on valve_command"
-        )
     desc.additional_constraints = "; ".join(constraints)
     return desc
 
@@ -144,7 +146,14 @@ _ROS_TYPES = {
 
 
 def all_names() -> tuple[str, ...]:
-    return (*NAMES, *NODE_PARAMETERS)
+    """Every parameter the node declares: the model's but the scenario, then the node's own."""
+    return (*MODEL_NAMES, *NODE_PARAMETERS)
+
+
+def ignored_scenario(values: Mapping[str, Any]) -> tuple[str, ...]:
+    """The scenario parameters in ``values`` (a params file's and ``-p`` values for this node)
+    that differ from their defaults: what the node ignores and says so once."""
+    return tuple(name for name in SCENARIO if name in values and plain(values[name]) != default(name))
 
 
 def plain(value: Any) -> Any:
@@ -214,7 +223,7 @@ def check_known(names: Iterable[str] | Mapping[str, Parameter], argv: Sequence[s
     does not use (see :func:`check_overrides`); ``argv`` is the command line rclpy read,
     ``sys.argv`` by default (what ``rclpy.init()`` reads without ``args``).
     """
-    known = all_names()
+    known = (*all_names(), *SCENARIO)  # a params file may set the scenario, for the CLI
     for name in names:
         if name in known or name in _STANDARD or name.startswith(_STANDARD_PREFIXES):
             continue
@@ -375,9 +384,69 @@ def usage() -> str:
         star = "*" if name in START_ONLY else " "
         lines.append(f"  {star} {name:<22} {value!s:<10} {unit:<5} {text}")
     lines += ["", "Model parameters (config/default.yaml lists them; ros2 param describe gives ranges):"]
-    width = max(map(len, NAMES))
-    defaults = {name: str(describe(name)["default"]) for name in NAMES}
+    width = max(map(len, MODEL_NAMES))
+    defaults = {name: str(describe(name)["default"]) for name in MODEL_NAMES}
     value_width = max(map(len, defaults.values()))
-    for name in NAMES:
+    for name in MODEL_NAMES:
         lines.append(f"    {name:<{width}} {defaults[name]:<{value_width}} {describe(name)['unit']}")
+    lines += [
+        "",
+        "A params file may also set the command_* parameters of boom-sim's headless scenario;",
+        "the node takes its valve commands from topics and ignores them.",
+    ]
     return "\n".join(lines)
+
+
+#: The group of the node's own parameters in :func:`markdown_reference`.
+NODE_GROUP = "node"
+
+
+def _range_text(name: str) -> str:
+    """The allowed values of parameter ``name``: ``(0, 20]``, ``[1, 10000]``, ``one of: a, b``, or ''."""
+    if name in NODE_PARAMETERS:
+        _, _, _, low, high = NODE_PARAMETERS[name]
+        return "" if low is None or high is None else f"[{low:g}, {high:g}]"
+    meta = describe(name)
+    if meta["choices"]:
+        return "one of: " + ", ".join(meta["choices"])
+    low, high = meta["low"], meta["high"]
+    if low is None or high is None:
+        return ""
+    return f"{'[' if meta['low_inclusive'] else '('}{low:g}, {high:g}]"
+
+
+def _cell(text: str) -> str:
+    """``text`` for a Markdown table cell: a '|' would end the cell."""
+    return text.replace("|", "\\|")
+
+
+def markdown_reference() -> str:
+    """The parameter reference as a Markdown table, generated from the schema (docs/ros-api.md
+    holds it; a test keeps the two equal): every parameter, by group (plant, solver, controller,
+    the node's own, then the scenario, which only the headless tools read), with its type,
+    default as a params file writes it, unit, range, whether it applies at start only, and
+    its description."""
+    order = [name for group in GROUPS if group != "scenario" for name in names_in(group)]
+    order += list(NODE_PARAMETERS) + list(SCENARIO)
+    lines = [
+        "| Name | Group | Type | Default | Unit | Range | Start only | Description |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for name in order:
+        if name in NODE_PARAMETERS:
+            group, unit, text = NODE_GROUP, NODE_PARAMETERS[name][1], NODE_PARAMETERS[name][2]
+        else:
+            meta = describe(name)
+            group, unit, text = group_of(name), meta["unit"], meta["description"]
+        cells = (
+            f"`{name}`",
+            group,
+            _kind(name),
+            f"`{config.scalar_text(default(name))}`",
+            unit,
+            _range_text(name),
+            "yes" if name in START_ONLY else "",
+            text,
+        )
+        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    return "\n".join(lines) + "\n"

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..analysis import metrics as analysis
 from ..errors import BoomHydraulicsError, ConfigError
-from ..model.parameters import NAMES, Parameters, as_dict, describe, from_mapping
+from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
 from ..solve import commands, stepping, streaming
 from ..solve.batch import SHARED, run_sets, simulate_batch
 from ..solve.integrators import BATCHED
@@ -59,8 +59,8 @@ assert METRIC_NAMES == streaming.NAMES, "a sweep's metrics are those streaming t
 #: rejected before running).
 STATUSES = ("ok", "incomplete", "failed", "invalid")
 
-#: Parameters that all points of one batch share: integration and valve command.
-BATCH_KEYS = (*SHARED, *(n for n in NAMES if n.startswith("command_")))
+#: Parameters that all points of one batch share: integration and the scenario (the valve command).
+BATCH_KEYS = (*SHARED, *names_in("scenario"))
 
 
 #: Memory a point takes while a sweep runs, rounded up: its values and Parameters in the plan
