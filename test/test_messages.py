@@ -92,10 +92,9 @@ PUBLISHER = textwrap.dedent(
     rclpy.init()
     node = rclpy.create_node("test_publisher")
     pub = node.create_publisher(ValveCommand, "valve_command", 10)
-    end = time.monotonic() + 20.0
     i = 0
-    while time.monotonic() < end:
-        pub.publish(ValveCommand(opening=0.25 + i * 1e-3))
+    while True:  # until the test kills it: how long discovery takes is not this test's business
+        pub.publish(ValveCommand(opening=0.25 + (i % 50) * 1e-3))
         i += 1
         rclpy.spin_once(node, timeout_sec=0.05)
     """
@@ -110,13 +109,14 @@ def test_message_crosses_process_boundary():
     received: list[float] = []
     node.create_subscription(ValveCommand, "valve_command", lambda m: received.append(m.opening), 10)
     try:
-        deadline = time.monotonic() + 15.0
-        while len(received) < 3 and time.monotonic() < deadline:
+        deadline = time.monotonic() + 120.0  # a guard against a hang, not a timing: waits for 3 messages
+        while len(received) < 3 and time.monotonic() < deadline and proc.poll() is None:
             rclpy.spin_once(node, timeout_sec=0.1)
+        ended = proc.poll()  # None: it still ran
     finally:
         node.destroy_node()
         rclpy.shutdown()
         proc.kill()
         proc.wait()
-    assert len(received) >= 3, "no message from the publisher process within 15 s"
+    assert len(received) >= 3, f"{len(received)} messages from the publisher process (it ended with {ended})"
     assert all(0.25 <= u < 0.3 for u in received)
