@@ -110,12 +110,12 @@ class RecordedRun:
     node: str | None = None  # the recording node's fully qualified name, where recorded
     # the node's own count of what breaks the time line (its "boom_sim: run" diagnostics), the latest
     run_counts: dict[str, float] = field(default_factory=dict)
-    # the recorded drive states' q1, v, a and supply energy, in stamp order (reset detection)
+    # the recorded drive states' q1, v, a and valve loss energy, in stamp order (reset detection)
     state_signals: tuple[list[float], ...] = ((), (), (), ())
 
 
 #: The DriveState fields the reset detection reads (bags.continuity.reset_from_states).
-_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "supply_energy_j")
+_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "valve_loss_energy_j")
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -285,9 +285,9 @@ def check_states(bag: Path, run: RecordedRun) -> None:
     if k is not None:
         t = (run.state_ns[k] - run.clock_origin_ns) * 1e-9
         raise ConfigError(
-            f"{bag}: the run appears to have been reset at t = {t:.3f} s (its supply energy, counted since start "
-            f"or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it cannot reproduce this "
-            "run. Record the run without resets"
+            f"{bag}: the run appears to have been reset at t = {t:.3f} s (the energy dissipated in its valve, "
+            f"counted since start or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it "
+            "cannot reproduce this run. Record the run without resets"
         )
 
 

@@ -602,6 +602,7 @@ class BoomSimNode(Node):
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
             self._back_to_rest("the ROS clock jumped back")
+            self.resets += 1  # a reset as ~/reset's: boom-resim must know of it
             self._restart_clock()
             return True
         self._clock_seen_s = max(self._clock_seen_s, now)
