@@ -89,9 +89,7 @@ def test_move_boom_reaches_30_degrees_and_holds_it(mover, client):
 
 def test_cancel_stops_the_boom_and_closes_the_valve(mover, client):
     handle = mover.send(math.radians(60.0))
-    client.spin_sim(1.0)
-    moving = client.last()
-    assert moving.boom_rate_rad_s > 0.1
+    assert client.spin_until(lambda: client.last().boom_rate_rad_s > 0.1, timeout=60)  # moving
     cancel = handle.cancel_goal_async()
     assert client.spin_until(cancel.done, 10)
     answer = mover.result(handle)

@@ -99,6 +99,7 @@ def synthetic_bag(
     calls: tuple[tuple[str, float, bool], ...] = (),
     energy_drop_at_s: float | None = None,
     seconds: float = 2.0,
+    backflow_at_s: float | None = None,
 ) -> Path:
     """A boom_sim-like bag: the run description, DriveState at 100 Hz (at rest, its supply
     energy rising, dropping to 0 at ``energy_drop_at_s``), one valve command, and the service
@@ -113,9 +114,12 @@ def synthetic_bag(
         for k in range(1, round(seconds * 100) + 1):
             t = k * 0.01
             stamp = origin_ns + k * 10_000_000
-            msg = DriveState(rod_position_m=1.3, supply_energy_j=100.0 * t)
-            if energy_drop_at_s is not None and t >= energy_drop_at_s - 1e-9:
+            msg = DriveState(rod_position_m=1.3, supply_energy_j=100.0 * t, valve_loss_energy_j=10.0 * t)
+            if energy_drop_at_s is not None and t >= energy_drop_at_s - 1e-9:  # a reset zeroes both
                 msg.supply_energy_j = 100.0 * (t - energy_drop_at_s)
+                msg.valve_loss_energy_j = 10.0 * (t - energy_drop_at_s)
+            if backflow_at_s is not None and t >= backflow_at_s - 1e-9:  # oil pushed back into the supply
+                msg.supply_energy_j = 100.0 * backflow_at_s - 50.0 * (t - backflow_at_s)
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             rec.write("/drive_state", stamp, serialize_message(msg))
         for service, at_s, success in calls:
@@ -175,8 +179,16 @@ def test_a_reset_is_found_in_the_drive_states_of_an_older_bag(tmp_path):
     result = resim(bag, "--out", tmp_path / "out")
     assert result.returncode == 2
     err = one_line(result)
-    assert "appears to have been reset at t = 1.500 s" in err and "supply energy" in err
+    assert "appears to have been reset at t = 1.500 s" in err and "energy dissipated in its valve" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_supply_energy_pushed_back_is_no_reset(tmp_path):
+    """Oil pushed back into the supply (the boom bouncing on its lower end stop, as at the end
+    of make run) draws the supply energy down; only the valve's dissipation marks a reset."""
+    bag = synthetic_bag(tmp_path / "run", ROS_TIME_NS, backflow_at_s=1.2)
+    result = resim(bag, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
 
 
 def test_a_bag_written_by_boom_resim_is_re_simulated(tmp_path):

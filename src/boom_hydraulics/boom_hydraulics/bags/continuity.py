@@ -12,8 +12,10 @@ Two kinds of evidence:
   with the mcap reader and rclpy's generated classes, so that they do not depend on how a
   reader parses service schemas;
 - for bags recorded before the node recorded its calls, the drive states themselves:
-  ``supply_energy_j`` counts from the start or the last reset, so a drop of it is a
-  reset, and so is a jump of ``rod_position_m`` no physics step could make.
+  ``valve_loss_energy_j`` is dissipation counted from the start or the last reset, which
+  only grows, so a drop of it is a reset, and so is a jump of ``rod_position_m`` no
+  physics step could make. (``supply_energy_j`` is no such sign: oil pushed back into the
+  supply, as when the boom bounces on its lower end stop, draws it down.)
 """
 
 from __future__ import annotations
@@ -35,8 +37,8 @@ SERVICE_EVENT_SUFFIX = "/_service_event"
 RESPONSE_SENT = 2
 #: The node's services whose successful calls break the time line, with how a count reads.
 SERVICES = {"reset": "reset", "pause": "paused or resumed", "step": "stepped"}
-#: A drop of the supply energy larger than this is a reset (J; backflow to the supply within a
-#: tick draws it down by far less).
+#: A drop of the valve's dissipated energy larger than this is a reset (J; it only grows
+#: between resets, and this allows for the rounding of a recorded float).
 ENERGY_DROP_J = 1e-3
 #: A rod movement between two states beyond what their speeds and accelerations allow, with
 #: this much to spare, is a jump (m).
@@ -114,9 +116,9 @@ def recorded_calls(bag: Path, node: str | None, origin_ns: int) -> Calls:
 def reset_from_states(
     stamps_ns: Sequence[int], q1: Sequence[float], v: Sequence[float], a: Sequence[float], energy: Sequence[float]
 ) -> int | None:
-    """The index of the first drive state that shows a reset, or None: the supply energy
-    (counted since start or reset) dropped, or the rod moved further than its speed and
-    acceleration allow between two states."""
+    """The index of the first drive state that shows a reset, or None: ``energy``, the
+    valve's dissipated energy (counted since start or reset, never falling between), dropped,
+    or the rod moved further than its speed and acceleration allow between two states."""
     q1, v, a, energy = (np.asarray(x, dtype=float) for x in (q1, v, a, energy))
     if len(q1) < 2:
         return None

@@ -66,7 +66,7 @@ class RecordedRun:
     setpoints: list[tuple[int, float, float]] = field(default_factory=list)  # (stamp ns, rad, rad/s)
     # the node's own count of what breaks the time line (its "boom_sim: run" diagnostics), the latest
     run_counts: dict[str, float] = field(default_factory=dict)
-    # the recorded drive states' q1, v, a and supply energy, in stamp order (reset detection)
+    # the recorded drive states' q1, v, a and valve loss energy, in stamp order (reset detection)
     state_signals: tuple[list[float], ...] = ((), (), (), ())
 
     @property
@@ -92,7 +92,7 @@ class RecordedRun:
 
 
 #: The DriveState fields the reset detection reads (bags.continuity.reset_from_states).
-_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "supply_energy_j")
+_CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "valve_loss_energy_j")
 
 
 def _stamp_ns(msg: Any) -> int:

@@ -64,7 +64,7 @@ def check_states(bag: Path, run: RecordedRun) -> None:
     if k is not None:
         t = (run.state_ns[k] - run.clock_origin_ns) * 1e-9
         raise ConfigError(
-            f"{bag}: the run appears to have been reset at t = {t:.3f} s (its supply energy, counted since start "
-            f"or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it cannot reproduce this "
-            "run. Record the run without resets"
+            f"{bag}: the run appears to have been reset at t = {t:.3f} s (the energy dissipated in its valve, "
+            f"counted since start or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it "
+            "cannot reproduce this run. Record the run without resets"
         )

@@ -456,6 +456,7 @@ class BoomSimNode(Node):
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
             self._back_to_rest("the ROS clock jumped back")
+            self.run_counts.resets += 1  # a reset as ~/reset's: boom-resim must know of it
             self.clock.restart()
         return True
 
