@@ -36,10 +36,8 @@ run: setup
 node: setup
 	$(WITH_ENV) boom_sim --ros-args --params-file config/default.yaml
 
-# Every test on every core: a worker per core, each test file on one worker (its module fixtures
-# made once), the compiled kernels built once before the workers start (test/conftest.py).
 test: setup
-	$(WITH_ENV) python -m pytest -q -n auto --dist loadfile test
+	$(WITH_ENV) python -m pytest -q test
 
 lint: setup
 	$(WITH_ENV) ruff check src test bench
