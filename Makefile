@@ -36,9 +36,9 @@ run: setup
 node: setup
 	$(WITH_ENV) boom_sim --ros-args --params-file config/default.yaml
 
-# Every test on every core: a worker per core, each test file on one worker (its module fixtures
-# made once), the compiled kernels built once before the workers start (test/conftest.py); the
-# floors' import contract first.
+# The floors' import contract first, then the suite on every core: a worker per core, each
+# test file on one worker (its module fixtures made once), the compiled kernels built once
+# before the workers start (test/conftest.py).
 test: setup imports
 	$(WITH_ENV) python -m pytest -q -n auto --dist loadfile test
 
