@@ -6,16 +6,21 @@ Runs the measurements of bench_model, bench_node and bench_sweep that the target
 (each prints its own table as it goes), then one table: what was measured, the target,
 and whether it is met. scipy's LSODA and RK45 are timed on the same 1.5 s lift at the
 accuracy RK4 reaches at 1 ms. Nothing is asserted: these machines are shared and noisy.
+The table, with the date, the machine and the commit, is also written to
+bench/results/speed-<UTC date-time>.md.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import os
+import platform
 import shutil
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import rclpy
 from bench_model import batch_throughput, scipy_comparison, step_cost
@@ -23,7 +28,11 @@ from bench_node import BAGS, in_process_rates, real_time_run
 from bench_sweep import full_sweep
 from tables import table
 
+from boom_hydraulics.files import write_bytes
 from boom_hydraulics.solve import accelerate
+
+#: Where each run's table goes, with its date and machine (docs/performance.md links it).
+RESULTS = Path(__file__).resolve().parent / "results"
 
 FIRST_START = """
 import time
@@ -124,12 +133,59 @@ def main() -> int:
         "O(points), not O(points x steps)",
         large < 2 * small,  # 10x the points: the table grows, the batches do not
     )
-    table(
+    text = table(
         f"Speed and memory targets ({os.cpu_count()} cores; measured in this run)",
         ["what", "measured", "target", "met"],
         rows,
     )
+    print(f"written to {write_results(text)}")
     return 0
+
+
+def machine() -> str:
+    """The machine a run was measured on: cores and processor model (Linux), Python, numba."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{os.cpu_count()} cores, {model}; Python {platform.python_version()}, numba {numba_version()}"
+
+
+def numba_version() -> str:
+    try:
+        import numba
+    except ImportError:
+        return "absent"
+    return numba.__version__
+
+
+def commit() -> str:
+    """The checkout's commit (with '+changes' when its tracked files differ), or 'unknown'."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True)
+        dirty = subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=root, capture_output=True)
+    except OSError:
+        return "unknown"
+    return head.stdout.strip() + ("+changes" if dirty.returncode else "") if head.returncode == 0 else "unknown"
+
+
+def write_results(text: str) -> Path:
+    """The table with the date, the machine and the commit, as bench/results/speed-<UTC time>.md
+    (whole or not at all): figures stay with the run that measured them, not in prose."""
+    now = datetime.datetime.now(datetime.UTC)
+    path = RESULTS / f"speed-{now:%Y%m%d-%H%M%S}.md"
+    body = (
+        f"# bench_speed.py, {now:%Y-%m-%d %H:%M} UTC\n\n"
+        f"- machine: {machine()}\n- commit: {commit()}\n- command: {' '.join(sys.argv)}\n\n"
+        f"```{text}\n```\n"
+    )
+    write_bytes(path, body.encode())
+    return path
 
 
 if __name__ == "__main__":
