@@ -129,3 +129,18 @@ def test_the_ros_api_lists_every_parameter_the_node_has():
     documented = set(re.findall(r"^\| `([a-z][a-z0-9_]+)`", (ROOT / "docs" / "ros-api.md").read_text(), re.M))
     missing = sorted(set(names) - documented)
     assert not missing, f"docs/ros-api.md does not list: {missing}"
+
+
+def test_the_parameter_table_is_the_one_the_schema_writes():
+    """docs/ros-api.md's parameter reference is generated (tools/ros-api-table): it cannot drift."""
+    pytest.importorskip("rclpy")
+    import importlib.machinery
+    import importlib.util
+
+    loader = importlib.machinery.SourceFileLoader("ros_api_table", str(ROOT / "tools" / "ros-api-table"))
+    spec = importlib.util.spec_from_loader("ros_api_table", loader)
+    tool = importlib.util.module_from_spec(spec)
+    loader.exec_module(tool)
+    page = (ROOT / "docs" / "ros-api.md").read_text()
+    assert tool.with_table(page) == page, "docs/ros-api.md: run tools/with-env python tools/ros-api-table"
+    assert "| `payload_mass_kg` | plant | float | `50.0` | kg |" in page

@@ -1,4 +1,4 @@
-# Workaround for ROS 2 Jazzy installed from PyPI wheels (see README, "How setup works").
+# Workaround for ROS 2 Jazzy installed from PyPI wheels (see docs/architecture.md, "How setup works here").
 #
 # The wheels' exported CMake targets (e.g. std_msgs::std_msgs__rosidl_generator_py) name
 # the wheel build machine's Python include folder, /opt/python/cp311-cp311/include/python3.11,

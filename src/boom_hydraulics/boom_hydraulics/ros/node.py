@@ -18,7 +18,7 @@ depend only on the commands and their times, not on wall-clock jitter. Position 
 (MoveBoom, ~/joint_trajectory; see :mod:`motion`) hand the valve to the model core's
 position controller. Simulated time never runs backwards: a reset puts the drive back to
 rest and time goes on. The node publishes its URDF on robot_description and the crane as
-markers. Topics, services, the action and parameters are listed in the README.
+markers. Topics, services, the action and parameters: docs/ros-api.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Valve commands waiting for their simulated time: the node's rule for command stamps.
 
-Rule (documented in the README and ValveCommand.msg):
+Rule (documented in docs/ros-api.md, "Command stamps", and ValveCommand.msg):
 - A command with a zero stamp, or stamped at or before the current simulated time, takes
   effect at the next physics step.
 - A command stamped in the future waits, and takes effect at the first step that starts

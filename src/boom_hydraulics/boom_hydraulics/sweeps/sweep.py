@@ -68,7 +68,7 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 BYTES_PER_POINT = 4096
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
-#: sweep's run time (2.7-3.3 M on 2 cores for batches of 1000 sets, README's performance table).
+#: sweep's run time (2.7-3.3 M on 2 cores for batches of 1000 sets, measured by bench/bench_speed.py).
 STEPS_PER_CORE_S = 1.5e6
 
 #: Wall time planning takes per point (its Parameters checked and grouped into batches): 0.13 ms
