@@ -138,9 +138,21 @@ class Motion:
 
         thread = threading.Thread(target=spin, name="boom_sim_move_boom", daemon=True)
         thread.start()
+        self._spinning = (executor, thread)
         return thread
 
     def destroy(self) -> None:
+        """Stop serving the action, then destroy it: the executor's thread must be out of its
+        wait first (destroying the action server under a waiting executor crashed the process,
+        seen as a SIGSEGV at shutdown after two signals)."""
+        spinning = getattr(self, "_spinning", None)
+        if spinning is not None:
+            executor, thread = spinning
+            try:
+                executor.shutdown(timeout_sec=5.0)
+            except Exception:  # the context is already gone: the thread leaves its wait by itself
+                pass
+            thread.join(timeout=5.0)
         self.server.destroy()
         self.action_node.destroy_node()
 
