@@ -6,6 +6,7 @@
     boom-sim run --config config/default.yaml --target-angle-deg 30 --duration 4 --out move.csv
     boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
     boom-sim urdf --config config/default.yaml --out boom_crane.urdf
+    boom-sim fmu --config config/default.yaml --out boom_drive.fmu
 
 Errors in arguments, configs or the run print one line and exit non-zero.
 """
@@ -159,6 +160,15 @@ def cmd_urdf(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fmu(args: argparse.Namespace) -> int:
+    from ..fmu.export import write_fmu
+
+    params = load_parameters(args)
+    write_fmu(params, Path(args.out))
+    print(f"{args.out}: FMI 2.0 co-simulation FMU of the physical drive, {params.method} dt={params.time_step_s:g} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = RaisingParser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=RaisingParser)
@@ -203,6 +213,10 @@ def build_parser() -> argparse.ArgumentParser:
     description = sub.add_parser("urdf", help="the crane's URDF (as the node publishes it on robot_description)")
     common(description, "URDF file to write")
     description.set_defaults(handler=cmd_urdf)
+
+    fmu = sub.add_parser("fmu", help="the physical drive as an FMI 2.0 co-simulation FMU (docs/fmu.md)")
+    common(fmu, "FMU file to write (.fmu)")
+    fmu.set_defaults(handler=cmd_fmu)
     return parser
 
 
