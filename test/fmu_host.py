@@ -164,6 +164,8 @@ def refusals(host: Host) -> dict[str, Any]:
     host.set(fmu, "time_step_s", 0.002)
     result["fixed_parameter"] = host.refused(lambda: fmu.doStep(0.5, STEP_S))
     result["after_refusals"] = host.outputs(fmu)
+    host.set(fmu, "time_step_s", 0.001)
+    result["drifted"] = host.refused(lambda: fmu.doStep(0.5 + 2e-8, STEP_S))  # a host's sum of steps
     fmu.terminate()
     fmu.freeInstance()
     # a step the simulation cannot finish: end stops this stiff need more substeps than it takes
