@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import zipfile
 from pathlib import Path
 
@@ -23,6 +25,7 @@ BOOM_SIM = shutil.which("boom-sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
 
 HOST = Path(__file__).with_name("fmu_host.py")
+C_HOST = Path(__file__).with_name("fmu_c_host.c")
 #: The parameter the host sets through FMI before one of its cycles.
 SUPPLY_PA = 12.0e6
 #: boom-sim's profile of the host's cycle: lift 3 s, hold 2 s, lower 3 s, hold 1 s.
@@ -183,6 +186,33 @@ def test_reset_and_terminate(report: dict) -> None:
     assert life["default"][1] > life["first"][1] + 0.01  # 16 MPa lifts faster than the 12 MPa set before
     assert life["after_terminate"]["status"] == DISCARD
     assert "terminated" in life["after_terminate"]["message"]
+
+
+def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
+    fmu: Path, report: dict, tmp_path: Path
+) -> None:
+    """A C host, as OMSimulator, Simulink and fmi_adapter are, with the environment
+    docs/fmu.md gives (libpython preloaded, PYTHONHOME, PYTHONPATH): the same lift as
+    fmpy's, a refused step, and a clean exit."""
+    compiler, shared = shutil.which("cc"), sysconfig.get_config_var("Py_ENABLE_SHARED")
+    if compiler is None or not shared:
+        pytest.skip("needs a C compiler and a Python built with a shared libpython")
+    import fmpy
+
+    host = tmp_path / "host"
+    headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
+    subprocess.run([compiler, "-O1", "-I", headers, "-o", host, C_HOST, "-ldl"], check=True, timeout=120)
+    folder = tmp_path / "boom_drive"
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(folder)
+    libpython = Path(sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME"))
+    env = dict(os.environ, LD_PRELOAD=str(libpython), PYTHONHOME=sys.base_prefix,
+               PYTHONPATH=os.pathsep.join(p for p in sys.path if p))  # fmt: skip
+    result = subprocess.run([host, folder], env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr  # 0: it also exits cleanly
+    said = dict(line.split(" ", 1) for line in result.stdout.splitlines() if line.startswith(("q1 ", "refused ")))
+    assert float(said["q1"]) == report["lifecycle"]["default"][1]  # 1 s of lift, as in fmpy
+    assert said["refused"] == str(DISCARD) and "not a whole number of the drive's time steps" in result.stdout
 
 
 # --- the command line ---------------------------------------------------------------------
