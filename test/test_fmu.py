@@ -192,12 +192,14 @@ def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
     fmu: Path, report: dict, tmp_path: Path
 ) -> None:
     """A C host, as OMSimulator, Simulink and fmi_adapter are, with the environment
-    docs/fmu.md gives (libpython preloaded, PYTHONHOME, PYTHONPATH): the same lift as
-    fmpy's, a refused step, and a clean exit."""
-    compiler, shared = shutil.which("cc"), sysconfig.get_config_var("Py_ENABLE_SHARED")
-    if compiler is None or not shared:
+    docs/fmu.md gives (fmu.host_environment: libpython preloaded, PYTHONHOME, PYTHONPATH):
+    the same lift as fmpy's, a refused step, and a clean exit."""
+    compiler = shutil.which("cc")
+    if compiler is None or not sysconfig.get_config_var("Py_ENABLE_SHARED"):
         pytest.skip("needs a C compiler and a Python built with a shared libpython")
     import fmpy
+
+    from boom_hydraulics.fmu.host_environment import environment
 
     host = tmp_path / "host"
     headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
@@ -205,9 +207,7 @@ def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
     folder = tmp_path / "boom_drive"
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(folder)
-    libpython = Path(sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME"))
-    env = dict(os.environ, LD_PRELOAD=str(libpython), PYTHONHOME=sys.base_prefix,
-               PYTHONPATH=os.pathsep.join(p for p in sys.path if p))  # fmt: skip
+    env = dict(os.environ, **environment(sys.path))
     result = subprocess.run([host, folder], env=env, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr  # 0: it also exits cleanly
     said = dict(line.split(" ", 1) for line in result.stdout.splitlines() if line.startswith(("q1 ", "refused ")))
@@ -216,6 +216,33 @@ def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
 
 
 # --- the command line ---------------------------------------------------------------------
+
+
+def test_an_fmu_of_other_variables_than_the_installed_package_refuses_to_start(fmu: Path, tmp_path: Path) -> None:
+    from boom_hydraulics.errors import ConfigError
+    from boom_hydraulics.fmu.slave import BoomDrive
+
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(tmp_path)
+    resources = tmp_path / "resources"
+    assert BoomDrive(instance_name="as exported", resources=str(resources)).params == Parameters()
+    names = (resources / "variables.txt").read_text().split()
+    (resources / "variables.txt").write_text("".join(f"{name}\n" for name in names[:-1]))  # an older FMU
+    with pytest.raises(ConfigError, match="export it again with this installation's boom-sim fmu"):
+        BoomDrive(instance_name="older", resources=str(resources))
+
+
+def test_the_host_environment_prints_shell_exports() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "boom_hydraulics.fmu.host_environment"], capture_output=True, text=True, timeout=60
+    )
+    if result.returncode == 1:  # a Python without a shared libpython: said in one line
+        assert result.stderr.startswith("host_environment: error: ") and result.stderr.count("\n") == 1
+        return
+    assert result.returncode == 0, result.stderr
+    exported = dict(line.removeprefix("export ").split("=", 1) for line in result.stdout.splitlines())
+    assert set(exported) == {"LD_PRELOAD", "PYTHONHOME", "PYTHONPATH"}
+    assert Path(exported["LD_PRELOAD"]).is_file() and exported["PYTHONHOME"] == sys.base_prefix
 
 
 def test_fmu_holds_the_drive_its_parameters_and_the_binaries(fmu: Path) -> None:
