@@ -330,7 +330,7 @@ class Parameters:
     )
     relief_rated_flow_m3_s: float = _plant(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
-    # --- drives, pump, electric motor and battery (docs/model.md, "Drives"; eq. D1-D27) ----
+    # --- drives, pump, electric motor and battery (docs/model.md, "Drives"; eq. D1-D25) ----
     drive: str = _drive(
         "pressure_compensated",
         "",
