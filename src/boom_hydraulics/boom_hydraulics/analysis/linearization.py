@@ -168,7 +168,8 @@ def _bode_csv(path: Path, omega: np.ndarray, curves: dict[str, tuple[np.ndarray,
     units = dict((n, u) for n, u, _ in lm.OUTPUTS)
     header = ["frequency [Hz]"]
     for name in curves:
-        header += [f"{name} magnitude [{units.get(name, '1')} per unit]", f"{name} phase [deg]"]
+        unit = f"{units[name]} per unit" if name in units else "1"  # the loop gain has none
+        header += [f"{name} magnitude [{unit}]", f"{name} phase [deg]"]
     columns = [omega / (2 * math.pi)] + [c for pair in curves.values() for c in pair]
     write_csv(path, header, ([csv_cell(v) for v in row] for row in zip(*columns)))
 

@@ -12,7 +12,8 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
   its rate. A parameter set whose run fails (it diverged) costs a residual far above any fit.
 - **The fit.** Trust-region reflective least squares on each parameter over its start value,
   within the bounds of :func:`.fittable.bounds`; the Jacobian by forward differences of 1e-3
-  of each value (the stability substeps change in steps, so a finer difference would see them).
+  of each value (the stability substeps change in steps, so a finer difference would see them),
+  its columns, like a scan's trials, re-simulated side by side on every core (:mod:`.evaluations`).
   The ringing of the oil springs makes the raw residual a narrow valley in what sets its
   frequency (the bulk modulus 10 % off puts the ringing half a period out of phase within a
   second), with a false bottom at every period, so the fit goes from coarse to fine:
@@ -21,9 +22,12 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
      the linear model at mid-stroke with the start values,
      :func:`..analysis.linear_model.mid_stroke_modes`), where the valley is wide and the
      ringing averages out: the slow part of the signals (speeds, pressure levels) settles;
-  3. each parameter in turn through 0.6 to 1.67 times its value in steps of 5 % on the raw
-     residual, which finds the ringing's phase, and
+  3. each parameter in turn through 0.42 to 2.4 times its value in steps of 10 %, then
+     through 0.91 to 1.09 times the best in steps of 3 %, on the raw residual: a search along
+     each parameter for the ringing's phase (the averaged residual above hardly sees the
+     bulk modulus), and
   4. least squares on the raw residual from there.
+  The first least squares stops at 0.1 % (it only has to reach the valley), the last at 1e-6.
 - **The confidence intervals.** From the Jacobian at the solution: covariance s^2 (J^T J)^-1,
   s^2 the residual's sum of squares over its degrees of freedom, times Student's t at 95 %.
   They hold where the residual is the recordings' noise, independent from sample to sample;
@@ -51,6 +55,7 @@ from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..resim.recorded import RecordedRun
 from ..resim.resimulation import Replay, read_recorded
+from .evaluations import Evaluations, cores
 from .fittable import bounds, check_fit
 from .signals import Signal, read_signals, start_ns
 
@@ -68,8 +73,12 @@ SMOOTHING_PERIODS = 4.0
 DEFAULT_FREQUENCY_HZ = 8.0
 #: The coarse scan's factors on each parameter ...
 COARSE_FACTORS = (0.5, 0.7, 1.4, 2.0)
-#: ... and the fine scan's: 0.6 to 1.67 in steps of 5 %.
-FINE_FACTORS = tuple(float(f) for f in 1.05 ** np.arange(-10, 11) if f != 1.0)
+#: ... the wide scan's on the raw residual: 0.42 to 2.4 in steps of 10 % ...
+WIDE_FACTORS = tuple(float(f) for f in 1.1 ** np.arange(-9, 10) if f != 1.0)
+#: ... and the near one's around its best: 0.91 to 1.09 in steps of 3 %.
+NEAR_FACTORS = tuple(float(f) for f in 1.03 ** np.arange(-3, 4) if f != 1.0)
+#: Relative tolerances (ftol, xtol) of the smoothed and of the final least squares.
+COARSE_TOLERANCE, FINE_TOLERANCE = 1e-3, 1e-6
 
 
 @dataclass
@@ -209,8 +218,9 @@ class Fit:
     message: str
 
 
-def calibrate(problem: Problem, max_evaluations: int = 200) -> Fit:
-    """Fit the problem's parameters (see the module docstring)."""
+def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None = None) -> Fit:
+    """Fit the problem's parameters (see the module docstring), re-simulating on ``workers``
+    processes at a time (default: every core)."""
     began = time.perf_counter()
     names = problem.names
     low, high = zip(*(bounds(n, problem.start, names) for n in names))
@@ -229,20 +239,27 @@ def calibrate(problem: Problem, max_evaluations: int = 200) -> Fit:
     frequency = float(mid_stroke_modes([problem.start])[0][0])
     period_s = 1.0 / (frequency if math.isfinite(frequency) else DEFAULT_FREQUENCY_HZ)
     window_s = SMOOTHING_PERIODS * period_s
+    with Evaluations(problem, cores() if workers is None else workers) as evaluations:
 
-    def fit_from(theta: np.ndarray, window: float) -> Any:
-        return least_squares(
-            lambda th: problem.residual(problem.simulate(th), window),
-            theta,
-            bounds=(low, high),
-            method="trf",
-            diff_step=DIFF_STEP,
-            x_scale=1.0,
-            max_nfev=max_evaluations,
+        def fit_from(theta: np.ndarray, window: float, tolerance: float) -> Any:
+            return least_squares(
+                evaluations.function(window),
+                theta,
+                jac=evaluations.jacobian(window, DIFF_STEP, high),
+                bounds=(low, high),
+                method="trf",
+                x_scale=1.0,
+                ftol=tolerance,
+                xtol=tolerance,
+                max_nfev=max_evaluations,
+            )
+
+        theta = _scan(evaluations, theta0, low, high, window_s, COARSE_FACTORS)
+        theta = fit_from(theta, window_s, COARSE_TOLERANCE).x
+        theta = _scan(
+            evaluations, _scan(evaluations, theta, low, high, 0.0, WIDE_FACTORS), low, high, 0.0, NEAR_FACTORS
         )
-
-    theta = fit_from(_scan(problem, theta0, low, high, window_s, COARSE_FACTORS), window_s).x
-    result = fit_from(_scan(problem, theta, low, high, 0.0, FINE_FACTORS), 0.0)
+        result = fit_from(theta, 0.0, FINE_TOLERANCE)
     final = problem.simulate(result.x)
     fitted = problem.fitted_values(result.x)
     half = _half_widths(result.jac, result.fun, len(names))
@@ -270,38 +287,43 @@ def calibrate(problem: Problem, max_evaluations: int = 200) -> Fit:
 
 
 def _scan(
-    problem: Problem, theta: np.ndarray, low: np.ndarray, high: np.ndarray, window_s: float, factors: Sequence[float]
+    evaluations: Evaluations,
+    theta: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    window_s: float,
+    factors: Sequence[float],
 ) -> np.ndarray:
-    """Each parameter in turn through ``factors`` times its value (within its bounds), keeping
-    the best of each on the residual averaged over ``window_s`` (0: raw)."""
-
-    def cost(th: np.ndarray) -> float:
-        r = problem.residual(problem.simulate(th), window_s)
-        return float(r @ r)
-
-    best, best_cost = theta.copy(), cost(theta)
+    """Each parameter in turn through ``factors`` times its value (within its bounds; the trials
+    of one parameter side by side), keeping the best of each on the residual averaged over
+    ``window_s`` (0: raw)."""
+    best = theta.copy()
+    (r,) = evaluations.residuals([best], window_s)
+    best_cost = float(r @ r)
     for k in range(len(theta)):
-        start = best[k]
+        trials = []
         for factor in factors:
             trial = best.copy()
-            trial[k] = min(max(start * factor, low[k]), high[k])
-            if trial[k] == start:
-                continue
-            trial_cost = cost(trial)
-            if trial_cost < best_cost:
-                best, best_cost = trial, trial_cost
+            trial[k] = min(max(best[k] * factor, low[k]), high[k])
+            if trial[k] != best[k]:
+                trials.append(trial)
+        for trial, r in zip(trials, evaluations.residuals(trials, window_s)):
+            if float(r @ r) < best_cost:
+                best, best_cost = trial, float(r @ r)
     return best
 
 
 def _half_widths(jac: np.ndarray, residual: np.ndarray, n: int) -> np.ndarray:
     """The LEVEL interval's half-width of each parameter (in its fit units) from the Jacobian at
-    the solution: t sqrt(diag(s^2 (J^T J)^-1)); inf where J^T J is singular (not identifiable)."""
+    the solution: t sqrt(diag(s^2 (J^T J)^-1)), by the singular values of J; inf for a parameter
+    in a direction that J does not see (a singular value below 1e-9 of the largest: the signals
+    do not tell it)."""
     dof = len(residual) - n
     if dof <= 0:
         return np.full(n, math.inf)
     s2 = float(residual @ residual) / dof
     _, singular, vt = np.linalg.svd(jac, full_matrices=False)
-    if singular[-1] <= 1e-12 * singular[0]:
-        return np.full(n, math.inf)
-    covariance = (vt.T / singular**2) @ vt * s2
-    return stats.t.ppf(0.5 + LEVEL / 2, dof) * np.sqrt(np.diag(covariance))
+    seen = singular > 1e-9 * singular[0]
+    variance = (vt[seen].T ** 2) @ (1.0 / singular[seen] ** 2) * s2
+    blind = (vt[~seen].T ** 2).sum(axis=1) > 1e-6
+    return np.where(blind, math.inf, stats.t.ppf(0.5 + LEVEL / 2, dof) * np.sqrt(variance))

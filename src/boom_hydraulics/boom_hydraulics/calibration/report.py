@@ -120,6 +120,6 @@ def _plot(path: Path, fit: Fit) -> None:
     axes[0].legend(loc="best", fontsize="small")
     axes[-1].set_xlabel("time since the run's origin [s]")
     fitted = ", ".join(f"{n} {fit.fitted[n]:.4g}" for n in p.names)
-    fig.suptitle(f"{p.bag.name}: {fitted}")
+    fig.suptitle(f"{p.bag.name}\nfitted: {fitted}", fontsize="medium")
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -49,10 +49,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                             help="a bag without run description: the valve closes S s after the last command "
                             "(0: never)")  # fmt: skip
         parser.add_argument("--max-evaluations", type=int, default=200, metavar="N", help="re-simulations per stage")
+        parser.add_argument("--workers", type=int, metavar="N", help="processes that re-simulate side by side "
+                            "(default: one per core)")  # fmt: skip
         parser.add_argument("--out", type=Path, required=True, help="folder for the results")
         args = parser.parse_args(argv)
         if args.max_evaluations < 1:
             raise ConfigError(f"--max-evaluations must be >= 1, got {args.max_evaluations}")
+        if args.workers is not None and args.workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {args.workers}")
         if not (args.command_timeout >= 0 and math.isfinite(args.command_timeout)):
             raise ConfigError(f"--command-timeout must be >= 0 s, got {args.command_timeout}")
         check_apart(args.out, [args.bag] + ([args.config] if args.config else []))
@@ -63,7 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.bag, _names(args.fit), args.config, overrides, _names(args.signals), _weights(args.weight),
             args.command_timeout,
         )  # fmt: skip
-        result = fit.calibrate(problem, args.max_evaluations)
+        result = fit.calibrate(problem, args.max_evaluations, args.workers)
         for line in report.summary(result):
             print(line)
         names = report.write(result, args.out)
