@@ -12,10 +12,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..bags import cdr
-from ..bags.encoding import drive_state_cdr
 from ..model.kinematics import chain
 from ..model.robot_description import JOINTS
+from . import cdr
+from .encoding import drive_state_cdr
 
 CHAMBER_FRAMES = {"p1": "piston_chamber", "p2": "rod_chamber"}
 ROD_FRAME = "cylinder_rod"  # x along the rod, positive extending
