@@ -23,6 +23,7 @@ from . import cdr
 from .recording import interface_file
 
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
+VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
 
 #: DriveState field -> model output name (simulation.OUTPUTS), in the message's order.
 DRIVE_STATE_FIELDS: dict[str, str] = {
@@ -52,9 +53,10 @@ _DRIVE_STATE_OUTPUTS = tuple((name, name in FLAGS) for name in DRIVE_STATE_FIELD
 
 @functools.cache
 def typestore() -> Typestore:
-    """Jazzy's message types and DriveState (from the workspace's installed .msg)."""
+    """Jazzy's message types, DriveState and ValveCommand (from the workspace's installed .msg)."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    store.register(get_types_from_msg(interface_file(DRIVE_STATE, ".msg").read_text(), DRIVE_STATE))
+    for msgtype in (DRIVE_STATE, VALVE_COMMAND):
+        store.register(get_types_from_msg(interface_file(msgtype, ".msg").read_text(), msgtype))
     return store
 
 

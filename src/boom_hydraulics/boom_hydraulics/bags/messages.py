@@ -48,3 +48,10 @@ def chamber_pressures(out: Mapping[str, Any], stamp_ns: int) -> list[bytes]:
 def rod_force(out: Mapping[str, Any], stamp_ns: int) -> bytes:
     """The hydraulic force on the rod (N) as WrenchStamped, force.x along the rod."""
     return cdr.wrench_stamped(stamp_ns, ROD_FRAME, (float(out["f_hyd"]), 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def state_messages(out: Mapping[str, Any], stamp_ns: int, p: Any) -> list[bytes]:
+    """The state of one instant as the node publishes it at every tick, in the order of
+    its topics drive_state, joint_states, piston_pressure, rod_pressure and rod_force."""
+    piston, rod = chamber_pressures(out, stamp_ns)
+    return [drive_state(out, stamp_ns), joint_state(out, stamp_ns, p), piston, rod, rod_force(out, stamp_ns)]

@@ -32,6 +32,7 @@ from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
+from . import live
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -203,6 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     description = sub.add_parser("urdf", help="the crane's URDF (as the node publishes it on robot_description)")
     common(description, "URDF file to write")
     description.set_defaults(handler=cmd_urdf)
+    live.add_parser(sub)
     return parser
 
 

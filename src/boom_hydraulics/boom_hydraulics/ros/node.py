@@ -537,14 +537,9 @@ class BoomSimNode(Node):
             self.recording.publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
         log_ns = stamp_ns if clock.publishes else clock.now_ns()  # when it is published
         p = self.sim.params
-        piston, rod = messages.chamber_pressures(out, stamp_ns)
-        tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
-            (self.state_pub, messages.drive_state(out, stamp_ns)),
-            (self.joint_pub, messages.joint_state(out, stamp_ns, p)),
-            (self.p1_pub, piston),
-            (self.p2_pub, rod),
-            (self.force_pub, messages.rod_force(out, stamp_ns)),
-        ]
+        state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub)
+        # CDR bytes, packed without message objects
+        tick: list[tuple[Any, Any]] = list(zip(state_pubs, messages.state_messages(out, stamp_ns, p)))
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
         self._ticks += 1
