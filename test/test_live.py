@@ -18,6 +18,7 @@ from bag_checks import check_bag
 from foxglove_client import ROOT, FoxgloveClient, LiveServer
 from rosbags.typesys import Stores, get_typestore
 
+from boom_hydraulics.bags.reading import read_drive_states
 from boom_hydraulics.model import config
 
 pytestmark = pytest.mark.skipif(shutil.which("boom-sim") is None, reason="boom-sim not on PATH (tools/with-env)")
@@ -173,11 +174,17 @@ def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_pat
     assert counts["/commands"] == 1 and counts["/parameter_events"] == 1 and "/tf" not in counts
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["custom_data"]["node"] == "/boom_sim" and info["ros_distro"] == "jazzy"
-    # boom-analyze takes it as one of the node's bags
-    analysed = subprocess.run(
-        [sys.executable, "-m", "boom_hydraulics.cli.analyze", str(bag), "--out", str(tmp_path / "analysis")],
+    # boom-resim takes it as one of the node's bags: the commands and the parameter change through
+    # the model again give the recorded run, to within the motion of one tick (an unstamped command
+    # acts at the first step after it arrived; its log time is when it arrived)
+    again = tmp_path / "again"
+    resim = subprocess.run(
+        [sys.executable, "-m", "boom_hydraulics.cli.resim", str(bag), "--out", str(again)],
         capture_output=True,
         text=True,
         timeout=300,
     )
-    assert analysed.returncode == 0, analysed.stderr
+    assert resim.returncode == 0, resim.stderr
+    recorded, repeated = read_drive_states(bag), read_drive_states(again)
+    assert len(repeated["q1"]) == len(recorded["q1"])
+    assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 0.3 / 100.0  # 0.3 m/s for 1/100 s at most
