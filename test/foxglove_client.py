@@ -4,7 +4,7 @@ v1 messages) over a plain WebSocket, as the Foxglove app speaks it, and the serv
 from __future__ import annotations
 
 import json
-import os
+import select
 import signal
 import struct
 import subprocess
@@ -32,14 +32,13 @@ class LiveServer:
         self.port = int(line.split("ws://127.0.0.1:")[1].split()[0])
 
     def _first_line(self, timeout_s: float) -> str:
-        """The first line it prints (it compiles or loads the model first); a guard against a hang."""
-        os.set_blocking(self.proc.stdout.fileno(), True)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            line = self.proc.stdout.readline()
-            if line or self.proc.poll() is not None:
-                return line
-        raise AssertionError("boom-sim live did not start")
+        """The first line it prints (it compiles or loads the model first), or what it said
+        when it ended; ``timeout_s`` guards against a hang."""
+        ready, _, _ = select.select([self.proc.stdout], [], [], timeout_s)
+        if not ready:
+            self.proc.kill()
+            raise AssertionError(f"boom-sim live did not start within {timeout_s:g} s")
+        return self.proc.stdout.readline()
 
     def interrupt(self) -> None:
         self.proc.send_signal(signal.SIGINT)

@@ -150,6 +150,24 @@ def test_a_parameter_set_takes_effect_and_a_bad_one_is_refused_whole_in_one_line
     assert unknown["level"] == 2
 
 
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--rate", "-1"], "--rate must be a number in [0, 1000], got -1.0"),
+        (["--record", "docs"], "--record docs exists already; name a new bag folder"),
+        (["--set", "payload_mass_kg=-5"], "payload_mass_kg"),
+        ([], "choose another --port (0: any free port)"),  # the module's server has the port
+    ],
+)
+def test_bad_input_is_one_line_with_status_2(server, args, says):
+    port = [] if args else ["--port", str(server.port)]
+    command = ["boom-sim", "live", "--config", "config/default.yaml", *args, *port]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert done.returncode == 2, done.stderr
+    (line,) = done.stderr.splitlines()
+    assert line.startswith("boom-sim: error: ") and says in line
+
+
 def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_path):
     bag = tmp_path / "live_bag"
     live = LiveServer("--record", str(bag))

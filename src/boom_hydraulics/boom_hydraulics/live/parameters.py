@@ -42,10 +42,9 @@ def current(params: Parameters, names: Iterable[str] = ()) -> list[Parameter]:
     return [protocol_parameter(n, getattr(params, n)) for n in wanted if n in OFFERED]
 
 
-def checked(params: Parameters, requested: Iterable[Parameter]) -> tuple[Parameters, dict[str, Any]]:
-    """(the parameters after a client's set, the changed values by name), all checked at
-    once. Raises ConfigError, one line, for a name not offered, an unset, or a value the
-    model refuses."""
+def checked(params: Parameters, requested: Iterable[Parameter]) -> Parameters:
+    """The parameters after a client's set, all of it checked at once. Raises ConfigError,
+    one line, for a name not offered, an unset, or a value the model refuses."""
     changes: dict[str, Any] = {}
     for p in requested:
         if p.name not in OFFERED:
@@ -55,7 +54,7 @@ def checked(params: Parameters, requested: Iterable[Parameter]) -> tuple[Paramet
         if value is None:
             raise ConfigError(f"parameter '{p.name}' cannot be unset; give it a value")
         changes[p.name] = value
-    return from_mapping(changes, base=params), changes
+    return from_mapping(changes, base=params)
 
 
 def events(params: Parameters, names: Iterable[str]) -> list[tuple[str, int, Any]]:

@@ -39,7 +39,7 @@ from . import parameters as live_parameters
 from .channels import DESCRIPTION, DIAGNOSTICS, DRIVE, FORCE, MARKERS, PISTON, ROD, SETPOINT, TF, TF_STATIC, Outlet
 from .channels import JOINTS as JOINT_STATES
 from .clock import LiveClock
-from .frames import joints, moving_frames, static_frames
+from .frames import Joint, joints, moving_frames, static_frames
 from .recording import LiveRecording
 from .steering import Steer
 
@@ -89,7 +89,7 @@ class LiveRun:
         self._joints = joints(urdf(params))
         # the first message of a type has rosbags build its serialiser: before the clock starts
         self._state(self.sim.outputs(), 0, markers=True)
-        self._latched(0)
+        self._latched(params, 0)
         self._diagnostics(0)
 
     # --- start and finish ---------------------------------------------------------------
@@ -122,26 +122,29 @@ class LiveRun:
                 if outlet.recorded:
                     self.recording.write(outlet.topic, log_ns, data)
 
-    def _latched(self, now_ns: int) -> list[tuple[Outlet, bytes]]:
-        """The URDF of the current parameters for robot_description, and its fixed frames for /tf_static."""
-        description = urdf(self.sim.params)
-        self._joints = joints(description)
+    @staticmethod
+    def _latched(params: Parameters, now_ns: int) -> tuple[list[tuple[Outlet, bytes]], list[Joint]]:
+        """The URDF of ``params`` for robot_description and its fixed frames for /tf_static;
+        and its joints."""
+        description = urdf(params)
+        urdf_joints = joints(description)
         string = to_cdr(message("std_msgs/msg/String", data=description))
-        return [(DESCRIPTION, string), (TF_STATIC, static_frames(self._joints, now_ns))]
+        return [(DESCRIPTION, string), (TF_STATIC, static_frames(urdf_joints, now_ns))], urdf_joints
 
     def publish_description(self) -> None:
         """robot_description and /tf_static, at the start and after a parameter change."""
         now = self.clock.now_ns()
-        self._out(self._latched(now), now)
+        latched, self._joints = self._latched(self.sim.params, now)
+        self._out(latched, now)
 
     def resend_latched(self, topic: str) -> None:
         """A client subscribed to a latched topic: send its last message again (as transient
-        local does; the bag has it once, from when it was published)."""
-        with self.lock:
-            now = self.clock.now_ns()
-            for outlet, data in self._latched(now):
-                if outlet.topic == topic:
-                    self.sink(outlet, data, now)
+        local does; the bag has it once, from when it was published). Without the lock: the
+        server calls this from its own threads, and the parameters are one immutable object."""
+        now = self.clock.now_ns()
+        for outlet, data in self._latched(self.sim.params, now)[0]:
+            if outlet.topic == topic:
+                self.sink(outlet, data, now)
 
     def _state(self, out: dict[str, float], stamp_ns: int, markers: bool) -> list[tuple[Outlet, bytes]]:
         """The messages of the state ``out``: the state topics, the setpoint while the
@@ -270,22 +273,22 @@ class LiveRun:
 
     # --- parameters -------------------------------------------------------------------------
     def get_parameters(self, names: Iterable[str]) -> list[Parameter]:
-        with self.lock:
-            return live_parameters.current(self.sim.params, names)
+        """The parameters named (all for none), as they are now (one immutable object: no lock)."""
+        return live_parameters.current(self.sim.params, names)
 
     def set_parameters(self, requested: list[Parameter]) -> list[Parameter]:
         """Apply a client's set as a whole, or refuse it whole with one line; the values after it."""
         names = [p.name for p in requested]
         try:
             with self.lock:
-                new, _ = live_parameters.checked(self.sim.params, requested)
                 before = self.sim.params
+                new = live_parameters.checked(before, requested)
             if self.sim.jit and (new.mode, new.method) != (before.mode, before.method):
                 warm = Simulator(new, jit=True)  # compile (or load) the new kernels while the run goes on
                 warm.step(0.0, 0)
                 warm.outputs()
             with self.lock:
-                new, _ = live_parameters.checked(self.sim.params, requested)  # against the parameters now
+                new = live_parameters.checked(self.sim.params, requested)  # against the parameters now
                 self._apply(new, names)
         except ConfigError as exc:
             self.notice(2, "parameters", f"parameters not changed: {exc}")
