@@ -170,7 +170,7 @@ def test_bad_input_is_one_line_with_status_2(server, args, says):
 
 def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_path):
     bag = tmp_path / "live_bag"
-    live = LiveServer("--record", str(bag))
+    live = LiveServer("--record", str(bag), "--max-catch-up-s", "10")  # a loaded machine's late ticks catch up
     try:
         with FoxgloveClient(live.port) as client:
             client.subscribe("/drive_state")
@@ -206,3 +206,11 @@ def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_pat
     recorded, repeated = read_drive_states(bag), read_drive_states(again)
     assert len(repeated["q1"]) == len(recorded["q1"])
     assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 0.3 / 100.0  # 0.3 m/s for 1/100 s at most
+
+
+def test_the_parameters_offered_are_the_ones_the_node_declares():
+    pytest.importorskip("rclpy")
+    from boom_hydraulics.live.parameters import OFFERED
+    from boom_hydraulics.ros.node_parameters import MODEL_NAMES
+
+    assert OFFERED == MODEL_NAMES

@@ -20,6 +20,8 @@ from ..model.parameters import from_mapping
 RATE_RANGE = (0.0, 1000.0)
 #: --command-timeout-s's range: the node's command_timeout_s.
 TIMEOUT_RANGE = (0.0, 3600.0)
+#: --max-catch-up-s's range: the node's max_catch_up_s.
+CATCH_UP_RANGE = (0.001, 10.0)
 
 
 def _in_range(option: str, value: float, bounds: tuple[float, float]) -> float:
@@ -45,6 +47,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         port=args.port,
         real_time_factor=_in_range("--rate", args.rate, RATE_RANGE),
         command_timeout_s=_in_range("--command-timeout-s", args.command_timeout_s, TIMEOUT_RANGE),
+        max_catch_up_s=_in_range("--max-catch-up-s", args.max_catch_up_s, CATCH_UP_RANGE),
         record=record,
     )
 
@@ -77,6 +80,14 @@ def add_parser(sub: Any) -> None:
         default=0.0,
         metavar="S",
         help="the valve closes when no command came for S simulated seconds (default 0: it holds the last one)",
+    )
+    live.add_argument(
+        "--max-catch-up-s",
+        type=float,
+        default=0.2,
+        metavar="S",
+        help="the largest backlog a late tick works off; more is dropped, and boom-resim then refuses the bag "
+        "(the node's max_catch_up_s; default 0.2)",
     )
     live.add_argument("--record", metavar="BAG", help="record the bag the node would into this new folder")
     live.set_defaults(handler=cmd_live)

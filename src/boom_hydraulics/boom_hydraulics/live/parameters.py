@@ -1,7 +1,8 @@
 """The model's parameters through the Foxglove protocol's parameters capability.
 
 Every model parameter the node declares (the plant, solver and controller groups; not the
-headless scenario) is a protocol parameter of the same name and value. A client's set is
+headless scenario, nor what no solver reads yet) is a protocol parameter of the same name
+and value; those the schema marks start-only are refused at run time, as the node's are. A client's set is
 checked as a whole, as the node's ``on_set`` checks it (:func:`~..model.parameters.from_mapping`:
 types, ranges, the geometry's cross-checks): either every value of it applies, or none
 does and the run stays as it was, with the one line that says why. A whole number given
@@ -16,10 +17,11 @@ from typing import Any
 from foxglove import Parameter, ParameterType
 
 from ..errors import ConfigError
-from ..model.parameters import NAMES, Parameters, describe, from_mapping, group_of
+from ..model.parameters import NAMES, UNSOLVED, Parameters, describe, from_mapping, group_of
 
-#: The parameters a live run offers: the node's model parameters (not the scenario group).
-OFFERED = tuple(name for name in NAMES if group_of(name) != "scenario")
+#: The parameters a live run offers: the node's model parameters (not the scenario group,
+#: not those no solver reads yet).
+OFFERED = tuple(name for name in NAMES if group_of(name) != "scenario" and name not in UNSOLVED)
 #: rcl_interfaces/msg/ParameterType of each kind, for the bag's /parameter_events.
 ROS_TYPES = {"float": 3, "int": 2, "str": 4, "list": 8}
 
@@ -50,6 +52,10 @@ def checked(params: Parameters, requested: Iterable[Parameter]) -> Parameters:
         if p.name not in OFFERED:
             hint = " (the command_* scenario belongs to boom-sim run)" if p.name in NAMES else ""
             raise ConfigError(f"unknown parameter '{p.name}' for boom-sim live{hint}")
+        if describe(p.name)["start_only"]:
+            raise ConfigError(
+                f"parameter '{p.name}' applies at start only: give it with --set {p.name}=... and start again"
+            )
         value = p.get_value()
         if value is None:
             raise ConfigError(f"parameter '{p.name}' cannot be unset; give it a value")

@@ -125,6 +125,7 @@ def serve(
     port: int = 8765,
     real_time_factor: float = 1.0,
     command_timeout_s: float = 0.0,
+    max_catch_up_s: float = 0.2,
     record: Path | None = None,
     jit: bool | None = None,
 ) -> int:
@@ -147,9 +148,8 @@ def serve(
     run: LiveRun | None = None
     ticks: threading.Thread | None = None
     try:
-        run = LiveRun(
-            params, sink, notify, real_time_factor=real_time_factor, command_timeout_s=command_timeout_s, jit=jit
-        )
+        pace = {"real_time_factor": real_time_factor, "max_catch_up_s": max_catch_up_s}
+        run = LiveRun(params, sink, notify, command_timeout_s=command_timeout_s, jit=jit, **pace)
         server.append(_start_server(run, server, context, host, port))
         run.start(record)
         ticks = threading.Thread(target=_tick_loop, args=(run, stopping, stopped), name="boom_live_ticks", daemon=True)
