@@ -193,10 +193,9 @@ def _start_server(run: LiveRun, server: list[Any], context: foxglove.Context, ho
 
 def _finish(run: LiveRun | None) -> int:
     """Finish the bag and say where it is; 1 if the recording failed (left for boom-bag-recover)."""
+    finished = run.finish() if run is not None else None  # a bag begun, even under a signal, is finished
     if run is None or not run.started:
-        print(f"{PROG}: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
-        return 0
-    finished = run.finish()
+        print(f"{PROG}: stopped while starting" + ("" if finished else "; nothing was recorded"), file=sys.stderr)
     if finished is None:
         return 0
     folder, counts, error = finished
