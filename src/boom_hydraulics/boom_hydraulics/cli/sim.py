@@ -33,7 +33,7 @@ from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
-from . import linearize
+from . import linearize, live
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -207,6 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     description.set_defaults(handler=cmd_urdf)
 
     linearize.register(sub, common, load_parameters)  # boom-sim linearize (cli/linearize.py)
+    live.add_parser(sub)  # boom-sim live (cli/live.py)
     return parser
 
 
