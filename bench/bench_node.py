@@ -34,7 +34,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from boom_hydraulics.ros import messages
+from boom_hydraulics.bags import messages
 from boom_hydraulics.ros import node as node_module
 from boom_hydraulics.ros import recording as recording_module
 from boom_hydraulics.ros.node import BoomSimNode

@@ -202,20 +202,26 @@ def _wait_for(predicate, proc: subprocess.Popen, timeout_s: float = 60.0) -> Non
         time.sleep(0.005)
 
 
-@pytest.mark.parametrize("moment", ["loading", "running"])
-def test_a_ctrl_c_during_start_up_ends_without_a_traceback(moment):
+@pytest.mark.parametrize("moment", ["loading", "starting"])
+def test_a_ctrl_c_during_start_up_ends_without_a_traceback(moment, tmp_path):
     """Whether it lands while the node's modules load (rclpy, numba) and the model compiles,
-    or once the node runs: one line or none, status 0, no traceback. (Before boom_sim's own
-    code runs, Python's start-up is as every console script's.)"""
+    or as its stepping and its bag start (right after its first log line): one line or none,
+    status 0, no traceback, and no bag, or a finished one. (Before boom_sim's own code runs,
+    Python's start-up is as every console script's.)"""
     proc = subprocess.Popen(
-        [BOOM_SIM, "--ros-args", "-p", "record:=false"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        [BOOM_SIM, "--ros-args", "-p", "record:=true", "-p", f"record_folder:={tmp_path}"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     if moment == "loading":
         _wait_for(lambda: _loading_rclpy(proc), proc)
     else:
-        line = proc.stdout.readline()  # its first log line: it runs
+        line = proc.stdout.readline()  # its first log line: start() comes next
         assert " mode, " in line, line
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=60)
     assert "Traceback" not in out and "KeyboardInterrupt" not in out, out
     assert proc.returncode == 0, out
+    bags = list(tmp_path.iterdir())
+    assert len(bags) <= 1 and all((bag / "metadata.yaml").is_file() for bag in bags), (bags, out)

@@ -374,7 +374,6 @@ class BagRecorder:
             raise RecordingError(f"{self.folder}: cannot create the bag folder ({exc.strerror})") from None
         self.file = self.folder / f"{file_stem or self.folder.name}_0.mcap"
         self.custom_data = dict(custom_data or {})
-        self._stream = self._start_file(chunk_size)
         self.flush_s = flush_s
         self.topics: dict[str, Topic] = {}
         self._channels: dict[str, int] = {}
@@ -392,8 +391,13 @@ class BagRecorder:
         self.finished = False
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._closed = False
-        for topic in topics:
-            self.add_topic(topic)
+        try:
+            for topic in topics:
+                self.add_topic(topic)
+        except BaseException:  # an unknown message type, or a signal: no bag folder left behind
+            self.folder.rmdir()
+            raise
+        self._stream = self._start_file(chunk_size)  # last: nothing after it can leave a stray file
         self._thread = threading.Thread(target=self._drain, name="bag_writer", daemon=True)
         self._thread.start()
 
@@ -410,12 +414,14 @@ class BagRecorder:
             if self.custom_data:
                 self._writer.add_metadata(CUSTOM_DATA_RECORD, self.custom_data)
             stream.sync()
-        except OSError as exc:
+        except BaseException as exc:  # a disk failure, or a signal (KeyboardInterrupt) under the start
             if stream is not None:
                 stream.close()
                 self.file.unlink(missing_ok=True)  # created just now, by this call
             self.folder.rmdir()  # likewise, and empty again
-            raise RecordingError(f"{self.file}: cannot start the bag ({exc.strerror or exc})") from None
+            if isinstance(exc, OSError):
+                raise RecordingError(f"{self.file}: cannot start the bag ({exc.strerror or exc})") from None
+            raise
         return stream
 
     @property

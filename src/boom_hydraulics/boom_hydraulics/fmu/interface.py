@@ -3,7 +3,7 @@
 - Inputs: the valve command and the payload mass (held over each communication step).
 - Outputs: rod position, velocity and force, both chamber pressures, boom angle, supply
   power and energy, under the names boom-sim's CSV columns have (model.outputs).
-- Parameters: every numeric plant parameter of the model, with its unit (tunable: a new
+- Parameters: every numeric plant parameter the solvers read, with its unit (tunable: a new
   value applies from the next communication step on), and the solver's method, time step
   and substeps and the initial rod state (fixed: set before initialization).
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..model.outputs import OUTPUTS as MODEL_OUTPUTS
-from ..model.parameters import Parameters, describe, names_in
+from ..model.parameters import UNSOLVED, Parameters, describe, names_in
 from ..solve.integrators import FIXED_STEP
 
 #: The FMU's model identifier: the name of its binary and of its model.
@@ -78,8 +78,9 @@ OUTPUTS = tuple(Variable(name, "output", "float", *_MODEL_OUTPUTS[name]) for nam
 
 #: Parameters that only take effect at initialization: the solver's and the initial rod state.
 FIXED = ("method", "time_step_s", "substeps", "initial_length_m", "initial_velocity_m_s")
-#: Plant parameters that are not FMU parameters: the mode is physical, the payload an input.
-NOT_PARAMETERS = ("mode", PAYLOAD)
+#: Plant parameters that are not FMU parameters: the mode is physical, the payload an input,
+#: and the drives' parameters that no solver reads yet (as the node does not declare them).
+NOT_PARAMETERS = ("mode", PAYLOAD, *UNSOLVED)
 
 
 def _parameter(name: str) -> Variable:

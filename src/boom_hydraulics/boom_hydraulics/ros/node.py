@@ -38,7 +38,6 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -49,20 +48,19 @@ from visualization_msgs.msg import MarkerArray
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
-from ..bags import cdr
+from ..bags import cdr, messages
+from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
+from ..bags.markers import crane_markers
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
-from . import messages
 from . import node_parameters as ros_parameters
 from .clock import ClockMode, Follow, NodeClock
 from .commands import CommandIntake
-from .diagnostics import RunCounts, diagnostics
-from .markers import crane_markers
 from .motion import Motion, Plant
 from .recording import NodeRecording
 
@@ -539,19 +537,14 @@ class BoomSimNode(Node):
             self.recording.publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
         log_ns = stamp_ns if clock.publishes else clock.now_ns()  # when it is published
         p = self.sim.params
-        piston, rod = messages.chamber_pressures(out, stamp_ns)
-        tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
-            (self.state_pub, messages.drive_state(out, stamp_ns)),
-            (self.joint_pub, messages.joint_state(out, stamp_ns, p)),
-            (self.p1_pub, piston),
-            (self.p2_pub, rod),
-            (self.force_pub, messages.rod_force(out, stamp_ns)),
-        ]
+        state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub)
+        # CDR bytes, packed without message objects
+        tick: list[tuple[Any, Any]] = list(zip(state_pubs, messages.state_messages(out, stamp_ns, p)))
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
         self._ticks += 1
         if self._ticks % self._markers_every == 0:
-            tick.append((self.markers_pub, crane_markers(out, Time(nanoseconds=stamp_ns).to_msg(), p)))
+            tick.append((self.markers_pub, crane_markers(out, stamp_ns, p)))
         self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:

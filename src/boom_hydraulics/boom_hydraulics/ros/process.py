@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 from typing import Any
 
 import rclpy
@@ -36,15 +37,55 @@ def _shield_signals() -> None:
         signal.signal(signum, note)
 
 
-def _finish(node: BoomSimNode) -> bool:
+def _finish(node: BoomSimNode, started: bool) -> bool:
     """Stop the loop, finish the bag and say where it is, then leave the ROS graph; False
     when the recording failed (the bag is left for boom-bag-recover)."""
     node.stopping.set()
     if node.loop.is_alive():
         node.loop.join(timeout=5.0)
-    recorded = node.recording.finish()
+    recorded = node.recording.finish(started)
     node.destroy()
     return recorded
+
+
+class _Start(threading.Thread):
+    """``node.start()`` in a thread of its own: a Ctrl-C's KeyboardInterrupt, which only the
+    main thread gets, lands in the main thread's wait for it, and cannot cut the bag's start
+    short (a folder or a file begun and never finished)."""
+
+    def __init__(self, node: BoomSimNode) -> None:
+        super().__init__(name="boom_sim_start", daemon=True)
+        self.node = node
+        self.error: BaseException | None = None
+        # (not join() or is_alive(): in Python 3.11 a join cut short by KeyboardInterrupt can
+        # leave the thread marked as ended while it still runs)
+        self.began, self.ended = threading.Event(), threading.Event()
+
+    def run(self) -> None:
+        self.began.set()
+        try:
+            self.node.start()
+        except BaseException as exc:  # handed to the main thread by wait()
+            self.error = exc
+        finally:
+            self.ended.set()
+
+    def wait(self) -> None:
+        """Wait for the start to end (a signal may interrupt the wait, not the start), and
+        raise what it raised."""
+        self.ended.wait()
+        if self.error is not None:
+            raise self.error
+
+    def finish(self) -> None:
+        """After a signal cut a wait short: let a start that runs end (one the signal kept
+        from being launched at all, within ``start()``, never begins)."""
+        if not self.ended.is_set() and self.began.wait(timeout=1.0):
+            self.ended.wait()
+
+
+def _stopped_while_starting() -> None:
+    print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
 
 
 def main(args: list[str] | None = None) -> None:
@@ -72,24 +113,27 @@ def main(args: list[str] | None = None) -> None:
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
         _shield_signals()
         rclpy.try_shutdown()
-        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        _stopped_while_starting()
         return
     except Exception:
         if rclpy.ok():
             raise
         _shield_signals()  # a signal shut the context down under the start-up: a clean stop too
-        print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+        _stopped_while_starting()
         return
+    started = False
+    start_error: str | None = None
+    start = _Start(node)
     try:
-        node.start()
-    except BoomHydraulicsError as exc:  # the bag cannot be started (a full disk, a read-only folder)
-        node.destroy()
-        rclpy.try_shutdown()
-        print(f"boom_sim: error: {exc}", file=sys.stderr, flush=True)
-        raise SystemExit(1) from None
-    try:
+        start.start()  # (a signal may come during it: the first log line is out before it)
+        start.wait()
+        started = True
         node.motion.spin_in_background()
         rclpy.spin(node)
+    except BoomHydraulicsError as exc:  # the bag cannot be started (a full disk, a read-only folder)
+        if started:
+            raise
+        start_error = str(exc)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -100,8 +144,14 @@ def main(args: list[str] | None = None) -> None:
             raise
     finally:
         _shield_signals()
-        recorded = _finish(node)
+        start.finish()  # a signal came during the start: let it end, then finish what it began
+        recorded = _finish(node, started)
         rclpy.try_shutdown()
+    if start_error is not None:
+        print(f"boom_sim: error: {start_error}", file=sys.stderr, flush=True)
+        raise SystemExit(1)
+    if not started and node.recording.recorder is None:
+        _stopped_while_starting()
     if not recorded:
         raise SystemExit(1)
 

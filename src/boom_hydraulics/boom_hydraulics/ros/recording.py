@@ -77,14 +77,14 @@ class NodeRecording:
         if not self.pending:
             return
         self.pending = False
-        self.recorder = self._open(publishers, custom_data)
+        self._open(publishers, custom_data)
         for topic, data, info in self._early_commands:
             self.received(topic, data, info)
         self._early_commands.clear()
 
-    def _open(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> BagRecorder:
-        """A bag of the given publishers' topics, the parameter changes, and every command
-        received (each command topic once its first publisher shows up)."""
+    def _open(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> None:
+        """Start :attr:`recorder`: a bag of the given publishers' topics, the parameter changes,
+        and every command received (each command topic once its first publisher shows up)."""
         topics = [Topic(p.topic_name, type_name(p.msg_type), (offer_of(p.qos_profile),)) for p in publishers]
         events_qos = offered_qos(depth=qos_profile_parameter_events.depth)
         topics.append(Topic(PARAMETER_EVENTS, type_name(ParameterEvent), (events_qos,)))
@@ -95,14 +95,15 @@ class NodeRecording:
             custom_data=custom_data,
             flush_s=self._flush_s,
         )
+        self.recorder = recorder  # at once: from here on, finish() finishes it, whatever comes
         self.node.get_logger().info(f"recording to {recorder.folder}")
-        return recorder
 
     def publish(self, messages: list[tuple[Any, Any]], log_ns: int) -> None:
-        """Publish (publisher, message) pairs, then record them all: a tick cut short by
-        shutdown leaves no partial tick in the bag. While recording, each message is
-        serialised once, and the bytes published are the bytes recorded. A message given as
-        CDR bytes is published and recorded as those bytes."""
+        """Record (publisher, message) pairs, then publish them all: whatever a subscriber got
+        is in the bag, even when a signal shuts the ROS context down in the middle of a
+        tick's publishing (a tick is recorded whole; only its publishing can be cut short).
+        While recording, each message is serialised once, and the bytes published are the
+        bytes recorded. A message given as CDR bytes is published and recorded as those bytes."""
         if self.recorder is None:
             for publisher, msg in messages:
                 publisher.publish(msg)
@@ -111,9 +112,9 @@ class NodeRecording:
             (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
         ]
         for publisher, data in serialised:
-            publisher.publish(data)
-        for publisher, data in serialised:
             self.recorder.write(publisher.topic_name, log_ns, data)
+        for publisher, data in serialised:
+            publisher.publish(data)
 
     def parameter_event(self, changed_at_ns: int, changed: list[tuple[str, int, Any]]) -> None:
         """Record a parameter change as rclpy announces it on /parameter_events, stamped with
@@ -162,10 +163,11 @@ class NodeRecording:
         self.watch()
         return self.error, str(self.recorder.folder) if self.recorder is not None else ""
 
-    def finish(self) -> bool:
+    def finish(self, started: bool = True) -> bool:
         """Finish the bag and say where it is; False when the recording failed (the bag is
-        left for boom-bag-recover)."""
-        if self.pending:
+        left for boom-bag-recover). ``started``: False when a signal stopped the node before
+        its stepping started (then a bag not yet begun is no surprise to say)."""
+        if self.pending and started:
             print("boom_sim: no bag: /clock never arrived (use_sim_time), so the run never started", flush=True)
         recorder = self.recorder
         if recorder is None:

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis import metrics as analysis
+from ..analysis.linear_model import mid_stroke_modes
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
 from ..solve import commands, stepping, streaming
@@ -28,8 +29,8 @@ from ..solve.simulation import MAX_SUBSTEPS
 from ..solve.streaming import SAMPLE_SIGNALS
 from .sampling import Axis, Spacing, point_count, sample_points
 
-#: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
-METRICS: tuple[tuple[str, str, str], ...] = (
+#: Metric columns a sweep takes from each run: name, unit, meaning (see analysis.metrics).
+STREAMED_METRICS: tuple[tuple[str, str, str], ...] = (
     ("lift_completed", "1", "1 if the boom rose through the lift angle"),
     ("lift_time_s", "s", "time to rise through the lift angle"),
     ("lift_energy_j", "J", "energy drawn from the supply during the lift"),
@@ -51,8 +52,15 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("supply_energy_j", "J", "energy drawn from the supply over the whole run"),
     ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
 )
+assert tuple(m[0] for m in STREAMED_METRICS) == streaming.NAMES, "the streamed metrics are streaming's, in its order"
+#: Metric columns from each point's linear model at mid-stroke, valve centred (analysis.linear_model).
+LINEAR_METRICS: tuple[tuple[str, str, str], ...] = (
+    ("natural_frequency_hz", "Hz", "linear model at mid-stroke, valve centred: the hydraulic mode's natural frequency"),
+    ("linear_damping_ratio", "1", "linear model at mid-stroke, valve centred: the hydraulic mode's damping ratio"),
+)
+#: Metric columns of a sweep table: name, unit, meaning.
+METRICS = STREAMED_METRICS + LINEAR_METRICS
 METRIC_NAMES = tuple(name for name, _, _ in METRICS)
-assert METRIC_NAMES == streaming.NAMES, "a sweep's metrics are those streaming takes, in its order"
 
 #: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
 #: failed (the integration diverged or left the model's geometry), invalid (parameters
@@ -376,20 +384,21 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     n = len(params)
     runs = run_sets(params, batch.duration_s, command, every=batch.every, lift_angle_deg=batch.lift_angle_deg)
     if runs is not None:
-        values = np.column_stack([runs.metrics[name] for name in METRIC_NAMES])
+        values = np.column_stack([runs.metrics[name] for name in streaming.NAMES])
         failed_at, failed_why, last_q1 = runs.failed_at_s, runs.failed_why, runs.last_q1_m
     else:
         signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SAMPLE_SIGNALS)
         failed_at, failed_why = signals["failed_at_s"], signals["failed_why"]
-        values, last_q1 = np.full((n, len(METRIC_NAMES)), np.nan), np.empty(n)
+        values, last_q1 = np.full((n, len(streaming.NAMES)), np.nan), np.empty(n)
         for k in range(n):
             one = {name: signals[name][:, k] for name in SAMPLE_SIGNALS}
             if math.isfinite(failed_at[k]):
                 keep = one["t"] <= failed_at[k]
                 one = {name: column[keep] for name, column in one.items()}
             m = analysis.streamed(one, batch.lift_angle_deg, analysis.move_window(params[k]))
-            values[k] = [m[name] for name in METRIC_NAMES]
+            values[k] = [m[name] for name in streaming.NAMES]
             last_q1[k] = one["q1"][-1]
+    values = np.column_stack([values, *mid_stroke_modes(params)])
     rows: dict[str, list] = {"status": [], "reason": []}
     completed = METRIC_NAMES.index("lift_completed")
     rise = METRIC_NAMES.index("rise_deg")

@@ -12,10 +12,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..bags import cdr
-from ..bags.encoding import drive_state_cdr
 from ..model.kinematics import chain
 from ..model.robot_description import JOINTS
+from . import cdr
+from .encoding import drive_state_cdr
 
 CHAMBER_FRAMES = {"p1": "piston_chamber", "p2": "rod_chamber"}
 ROD_FRAME = "cylinder_rod"  # x along the rod, positive extending
@@ -48,3 +48,10 @@ def chamber_pressures(out: Mapping[str, Any], stamp_ns: int) -> list[bytes]:
 def rod_force(out: Mapping[str, Any], stamp_ns: int) -> bytes:
     """The hydraulic force on the rod (N) as WrenchStamped, force.x along the rod."""
     return cdr.wrench_stamped(stamp_ns, ROD_FRAME, (float(out["f_hyd"]), 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def state_messages(out: Mapping[str, Any], stamp_ns: int, p: Any) -> list[bytes]:
+    """The state of one instant as the node publishes it at every tick, in the order of
+    its topics drive_state, joint_states, piston_pressure, rod_pressure and rod_force."""
+    piston, rod = chamber_pressures(out, stamp_ns)
+    return [drive_state(out, stamp_ns), joint_state(out, stamp_ns, p), piston, rod, rod_force(out, stamp_ns)]
