@@ -34,7 +34,7 @@ from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
-from . import linearize, live
+from . import fmu, linearize, live
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -162,15 +162,6 @@ def cmd_urdf(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_fmu(args: argparse.Namespace) -> int:
-    from ..fmu.export import write_fmu
-
-    params = load_parameters(args)
-    write_fmu(params, Path(args.out))
-    print(f"{args.out}: FMI 2.0 co-simulation FMU of the physical drive, {params.method} dt={params.time_step_s:g} s")
-    return 0
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = RaisingParser(prog="boom-sim", description="Simulate the crane boom's hydraulic drive without ROS.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=RaisingParser)
@@ -218,9 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     linearize.register(sub, common, load_parameters)  # boom-sim linearize (cli/linearize.py)
     live.add_parser(sub)  # boom-sim live (cli/live.py)
-    fmu = sub.add_parser("fmu", help="the physical drive as an FMI 2.0 co-simulation FMU (docs/fmu.md)")
-    common(fmu, "FMU file to write (.fmu)")
-    fmu.set_defaults(handler=cmd_fmu)
+    fmu.register(sub, common, load_parameters)  # boom-sim fmu (cli/fmu.py)
     return parser
 
 
