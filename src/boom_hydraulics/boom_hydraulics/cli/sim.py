@@ -7,6 +7,7 @@
     boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
     boom-sim urdf --config config/default.yaml --out boom_crane.urdf
     boom-sim linearize --config config/default.yaml --rod-length-m 1.37 --controller --out linear
+    boom-sim fmu --config config/default.yaml --out boom_drive.fmu
 
 Errors in arguments, configs or the run print one line and exit non-zero.
 """
@@ -33,7 +34,7 @@ from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
-from . import linearize, live
+from . import fmu, linearize, live
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -208,6 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     linearize.register(sub, common, load_parameters)  # boom-sim linearize (cli/linearize.py)
     live.add_parser(sub)  # boom-sim live (cli/live.py)
+    fmu.register(sub, common, load_parameters)  # boom-sim fmu (cli/fmu.py)
     return parser
 
 
