@@ -21,11 +21,9 @@ import numpy as np
 from ..analysis import metrics as analysis
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
-from ..solve import commands, stepping, streaming
-from ..solve.batch import SHARED, run_sets, simulate_batch
+from ..solve import commands, streaming
+from ..solve.batch import SHARED, run_sets
 from ..solve.integrators import BATCHED
-from ..solve.simulation import MAX_SUBSTEPS
-from ..solve.streaming import SAMPLE_SIGNALS
 from .sampling import Axis, Spacing, point_count, sample_points
 
 #: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
@@ -339,64 +337,25 @@ def _hashable(value: Any) -> Any:
     return tuple(value) if isinstance(value, list) else value
 
 
-def _failure_reason(p: Parameters, failed_at_s: float, why: int, q1_m: float) -> str:
-    low, high = abs(p.b_m - p.a_m), p.a_m + p.b_m
-    if p.mode == "paper" and (q1_m > high - 0.01 or q1_m < low + 0.01):
-        return (
-            f"rod left the valid geometry at t = {failed_at_s:.4g} s (q1 = {q1_m:.4g} m, valid in "
-            f"({low:.4g}, {high:.4g}) m; paper mode has no end stops)"
-        )
-    step = f"time_step_s = {p.time_step_s:g} s with {p.method}"
-    if why == stepping.TOO_STIFF:
-        return (
-            f"too stiff at t = {failed_at_s:.4g} s: a stable {step} needs more than "
-            f"{MAX_SUBSTEPS} substeps (last q1 = {q1_m:.4g} m)"
-        )
-    if why == stepping.ENERGY:
-        return (
-            f"energy balance broken at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
-            f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
-        )
-    return (
-        f"state became non-finite at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
-        f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
-    )
-
-
 def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     """Integrate the points of ``batch`` together; one table row per point.
 
     Columns: ``point``, ``status``, ``reason``, ``failed_at_s`` and :data:`METRIC_NAMES`. The
-    compiled kernel takes the metrics while it integrates (batch.run_sets); without numba, the
-    numpy batch stores the signals and the same metrics are taken from them. A point that
-    fails stops where it failed; its metrics cover the run up to then.
+    run loop takes the metrics while it integrates (batch.run_sets: the compiled run kernel
+    in parallel where numba is available, else the same loop interpreted). A point that fails
+    stops where it failed, with the run's reason (outcomes.message); its metrics cover the run
+    up to then.
     """
     params = batch.params
     command = commands.for_batch(params)
-    n = len(params)
     runs = run_sets(params, batch.duration_s, command, every=batch.every, lift_angle_deg=batch.lift_angle_deg)
-    if runs is not None:
-        values = np.column_stack([runs.metrics[name] for name in METRIC_NAMES])
-        failed_at, failed_why, last_q1 = runs.failed_at_s, runs.failed_why, runs.last_q1_m
-    else:
-        signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SAMPLE_SIGNALS)
-        failed_at, failed_why = signals["failed_at_s"], signals["failed_why"]
-        values, last_q1 = np.full((n, len(METRIC_NAMES)), np.nan), np.empty(n)
-        for k in range(n):
-            one = {name: signals[name][:, k] for name in SAMPLE_SIGNALS}
-            if math.isfinite(failed_at[k]):
-                keep = one["t"] <= failed_at[k]
-                one = {name: column[keep] for name, column in one.items()}
-            m = analysis.streamed(one, batch.lift_angle_deg, analysis.move_window(params[k]))
-            values[k] = [m[name] for name in METRIC_NAMES]
-            last_q1[k] = one["q1"][-1]
+    values = np.column_stack([runs.metrics[name] for name in METRIC_NAMES])
     rows: dict[str, list] = {"status": [], "reason": []}
     completed = METRIC_NAMES.index("lift_completed")
     rise = METRIC_NAMES.index("rise_deg")
-    for k in range(n):
-        if math.isfinite(failed_at[k]):
+    for k, reason in enumerate(runs.reasons):
+        if reason is not None:
             status = "failed"
-            reason = _failure_reason(params[k], float(failed_at[k]), int(failed_why[k]), float(last_q1[k]))
         elif not values[k, completed]:
             status = "incomplete"
             reason = f"rose {values[k, rise]:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"
@@ -408,7 +367,7 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
         "point": np.array(batch.points, dtype=np.int64),
         "status": np.array(rows["status"], dtype=str),
         "reason": np.array(rows["reason"], dtype=str),
-        "failed_at_s": np.asarray(failed_at, dtype=float),
+        "failed_at_s": np.asarray(runs.failed_at_s, dtype=float),
     }
     for j, name in enumerate(METRIC_NAMES):
         out[name] = values[:, j]
