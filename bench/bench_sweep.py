@@ -38,7 +38,7 @@ AXES = [parse_axis("piston_diameter=0.032:0.1:40"), parse_axis("payload=0:200:25
 
 
 def sweep_plan(points: int, batch_size: int) -> sweep.Plan:
-    plan = sweep.plan([("default", Parameters())], AXES, duration_s=DURATION_S, batch_size=batch_size)
+    plan = sweep.plan(sweep.request([("default", Parameters())], AXES, duration_s=DURATION_S, batch_size=batch_size))
     keep = [b for b in plan.batches if b.points[0] < points]
     return sweep.Plan(plan.request, plan.columns, plan.points, plan.invalid, tuple(keep))
 

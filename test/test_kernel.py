@@ -59,7 +59,7 @@ def test_the_run_kernel_the_loop_over_compiled_steps_and_the_interpreted_loop_ag
 
 def test_a_sweep_without_numba_gives_the_compiled_sweeps_table(monkeypatch):
     axes = [parse_axis("piston_diameter=0.04,0.063"), parse_axis("payload=0,150")]
-    plan = sweep.plan([("default", Parameters())], axes, duration_s=1.5, lift_angle_deg=10.0)
+    plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=1.5, lift_angle_deg=10.0))
     (batch,) = plan.batches
     compiled = sweep.run_batch(batch)
     monkeypatch.setenv("BOOM_HYDRAULICS_JIT", "0")

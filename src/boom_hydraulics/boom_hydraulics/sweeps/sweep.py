@@ -1,11 +1,11 @@
 """Design sweeps: many parameter sets driven through one valve scenario, in batches.
 
-:func:`plan` turns base configs, axes and a scenario into points and batches; every
-batch holds points that can be integrated together (same mode, method, time step,
-substeps and valve command, see :mod:`batch`). :func:`run_batch` integrates one batch
-and returns one table row per point: the metrics of :mod:`analysis` plus a status
-and, where a point did not lift as asked, the reason. A batch is a plain picklable
-value, so it runs the same in this process or on a Dask worker.
+:func:`request` checks what a sweep is asked (base configs, axes, a scenario, ...) and
+:func:`plan` turns it into points and batches; every batch holds points that can be
+integrated together (same mode, method, time step, substeps and valve command, see
+:mod:`batch`). :func:`run_batch` integrates one batch and returns one table row per point:
+the metrics of :mod:`analysis` plus a status and, where a point did not lift as asked, the
+reason. A batch is a plain picklable value, so it runs the same in this process or on a Dask worker.
 """
 
 from __future__ import annotations
@@ -235,6 +235,37 @@ def _bases(configs: Sequence[tuple[str, Parameters]], scenario: str, duration_s:
     return bases
 
 
+@dataclass(frozen=True)
+class Request:
+    """What a sweep is asked, checked (:func:`request`), before a point is planned (:func:`plan`)."""
+
+    configs: tuple[tuple[str, Parameters], ...]  # (name, parameters) with the scenario's valve command
+    axes: tuple[Axis, ...]
+    scenario: str
+    duration_s: float
+    sample: str
+    count: int
+    seed: int
+    lift_angle_deg: float
+    every: int
+    batch_size: int
+
+    def as_json(self) -> dict[str, Any]:
+        """The request, JSON-able, as the sweep's folder keeps it (to match it when resuming)."""
+        return {
+            "configs": {name: as_dict(base) for name, base in self.configs},
+            "axes": [a.as_request() for a in self.axes],
+            "sample": self.sample,
+            "count": self.count,
+            "seed": self.seed,
+            "scenario": self.scenario,
+            "duration_s": self.duration_s,
+            "lift_angle_deg": self.lift_angle_deg,
+            "every": self.every,
+            "batch_size": self.batch_size,
+        }
+
+
 def request(
     configs: Sequence[tuple[str, Parameters]],
     axes: Sequence[Axis],
@@ -247,9 +278,10 @@ def request(
     lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
     every: int = 1,
     batch_size: int = 1000,
-) -> dict[str, Any]:
-    """What a sweep is asked, JSON-able, as :func:`plan` keeps it; checked, and found without
-    planning a point, so that a sweep folder can be matched against it before any planning."""
+) -> Request:
+    """What a sweep is asked, checked, and found without planning a point, so that a sweep
+    folder can be matched against it before any planning. ``configs`` are (name, parameters)
+    pairs; with more than one, the config name is a column of the table."""
     if not configs:
         raise ConfigError("a sweep needs at least one config")
     check_duration(duration_s)
@@ -260,52 +292,27 @@ def request(
     names = [name for name, _ in configs]
     if len(set(names)) != len(names):
         raise ConfigError(f"two configs share the name {names}; give the files different names")
-    return {
-        "configs": {name: as_dict(base) for name, base in _bases(configs, scenario, duration_s)},
-        "axes": [a.as_request() for a in axes],
-        "sample": sample,
-        "count": count,
-        "seed": seed,
-        "scenario": scenario,
-        "duration_s": duration_s,
-        "lift_angle_deg": lift_angle_deg,
-        "every": every,
-        "batch_size": batch_size,
-    }
+    bases = tuple(_bases(configs, scenario, duration_s))
+    return Request(bases, tuple(axes), scenario, duration_s, sample, count, seed, lift_angle_deg, every, batch_size)
 
 
-def plan(
-    configs: Sequence[tuple[str, Parameters]],
-    axes: Sequence[Axis],
-    *,
-    scenario: str = "lift",
-    duration_s: float = 5.0,
-    sample: str = "grid",
-    count: int = 0,
-    seed: int = 0,
-    lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
-    every: int = 1,
-    batch_size: int = 1000,
-) -> Plan:
-    """The points of ``axes`` (sampled by ``sample``) over every base config, driven by ``scenario``.
+def plan(asked: Request) -> Plan:
+    """The points of the request's axes (sampled by its ``sample``) over every base config,
+    driven by its scenario.
 
-    ``configs`` are (name, parameters) pairs; with more than one, the config name is a
-    column of the table. Points whose parameters are invalid (a rod wider than its
-    piston, say) are kept with the reason and not run. A sweep that cannot be held in
-    memory is refused before any point is planned (:func:`check_fits`).
+    Points whose parameters are invalid (a rod wider than its piston, say) are kept with the
+    reason and not run. A sweep that cannot be held in memory is refused before any point is
+    planned (:func:`check_fits`).
     """
-    asked = request(
-        configs, axes, scenario=scenario, duration_s=duration_s, sample=sample, count=count, seed=seed,
-        lift_angle_deg=lift_angle_deg, every=every, batch_size=batch_size,
-    )  # fmt: skip
-    check_fits(estimate(configs, axes, duration_s=duration_s, sample=sample, count=count, batch_size=batch_size))
-    bases = _bases(configs, scenario, duration_s)
-    samples = sample_points(axes, sample, count, seed)
+    configs, axes = asked.configs, asked.axes
+    check_fits(estimate(configs, axes, duration_s=asked.duration_s, sample=asked.sample, count=asked.count,
+                        batch_size=asked.batch_size))  # fmt: skip
+    samples = sample_points(axes, asked.sample, asked.count, asked.seed)
     columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
     points: list[dict[str, Any]] = []
     invalid: dict[int, str] = {}
     groups: dict[tuple, list[tuple[int, Parameters]]] = {}
-    for base_name, base in bases:
+    for base_name, base in configs:
         for values in samples:
             index = len(points)
             points.append({"config": base_name, **values} if len(configs) > 1 else dict(values))
@@ -318,19 +325,19 @@ def plan(
             groups.setdefault(key, []).append((index, params))
     batches = []
     for members in groups.values():
-        for start in range(0, len(members), batch_size):
-            chunk = members[start : start + batch_size]
+        for start in range(0, len(members), asked.batch_size):
+            chunk = members[start : start + asked.batch_size]
             batches.append(
                 Batch(
                     index=len(batches),
                     points=tuple(i for i, _ in chunk),
                     params=tuple(p for _, p in chunk),
-                    duration_s=duration_s,
-                    every=every,
-                    lift_angle_deg=lift_angle_deg,
+                    duration_s=asked.duration_s,
+                    every=asked.every,
+                    lift_angle_deg=asked.lift_angle_deg,
                 )
             )
-    return Plan(asked, columns, tuple(points), invalid, tuple(batches))
+    return Plan(asked.as_json(), columns, tuple(points), invalid, tuple(batches))
 
 
 def _hashable(value: Any) -> Any:
