@@ -184,21 +184,23 @@ class Simulator:
             try:
                 done, outcome, most, y = self._run(self.t, self.y, self.constants, *rest)
             except MODEL_ERRORS as exc:  # math.acos/sqrt outside their domain: a stage left eq. 1
+                for _ in range(steps if steps > 1 else 0):  # which step: one at a time (bit for bit the same)
+                    self.step(u, 1)
                 raise SimulationError(evaluation_message(p, self.t, self.y, exc)) from None
         self._moved(y, int(done))
         self.u = u
+        if not within_triangle(self.y[0], p.a_m, p.b_m):  # a step left the geometry: it is not taken
+            self.y, self.step_count = before
+            self._moved(self.y, 0)
+            if done > 1:  # which one it is: the steps before it again (bit for bit the same), then it
+                self.step(u, int(done) - 1)
+                self.step(u, 1)
+            raise SimulationError(message(p, OUT_OF_GEOMETRY, self.t, self.y))
         if outcome == TOO_STIFF:
             raise SimulationError(message(p, TOO_STIFF, self.t, self.y, int(most)))
         self.most_substeps = max(self.most_substeps, int(most))
         if outcome != OK:
             raise SimulationError(message(p, outcome, self.t, self.y))
-        if not within_triangle(self.y[0], p.a_m, p.b_m):
-            self.y, self.step_count = before  # the step that leaves the geometry is not taken
-            self._moved(self.y, 0)
-            if steps > 1:  # which one it is: the others again (the same steps, bit for bit), then it
-                self.step(u, steps - 1)
-                self.step(u, 1)
-            raise SimulationError(message(p, OUT_OF_GEOMETRY, self.t, self.y))
 
     def outputs(self) -> dict[str, float]:
         """Every output (see :data:`OUTPUTS`) at the current state and command (compiled, the
