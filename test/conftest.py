@@ -3,17 +3,20 @@ pytest-xdist the compiled kernels are built once before the workers start."""
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import io
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from importlib.metadata import entry_points
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import pytest
 
@@ -55,18 +58,35 @@ if "PYTEST_XDIST_WORKER" in os.environ or "ROS_DOMAIN_ID" not in os.environ:
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 
-#: What builds every compiled kernel the suite uses, two lanes run side by side: each a list of
-#: command lines run through the real tools (so the kernels get the types the tests give them).
+#: What the node compiles at its start (ros/node.py warms a new model or method the same way):
+#: the Simulator's stepping kernel and its outputs, through a step of none and the outputs.
+STEPPING = (
+    "import sys\n"
+    "from boom_hydraulics.model import config\n"
+    "from boom_hydraulics.model.parameters import with_updates\n"
+    "from boom_hydraulics.solve.simulation import Simulator\n"
+    "sim = Simulator(with_updates(config.load(sys.argv[1]), method=sys.argv[2]), jit=True)\n"
+    "sim.step(0.0, 0)\n"
+    "sim.outputs()\n"
+)
+
+#: What builds every compiled kernel the suite uses, two lanes run side by side, each kernel
+#: in one lane only (two processes compiling one kernel at once do the work twice): the
+#: whole-run kernels through the real tools (so the kernels get the types the tests give
+#: them), the stepping kernels as the node builds them (:data:`STEPPING`).
 WARM_UP_LANES = (
-    (
+    (  # the physical model's rk4 run kernel, its stepping (rk4, euler) and its outputs
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01"),
+        ("stepping", CONFIG / "default.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--target-angle-deg", "5"),
-        ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
+        ("boom-sweep", "--duration", "0.2", "--vary", "piston_diameter=0.05,0.06", "--no-plots", "--no-progress"),
+        ("stepping", CONFIG / "default.yaml", "euler"),
     ),
-    (
+    (  # the paper model's, the physical model's euler run kernel and ros2 stepping
+        ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
+        ("stepping", CONFIG / "paper_fig8.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "euler"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "ros2"),
-        ("boom-sweep", "--duration", "0.2", "--vary", "piston_diameter=0.05,0.06", "--no-plots", "--no-progress"),
     ),
 )
 
@@ -75,11 +95,16 @@ def _warm_up_lane(commands: tuple[tuple, ...], folder: Path) -> list[str]:
     """Run one lane's commands in turn; what failed (the tests then compile for themselves)."""
     failed = []
     for n, (tool, *args) in enumerate(commands):
-        exe = shutil.which(tool)
-        out = folder / f"{tool}-{n}"
-        argv = [exe, *map(str, args), "--out", str(out if tool == "boom-sweep" else out.with_suffix(".csv"))]
-        if exe is None or subprocess.run(argv, capture_output=True, text=True).returncode != 0:
-            failed.append(" ".join(argv[1:]) if exe else f"{tool} (not on PATH)")
+        if tool == "stepping":
+            argv = [sys.executable, "-c", STEPPING, *map(str, args)]
+        elif (exe := shutil.which(tool)) is None:
+            failed.append(f"{tool} (not on PATH)")
+            continue
+        else:
+            out = folder / f"{tool}-{n}"
+            argv = [exe, *map(str, args), "--out", str(out if tool == "boom-sweep" else out.with_suffix(".csv"))]
+        if subprocess.run(argv, capture_output=True, text=True).returncode != 0:
+            failed.append(" ".join(map(str, [tool, *args])))
     return failed
 
 
@@ -110,34 +135,81 @@ def python_exe() -> str:
 BOOM_SIM = shutil.which("boom_sim")
 
 
-def start_node(*params: str, config_file: str = "default.yaml", record: bool = False) -> subprocess.Popen:
-    """boom_sim through its real entry point, with ``-p`` parameters; recording off unless asked."""
-    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
+def start_node(
+    *params: str, config_file: str | None = "default.yaml", record: bool = False, ros_args: Sequence[str] = ()
+) -> subprocess.Popen:
+    """boom_sim through its real entry point, with ``ros_args`` (``-r`` remaps), the params file
+    from config/ (None: none) and ``-p`` parameters; recording off unless asked. The node holds
+    this process's DDS domain claim as long as it runs (the lock's file descriptor is passed on),
+    so a node that outlives its test process keeps the domain from another run's tests."""
+    args = [BOOM_SIM, "--ros-args", *ros_args]
+    if config_file is not None:
+        args += ["--params-file", str(CONFIG / config_file)]
     if not record:
         args += ["-p", "record:=false"]
     for p in params:
         args += ["-p", p]
-    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    claims = tuple(lock.fileno() for lock in _domain_claim)
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, pass_fds=claims)
 
 
 def stop_process(proc: subprocess.Popen) -> str:
-    """SIGINT (as Ctrl-C), a kill if it has not ended within 10 s; what it printed, if piped."""
+    """SIGINT (as Ctrl-C), a kill if it has not ended within 30 s; what it printed, if piped."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
         try:
-            proc.wait(timeout=10)
+            proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
     return proc.stdout.read() if proc.stdout and not proc.stdout.closed else ""
 
 
+class Nodes:
+    """The boom_sim processes of one test (:func:`start_node`), each stopped after the test
+    however it ends: a node left running would answer the next test in this DDS domain."""
+
+    def __init__(self) -> None:
+        self.started: list[subprocess.Popen] = []
+
+    def start(self, *params: str, **options: Any) -> subprocess.Popen:
+        proc = start_node(*params, **options)
+        self.started.append(proc)
+        return proc
+
+    def stop_all(self) -> None:
+        for proc in self.started:
+            stop_process(proc)
+
+
 @pytest.fixture
-def node() -> Iterator[subprocess.Popen]:
+def nodes() -> Iterator[Nodes]:
+    """Start nodes in a test with ``nodes.start(...)`` (as :func:`start_node`); all stopped after it."""
+    started = Nodes()
+    yield started
+    started.stop_all()
+
+
+@pytest.fixture
+def node(nodes: Nodes) -> subprocess.Popen:
     """boom_sim (default config, 0.5 s command timeout, no recording), stopped after the test."""
-    proc = start_node("command_timeout_s:=0.5")
-    yield proc
-    stop_process(proc)
+    return nodes.start("command_timeout_s:=0.5")
+
+
+def run_tool(tool: str, *args: object, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """A command-line tool's ``main`` (its console script's entry point) run in this process,
+    as its console script runs it (``sys.exit(main(argv))``): the exit status and what it
+    printed, without the seconds of imports a new interpreter takes. The real console scripts
+    are the tests' that send signals, start nodes or check what a new process does."""
+    (entry,) = entry_points(group="console_scripts", name=tool)
+    argv = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), contextlib.chdir(cwd or os.getcwd()):
+        try:
+            code = entry.load()(argv)
+        except SystemExit as stop:  # argparse's --help
+            code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    return subprocess.CompletedProcess([tool, *argv], code, out.getvalue(), err.getvalue())
 
 
 @pytest.fixture(scope="module")
