@@ -204,11 +204,14 @@ def run_tool(tool: str, *args: object, cwd: Path | None = None) -> subprocess.Co
     (entry,) = entry_points(group="console_scripts", name=tool)
     argv = [str(a) for a in args]
     out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), contextlib.chdir(cwd or os.getcwd()):
-        try:
+    saved_argv, sys.argv = sys.argv, [tool, *argv]  # a program names itself after argv[0]
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), contextlib.chdir(cwd or os.getcwd()):
             code = entry.load()(argv)
-        except SystemExit as stop:  # argparse's --help
-            code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    except SystemExit as stop:  # argparse's --help
+        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    finally:
+        sys.argv = saved_argv
     return subprocess.CompletedProcess([tool, *argv], code, out.getvalue(), err.getvalue())
 
 
