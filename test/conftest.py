@@ -12,7 +12,8 @@ import signal
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -125,6 +126,20 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         reporter = config.pluginmanager.get_plugin("terminalreporter")
         if reporter is not None:
             reporter.write_line("kernel warm-up: failed (the tests compile for themselves): " + "; ".join(failed))
+
+
+#: How long a wait for an event may take before the test fails, s: a guard, never a duration a
+#: passing test waits (on a machine at load 15 a node took over 30 s to start).
+GUARD_S = 120.0
+
+
+def wait_for(condition: Callable[[], object], what: str, guard_s: float = GUARD_S) -> None:
+    """Wait until ``condition()`` is true (an event: a thread's or another process's work),
+    polling every 10 ms; fail naming ``what`` if it is not within the guard."""
+    deadline = time.monotonic() + guard_s
+    while not condition():
+        assert time.monotonic() < deadline, f"{what}: not within {guard_s:g} s"
+        time.sleep(0.01)
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ import time
 from collections.abc import Callable
 
 import rclpy
+from conftest import GUARD_S
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -16,11 +17,6 @@ from std_srvs.srv import SetBool
 
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
-
-
-#: How long a wait for an event may take before the test fails, s: a guard, never a duration a
-#: passing test waits (on a machine at load 15 a node took over 30 s to start).
-GUARD_S = 120.0
 
 
 class Client:
