@@ -211,6 +211,57 @@ def node(nodes: Nodes) -> subprocess.Popen:
     return nodes.start("command_timeout_s:=0.5")
 
 
+#: The opening :func:`node_at_rest` sends until the node acts on it: too small to move the boom.
+HANDSHAKE_OPENING = 1e-6
+
+#: What the tests of a shared node start it with and put back before each (:func:`node_at_rest`).
+SHARED_NODE_START = {"payload_mass_kg": 50.0, "command_timeout_s": 0.5}  # (config/default.yaml's payload)
+
+
+@pytest.fixture(scope="class")
+def shared_node(ros_context) -> Iterator[subprocess.Popen]:
+    """One boom_sim (default config, no recording, :data:`SHARED_NODE_START`) for the tests of a
+    class, which take it through :func:`node_at_rest`: the tests of a class run one after the
+    other on one worker, and no other /boom_sim runs meanwhile (the class's node is stopped
+    before the file's next test). Stopped with SIGTERM, as a launch system stops a node, which
+    must end it with status 0."""
+    proc = start_node(*(f"{name}:={value}" for name, value in SHARED_NODE_START.items()))
+    yield proc
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        status = proc.wait(timeout=GUARD_S)
+    finally:
+        out = stop_process(proc)
+    assert status == 0, f"the shared node ended with status {status} on SIGTERM: {out}"
+
+
+@pytest.fixture
+def node_at_rest(shared_node: subprocess.Popen, client) -> subprocess.Popen:
+    """The class's shared node as a test finds a node it started itself: running, with the
+    start parameters, acting on this test's commands (DDS discovery done both ways: a node just
+    started takes longer to start than discovery takes), at rest (~/reset: valve closed, goals
+    ended), publishing."""
+    from std_srvs.srv import SetBool
+
+    from boom_hydraulics_msgs.srv import Reset
+
+    assert shared_node.poll() is None, f"the shared node has ended: {stop_process(shared_node)}"
+    assert client.call(client.pause, SetBool.Request(data=False)).success
+    for name, value in SHARED_NODE_START.items():
+        assert client.set_parameter(name, value).successful, name
+
+    def acted_on() -> bool:  # the node has found this client's publisher: it acts on its commands
+        client.command(HANDSHAKE_OPENING)
+        return client.spin_until(lambda: bool(client.states) and client.last().valve_command == HANDSHAKE_OPENING, 0.2)
+
+    assert client.spin_until(acted_on), "the shared node never acted on a command of this test's"
+    assert client.call(client.reset, Reset.Request()).success
+    client.states.clear()
+    assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the shared node"
+    return shared_node
+
+
 def run_tool(tool: str, *args: object, cwd: Path | None = None) -> subprocess.CompletedProcess:
     """A command-line tool's ``main`` (its console script's entry point) run in this process,
     as its console script runs it (``sys.exit(main(argv))``): the exit status and what it
