@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 import yaml
-from conftest import BOOM_SIM, start_node
+from conftest import BOOM_SIM
 
 rclpy = pytest.importorskip("rclpy")
 from bag_checks import check_bag  # noqa: E402
@@ -40,10 +40,10 @@ def _offers(info: dict, topic: str) -> list[tuple[str, str]]:
 
 
 @pytest.mark.parametrize("publish_clock", [False, True])
-def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(client, tmp_path, publish_clock):
+def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(nodes, client, tmp_path, publish_clock):
     """Log time is when a command was received; its stamp stays inside; QoS is what was offered."""
     params = [f"record_folder:={tmp_path}", "command_timeout_s:=0.0", f"publish_clock:={str(publish_clock).lower()}"]
-    proc = start_node(*params, record=True)
+    proc = nodes.start(*params, record=True)
     array_pub = client.node.create_publisher(
         Float64MultiArray, "commands", QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
     )
@@ -76,9 +76,9 @@ def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(client, tmp
     assert all(abs(log_ns * 1e-9 - now) < 20.0 for log_ns, _ in kept)  # logged when received
 
 
-def test_a_live_bag_is_refused_and_a_killed_one_recovered_from_its_first_seconds(client, tmp_path):
+def test_a_live_bag_is_refused_and_a_killed_one_recovered_from_its_first_seconds(nodes, client, tmp_path):
     """Default chunks (1 MiB) fill in minutes; the 1 s flush bound is what keeps data."""
-    proc = start_node(f"record_folder:={tmp_path}", record=True)
+    proc = nodes.start(f"record_folder:={tmp_path}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) >= 300, timeout=30)  # 3 s of states
         (bag,) = tmp_path.iterdir()
@@ -115,8 +115,8 @@ def test_help_prints_the_parameters_and_starts_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []  # no bags/ folder, no node
 
 
-def test_resting_on_an_end_stop_is_normal(client):
-    proc = start_node("initial_length_m:=1.05")  # the lower end stop
+def test_resting_on_an_end_stop_is_normal(nodes, client):
+    proc = nodes.start("initial_length_m:=1.05")  # the lower end stop
     try:
         assert client.spin_until(
             lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), timeout=20
@@ -128,9 +128,9 @@ def test_resting_on_an_end_stop_is_normal(client):
     assert resting.level == b"\x00", out
 
 
-def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(client):
+def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(nodes, client):
     """The pacing restarts with any parameter change: the step count means another time."""
-    proc = start_node()
+    proc = nodes.start()
     try:
         assert client.spin_until(lambda: len(client.states) > 50)  # half a second at 1 ms steps
         assert client.set_parameter("time_step_s", 0.002).successful

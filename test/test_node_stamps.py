@@ -53,8 +53,8 @@ def _states(bag: Path) -> list[tuple[int, float, float]]:
     return rows
 
 
-def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(client, tmp_path):
-    proc = start_node(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
+def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(nodes, client, tmp_path):
+    proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)  # discovery both ways
@@ -89,8 +89,8 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(clien
     assert max(abs(a - b) for a, b in common) < 1e-6
 
 
-def test_a_stale_command_is_refused_with_the_reason_and_counted(client, tmp_path):
-    proc = start_node("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
+def test_a_stale_command_is_refused_with_the_reason_and_counted(nodes, client, tmp_path):
+    proc = nodes.start("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)
