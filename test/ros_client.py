@@ -40,13 +40,24 @@ class Client:
         self.set_params = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
         self.get_params = self.node.create_client(GetParameters, f"{node_name}/get_parameters")
 
-    def spin_until(self, predicate: Callable[[], bool], timeout: float = GUARD_S) -> bool:
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = GUARD_S, opening: float | None = None) -> bool:
+        """Spin until ``predicate()`` (an event), publishing ``opening`` at about 50 Hz if given;
+        False if the guard ``timeout`` passes first."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if predicate():
                 return True
+            if opening is not None:
+                self.command(opening)
             rclpy.spin_once(self.node, timeout_sec=0.02)
         return predicate()
+
+    def acting_on(self, opening: float, valve_command: float | None = None) -> bool:
+        """Publish ``opening`` until the node's state shows it acts on it (its valve_command is
+        ``valve_command``, default ``opening``): an event, where a stretch of simulated time
+        would be a guess at how late the command arrives on a loaded machine."""
+        expected = opening if valve_command is None else valve_command
+        return self.spin_until(lambda: bool(self.states) and self.last().valve_command == expected, opening=opening)
 
     def spin_for(self, seconds: float, opening: float | None = None) -> None:
         """Spin, publishing ``opening`` at 50 Hz if given."""

@@ -34,9 +34,11 @@ class TestOneRunningNode:
         q0, alpha0 = client.last().rod_position_m, client.last().boom_angle_rad
         client.spin_sim(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
         assert abs(client.last().rod_position_m - q0) < 5e-4
+        assert client.acting_on(1.0)
         client.spin_sim(1.0, opening=1.0)
         up = client.last()
         assert up.rod_position_m > q0 + 0.05 and up.boom_angle_rad > alpha0 + 0.1
+        assert client.acting_on(-1.0)
         client.spin_sim(1.0, opening=-1.0)
         down = client.last()
         assert down.rod_position_m < up.rod_position_m - 0.05
@@ -51,7 +53,7 @@ class TestOneRunningNode:
         assert len(matched) > 10 and all(a == b for a, b in matched)
 
     def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(self, node_at_rest, client):
-        client.spin_sim(0.3, opening=0.8)
+        assert client.acting_on(0.8)
         client.spin_sim(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
         assert client.last().valve_command == pytest.approx(0.8)
         assert client.last().rod_velocity_m_s > 0.02
@@ -60,8 +62,8 @@ class TestOneRunningNode:
         assert node_at_rest.poll() is None  # still running
 
     def test_out_of_range_opening_is_clamped(self, node_at_rest, client):
-        client.spin_sim(0.3, opening=7.0)
-        assert client.last().valve_command == 1.0
+        assert client.acting_on(7.0, valve_command=1.0)
+        assert max(s.valve_command for s in client.states) == 1.0
 
     def test_bad_parameter_is_refused_with_a_reason_and_a_good_one_applies(self, node_at_rest, client):
         bad = client.set_parameter("rod_diameter_m", 0.05)
@@ -99,15 +101,14 @@ class TestOneRunningNode:
         assert client.call(client.pause, SetBool.Request(data=False)).success
 
     def test_diagnostics_report_the_end_stop(self, node_at_rest, client):
-        client.spin_sim(3.5, opening=1.0)  # drive into the upper end stop (about 2 s away)
-        assert client.last().at_end_stop
+        assert client.spin_until(lambda: client.last().at_end_stop, opening=1.0)  # the upper stop, about 2 s away
         assert client.spin_until(  # diagnostics come at 1 Hz
-            lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), timeout=30
+            lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), opening=1.0
         )
 
     def test_command_timeout_changed_at_run_time_takes_effect(self, node_at_rest, client):
         assert client.set_parameter("command_timeout_s", 0.0).successful  # never close by itself
-        client.spin_sim(0.3, opening=0.6)
+        assert client.acting_on(0.6)
         client.spin_sim(1.0)  # no commands for twice the start value of 0.5 s
         assert client.last().valve_command == pytest.approx(0.6)
 

@@ -140,7 +140,7 @@ class TestMovesOnOneNode:
     def test_a_valve_command_overrides_and_aborts_the_goal(self, mover, client):
         handle = mover.send(math.radians(50.0))
         client.spin_sim(0.5)
-        client.spin_sim(0.6, opening=-0.5)  # the operator lowers the boom
+        assert client.spin_until(lambda: client.last().boom_rate_rad_s < 0.0, opening=-0.5)  # the operator lowers it
         answer = mover.result(handle)
         assert answer.status == GoalStatus.STATUS_ABORTED and "operator override" in answer.result.message
         assert client.last().valve_command == -0.5 and client.last().boom_rate_rad_s < 0.0
@@ -176,7 +176,7 @@ class TestMovesOnOneNode:
     def test_a_valve_command_overrides_a_trajectory(self, mover, client):
         mover.trajectories.publish(_trajectory([(3.0, 0.9)]))
         client.spin_sim(1.0)
-        client.spin_sim(0.6, opening=-0.4)
+        assert client.spin_until(lambda: client.last().boom_rate_rad_s < 0.0, opening=-0.4)
         assert client.spin_until(lambda: mover.logged("joint trajectory aborted: operator override"), 5)
         assert client.last().valve_command == -0.4 and client.last().boom_rate_rad_s < 0.0
 
