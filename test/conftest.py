@@ -1,5 +1,8 @@
 """Shared test setup: each test process talks ROS in a DDS domain of its own, and under
-pytest-xdist the compiled kernels are built once before the workers start."""
+pytest-xdist the compiled kernels are built once before the workers start. Nodes a test starts
+are stopped after it (``nodes``), or shared by the tests of a class (``shared_node``,
+``node_at_rest``); a tool's refusals run its main in the test process (``run_tool``); waits are
+for events, with a guard (``wait_for``, ``GUARD_S``)."""
 
 from __future__ import annotations
 

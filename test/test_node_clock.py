@@ -118,7 +118,7 @@ def test_a_clock_that_jumps_back_resets_the_drive(nodes, client):
     source = _clock_source("50.0", "1.0:5", "jump:10.0", "1.0:3")
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=20)
-        client.spin_for(1.0, opening=1.0)  # lift: the rod leaves its initial length
+        client.spin_until(lambda: client.last().rod_position_m > 1.4, opening=1.0)  # lift: off its initial length
         lifted = client.last()
         assert client.spin_until(lambda: _stamp_s(client.last()) < 20.0, timeout=10), "no state after the jump"
         client.spin_for(0.5)
