@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import re
 import shutil
 import signal
@@ -10,7 +9,7 @@ import subprocess
 
 import pytest
 import yaml
-from conftest import BOOM_SIM, NO_DROPPED_BACKLOG
+from conftest import BOOM_SIM
 
 rclpy = pytest.importorskip("rclpy")
 from bag_checks import check_bag  # noqa: E402
@@ -129,23 +128,26 @@ def test_resting_on_an_end_stop_is_normal(nodes, client):
 
 
 def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(nodes, client):
-    """The pacing restarts with any parameter change: the step count means another time."""
-    proc = nodes.start(NO_DROPPED_BACKLOG)  # a dropped backlog (a busy machine's hiccup) is not this test's
+    """The pacing restarts with any parameter change: the step count means another time.
+    Simulated time is measured against the diagnostics' stamps (ROS time when they were made)
+    over four seconds, so a tick that a loaded machine delays a little changes neither much."""
+    proc = nodes.start()
     try:
         assert client.spin_until(lambda: len(client.states) > 50)  # half a second at 1 ms steps
         assert client.set_parameter("time_step_s", 0.002).successful
         client.diagnostics.clear()
-        assert client.spin_until(lambda: len(client.diagnostics) >= 3, timeout=10)
+        assert client.spin_until(lambda: len(client.diagnostics) >= 6)
     finally:
         out = _stop(proc)
-    sim_times = [
-        float(kv.value)
-        for d in client.diagnostics
+    at = [
+        (d.header.stamp.sec + d.header.stamp.nanosec * 1e-9, float(kv.value))
+        for d in client.diagnostics[1:]  # the first may have been made before the change
         for s in d.status
         if s.name.endswith("drive")
         for kv in s.values
         if kv.key == "sim_time_s"
     ]
-    rates = [b - a for a, b in itertools.pairwise(sim_times)]
-    assert rates and all(0.5 < r < 1.5 for r in rates), sim_times  # about a simulated second per second
+    (ros_a, sim_a), (ros_b, sim_b) = at[0], at[-1]
+    assert ros_b - ros_a > 3.0, at
+    assert 0.75 < (sim_b - sim_a) / (ros_b - ros_a) < 1.33, at  # a simulated second per second of ROS time
     assert "behind real time" not in out

@@ -194,9 +194,13 @@ class TestMovesOnOneNode:
         assert all(h.accepted for h in handles)
         results = [h.get_result_async() for h in handles]
         assert client.spin_until(lambda: all(f.done() for f in results), timeout=120), sum(f.done() for f in results)
-        statuses = [f.result().status for f in results]
-        assert statuses[:-1] == [GoalStatus.STATUS_ABORTED] * 99  # each preempted by the next
-        assert statuses[-1] == GoalStatus.STATUS_SUCCEEDED
+        ended = [(f.result().status, f.result().result) for f in results]
+        for status, result in ended[:-1]:  # each preempted by the next, unless it settled before the next came
+            if status == GoalStatus.STATUS_SUCCEEDED:  # (a loaded machine spreads the burst over many ticks)
+                assert result.message.startswith("settled") and abs(result.final_error_rad) <= 2 * DEADBAND
+            else:
+                assert status == GoalStatus.STATUS_ABORTED and result.message.startswith("preempted"), result.message
+        assert ended[-1][0] == GoalStatus.STATUS_SUCCEEDED
 
 
 def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_path):

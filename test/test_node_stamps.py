@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import BOOM_SIM, NO_DROPPED_BACKLOG, run_tool, start_node, stop_process
+from conftest import BOOM_SIM, run_tool, start_node, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
@@ -54,7 +54,7 @@ def _states(bag: Path) -> list[tuple[int, float, float]]:
 
 
 def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(nodes, client, tmp_path):
-    proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", NO_DROPPED_BACKLOG, record=True)
+    proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)  # discovery both ways
@@ -90,7 +90,7 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(nodes
 
 
 def test_a_stale_command_is_refused_with_the_reason_and_counted(nodes, client, tmp_path):
-    proc = nodes.start("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", NO_DROPPED_BACKLOG, record=True)
+    proc = nodes.start("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)

@@ -170,7 +170,7 @@ def test_a_parameter_changed_while_running_is_recorded_and_resimulated_at_its_ti
         topics = {c.topic for c in reader.connections}
     assert "/crane1/drive_state" in topics and "/drive_state" not in topics  # stays namespaced
     original, again = read_drive_states(namespaced), read_drive_states(tmp_path / "again")
-    assert np.array_equal(original["t"], again["t"]) and len(original["t"]) > 150  # the same instants
+    assert np.array_equal(original["t"], again["t"]) and len(original["t"]) > 20  # the same instants (a tick each)
     assert np.max(np.abs(original["q1"] - again["q1"])) < 1e-12  # commands and change at the same instants
     assert np.max(np.abs(original["p1"] - again["p1"])) < 1e-6
     # the heavier payload shows: the holding pressure rose after the change
