@@ -125,6 +125,8 @@ def test_boom_sim_linearize_writes_what_it_says(tmp_path, capsys):
     assert cli.main([*args, "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "hydraulic mode:" in printed and "phase margin" in printed and "gain margin" in printed
+    # the trapped oil's mode at s = 0 leaves G(0) without a value: said in words, never nan or inf
+    assert "no static gain over all time" in printed and not {"nan", "inf"} & set(printed.replace(",", " ").split())
     assert sorted(f.name for f in out.iterdir()) == ["bode.csv", "bode.png", "linear_model.npz"]
     saved = np.load(out / "linear_model.npz")
     system = control.ss(saved["A"], saved["B"], saved["C"], saved["D"])

@@ -123,8 +123,8 @@ def summary(result: Linearization) -> list[str]:
     lines.append(
         "static gain per unit of command, the slow modes held: "
         + ", ".join(f"{n} {g:.4g} {units[n]}" for n, g in zip(lm.OUTPUT_NAMES, quasi))
-        + "; G(0): "
-        + ", ".join(f"{n} {g:.4g}" for n, g in zip(lm.OUTPUT_NAMES, dc))
+        + "; "
+        + _dc_gain_words(dc, units)
     )
     if point.opening == 0.0 and point.drift:
         lines.append(
@@ -262,3 +262,16 @@ def _ringing_files(folder: Path, result: Linearization) -> None:
     ax.legend(fontsize="small")
     fig.savefig(folder / "ringing.png", dpi=110)
     plt.close(fig)
+
+
+def _dc_gain_words(dc: np.ndarray, units: dict[str, str]) -> str:
+    """G(0) in words: its finite gains, and which outputs have none (a mode at s = 0)."""
+    finite = [f"{n} {g:.4g} {units[n]}" for n, g in zip(lm.OUTPUT_NAMES, dc) if np.isfinite(g)]
+    if len(finite) == len(dc):
+        return "G(0): " + ", ".join(finite)
+    none = [n for n, g in zip(lm.OUTPUT_NAMES, dc) if not np.isfinite(g)]
+    head = f"G(0): {', '.join(finite)}; " if finite else ""
+    return (
+        f"{head}{', '.join(none)} have no static gain over all time (a mode at s = 0, oil trapped behind the "
+        "closed valves, integrates the command): take the gain with the slow modes held"
+    )
