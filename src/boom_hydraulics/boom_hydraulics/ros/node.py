@@ -38,7 +38,6 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -62,7 +61,6 @@ from . import node_parameters as ros_parameters
 from .clock import ClockMode, Follow, NodeClock
 from .commands import CommandIntake
 from .diagnostics import RunCounts, diagnostics
-from .markers import crane_markers
 from .motion import Motion, Plant
 from .recording import NodeRecording
 
@@ -138,6 +136,9 @@ class BoomSimNode(Node):
         )
         self._markers_every = max(1, round(self.clock.rate_hz / MARKERS_HZ))
         self._ticks = 0
+        self._messages = messages.TickMessages(self.sim.params)
+        # in the order TickMessages.state packs them
+        self._state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.markers_pub)
         self._description_due = False  # a parameter change asks for robot_description again
         self._checked: Any = None  # the model parameters on_set checked, for post_set to apply
         self._changed_at_ns = 0
@@ -530,28 +531,24 @@ class BoomSimNode(Node):
 
     # --- output ------------------------------------------------------------------------------
     def publish_state(self) -> None:
+        """The state messages of now (and the markers, every ``_markers_every`` call), as CDR
+        bytes packed with layouts bound once per parameter set (:class:`messages.TickMessages`)."""
         out = self.sim.outputs()
-        if not all(math.isfinite(float(v)) for v in out.values()):
+        # one sum is finite when every output is; only a sum that is not looks at each one
+        if not math.isfinite(sum(out.values())) and not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
         clock = self.clock
         stamp_ns = clock.state_stamp_ns()
         if self.clock_pub is not None:
             self.recording.publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
         log_ns = stamp_ns if clock.publishes else clock.now_ns()  # when it is published
-        p = self.sim.params
-        piston, rod = messages.chamber_pressures(out, stamp_ns)
-        tick: list[tuple[Any, Any]] = [  # CDR bytes, packed without message objects
-            (self.state_pub, messages.drive_state(out, stamp_ns)),
-            (self.joint_pub, messages.joint_state(out, stamp_ns, p)),
-            (self.p1_pub, piston),
-            (self.p2_pub, rod),
-            (self.force_pub, messages.rod_force(out, stamp_ns)),
-        ]
+        if self._messages.params is not self.sim.params:  # new parameters: new dimensions for the markers
+            self._messages = messages.TickMessages(self.sim.params)
+        self._ticks += 1
+        packed = self._messages.state(out, stamp_ns, markers=self._ticks % self._markers_every == 0)
+        tick = list(zip(self._state_pubs, packed))  # (the markers' publisher is the last: only when packed)
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
-        self._ticks += 1
-        if self._ticks % self._markers_every == 0:
-            tick.append((self.markers_pub, crane_markers(out, Time(nanoseconds=stamp_ns).to_msg(), p)))
         self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:
