@@ -48,11 +48,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "test"))
-from conftest import claim_domain  # noqa: E402  (a DDS domain no test or other bench holds)
-
-if "ROS_DOMAIN_ID" not in os.environ:  # (importing conftest claims one; a given one is kept)
-    os.environ["ROS_DOMAIN_ID"] = str(claim_domain())
-
+# importing the tests' conftest claims a DDS domain that no test process (or other bench)
+# holds, for this process and the nodes it starts (a ROS_DOMAIN_ID given is kept)
+import conftest  # noqa: E402, F401
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402

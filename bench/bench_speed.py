@@ -21,7 +21,7 @@ import time
 
 import rclpy
 from bench_model import batch_throughput, scipy_comparison, step_cost
-from bench_node import BAGS, in_process_rates, real_time_run
+from bench_node import BAGS, in_process_rates, print_real_time, real_time_run
 from bench_sweep import full_sweep
 from tables import table, write_results
 
@@ -71,7 +71,11 @@ def main() -> int:
 
     rclpy.init()
     try:
-        cpu = {jit: real_time_run(args.seconds, jit).cpu for jit in (False, True)}
+        cpu = {}
+        for jit in (False, True):
+            run = real_time_run(args.seconds, jit)
+            print_real_time(run, args.seconds, jit)
+            cpu[jit] = run.cpu
         rates = in_process_rates()
     finally:
         rclpy.try_shutdown()

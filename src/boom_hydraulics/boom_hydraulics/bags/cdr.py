@@ -58,11 +58,6 @@ def _header_items(frame_id: bytes) -> Layout:
     return ("i", "I", "I", ("s", len(frame_id)))
 
 
-def pack(items: Layout, values: list[Any]) -> bytes:
-    """The CDR bytes of ``values`` laid out as ``items``."""
-    return layout(items).pack(ENCAPSULATION, *values)
-
-
 # Each message of a fixed shape has a packer: a function of the stamp and the numbers that
 # change, with the layout and the constant fields (frame ids, names, lengths) bound once.
 # The node takes its packers once; the functions below them look them up per call.
@@ -174,12 +169,12 @@ def wrench_stamped(stamp_ns: int, frame_id: str, force: Sequence[float], torque:
     return wrench_stamped_packer(frame_id)(stamp_ns, force, torque)
 
 
+_CLOCK = layout(("i", "I"))
+
+
 def clock(stamp_ns: int) -> bytes:
     """rosgraph_msgs/Clock."""
     return _CLOCK.pack(ENCAPSULATION, *_stamp(stamp_ns))
-
-
-_CLOCK = layout(("i", "I"))
 
 
 class MarkerFields(NamedTuple):
