@@ -15,8 +15,8 @@ BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name packag
 	tools/build tools/cmake/drop_missing_include_dirs.cmake
 
 # the compiled model in numba's on-disk cache (tools/warm-up): again when a source the kernels
-# compile changed, or when the cache folder it names is gone (a cleared ~/.cache, another
-# XDG_CACHE_HOME or BOOM_HYDRAULICS_CACHE)
+# compile or the default configuration changed, or when the cache folder the stamp names is
+# gone (a cleared ~/.cache)
 WARM_STAMP := install/.boom-warm-stamp
 PACKAGE := src/boom_hydraulics/boom_hydraulics
 KERNEL_SOURCES := $(wildcard $(PACKAGE)/model/*.py $(PACKAGE)/solve/*.py) $(PACKAGE)/jit.py config/default.yaml
