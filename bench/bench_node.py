@@ -164,9 +164,14 @@ def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT) -> RealTime:
             next_command += 0.05
         rclpy.spin_once(node, timeout_sec=0.005)
     cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
-    proc.send_signal(signal.SIGINT)
-    proc.wait(timeout=30)
     node.destroy_node()
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=60)
+    except subprocess.TimeoutExpired:  # (SIGINT ignored: started from a shell's background job)
+        proc.kill()
+        proc.wait()
+        raise RuntimeError(f"boom_sim of {checkout} did not stop on SIGINT within 60 s: killed") from None
     return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3)
 
 
