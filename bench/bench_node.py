@@ -57,7 +57,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from tables import commit, table, write_results  # noqa: E402
 
-from boom_hydraulics.ros import messages  # noqa: E402
+from boom_hydraulics.bags import messages  # noqa: E402
 from boom_hydraulics.ros import recording as recording_module  # noqa: E402
 from boom_hydraulics.ros.node import BoomSimNode  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402

@@ -24,9 +24,9 @@ import numpy as np
 import rclpy
 from rosgraph_msgs.msg import Clock
 
+from boom_hydraulics.bags.messages import drive_state
 from boom_hydraulics.bags.recording import BagRecorder, Topic
 from boom_hydraulics.model.parameters import Parameters
-from boom_hydraulics.ros.messages import drive_state
 from boom_hydraulics.solve.simulation import Simulator
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "default.yaml"

@@ -3,9 +3,9 @@
     tools/with-env python bench/bench_sweep.py            # about three minutes
     tools/with-env python bench/bench_sweep.py --full     # plus boom-sweep over 10 000 points
 
-Compares the batch paths (the compiled run kernel that boom-sweep runs, and the numpy
-batch it falls back to without numba) with one simulation per point (interpreted and
-compiled, metrics from the stored run) and with one scipy solve_ivp per point. Prints
+Compares the batch paths (the compiled run kernel that boom-sweep runs, and the same run
+loop interpreted that it falls back to without numba) with one simulation per point
+(interpreted and compiled, metrics from the stored run) and with one scipy solve_ivp per point. Prints
 tables; nothing is asserted (these machines are shared and noisy).
 """
 
@@ -38,7 +38,7 @@ AXES = [parse_axis("piston_diameter=0.032:0.1:40"), parse_axis("payload=0:200:25
 
 
 def sweep_plan(points: int, batch_size: int) -> sweep.Plan:
-    plan = sweep.plan([("default", Parameters())], AXES, duration_s=DURATION_S, batch_size=batch_size)
+    plan = sweep.plan(sweep.request([("default", Parameters())], AXES, duration_s=DURATION_S, batch_size=batch_size))
     keep = [b for b in plan.batches if b.points[0] < points]
     return sweep.Plan(plan.request, plan.columns, plan.points, plan.invalid, tuple(keep))
 
@@ -129,8 +129,8 @@ def main() -> None:
     add("compiled kernel, 1 batch of 1000, this process", 1000, vectorised(1000, 1000, LocalExecutor()))
     add("compiled kernel, 4 batches of 250, this process", 1000, vectorised(1000, 250, LocalExecutor()))
     add("compiled kernel, 2 batches of 500, 2 Dask workers", 1000, vectorised(1000, 500, DaskExecutor(workers=2)))
-    os.environ["BOOM_HYDRAULICS_JIT"] = "0"  # the numpy batch, as without numba
-    add("numpy batch (no numba), 1 batch of 1000, this process", 1000, vectorised(1000, 1000, LocalExecutor()))
+    os.environ["BOOM_HYDRAULICS_JIT"] = "0"  # the run loop interpreted, as without numba
+    add("interpreted batch (no numba), 1 batch of 10, this process", 10, vectorised(10, 10, LocalExecutor()))
     del os.environ["BOOM_HYDRAULICS_JIT"]
     add("one at a time, interpreted", 10, one_at_a_time(10, jit=False))
     if accelerate.available():

@@ -18,7 +18,7 @@ from boom_hydraulics.model.control import ControlState, gains_of, position_comma
 from boom_hydraulics.model.geometry import boom_angle_rad
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.model.setpoints import SetpointPath, move, timed_moves
-from boom_hydraulics.solve.batch import simulate_batch
+from boom_hydraulics.solve.batch import run_sets
 from boom_hydraulics.solve.closed_loop import PositionLoop
 from boom_hydraulics.solve.commands import for_batch
 from boom_hydraulics.solve.simulation import Simulator, simulate
@@ -127,11 +127,11 @@ def test_the_angle_scenario_batch_equals_single_runs():
         Parameters(), command_profile="angle", command_times_s=[0.0, 2.0], command_angles_rad=[0.5, 0.3]
     )
     params = [with_updates(base, payload_mass_kg=m, piston_diameter_m=d) for m, d in ((0.0, 0.04), (150.0, 0.05))]
-    batch = simulate_batch(params, 3.0, for_batch(params), every=10)
+    batch = run_sets(params, 3.0, for_batch(params), every=10, store=True)
     for k, p in enumerate(params):
         single = simulate(p, 3.0, every=10)
-        np.testing.assert_allclose(batch["q1"][:, k], single["q1"], rtol=0, atol=1e-9)
-        np.testing.assert_allclose(batch["u"][:, k], single["u"], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(batch.columns(k)["q1"], single["q1"], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(batch.columns(k)["u"], single["u"], rtol=0, atol=1e-9)
 
 
 def test_angle_profile_is_checked():

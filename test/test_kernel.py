@@ -1,4 +1,5 @@
-"""The compiled run kernel: a whole run in one call equals the run stepped through the Simulator."""
+"""The one run loop plugged three ways: the compiled run kernel, the loop over the compiled steps
+(a Python command) and the loop interpreted give the same run."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from conftest import CONFIG
 from boom_hydraulics.analysis import metrics as analysis
 from boom_hydraulics.model import config
 from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
-from boom_hydraulics.solve import accelerate, commands, stepping
+from boom_hydraulics.solve import accelerate, commands
 from boom_hydraulics.solve.batch import run_sets
 from boom_hydraulics.solve.simulation import OUTPUT_NAMES, Simulator
 from boom_hydraulics.sweeps import sweep
@@ -28,14 +29,17 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", CASES, ids=list(CASES))
-def test_a_whole_run_in_the_kernel_equals_the_run_stepped_through_the_simulator(case):
+def test_the_run_kernel_the_loop_over_compiled_steps_and_the_interpreted_loop_agree(case):
     base, profile = CASES[case]
     params = from_mapping(commands.parse_profile(profile), base=base)
     duration, every = 1.2, 7  # 1200 steps: samples every 7 and at the end
-    runs = run_sets([params], duration, commands.from_parameters(params), every, store=True)
+    command = commands.from_parameters(params)
+    runs = run_sets([params], duration, command, every, store=True)
     assert runs is not None and math.isnan(runs.failed_at_s[0])
     kernel = runs.columns(0)
-    stepped = Simulator(params, jit=True).run(duration, commands.from_parameters(params), every)
+    python_command = (lambda t, y: command(t, y)) if case == "closed-loop" else (lambda t: command(t))
+    python_command.feedback = case == "closed-loop"  # a Python function: the kernel cannot take it
+    stepped = Simulator(params, jit=True).run(duration, python_command, every)
     interpreted = Simulator(params, jit=False).run(duration, commands.from_parameters(params), every)
     assert len(kernel["t"]) == len(stepped) == 1 + 1200 // 7 + 1
     for name in OUTPUT_NAMES:  # the same compiled steps, commands and samples: bit for bit
@@ -53,23 +57,9 @@ def test_a_whole_run_in_the_kernel_equals_the_run_stepped_through_the_simulator(
     assert closed_loop.all() == (case == "closed-loop")
 
 
-def test_a_set_that_fails_stops_where_it_fails_and_the_others_run_through():
-    fig8, fig9 = (config.load(CONFIG / f"paper_fig{i}.yaml") for i in (8, 9))
-    runs = run_sets([fig8, fig9], 3.0, commands.constant(1.0), every=10, store=True)
-    assert 2.0 < runs.failed_at_s[0] < 2.3 and runs.failed_why[0] == stepping.NONFINITE  # fig. 8 leaves eq. 1
-    assert 1.75 < runs.last_q1_m[0] < 1.8  # the last good state, inside (1, 1.8) m
-    assert math.isnan(runs.failed_at_s[1]) and runs.failed_why[1] == stepping.OK
-    assert runs.samples[0] < runs.samples[1] == 301
-    assert np.isfinite(runs.columns(0)["q1"]).all()
-
-
-def test_a_command_the_kernel_cannot_evaluate_is_left_to_the_numpy_batch():
-    assert run_sets([Parameters()], 0.1, lambda t: 1.0) is None  # any function of time
-
-
 def test_a_sweep_without_numba_gives_the_compiled_sweeps_table(monkeypatch):
     axes = [parse_axis("piston_diameter=0.04,0.063"), parse_axis("payload=0,150")]
-    plan = sweep.plan([("default", Parameters())], axes, duration_s=1.5, lift_angle_deg=10.0)
+    plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=1.5, lift_angle_deg=10.0))
     (batch,) = plan.batches
     compiled = sweep.run_batch(batch)
     monkeypatch.setenv("BOOM_HYDRAULICS_JIT", "0")
@@ -99,7 +89,7 @@ def test_a_run_split_into_slices_equals_the_run_in_one_call(case, monkeypatch):
             assert np.array_equal(whole.columns(k)[name], sliced.columns(k)[name]), name
     for name, values in whole.metrics.items():
         assert np.array_equal(values, sliced.metrics[name], equal_nan=True), name
-    for field in ("failed_at_s", "failed_why", "most_substeps", "last_q1_m", "samples"):
+    for field in ("failed_at_s", "failed_why", "most_substeps", "states", "samples"):
         assert np.array_equal(getattr(whole, field), getattr(sliced, field), equal_nan=True), field
 
 

@@ -7,16 +7,34 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 from builtin_interfaces.msg import Time  # noqa: E402
+from geometry_msgs.msg import Point, Quaternion, Vector3  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
-from visualization_msgs.msg import MarkerArray  # noqa: E402
+from std_msgs.msg import ColorRGBA  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
+from boom_hydraulics.bags.cdr import MarkerFields  # noqa: E402
+from boom_hydraulics.bags.markers import MARKER_ARRAY, NAMESPACE, CraneMarkers, crane_markers  # noqa: E402
 from boom_hydraulics.model.kinematics import chain  # noqa: E402
 from boom_hydraulics.model.parameters import Parameters, with_updates  # noqa: E402
-from boom_hydraulics.ros.markers import CraneMarkers, crane_markers  # noqa: E402
+from boom_hydraulics.model.robot_description import BASE_FRAME  # noqa: E402
 
-MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 STAMP_NS = 1_764_000_123 * 10**9 + 456_789
+
+
+def _rclpy_message(markers: list[MarkerFields], stamp: Time) -> MarkerArray:
+    """The same markers as rclpy message objects (ADD, in base_link, under the crane's namespace)."""
+    array = MarkerArray()
+    for f in markers:
+        m = Marker(ns=NAMESPACE, id=f.id, type=f.type, action=Marker.ADD, text=f.text)
+        m.header.frame_id, m.header.stamp = BASE_FRAME, stamp
+        m.pose.position = Point(x=f.position[0], y=f.position[1], z=f.position[2])
+        x, y, z, w = f.orientation
+        m.pose.orientation = Quaternion(x=x, y=y, z=z, w=w)
+        m.scale = Vector3(x=f.scale[0], y=f.scale[1], z=f.scale[2])
+        m.color = ColorRGBA(r=f.color[0], g=f.color[1], b=f.color[2], a=f.color[3])
+        array.markers.append(m)
+    return array
 
 
 def _outputs(**changes: float) -> dict:
@@ -36,9 +54,11 @@ def test_packed_markers_are_the_bytes_rclpy_serialises_for_the_same_message(out)
     that rosbags writes. The texts differ in length between the cases, so the alignment of
     the markers after them moves."""
     p = Parameters()
-    packed = CraneMarkers(p).cdr(out, chain(p, out["q1"], out["v"]), STAMP_NS)
-    message = crane_markers(out, Time(sec=STAMP_NS // 10**9, nanosec=STAMP_NS % 10**9), p)
-    by_rclpy = serialize_message(message)
+    crane = CraneMarkers(p)
+    c = chain(p, out["q1"], out["v"])
+    packed = crane.cdr(out, c, STAMP_NS)
+    assert packed == crane_markers(out, STAMP_NS, p)
+    by_rclpy = serialize_message(_rclpy_message(crane.fields(out, c), Time(sec=STAMP_NS // 10**9, nanosec=456_789)))
     assert len(packed) == len(by_rclpy)
     assert deserialize_message(packed, MarkerArray) == deserialize_message(by_rclpy, MarkerArray)
     differing = [i for i, (ours, theirs) in enumerate(zip(packed, by_rclpy)) if ours != theirs]

@@ -16,11 +16,10 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from boom_hydraulics.bags import cdr  # noqa: E402
+from boom_hydraulics.bags import cdr, messages  # noqa: E402
 from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, setpoint_cdr  # noqa: E402
 from boom_hydraulics.model.geometry import boom_angle_rad  # noqa: E402
 from boom_hydraulics.model.parameters import Parameters  # noqa: E402
-from boom_hydraulics.ros import messages  # noqa: E402
 from boom_hydraulics.solve.simulation import OUTPUTS  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 

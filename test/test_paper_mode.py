@@ -9,8 +9,11 @@ import pytest
 from conftest import CONFIG
 from scipy.integrate import solve_ivp
 
+from boom_hydraulics.errors import SimulationError
 from boom_hydraulics.model import config, paper
-from boom_hydraulics.solve.simulation import simulate
+from boom_hydraulics.model.parameters import with_updates
+from boom_hydraulics.solve import commands
+from boom_hydraulics.solve.simulation import Simulator, simulate
 
 CONFIGS = ("paper_fig8", "paper_fig9", "paper_fig10")
 
@@ -126,3 +129,22 @@ def test_the_derivative_is_the_listing_as_printed(name, q, v, p):
     assert dq == v
     assert dv == pytest.approx(acceleration, rel=1e-12)
     assert dp == pytest.approx(dpdt, rel=1e-12)
+
+
+@pytest.mark.parametrize("jit", [False, True], ids=["interpreted", "compiled"])
+def test_a_run_that_leaves_the_geometry_stops_at_its_last_good_step_however_it_is_stepped(jit):
+    """From q1 = 1.7 m the open valve runs the rod out of (1, 1.8) m after 1 s: a whole run and
+    the node's steps (one at a time, or a tick of many held steps) keep the state of the last
+    step inside and say so with the same line."""
+    params = with_updates(config.load(CONFIG / "paper_fig8.yaml"), initial_length_m=1.7)
+    whole = Simulator(params, jit=jit)
+    with pytest.raises(SimulationError) as run_error:
+        whole.run(3.0, commands.constant(1.0), every=100)
+    assert str(run_error.value).startswith("rod left the valid geometry after t = 1 s (q1 = 1.79997")
+    for steps in (1, 7, 3000):
+        sim = Simulator(params, jit=jit)
+        with pytest.raises(SimulationError) as step_error:
+            for _ in range(3000):
+                sim.step(1.0, steps)
+        assert str(step_error.value) == str(run_error.value)
+        assert (sim.t, sim.step_count, sim.y) == (whole.t, whole.step_count, whole.y)

@@ -97,20 +97,23 @@ def _distinct(p: Parameters, **flags) -> dict:
 
 
 def test_markers_colour_the_chambers_by_pressure_and_flag_cavitation_and_relief_red():
-    from builtin_interfaces.msg import Time
+    from boom_hydraulics.bags.encoding import typestore
+    from boom_hydraulics.bags.markers import MARKER_ARRAY
+    from boom_hydraulics.bags.markers import crane_markers as crane_markers_cdr
 
-    from boom_hydraulics.ros.markers import crane_markers
+    def crane_markers(out, stamp_ns, p):  # as a reader of the bag or the topic sees them
+        return typestore().deserialize_cdr(crane_markers_cdr(out, stamp_ns, p), MARKER_ARRAY)
 
     p = Parameters()
-    normal = crane_markers(_distinct(p), Time(sec=3), p)
+    normal = crane_markers(_distinct(p), 3 * 10**9, p)
     by_id = {m.id: m for m in normal.markers}
     assert all(m.header.frame_id == "base_link" and m.header.stamp.sec == 3 for m in normal.markers)
     barrel, rod = by_id[3], by_id[4]
     assert barrel.color.r > rod.color.r and rod.color.b > barrel.color.b  # higher pressure, warmer
     assert (barrel.color.r, barrel.color.g, barrel.color.b) != (1.0, 0.0, 0.0)
-    cavitating = {m.id: m for m in crane_markers(_distinct(p, void2=1e-7), Time(), p).markers}
+    cavitating = {m.id: m for m in crane_markers(_distinct(p, void2=1e-7), 0, p).markers}
     assert (cavitating[4].color.r, cavitating[4].color.g) == (1.0, 0.0) and "ROD CAVITATION" in cavitating[5].text
-    relief = {m.id: m for m in crane_markers(_distinct(p, p1=18.5e6), Time(), p).markers}
+    relief = {m.id: m for m in crane_markers(_distinct(p, p1=18.5e6), 0, p).markers}
     assert (relief[3].color.r, relief[3].color.g) == (1.0, 0.0) and "PISTON RELIEF" in relief[5].text
     # the rod ends at the boom's rod eye K, whatever the length
     tip_of_rod = by_id[4].pose.position.z + 0.5 * by_id[4].scale.z * math.cos(

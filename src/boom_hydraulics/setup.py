@@ -36,6 +36,7 @@ setup(
             "boom-resim = boom_hydraulics.cli.resim:main",
             "boom-bag-recover = boom_hydraulics.cli.recover:main",
             "boom-sweep = boom_hydraulics.cli.sweep:main",
+            "boom-calibrate = boom_hydraulics.cli.calibrate:main",
         ],
     },
 )

@@ -16,7 +16,8 @@ from ..solve.simulation import Simulator, Trajectory, simulate
 
 def statics(p: Parameters, diameters_m: Sequence[float], points: int = 161) -> dict[str, np.ndarray]:
     """alpha, phi, static rod force and holding pressure per diameter over the open stroke (Figs. 3-5)."""
-    q1 = np.linspace(abs(p.b_m - p.a_m) + GEOMETRY_CLEARANCE_M, p.a_m + p.b_m - GEOMETRY_CLEARANCE_M, points)
+    low, high = geometry.triangle_bounds_m(p.a_m, p.b_m)
+    q1 = np.linspace(low + GEOMETRY_CLEARANCE_M, high - GEOMETRY_CLEARANCE_M, points)
     force = geometry.static_rod_force_of(p, q1, np)
     out = {
         "q1": q1,

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.base import Nodetype
 from rosbags.typesys.store import Typestore
 
 from ..model.robot_description import BASE_FRAME
@@ -23,6 +24,7 @@ from . import cdr
 from .recording import interface_file
 
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
+VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
 
 #: DriveState field -> model output name (simulation.OUTPUTS), in the message's order.
 DRIVE_STATE_FIELDS: dict[str, str] = {
@@ -56,10 +58,74 @@ _PACK_DRIVE_STATE = cdr.drive_state_packer(BASE_FRAME, *_PACK_SHAPE)
 
 @functools.cache
 def typestore() -> Typestore:
-    """Jazzy's message types and DriveState (from the workspace's installed .msg)."""
+    """Jazzy's message types, DriveState and ValveCommand (from the workspace's installed .msg)."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    store.register(get_types_from_msg(interface_file(DRIVE_STATE, ".msg").read_text(), DRIVE_STATE))
+    for msgtype in (DRIVE_STATE, VALVE_COMMAND):
+        store.register(get_types_from_msg(interface_file(msgtype, ".msg").read_text(), msgtype))
     return store
+
+
+#: numpy dtypes of the primitive types a message sequence or array holds
+_DTYPES = {
+    "bool": np.bool_,
+    "byte": np.uint8,
+    "char": np.uint8,
+    "int8": np.int8,
+    "uint8": np.uint8,
+    "int16": np.int16,
+    "uint16": np.uint16,
+    "int32": np.int32,
+    "uint32": np.uint32,
+    "int64": np.int64,
+    "uint64": np.uint64,
+    "float32": np.float32,
+    "float64": np.float64,
+}
+
+
+def _default(kind: tuple[Any, Any]) -> Any:
+    """The zero value of one field type of the typestore (rosbags' field definitions)."""
+    node, detail = kind
+    if node is Nodetype.NAME:
+        return message(detail)
+    if node is Nodetype.BASE:
+        name = detail[0]
+        return "" if name == "string" else False if name == "bool" else 0.0 if name.startswith("float") else 0
+    element, size = detail  # ARRAY (fixed size) or SEQUENCE (size 0: empty)
+    count = size if node is Nodetype.ARRAY else 0
+    if element[0] is Nodetype.BASE and element[1][0] != "string":
+        return np.zeros(count, dtype=_DTYPES[element[1][0]])
+    return [_default(element) for _ in range(count)]
+
+
+def message(msgtype: str, **fields: Any) -> Any:
+    """A message of ``msgtype`` (rosbags' class) with ``fields`` set and every other field at
+    its zero value, as a generated message class defaults them; a dict given for a nested
+    message sets that message's fields the same way."""
+    definitions = typestore().fielddefs[msgtype][1]
+    values = {}
+    for name, kind in definitions:
+        if name not in fields:
+            values[name] = _default(kind)
+        elif kind[0] is Nodetype.NAME and isinstance(fields[name], dict):
+            values[name] = message(kind[1], **fields[name])
+        else:
+            values[name] = fields[name]
+    unknown = set(fields) - set(values)
+    if unknown:
+        raise TypeError(f"{msgtype} has no field {', '.join(sorted(unknown))}")
+    return typestore().types[msgtype](**values)
+
+
+def to_cdr(msg: Any) -> bytes:
+    """The CDR bytes of a message made by :func:`message` (canonical CDR)."""
+    return bytes(typestore().serialize_cdr(msg, msg.__msgtype__))
+
+
+def stamp(stamp_ns: int) -> dict[str, int]:
+    """builtin_interfaces/Time of ``stamp_ns`` as the fields :func:`message` takes."""
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    return {"sec": sec, "nanosec": nanosec}
 
 
 def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = BASE_FRAME) -> bytes:

@@ -6,6 +6,8 @@
     boom-sim run --config config/default.yaml --target-angle-deg 30 --duration 4 --out move.csv
     boom-sim statics --config config/default.yaml --diameters 0.04,0.063,0.08 --out statics.csv
     boom-sim urdf --config config/default.yaml --out boom_crane.urdf
+    boom-sim linearize --config config/default.yaml --rod-length-m 1.37 --controller --out linear
+    boom-sim fmu --config config/default.yaml --out boom_drive.fmu
 
 Errors in arguments, configs or the run print one line and exit non-zero.
 """
@@ -32,6 +34,7 @@ from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
 from ..solve import commands
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
+from . import fmu, linearize, live
 
 
 def load_parameters(args: argparse.Namespace) -> Parameters:
@@ -203,6 +206,10 @@ def build_parser() -> argparse.ArgumentParser:
     description = sub.add_parser("urdf", help="the crane's URDF (as the node publishes it on robot_description)")
     common(description, "URDF file to write")
     description.set_defaults(handler=cmd_urdf)
+
+    linearize.register(sub, common, load_parameters)  # boom-sim linearize (cli/linearize.py)
+    live.add_parser(sub)  # boom-sim live (cli/live.py)
+    fmu.register(sub, common, load_parameters)  # boom-sim fmu (cli/fmu.py)
     return parser
 
 

@@ -28,7 +28,7 @@ from typing import Any
 import yaml
 
 from ..errors import ConfigError
-from .parameters import Parameters, as_dict, describe, from_mapping
+from .parameters import UNSOLVED, Parameters, as_dict, describe, from_mapping
 
 NODE_NAME = "boom_sim"
 
@@ -148,9 +148,10 @@ DEFAULT_FILE_HEADER = """\
 
 
 def default_file() -> str:
-    """The text of the shipped ``config/default.yaml``: every parameter with its default and
-    its description as a comment. A test keeps the shipped file equal to it."""
-    values = as_dict(Parameters())
+    """The text of the shipped ``config/default.yaml``: every parameter the solvers read
+    (not parameters.UNSOLVED) with its default and its description as a comment. A test
+    keeps the shipped file equal to it."""
+    values = {name: value for name, value in as_dict(Parameters()).items() if name not in UNSOLVED}
     comments = {}
     for name in values:
         meta = describe(name)

@@ -39,6 +39,13 @@ def larger(x: Num, y: Num) -> Num:
 
 
 @jitable
+def smoothstep(s: Num) -> Num:
+    """0 for s <= 0, 1 for s >= 1, and 3 s^2 - 2 s^3 between: a switch without a kink."""
+    clipped = smaller(pos(s), 1.0)
+    return clipped * clipped * (3.0 - 2.0 * clipped)
+
+
+@jitable
 def orifice_coefficient(discharge_coefficient: Num, area_m2: Num, density_kg_m3: Num) -> Num:
     """K = mu f sqrt(2 / rho), so that turbulent flow is Q = K sqrt(dp), m^3/(s Pa^0.5) (eq. 14)."""
     return discharge_coefficient * area_m2 * (2.0 / density_kg_m3) ** 0.5

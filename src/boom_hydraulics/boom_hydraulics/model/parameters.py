@@ -39,6 +39,18 @@ METHOD_NAMES: dict[str, str] = {
     "ros2": "Rosenbrock ROS2, second order, L-stable (stiff settings)",
 }
 METHODS = tuple(METHOD_NAMES)
+#: The drives that feed the cylinder, by name, with what each is (docs/model.md, "Drives").
+#: model.drives.DRIVES implements exactly these, in this order; a test keeps them equal.
+DRIVE_NAMES: dict[str, str] = {
+    "pressure_compensated": "a variable pump that holds the supply pressure and delivers on demand (the reference)",
+    "fixed_pump": "a fixed pump at constant speed into a supply line with a main relief at p_n (the paper's Fig. 6)",
+    "load_sensing": "a variable pump at the fed port's pressure plus a margin, with its own lag",
+    "pump_controlled": "a variable-speed motor and a bidirectional pump on the two chambers (EHA), regenerating",
+}
+DRIVES = tuple(DRIVE_NAMES)
+#: The drives the solvers run. The others are model elements (model/drives/) that the run
+#: kernels do not call yet (issue 23, phase 2): a run that asks for one is refused.
+SOLVED_DRIVES = ("pressure_compensated",)
 COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 
 #: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
@@ -62,8 +74,14 @@ def _param(
     high: float | None = None,
     low_inclusive: bool = False,
     choices: tuple[str, ...] | None = None,
+    start_only: bool = False,
+    solved: bool = True,
 ) -> Any:
-    """A dataclass field that carries its group, unit, description and allowed range."""
+    """A dataclass field that carries its group, unit, description and allowed range.
+
+    ``start_only``: a running node cannot change it (its descriptor is read_only).
+    ``solved``: the solvers read it; False for the drives' parameters, which only the drive
+    elements read until the run kernels call them (see :data:`UNSOLVED`)."""
     meta = {
         "group": group,
         "unit": unit,
@@ -72,6 +90,8 @@ def _param(
         "high": high,
         "low_inclusive": low_inclusive,
         "choices": choices,
+        "start_only": start_only,
+        "solved": solved,
     }
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
@@ -80,6 +100,11 @@ def _param(
 
 def _plant(default: Any, unit: str, description: str, **limits: Any) -> Any:
     return _param("plant", default, unit, description, **limits)
+
+
+def _drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    """A plant parameter of the drives and their electric supply (docs/model.md, "Drives")."""
+    return _param("plant", default, unit, description, solved=False, **limits)
 
 
 def _solver(default: Any, unit: str, description: str, **limits: Any) -> Any:
@@ -305,6 +330,122 @@ class Parameters:
     )
     relief_rated_flow_m3_s: float = _plant(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
+    # --- drives, pump, electric motor and battery (docs/model.md, "Drives"; eq. D1-D25) ----
+    drive: str = _drive(
+        "pressure_compensated",
+        "",
+        "Drive that feeds the cylinder: pressure_compensated (the reference), fixed_pump (the paper's "
+        "circuit, main relief at supply_pressure_pa), load_sensing or pump_controlled (EHA); physical mode",
+        choices=DRIVES,
+        start_only=True,
+    )
+    pump_speed_rad_s: float = _drive(
+        157.08,
+        "rad/s",
+        "Pump shaft speed of the constant-speed drives (157.08: 1500 rpm), and the top speed (command +-1) "
+        "of pump_controlled; the pump's displacement is pump_max_flow_m3_s / this (eq. D4)",
+        low=0.0,
+        high=1000.0,
+    )
+    pump_volumetric_efficiency: float = _drive(
+        0.95,
+        "",
+        "Pump's delivered over geometric flow at supply_pressure_pa and pump_speed_rad_s: sets its leakage (eq. D1)",
+        low=0.0,
+        high=1.0,
+    )
+    pump_hydromechanical_efficiency: float = _drive(
+        0.9,
+        "",
+        "Pump's hydraulic over shaft torque when pumping (as a motor, lowering: 2 - 1/this) (eq. D2)",
+        low=0.5,
+        high=1.0,
+    )
+    motor_rated_torque_n_m: float = _drive(
+        60.0, "N m", "Electric motor's rated torque, at which motor_efficiency holds (eq. D6)", low=0.0, high=1.0e5
+    )
+    motor_efficiency: float = _drive(
+        0.9,
+        "",
+        "Motor and inverter: shaft over electrical power at rated torque and pump_speed_rad_s when motoring "
+        "(generating: 2 - 1/this) (eq. D6)",
+        low=0.5,
+        high=1.0,
+    )
+    motor_copper_loss_fraction: float = _drive(
+        0.6,
+        "",
+        "Share of the motor's and inverter's rated loss that grows with the torque squared (copper); the rest "
+        "grows with the speed (iron, switching) (eq. D6)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
+    motor_time_constant_s: float = _drive(
+        0.05,
+        "s",
+        "First-order lag of the pump_controlled motor's speed behind its command (0: none) (eq. D21)",
+        low=0.0,
+        low_inclusive=True,
+        high=10.0,
+    )
+    battery_capacity_kwh: float = _drive(
+        5.0, "kWh", "Battery's usable energy between full and empty (eq. D10)", low=0.0, high=1.0e4
+    )
+    battery_voltage_v: float = _drive(
+        48.0, "V", "Battery's nominal (open-circuit) voltage (eq. D8)", low=0.0, high=2000.0
+    )
+    battery_resistance_ohm: float = _drive(
+        0.01, "ohm", "Battery's internal resistance, cables included (eq. D8)", low=0.0, low_inclusive=True, high=100.0
+    )
+    battery_initial_soc: float = _drive(
+        1.0, "", "Battery's state of charge at the start, 1 full (eq. D10)", low=0.0, low_inclusive=True, high=1.0
+    )
+    supply_line_volume_m3: float = _drive(
+        2.0e-4, "m^3", "fixed_pump: oil volume between pump and valve, hoses included (eq. D13)", low=0.0, high=0.1
+    )
+    main_relief_range_pa: float = _drive(
+        1.0e6,
+        "Pa",
+        "fixed_pump: pressure rise over supply_pressure_pa at which the main relief passes pump_max_flow_m3_s "
+        "(eq. D12)",
+        low=0.0,
+        high=1.0e8,
+    )
+    load_sensing_margin_pa: float = _drive(
+        2.0e6,
+        "Pa",
+        "load_sensing: pump pressure above the fed port's pressure (typically 1.5-2.5 MPa) (eq. D17)",
+        low=0.0,
+        high=1.0e7,
+    )
+    load_sensing_time_constant_s: float = _drive(
+        0.05,
+        "s",
+        "load_sensing: first-order lag of the pump's pressure behind its target (eq. D18)",
+        low=0.0,
+        high=10.0,
+    )
+    reservoir_pressure_pa: float = _drive(
+        5.0e5,
+        "Pa",
+        "pump_controlled: pressure of the low-pressure reservoir (accumulator) the checks connect to, absolute "
+        "(eq. D23)",
+        low=0.0,
+        high=1.0e7,
+    )
+    pilot_check_diameter_m: float = _drive(
+        0.006, "m", "pump_controlled: flow diameter of each pilot-operated check valve (eq. D23)", low=0.0, high=0.1
+    )
+    pilot_check_opening_pa: float = _drive(
+        1.0e6,
+        "Pa",
+        "pump_controlled: pressure of the other line above the reservoir's at which a pilot-operated check is "
+        "fully open (eq. D22)",
+        low=0.0,
+        high=1.0e8,
+    )
+
     # --- closed-loop position control (see model/control.py) ------------------------------
     control_position_gain_1_rad: float = _controller(
         4.0, "1/rad", "Kp: valve opening per rad of boom-angle error; physical mode", low=0.0, high=1000.0
@@ -373,6 +514,10 @@ class Parameters:
 #: Parameter names in declaration order.
 NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Parameters))
 _FIELDS = {f.name: f for f in dataclasses.fields(Parameters)}
+#: The parameters no solver reads yet: the drives' (model/drives/, docs/model.md "Drives").
+#: Until the run kernels call the drive elements, the node does not declare them and
+#: config/default.yaml does not list them; a params file or ``--set`` may give them.
+UNSOLVED: tuple[str, ...] = tuple(name for name in NAMES if not _FIELDS[name].metadata["solved"])
 
 
 def group_of(name: str) -> str:
@@ -389,7 +534,7 @@ def names_in(group: str) -> tuple[str, ...]:
 
 def describe(name: str) -> dict[str, Any]:
     """Metadata of one parameter: group, unit, description, low, high, low_inclusive, choices,
-    default and type."""
+    start_only, solved, default and type."""
     f = _FIELDS[name]
     default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
     return {**f.metadata, "default": default, "type": _kind(f)}
@@ -500,6 +645,11 @@ def _check_plant(p: Parameters) -> None:
                 f"cavitation_pressure_pa ({p.cavitation_pressure_pa} Pa) must be below "
                 f"tank_pressure_pa ({p.tank_pressure_pa} Pa); both are absolute"
             )
+    if p.drive not in SOLVED_DRIVES:
+        raise ConfigError(
+            f"drive '{p.drive}' is not solved yet: its elements are in model/drives (docs/model.md, Drives), "
+            f"but the run kernels call only {', '.join(SOLVED_DRIVES)}; set drive: {SOLVED_DRIVES[0]}"
+        )
     if p.static_friction_n < p.coulomb_friction_n:
         raise ConfigError(
             f"static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "

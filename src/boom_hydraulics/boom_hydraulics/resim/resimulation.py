@@ -29,7 +29,7 @@ import shutil
 import sys
 import tempfile
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -130,6 +130,64 @@ def _write_failure(out: Path, recorder: BagRecorder) -> RecordingError:
     )
 
 
+def read_recorded(
+    bag: Path, config_file: Path | None = None, prog: str = "boom-resim", description: RunDescription | None = None
+) -> tuple[RecordedRun, dict[str, Any]]:
+    """The recorded run of ``bag`` and the parameter values to simulate it with: the bag's own,
+    or ``config_file``'s. ``description`` stands in for a bag without one (not recorded by
+    boom_sim). Raises ConfigError for a run that cannot be re-simulated (see refusals)."""
+    description = description or read_run_description(bag)
+    check_calls(bag, description)
+    run = read_run(bag, description)
+    check_states(bag, run)
+    values = dict(run.parameters) if config_file is None else config.read_values(config_file)
+    retired = sorted(name for name in values if name not in NAMES) if config_file is None else []
+    if retired:  # recorded by an earlier version of the model: what it no longer has cannot apply
+        print(
+            f"{prog}: note: {bag} holds parameters this version no longer has ({', '.join(retired)}); "
+            "they are left out, and the model's defaults stand in for what replaced them",
+            file=sys.stderr,
+        )
+        values = {name: value for name, value in values.items() if name in NAMES}
+    return run, values
+
+
+class Replay:
+    """A recorded run's commands, parameter changes and controller stretches through the model
+    with parameter ``values`` (``overrides`` kept on top of the recorded changes). Iterating it
+    runs the simulation and gives (stamp ns, outputs) at each state instant the node published
+    (or, for a bag without DriveState, at its publish rate); ``done`` counts the instants taken.
+    Raises SimulationError where the run cannot go on, ConfigError for a recorded parameter
+    change that does not fit the new parameters."""
+
+    def __init__(self, run: RecordedRun, values: Mapping[str, Any], overrides: Mapping[str, Any] = ()) -> None:
+        self.run = run
+        self._resim = _Resimulation(run, dict(values) | dict(overrides), overrides)
+        self.params = self._resim.sim.params
+        self.instants = run.state_ns or _grid(run, self.params.time_step_s)
+        self.done = 0
+
+    def __iter__(self) -> Iterator[tuple[int, dict[str, Any]]]:
+        run, resim = self.run, self._resim
+        stretches = control_stretches(run.setpoints, self.instants)
+        starts = {c.start_ns: c for c in stretches}
+        releases = {c.release_ns for c in stretches if c.release_ns != self.instants[-1]}
+        now_ns = run.clock_origin_ns
+        for at_ns in self.instants:
+            self.done += 1  # the recorded run's state instants: runs overlay sample for sample
+            steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
+            if steps <= 0:
+                continue
+            resim.apply_changes()  # the node changes parameters between ticks, at a state instant
+            if now_ns in starts:  # a goal or trajectory was taken between these instants
+                resim.take_over(starts[now_ns])
+            resim.drive.advance(steps)  # a SimulationError ends it
+            if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
+                resim.drive.let_go()
+            now_ns = at_ns
+            yield run.clock_origin_ns + round(resim.sim.t * 1e9), resim.sim.outputs()
+
+
 def resimulate(
     bag: Path, out: Path, config_file: Path | None = None, overrides: Mapping[str, Any] = ()
 ) -> tuple[Path, int]:
@@ -141,56 +199,26 @@ def resimulate(
         raise ConfigError(f"--out {out} exists already; name a new bag folder")
     for folder in remove_stale_staging(out):
         print(f"boom-resim: note: removed {folder}, left by an earlier run to {out} that was killed", file=sys.stderr)
-    description = read_run_description(bag)
-    check_calls(bag, description)
-    run = read_run(bag, description)
-    check_states(bag, run)
-    values = dict(run.parameters) if config_file is None else config.read_values(config_file)
-    retired = sorted(name for name in values if name not in NAMES) if config_file is None else []
-    if retired:  # recorded by an earlier version of the model: what it no longer has cannot apply
-        print(
-            f"boom-resim: note: {bag} holds parameters this version no longer has ({', '.join(retired)}); "
-            "they are left out, and the model's defaults stand in for what replaced them",
-            file=sys.stderr,
-        )
-        values = {name: value for name, value in values.items() if name in NAMES}
-    values.update(dict(overrides))
-    resim = _Resimulation(run, values, overrides)
-    params = resim.sim.params
-    instants = run.state_ns or _grid(run, params.time_step_s)
+    run, values = read_recorded(bag, config_file)
+    replay = Replay(run, values, overrides)
     custom = RunDescription.of(
-        params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
+        replay.params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
     ).to_custom_data()
     recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
-    stretches = control_stretches(run.setpoints, instants)
-    starts = {c.start_ns: c for c in stretches}
-    releases = {c.release_ns for c in stretches if c.release_ns != instants[-1]}
-    now_ns = run.clock_origin_ns
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
         with (
             BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
-            _progress(len(instants)) as progress,
+            _progress(len(replay.instants)) as progress,
         ):
-            for at_ns in instants:
-                progress.update()  # the recorded run's state instants: runs overlay sample for sample
-                steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
-                if steps <= 0:
-                    continue
-                resim.apply_changes()  # the node changes parameters between ticks, at a state instant
-                if now_ns in starts:  # a goal or trajectory was taken between these instants
-                    resim.take_over(starts[now_ns])
-                resim.drive.advance(steps)  # a SimulationError ends it: nothing is written
-                if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
-                    resim.drive.let_go()
-                now_ns = at_ns
-                stamp_ns = run.clock_origin_ns + round(resim.sim.t * 1e9)
+            for stamp_ns, outputs in replay:
+                progress.update(replay.done - progress.n)
                 while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
-                recorder.write(run.state_topic, stamp_ns, drive_state_cdr(resim.sim.outputs(), stamp_ns))
+                recorder.write(run.state_topic, stamp_ns, drive_state_cdr(outputs, stamp_ns))
                 if recorder.error is not None:  # the disk failed: stop here, nothing is kept
                     break
         if recorder.error is not None or not getattr(recorder, "finished", True):

@@ -12,7 +12,6 @@ sequence numbers. The counts go to /diagnostics.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -21,16 +20,9 @@ from std_msgs.msg import Float64MultiArray
 
 from boom_hydraulics_msgs.msg import ValveCommand
 
+from ..bags.diagnostics import CommandCounts
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from .clock import NodeClock
-
-
-@dataclass
-class CommandCounts:
-    received: int = 0
-    stale: int = 0  # older than command_timeout_s when received
-    lost: int = 0  # dropped by the middleware before the node took them
-    refused: int = 0  # the queue of future commands was full
 
 
 class CommandIntake:

@@ -48,7 +48,8 @@ from visualization_msgs.msg import MarkerArray
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
-from ..bags import cdr
+from ..bags import cdr, messages
+from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
@@ -56,11 +57,9 @@ from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
-from . import messages
 from . import node_parameters as ros_parameters
 from .clock import ClockMode, Follow, NodeClock
 from .commands import CommandIntake
-from .diagnostics import RunCounts, diagnostics
 from .motion import Motion, Plant
 from .recording import NodeRecording
 

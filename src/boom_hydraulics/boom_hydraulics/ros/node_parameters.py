@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 
 from ..errors import ConfigError
 from ..model import config
-from ..model.parameters import GROUPS, NAMES, describe, group_of, names_in
+from ..model.parameters import GROUPS, NAMES, UNSOLVED, describe, group_of, names_in
 
 #: Parameters of the node itself (not of the model): name -> (default, unit, description, low, high).
 NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
@@ -70,7 +70,15 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
     ),
 }
 
-#: Node parameters that apply at start only: read_only in their descriptors.
+#: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics,
+#: so it declares none of these; a params file may still set them (for the CLI).
+SCENARIO = names_in("scenario")
+#: The model parameters the node declares and uses: every group but the scenario, and none
+#: that no solver reads yet (parameters.UNSOLVED: the drives', until the kernels run them).
+MODEL_NAMES = tuple(name for name in NAMES if group_of(name) != "scenario" and name not in UNSOLVED)
+
+#: Parameters that apply at start only: read_only in their descriptors (the node's own, and
+#: the model's that the schema marks start_only).
 START_ONLY = frozenset(
     {
         "publish_clock",
@@ -81,14 +89,9 @@ START_ONLY = frozenset(
         "record_flush_s",
         "start_paused",
         "publish_robot_description",
+        *(name for name in MODEL_NAMES if describe(name)["start_only"]),
     }
 )
-
-#: The headless valve scenario (boom-sim, boom-sweep): the node takes its commands from topics,
-#: so it declares none of these; a params file may still set them (for the CLI).
-SCENARIO = names_in("scenario")
-#: The model parameters the node declares and uses: every group but the scenario.
-MODEL_NAMES = tuple(name for name in NAMES if group_of(name) != "scenario")
 
 #: Parameters every rclpy node has, or may be given, beside ours.
 _STANDARD = frozenset({"use_sim_time", "start_type_description_service"})
@@ -426,7 +429,7 @@ def markdown_reference() -> str:
     the node's own, then the scenario, which only the headless tools read), with its type,
     default as a params file writes it, unit, range, whether it applies at start only, and
     its description."""
-    order = [name for group in GROUPS if group != "scenario" for name in names_in(group)]
+    order = [name for group in GROUPS if group != "scenario" for name in names_in(group) if name in MODEL_NAMES]
     order += list(NODE_PARAMETERS) + list(SCENARIO)
     lines = [
         "| Name | Group | Type | Default | Unit | Range | Start only | Description |",

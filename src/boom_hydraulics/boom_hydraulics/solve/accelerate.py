@@ -50,7 +50,8 @@ def observer(mode: str, method: str) -> Callable[..., tuple] | None:
 
 def batch_runner(mode: str, method: str) -> Callable[..., None] | None:
     """The compiled parallel run kernel (kernel.batch_set over the sets of a batch) of one
-    model and method, or None (see batch.run_sets for its arguments)."""
+    model and method, or None: ``run(states, status, metrics, rows, taken, first, last,
+    *kernel.flat(spec))`` (see kernel.batch_set and batch.SetRun)."""
     if not available():
         return None
     return KERNELS[mode].BATCHES.get(method)

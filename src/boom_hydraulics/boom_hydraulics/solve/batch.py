@@ -1,34 +1,44 @@
-"""Many parameter sets integrated together: the compiled run kernel, or numpy.
+"""Parameter sets through the one run loop (:func:`kernel.run_set`), slice by slice.
 
-:func:`run_sets` runs each set through the compiled kernel (:mod:`kernel`, in parallel over
-the sets), with the metrics taken while it runs and, if asked, every output stored.
-:func:`simulate_batch` vectorises over the sets with numpy instead: the model and
-integrator functions are the same as for one simulation, a state component is an array
-with one entry per parameter set, the constants are arrays, and ``xp=numpy``; it needs no
-numba and keeps every output. All sets of a batch share mode, method (euler or rk4), time
-step and substeps; everything else (piston diameter, payload, bulk modulus, ...) may differ.
+:class:`SetRun` runs one parameter set (the Simulator's whole runs, :func:`simulation.simulate`,
+:class:`simulation.RunStream`) or many together (:func:`run_sets`: the batch and the sweep),
+with the metrics taken while it runs and, if asked, every output stored. What is plugged into
+the loop depends on what can be compiled; the steps, commands and samples are the same:
+
+- compiled: the model's parallel run kernel (:func:`kernel.batch_set` over the sets, in
+  ``prange``) where numba is available, the method is explicit (euler, rk4) and the command
+  describes itself to the kernel (``command.kernel_command(n_sets)``: a profile, a position loop);
+- stepped: the loop interpreted, each step through the model's compiled stepping (the
+  Simulator's compiled step), for any other command (a Python function of time) or ros2;
+- interpreted: the loop and every function uncompiled (no numba, ``jit=False``, rk45).
+
+Compiled and interpreted runs agree to the last bits of the math library (1e-9 relative over
+thousands of steps); a compiled run gives the same bits whichever of the first two runs it.
+All sets of a batch share mode, method, time step and substeps; everything else (piston
+diameter, payload, bulk modulus, ...) may differ.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, SimulationError
 from ..model import MODELS
 from ..model.parameters import Parameters
-from ..model.setpoints import LINEAR
-from . import accelerate, integrators, kernel, stepping, streaming
-from .closed_loop import PositionLoop
-from .commands import Profile
+from . import accelerate, integrators, kernel, streaming
 from .integrators import BATCHED
+from .kernel import Command, RunSpec
+from .outcomes import MAX_SUBSTEPS, NONFINITE, OK, evaluation_message, message
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 from .profiles import ANGLE
-from .simulation import MAX_SUBSTEPS, sample_count, stability_limit
+from .stepping import advance
 from .streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
@@ -38,15 +48,39 @@ SHARED = ("mode", "method", "time_step_s", "substeps")
 #: kernels at once abort the process (a Dask worker with several threads would).
 _KERNEL_LOCK = threading.Lock()
 
+#: Wall time a slice of a run aims at, s: between slices the run is back in Python, where
+#: Ctrl-C (KeyboardInterrupt) is seen, progress shown and rows streamed out.
+SLICE_S = 0.2
+#: Passes of the first slice (the kernel may compile in it), and the most a slice may grow by.
+FIRST_SLICE, SLICE_GROWTH = 64, 4
+#: Most floats the table of one slice's rows may hold, all sets together (64 MB).
+SLICE_FLOATS = 8_000_000
 
-def stacked_constants(params: Sequence[Parameters]):
-    """The model's Constants with one array entry per parameter set."""
-    model = MODELS[params[0].mode]
-    per_set = [model.constants(p) for p in params]
-    return type(per_set[0])(*(np.array(column, dtype=float) for column in zip(*per_set)))
+#: What an interpreted model function may raise where compiled code gives NaN (math.acos
+#: outside its domain, a singular ros2 matrix) ...
+MODEL_ERRORS = (ValueError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError)
+#: ... and what else a step or a Python command may raise (rk45's step control, a non-finite command).
+EVALUATION_ERRORS = (SimulationError, *MODEL_ERRORS)
+
+#: The command of a run whose command is a Python function (kind ANGLE: the loop asks its
+#: controller, which is then that function).
+CALLED = Command(ANGLE, (), (), 0.0, 0.0, 0.0, (), (), (), 0, ())
 
 
-def _check_shared(params: Sequence[Parameters]) -> None:
+def stability_limit(p: Parameters) -> float:
+    """The limit on dt x rate of the parameters' method where their model asks for stability
+    substeps (see stepping.advance), else 0 (no automatic substeps)."""
+    return (integrators.METHODS[p.method].stability_limit or 0.0) if MODELS[p.mode].STABILITY_BOUND else 0.0
+
+
+def sample_count(n_steps: int, every: int) -> int:
+    """Samples of a run of ``n_steps``: at the start, after every ``every`` steps and at the end."""
+    return 1 + n_steps // every + (1 if n_steps % every else 0)
+
+
+def check_batch(params: Sequence[Parameters]) -> None:
+    """ConfigError unless ``params`` can run as one batch: at least one set, the SHARED
+    parameters alike, an explicit fixed-step method."""
     if not params:
         raise ConfigError("a batch needs at least one parameter set")
     first = params[0]
@@ -60,111 +94,114 @@ def _check_shared(params: Sequence[Parameters]) -> None:
         )
 
 
-def simulate_batch(
-    params: Sequence[Parameters],
-    duration_s: float,
-    command: Callable[[float], float | np.ndarray],
-    every: int = 1,
-    outputs: Sequence[str] = OUTPUT_NAMES,
-) -> dict[str, np.ndarray]:
-    """Integrate every parameter set over ``duration_s`` with the valve command ``command(t)``
-    (a feedback command, see :class:`closed_loop.PositionLoop`: ``command(t, y)``).
+@dataclass(frozen=True)
+class Start:
+    """Where a run of one set goes on from: a Simulator's state, time line and energy balance."""
 
-    Returns each of ``outputs`` (names of :data:`simulation.OUTPUT_NAMES`) as an array of
-    shape (samples, sets), sampled at the start and every ``every`` steps. Each time step
-    takes as many substeps as each set's stability bound needs (at least ``substeps``; see
-    stepping.advance), as its single run would; the most any set took since the previous
-    sample is reported per sample in ``substeps``. A set whose
-    state turns non-finite, whose energy balance breaks, or that needs more than
-    MAX_SUBSTEPS is frozen at its last good state from then on and reported in
-    ``failed_at_s`` (NaN where the set ran through) and ``failed_why`` (a stepping outcome:
-    NONFINITE, ENERGY or TOO_STIFF; 0 where the set ran through).
-    """
-    _check_shared(params)
-    unknown = sorted(set(outputs) - set(OUTPUT_NAMES))
-    if unknown:
-        raise ConfigError(f"unknown outputs {unknown}; choose from {', '.join(OUTPUT_NAMES)}")
-    if every < 1:
-        raise ConfigError(f"every must be >= 1, got {every}")
-    model = MODELS[params[0].mode]
-    c = stacked_constants(params)
-    n_sets = len(params)
-    y = [np.array(column, dtype=float) for column in zip(*(model.initial_state(p) for p in params))]
-    dt, min_substeps = params[0].time_step_s, params[0].substeps
-    method = integrators.METHODS[params[0].method]
-    step, limit = method.step, stability_limit(params[0])
-    energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
-    failed_at = np.full(n_sets, np.nan)
-    failed_why = np.zeros(n_sets, dtype=int)
-    n_steps = round(duration_s / dt)
-    n_rows = sample_count(n_steps, every)
-    t = 0.0
-    half = 0.5 * dt  # the command of a step is taken at its middle, as in Simulator.run
-    feedback = getattr(command, "feedback", False)
-
-    def opening(at_s: float) -> np.ndarray:
-        """The command at ``at_s``; a feedback command reads the state of the step's start."""
-        return _as_array(command(at_s, y) if feedback else command(at_s), n_sets)
-
-    first = model.observe(t, y, c, opening(t + half), np)
-    columns = {name: np.empty((n_rows, n_sets), dtype=np.asarray(first[name]).dtype) for name in outputs}
-    substeps_column = np.empty(n_rows, dtype=int)
-
-    def record(row: int, values: dict, substeps: int) -> None:
-        for name in outputs:
-            columns[name][row] = values[name]
-        substeps_column[row] = substeps
-
-    record(0, first, min_substeps)
-    row, most = 1, min_substeps
-    base = model.energy(y, c, np) - y[energy_index] if energy_index >= 0 else 0.0
-    running = np.ones(n_sets, dtype=bool)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        for i in range(1, n_steps + 1):
-            u = opening(t + half)
-            substeps = np.full(n_sets, min_substeps)
-            if limit > 0.0:
-                needed = np.ceil(dt * model.stiffness_rate(y, c, u, dt, np) / limit)
-                _fail(running & (needed > MAX_SUBSTEPS), stepping.TOO_STIFF, t, failed_at, failed_why, running)
-                substeps = np.maximum(substeps, np.where(running, needed, 1).astype(int))
-            most = max(most, int(substeps.max()))
-            h = dt / substeps  # each set steps as its own single run would
-            y_new = y
-            for j in range(int(substeps.max())):
-                stepped = step(model.derivative, t + j * h, y_new, h, (c, u, np))
-                y_new = (
-                    stepped if j < substeps.min() else [np.where(j < substeps, a, b) for a, b in zip(stepped, y_new)]
-                )
-            finite = np.logical_and.reduce([np.isfinite(v) for v in y_new])
-            _fail(running & ~finite, stepping.NONFINITE, t + dt, failed_at, failed_why, running)
-            if energy_index >= 0:
-                stored, flowed, flowed_abs = model.energy(y_new, c, np), y_new[energy_index], y_new[energy_index + 1]
-                broken = stepping.balance_broken(stored, flowed, flowed_abs, base) | np.isnan(stored)
-                _fail(running & broken, stepping.ENERGY, t + dt, failed_at, failed_why, running)
-            y = [np.where(running, new, old) for new, old in zip(y_new, y)]
-            t = i * dt
-            if i % every == 0 or i == n_steps:
-                record(row, model.observe(t, y, c, opening(t + half), np), most)
-                row += 1
-                most = min_substeps
-    out = dict(columns)
-    out["failed_at_s"] = failed_at
-    out["failed_why"] = failed_why
-    out["substeps"] = substeps_column
-    return out
+    state: Sequence[float]
+    t0_s: float  # the time line: step i of the run ends at t0_s + (k0 + i) dt, s
+    k0: int
+    energy_base_j: float  # the value of H - W that the balance keeps, J
+    integrator: integrators.Integrator | None = None  # rk45's, which keeps its step size between calls
 
 
-def _fail(
-    which: np.ndarray, outcome: int, t: float, failed_at: np.ndarray, failed_why: np.ndarray, running: np.ndarray
-) -> None:
-    """Mark the sets in ``which`` as failed at ``t`` with ``outcome`` and stop them."""
-    failed_at[which] = t
-    failed_why[which] = outcome
-    running &= ~which
+class Guard:
+    """What an interpreted set's run raised first (see EVALUATION_ERRORS): the step or the
+    command that raised is taken as non-finite, which ends the run there as compiled code
+    ends it, and the error is kept for the message."""
+
+    def __init__(self) -> None:
+        self.error: Exception | None = None
+
+    def keep(self, error: Exception) -> None:
+        if self.error is None:
+            self.error = error
+
+    def stepping(self, step_once: Callable[..., tuple]) -> Callable[..., tuple]:
+        """``step_once`` (stepping.advance's arguments and results), guarded."""
+
+        def guarded(
+            step: Any, derivative: Any, stiffness_rate: Any, energy: Any, t0: float, y: list, c: Any, u: float,
+            dt: float, min_substeps: int, *rest: Any,
+        ) -> tuple:  # fmt: skip
+            try:
+                return step_once(step, derivative, stiffness_rate, energy, t0, y, c, u, dt, min_substeps, *rest)
+            except EVALUATION_ERRORS as exc:
+                self.keep(exc)
+                return 0, NONFINITE, min_substeps, y  # no step taken
+
+        return guarded
+
+    def command(self, command: Callable, k: int) -> Callable[..., float]:
+        """A Python command (``command(t)``, or ``command(t, y)`` where it has ``feedback``) as
+        the loop's controller of set ``k`` (a batch's command may give one value per set)."""
+        feedback = getattr(command, "feedback", False)
+
+        def controller(_: Command, __: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
+            try:
+                value = command(t_s, y) if feedback else command(t_s)
+                u = float(value if np.ndim(value) == 0 else np.asarray(value)[k])
+                if not math.isfinite(u):
+                    raise SimulationError(f"valve command must be finite, got {value!r}")
+            except EVALUATION_ERRORS as exc:
+                self.keep(exc)
+                return math.nan
+            return u
+
+        return controller
 
 
-def _as_array(u: float | np.ndarray, n: int) -> np.ndarray:
-    return np.broadcast_to(np.asarray(u, dtype=float), (n,))
+def compiled_stepping(stepper: Callable[..., tuple], constants_row: np.ndarray) -> Callable[..., tuple]:
+    """stepping.advance through the model's compiled stepping ``stepper`` (accelerate.stepper)
+    with the set's constants as a row: the Simulator's compiled step, under an interpreted loop."""
+
+    def step_once(
+        step: Any, derivative: Any, stiffness_rate: Any, energy: Any, t0: float, y: list, c: Any, *rest: Any
+    ) -> tuple:
+        done, outcome, most, y_new = stepper(t0, np.array(y), constants_row, *rest)
+        return done, outcome, most, y_new.tolist()
+
+    return step_once
+
+
+def interpreted(command: Command) -> Command:
+    """``command`` with Python floats and lists for numpy arrays (an interpreted loop computes
+    in floats, as the model functions expect)."""
+    return Command(
+        int(command.kind), tuple(np.asarray(command.times_s, float).tolist()),
+        tuple(np.asarray(command.values, float).tolist()), float(command.offset), float(command.amplitude),
+        float(command.frequency_hz), np.asarray(command.knot_times_s, float).tolist(),
+        np.asarray(command.knot_angles_rad, float).tolist(), np.asarray(command.knot_rates_rad_s, float).tolist(),
+        int(command.order), np.asarray(command.gains, float).tolist(),
+    )  # fmt: skip
+
+
+def python_sets(
+    params: Sequence[Parameters], command: Callable, encoded: bool, stepper: Callable[..., tuple] | None,
+    start: Start | None,
+) -> list[tuple[Guard, tuple, Any]]:  # fmt: skip
+    """What each set runs the loop with in Python: its guard, the loop's functions (its
+    stepping: ``stepper``, compiled, or stepping.advance; the method's step, the model's
+    functions; the controller: the kernel's for an ``encoded`` command, else ``command``
+    itself) and the model's constants."""
+    p0 = params[0]
+    model = MODELS[p0.mode]
+    step = integrators.METHODS[p0.method].step
+    if step is None:  # rk45: one adaptive advance per step, by the integrator the run goes on with
+        integrator = start.integrator if start is not None else None
+        if integrator is None:
+            raise ConfigError("an rk45 run goes on from a Simulator's state (its integrator)")
+        step = lambda fun, t, y, h, args: integrator.advance(fun, t, y, h, args)  # noqa: E731
+    sets = []
+    for k, p in enumerate(params):
+        guard = Guard()
+        c = model.constants(p)
+        step_once = advance if stepper is None else compiled_stepping(stepper, np.array(c, dtype=float))
+        controller = kernel.controller_value if encoded else guard.command(command, k)
+        functions = (guard.stepping(step_once), step, model.derivative, model.stiffness_rate, model.energy,
+                     model.outputs, controller)  # fmt: skip
+        sets.append((guard, functions, c))
+    return sets
 
 
 @dataclass
@@ -173,51 +210,31 @@ class SetRuns:
 
     metrics: dict[str, np.ndarray]  # streaming.NAMES -> one value per set
     failed_at_s: np.ndarray  # NaN where the set ran through
-    failed_why: np.ndarray  # stepping outcome: OK (0), NONFINITE, ENERGY or TOO_STIFF
+    failed_why: np.ndarray  # outcome: OK (0) or a failure (outcomes: NONFINITE, ENERGY, TOO_STIFF, OUT_OF_GEOMETRY)
     most_substeps: np.ndarray  # the most substeps one step took (TOO_STIFF: as many as it needed)
-    last_q1_m: np.ndarray  # the cylinder length at the end, or at the last good state
+    states: np.ndarray  # the state at the end, or the last good state (sets x state)
     samples: np.ndarray  # how many samples each set took (fewer where it failed)
+    reasons: list[str | None]  # why each set stopped early (outcomes.message), None where it ran through
     rows: np.ndarray | None  # with store: (sets, samples, outputs), outputs in OUTPUT_NAMES order
+
+    @property
+    def last_q1_m(self) -> np.ndarray:
+        """The cylinder length at the end, or at the last good state, m."""
+        return self.states[:, 0]
 
     def columns(self, k: int) -> dict[str, np.ndarray]:
         """The stored outputs of set ``k`` (run with store), as a trajectory's columns."""
         if self.rows is None:
             raise ValueError("run_sets(store=True) keeps the outputs")
-        table = self.rows[k, : self.samples[k]]
-        return {
-            name: table[:, j].astype(bool) if name in BOOLEAN_OUTPUTS else table[:, j].copy()
-            for j, name in enumerate(OUTPUT_NAMES)
-        }
+        return columns_of(self.rows[k, : self.samples[k]])
 
 
-def kernel_command(command: Callable, n_sets: int) -> tuple | None:
-    """The run kernel's command arguments for ``command`` (a :class:`commands.Profile`, or a
-    :class:`closed_loop.PositionLoop` that has not run yet), or None where the kernel cannot
-    evaluate it (any other function of time)."""
-    no_knots = np.zeros((n_sets, 1))
-    if isinstance(command, Profile):
-        times = np.array(command.times_s or (0.0,), dtype=float)
-        values = np.array(command.values or (0.0,), dtype=float)
-        shape = (command.kind, times, values, command.offset, command.amplitude, command.frequency_hz)
-        return (*shape, no_knots, no_knots, no_knots, LINEAR, np.zeros((n_sets, 4)))
-    if isinstance(command, PositionLoop) and command.fresh:
-        path = command.path
-        knots = [
-            np.ascontiguousarray(np.broadcast_to(a, (len(a), n_sets)).T)
-            for a in (path.times_s, path.angles_rad, path.rates_rad_s)
-        ]
-        gains = np.column_stack([np.broadcast_to(np.asarray(g, dtype=float), (n_sets,)) for g in command.gains])
-        return (ANGLE, np.zeros(1), np.zeros(1), 0.0, 0.0, 0.0, *knots, path.order, gains)
-    return None
-
-
-#: Wall time a slice of a kernel run aims at, s: between slices the run is back in Python,
-#: where Ctrl-C (KeyboardInterrupt) is seen, progress shown and rows streamed out.
-SLICE_S = 0.2
-#: Passes of the first slice (the kernel may compile in it), and the most a slice may grow by.
-FIRST_SLICE, SLICE_GROWTH = 64, 4
-#: Most floats the table of one slice's rows may hold, all sets together (64 MB).
-SLICE_FLOATS = 8_000_000
+def columns_of(table: np.ndarray) -> dict[str, np.ndarray]:
+    """Rows of outputs (OUTPUT_NAMES order, flags 1.0 or 0.0) as columns, flags as booleans."""
+    return {
+        name: table[:, j] != 0.0 if name in BOOLEAN_OUTPUTS else table[:, j].copy()
+        for j, name in enumerate(OUTPUT_NAMES)
+    }
 
 
 def next_slice(passes: int, seconds: float, most: int) -> int:
@@ -227,52 +244,98 @@ def next_slice(passes: int, seconds: float, most: int) -> int:
     return max(1, min(most, passes * SLICE_GROWTH, int(wanted)))
 
 
-class KernelRun:
-    """A batch of parameter sets in the compiled run kernel, run slice by slice (:meth:`slices`).
+class SetRun:
+    """Parameter sets through the run loop, slice by slice (:meth:`slices`).
 
-    The kernel keeps each set's state, controller, command and sample count in ``state`` and
+    The loop keeps each set's state, controller, command and sample count in ``state`` and
     ``status`` between calls, so a run split into slices gives what one call over all its steps
     would, bit for bit; each slice takes about SLICE_S of wall time, so that Ctrl-C ends a run
-    of any length within a second.
+    of any length within a second. ``command`` is any valve command (see the module); the sets
+    run from rest unless ``start`` says where one set goes on from. With ``store``, a slice
+    takes at most ``slice_rows`` samples per set (default: the whole run's, at most SLICE_FLOATS
+    in all); ``measure``: whether the streaming metrics are taken (over ``lift_angle_deg``);
+    ``jit``: as for the Simulator (None: compiled where numba is available).
     """
 
     def __init__(
-        self, runner: Callable[..., None], params: Sequence[Parameters], spec: tuple, duration_s: float, every: int,
-        lift_angle_deg: float, store: bool, slice_rows: int | None = None,
+        self, params: Sequence[Parameters], duration_s: float, command: Callable, every: int = 1, *,
+        lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG, store: bool = False, slice_rows: int | None = None,
+        measure: bool = True, jit: bool | None = None, start: Start | None = None,
     ) -> None:  # fmt: skip
         p0 = params[0]
         model = MODELS[p0.mode]
+        self.params = tuple(params)
         self.n_sets = len(params)
-        constants = [model.constants(p) for p in params]
-        initial = [model.initial_state(p) for p in params]
-        energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
-        bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0 for y, c in zip(initial, constants)]
-        self.n_steps = round(duration_s / p0.time_step_s)
+        self.n_steps = max(0, round(duration_s / p0.time_step_s))
         self.every = every
         self.n_rows = sample_count(self.n_steps, every)
-        self.settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
-        self.accumulators = np.array([streaming.accumulator() for _ in params])
+        constants = [model.constants(p) for p in params]
+        energy_index = -1 if model.ENERGY_STATES is None else model.ENERGY_STATES[0]
+        if start is None:
+            initial = [model.initial_state(p) for p in params]
+            bases = [model.energy(y, c) - y[energy_index] if energy_index >= 0 else 0.0
+                     for y, c in zip(initial, constants)]  # fmt: skip
+            t0_s, k0 = 0.0, 0
+        else:
+            initial, bases, t0_s, k0 = [list(start.state)], [start.energy_base_j], start.t0_s, start.k0
         self.state = np.array(initial, dtype=float)  # each set's state, carried from slice to slice
         self.status = np.zeros((self.n_sets, kernel.STATUS_SIZE))
+        self.metrics = np.array([streaming.accumulator() for _ in params])
         self.taken = np.zeros(self.n_sets, dtype=np.int64)  # samples of each set in the last slice
         self.done = 0  # passes done of n_steps + 1 (pass 0: the start, pass i: step i)
-        self._runner = runner
-        self._head = (np.array(constants, dtype=float), self.state, *spec)
-        self._middle = (
-            float(p0.time_step_s), int(p0.substeps), float(stability_limit(p0)), MAX_SUBSTEPS, int(self.n_steps),
-            int(every), energy_index, np.array(bases, dtype=float), self.settings, self.accumulators,
+        self.errors: list[Exception | None] = [None] * self.n_sets  # interpreted: what a set's run raised
+        encode = getattr(command, "kernel_command", None)
+        encoding = encode(self.n_sets) if encode is not None else None
+        if encoding is None and self.n_sets > 1 and getattr(command, "feedback", False):
+            raise ConfigError("a feedback command that has run already drives one parameter set; give each set its own")
+        compiled = accelerate.available() if jit is None else jit and accelerate.available()
+        adaptive = integrators.METHODS[p0.method].step is None  # rk45: one advance per step
+        settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
+        spec = RunSpec(
+            np.array(constants, dtype=float), encoding or CALLED, float(p0.time_step_s),
+            1 if adaptive else int(p0.substeps), float(stability_limit(p0)), MAX_SUBSTEPS, int(self.n_steps),
+            int(every), energy_index, np.array(bases, dtype=float), settings, bool(measure), float(t0_s), int(k0),
         )  # fmt: skip
+        self._runner = accelerate.batch_runner(p0.mode, p0.method) if compiled and encoding is not None else None
+        if self._runner is not None:
+            self._spec, self._flat = spec, kernel.flat(spec)
+        else:  # the loop in Python: each set with its own functions
+            self._spec = spec._replace(
+                command=CALLED if encoding is None else interpreted(encoding), energy_base=[float(b) for b in bases]
+            )
+            stepper = accelerate.stepper(p0.mode, p0.method) if compiled else None
+            self._sets = python_sets(params, command, encoding is not None, stepper, start)
         width = len(OUTPUT_NAMES)
         if slice_rows is None:
-            slice_rows = SLICE_FLOATS // (self.n_sets * width)
+            slice_rows = min(SLICE_FLOATS // (self.n_sets * width), self.n_rows)
         slice_rows = max(2, slice_rows) if store else 0
-        self.most_passes = max(1, (slice_rows - 2) * every) if store else self.n_steps + 1
+        # P passes take at most ceil(P / every) samples at multiples of every, and the last one
+        self.most_passes = (slice_rows - 1) * every if store else self.n_steps + 1
         self.rows = np.empty((self.n_sets, slice_rows, width))  # the rows of the last slice
+
+    @property
+    def compiled(self) -> bool:
+        """True when the sets run in the compiled run kernel."""
+        return self._runner is not None
 
     @property
     def passes(self) -> int:
         """All passes of the run: the start and each step."""
         return self.n_steps + 1
+
+    def _slice(self, first: int, last: int) -> None:
+        if self._runner is not None:
+            with _KERNEL_LOCK:
+                self._runner(self.state, self.status, self.metrics, self.rows, self.taken, first, last, *self._flat)
+            return
+        store = self.rows.shape[1] > 0
+        for k, (guard, functions, c) in enumerate(self._sets):
+            y = self.state[k].tolist()
+            self.taken[k] = kernel.run_set(
+                *functions, store, c, y, self._spec, k, self.state[k], self.status[k], self.metrics[k], self.rows[k],
+                first, last,
+            )  # fmt: skip
+            self.errors[k] = guard.error
 
     def slices(self) -> Iterator[np.ndarray]:
         """Run to the end, one slice per step of the iteration; after each, ``rows[k, :taken[k]]``
@@ -282,12 +345,11 @@ class KernelRun:
         while self.done < self.passes:
             last = min(self.passes, self.done + min(size, self.most_passes))
             started = time.perf_counter()
-            with _KERNEL_LOCK:
-                self._runner(*self._head, *self._middle, self.rows, self.status, self.taken, self.done, last)
+            self._slice(self.done, last)
             seconds = time.perf_counter() - started
             passes, self.done = last - self.done, last
             yield self.taken
-            if not (self.status[:, kernel.OUTCOME] == stepping.OK).any():
+            if not (self.status[:, kernel.OUTCOME] == OK).any():
                 self.done = self.passes  # every set has stopped: the rest would do nothing
                 return
             size = next_slice(passes, seconds, self.most_passes)
@@ -296,40 +358,53 @@ class KernelRun:
         """What the run gave (after :meth:`slices`), with ``rows`` the table of every sample, if kept."""
         values = np.empty((self.n_sets, len(streaming.NAMES)))
         for k in range(self.n_sets):
-            streaming.finish(self.accumulators[k], self.settings[k], values[k])
+            streaming.finish(self.metrics[k], self._spec.settings[k], values[k])
         status = self.status
         return SetRuns(
             metrics={name: values[:, j] for j, name in enumerate(streaming.NAMES)},
             failed_at_s=status[:, kernel.FAILED_AT].copy(),
             failed_why=status[:, kernel.OUTCOME].astype(int),
             most_substeps=status[:, kernel.MOST].astype(int),
-            last_q1_m=status[:, kernel.LAST_Q1].copy(),
+            states=self.state.copy(),
             samples=status[:, kernel.TAKEN].astype(np.int64),
+            reasons=[self.reason(k) for k in range(self.n_sets)],
             rows=rows,
         )
 
+    def steps_taken(self, k: int) -> int:
+        """The steps set ``k`` took (all of them, or those before the one that failed)."""
+        status = self.status[k]
+        return self.n_steps if status[kernel.OUTCOME] == OK else int(status[kernel.FAILED_STEP])
 
-def kernel_run(
-    params: Sequence[Parameters],
-    duration_s: float,
-    command: Callable,
-    every: int = 1,
-    lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
-    store: bool = False,
-    slice_rows: int | None = None,
-) -> KernelRun | None:
-    """The sets prepared for the compiled kernel (see :func:`run_sets`), or None where numba
-    is not available (or switched off) or the kernel cannot evaluate ``command``. With
-    ``store``, a slice takes at most ``slice_rows`` samples per set (default: SLICE_FLOATS in all)."""
-    _check_shared(params)
-    if every < 1:
-        raise ConfigError(f"every must be >= 1, got {every}")
-    p0 = params[0]
-    runner = accelerate.batch_runner(p0.mode, p0.method)
-    spec = kernel_command(command, len(params))
-    if runner is None or spec is None:
-        return None
-    return KernelRun(runner, params, spec, duration_s, every, lift_angle_deg, store, slice_rows)
+    def time_after(self, steps: int) -> float:
+        """The time on the run's time line after ``steps`` of its steps, s (as the Simulator keeps it)."""
+        return self._spec.t0_s + (self._spec.k0 + steps) * self._spec.dt_s
+
+    def reason(self, k: int) -> str | None:
+        """Why set ``k`` stopped early, in the words of :mod:`outcomes` (what an interpreted run
+        raised, where it did), from its last good state; None where it ran through."""
+        status = self.status[k]
+        outcome = int(status[kernel.OUTCOME])
+        if outcome == OK:
+            return None
+        p, y, error = self.params[k], self.state[k].tolist(), self.errors[k]
+        t_s = self.time_after(self.steps_taken(k))
+        if isinstance(error, SimulationError):
+            return str(error)
+        if error is not None:
+            return evaluation_message(p, t_s, y, error)
+        return message(p, outcome, t_s, y, int(status[kernel.MOST]))
+
+    def table(self) -> SetRuns:
+        """Run to the end (:meth:`slices`), keeping every sample when run with store."""
+        table = np.empty((self.n_sets, self.n_rows, self.rows.shape[2])) if self.rows.shape[1] > 0 else None
+        filled = np.zeros(self.n_sets, dtype=np.int64)
+        for taken in self.slices():
+            if table is not None:
+                for k in range(self.n_sets):
+                    table[k, filled[k] : filled[k] + taken[k]] = self.rows[k, : taken[k]]
+                filled += taken
+        return self.result(table)
 
 
 def run_sets(
@@ -339,27 +414,17 @@ def run_sets(
     every: int = 1,
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     store: bool = False,
-) -> SetRuns | None:
-    """Run every parameter set through the compiled kernel: the metrics of
-    :mod:`streaming` (over the samples at the start, every ``every`` steps and at the end),
-    and with ``store`` every output at those samples. None where numba is not available
-    (or switched off) or the kernel cannot evaluate ``command`` (see :func:`kernel_command`):
-    then :func:`simulate_batch` does the work.
+    jit: bool | None = None,
+) -> SetRuns:
+    """Run every parameter set through the run loop (compiled in parallel where it can be, see
+    the module): the metrics of :mod:`streaming` (over the samples at the start, every
+    ``every`` steps and at the end), and with ``store`` every output at those samples.
 
-    Each set runs as its single run would (:meth:`simulation.Simulator.run`, the same steps
-    and substeps, commands and samples); a set that fails stops where it failed. The kernel
-    runs in slices of about SLICE_S (:class:`KernelRun`): Ctrl-C stops it within a second.
+    Each set runs as its single run would (:meth:`simulation.Simulator.run`: the same steps and
+    substeps, commands and samples); a set that fails stops where it failed. A run in the
+    compiled kernel goes in slices of about SLICE_S (:class:`SetRun`): Ctrl-C stops it within a second.
     """
-    run = kernel_run(params, duration_s, command, every, lift_angle_deg, store)
-    if run is None:
-        return None
-    table = None
-    if store:
-        table = np.empty((run.n_sets, run.n_rows, len(OUTPUT_NAMES)))
-        filled = np.zeros(run.n_sets, dtype=np.int64)
-    for taken in run.slices():
-        if table is not None:
-            for k in range(run.n_sets):
-                table[k, filled[k] : filled[k] + taken[k]] = run.rows[k, : taken[k]]
-            filled += taken
-    return run.result(table)
+    check_batch(params)
+    if every < 1:
+        raise ConfigError(f"every must be >= 1, got {every}")
+    return SetRun(params, duration_s, command, every, lift_angle_deg=lift_angle_deg, store=store, jit=jit).table()

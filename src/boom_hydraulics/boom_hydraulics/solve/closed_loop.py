@@ -21,6 +21,8 @@ from ..model.control import ControlState, Gains, gains_of, initial_control_state
 from ..model.geometry import boom_angle_rad
 from ..model.parameters import Parameters
 from ..model.setpoints import SetpointPath, timed_moves
+from .kernel import Command
+from .profiles import ANGLE
 
 
 class PositionLoop:
@@ -35,7 +37,7 @@ class PositionLoop:
         self.path = path
         model = MODELS["physical"]
         if constants is None:
-            constants = model.constants(params[0]) if self.single else _stacked(params)
+            constants = model.constants(params[0]) if self.single else stacked_constants(params)
         self.constants = constants
         per_set = [gains_of(p) for p in params]
         self.gains = per_set[0] if self.single else Gains(*(np.array(c, dtype=float) for c in zip(*per_set)))
@@ -61,6 +63,19 @@ class PositionLoop:
         """True before the first command: the controller has no history yet."""
         return self._t is None and not np.any(self.state.integral) and not np.any(self.state.holding)
 
+    def kernel_command(self, n_sets: int) -> Command | None:
+        """The loop as the run loop evaluates it (kernel.controller_value) for ``n_sets`` sets:
+        each set's knots and gains; None once it has run (the kernel starts a controller afresh)."""
+        if not self.fresh:
+            return None
+        path = self.path
+        knots = [
+            np.ascontiguousarray(np.broadcast_to(a, (len(a), n_sets)).T)
+            for a in (path.times_s, path.angles_rad, path.rates_rad_s)
+        ]
+        gains = np.column_stack([np.broadcast_to(np.asarray(g, dtype=float), (n_sets,)) for g in self.gains])
+        return Command(ANGLE, np.zeros(1), np.zeros(1), 0.0, 0.0, 0.0, *knots, path.order, gains)
+
     def __call__(self, t_s: float, y: Sequence[Any]) -> Any:
         if t_s == self._t:
             return self._u
@@ -79,7 +94,8 @@ class PositionLoop:
         self._t = None
 
 
-def _stacked(params: Sequence[Parameters]) -> Any:
-    from .batch import stacked_constants
-
-    return stacked_constants(params)
+def stacked_constants(params: Sequence[Parameters]) -> Any:
+    """The model's Constants with one array entry per parameter set."""
+    model = MODELS[params[0].mode]
+    per_set = [model.constants(p) for p in params]
+    return type(per_set[0])(*(np.array(column, dtype=float) for column in zip(*per_set)))

@@ -7,8 +7,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..errors import ConfigError
 from ..model.parameters import Parameters
+from ..model.setpoints import LINEAR
+from .closed_loop import PositionLoop
+from .kernel import Command
 from .profiles import CONSTANT, RAMP, SINE, STEPS, profile_value
 
 CommandProfile = Callable[[float], float]
@@ -16,7 +21,7 @@ CommandProfile = Callable[[float], float]
 
 @dataclass(frozen=True)
 class Profile:
-    """An open-loop command u(t) of :func:`profiles.profile_value` (the run kernel takes its fields)."""
+    """An open-loop command u(t) of :func:`profiles.profile_value` (the run loop takes it as its kernel_command)."""
 
     kind: int
     times_s: tuple[float, ...] = ()
@@ -27,6 +32,13 @@ class Profile:
 
     def __call__(self, t: float) -> float:
         return profile_value(self.kind, self.times_s, self.values, self.offset, self.amplitude, self.frequency_hz, t)
+
+    def kernel_command(self, n_sets: int) -> Command:
+        """The profile as the run loop evaluates it, the same for each of ``n_sets`` sets."""
+        no_knots = np.zeros((n_sets, 1))
+        times, values = (np.array(v or (0.0,), dtype=float) for v in (self.times_s, self.values))
+        shape = (self.kind, times, values, self.offset, self.amplitude, self.frequency_hz)
+        return Command(*shape, no_knots, no_knots, no_knots, LINEAR, np.zeros((n_sets, 4)))
 
 
 def constant(value: float) -> CommandProfile:
@@ -53,8 +65,6 @@ def from_parameters(p: Parameters) -> CommandProfile:
     """The profile that the ``command_*`` parameters describe (the ``angle`` profile: a
     feedback command, see :class:`closed_loop.PositionLoop`)."""
     if p.command_profile == "angle":
-        from .closed_loop import PositionLoop
-
         return PositionLoop.of_parameters([p])
     if p.command_profile == "constant":
         return constant(p.command_value)
@@ -69,8 +79,6 @@ def for_batch(params: Sequence[Parameters]) -> Callable:
     """The command of a batch whose sets share their command_* parameters (the ``angle``
     profile: one controller per set, each from its own initial angle)."""
     if params[0].command_profile == "angle":
-        from .closed_loop import PositionLoop
-
         return PositionLoop.of_parameters(params)
     return from_parameters(params[0])
 

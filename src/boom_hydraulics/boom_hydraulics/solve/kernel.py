@@ -1,43 +1,86 @@
-"""A whole run of one parameter set in one call: stepping, valve command and metrics together.
+"""The run loop: a whole run of one parameter set, stepping, valve command and samples together.
 
-:func:`run_set` integrates one parameter set from rest over
-``n_steps`` time steps, with its valve command evaluated inside (an open-loop profile of
-:mod:`profiles`, or the closed-loop position controller following setpoint knots), and takes
-every ``every``-th sample into the streaming metrics (:mod:`streaming`) and, when asked,
-into a table of every output. It is written in the subset of Python that numba compiles,
-and takes the model's and the method's functions as arguments: each model's kernel module
-(:mod:`physical_kernel`, :mod:`paper_kernel`) calls it with them by name and runs it over
-the sets of a batch in parallel (``prange``), so that a run costs its steps and no Python
-per step; numba compiles the functions into it.
+:func:`run_set` is the one run loop of the package. It integrates one parameter set for
+``n_steps`` time steps of ``dt`` from a given state and time, with its valve command
+evaluated inside (:func:`command_value`: an open-loop profile of :mod:`profiles`, or the
+closed-loop position controller following setpoint knots, or for an interpreted run any
+Python command), and takes a sample at the start, every ``every``-th step and at the end
+into the streaming metrics (:mod:`streaming`) and, when asked, into a table of every output:
 
-The step, the command and the samples are those of :meth:`simulation.Simulator.run`: the
-command of a step is taken at its middle from the state at its start and held over it, the
-stepping loop is :func:`stepping.advance`, and a step that fails (non-finite, energy
-balance, too stiff, or the rod out of the geometry of eq. 1) is not taken and ends the run.
+- the command of a step is taken at its middle from the state at its start and held over it;
+- the step is :func:`stepping.advance` (stability-bound substeps, finiteness, energy balance);
+- a step that fails (non-finite, energy balance, too stiff, or the rod out of the geometry of
+  eq. 1: :mod:`outcomes`) is not taken and ends the run.
+
+It is written in the subset of Python that numba compiles and takes the model's and the
+method's functions as arguments. Compiled, each model's kernel module (:mod:`physical_kernel`,
+:mod:`paper_kernel`) runs :func:`batch_set` over the sets of a batch in parallel (``prange``)
+with those functions by name, so that a run costs its steps and no Python per step.
+Interpreted, :mod:`batch` calls the same :func:`run_set` with the same functions uncompiled
+(or with the compiled stepping under a Python command): whole runs of the Simulator,
+:func:`simulation.simulate`, the batch and the sweep all run through it.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..jit import jitable
 from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
 from ..model.setpoints import setpoint_at
+from .outcomes import OK, OUT_OF_GEOMETRY, TOO_STIFF
 from .outputs import OUTPUT_NAMES
 from .profiles import ANGLE, profile_value
-from .stepping import NONFINITE, OK, TOO_STIFF, advance
+from .stepping import advance
 from .streaming import SAMPLE_SIGNALS, add_sample
 
+
+class Command(NamedTuple):
+    """A valve command as the run loop evaluates it for the sets of a run (see
+    :func:`command_value`); each command class gives its own (``kernel_command``)."""
+
+    kind: int  # profiles.CONSTANT, STEPS, RAMP, SINE; ANGLE: the controller
+    times_s: Any  # the profile's times and values (profiles.profile_value), shared by the sets
+    values: Any
+    offset: float
+    amplitude: float
+    frequency_hz: float
+    knot_times_s: Any  # kind ANGLE: each set's setpoint knots (sets x knots), s, rad, rad/s ...
+    knot_angles_rad: Any
+    knot_rates_rad_s: Any
+    order: int  # ... joined linearly or by Hermite segments (model.setpoints)
+    gains: Any  # ... and each set's controller gains (sets x 4): kp, ki, deadband, lower_limit
+
+
+class RunSpec(NamedTuple):
+    """What a run of a batch of sets reads and keeps from slice to slice (one per run)."""
+
+    constants: Any  # each set's model Constants as a row of floats (sets x fields)
+    command: Command
+    dt_s: float  # the time step, s
+    min_substeps: int
+    limit: float  # the method's stability limit on dt x rate (0: no automatic substeps)
+    max_substeps: int
+    n_steps: int
+    every: int  # a sample every ``every`` steps (and at the start and the end)
+    energy_index: int  # the index of W in the state (-1: no energy balance)
+    energy_base: Any  # per set: the value of H - W that the balance keeps, J
+    settings: Any  # per set: the streaming metrics' settings (streaming.settings)
+    measure: bool  # whether the samples go into the streaming metrics
+    t0_s: float  # the time of step k0 of the run's time line, s: step i ends at t0_s + (k0 + i) dt
+    k0: int
+
+
 #: Where run_set keeps a run between calls (status[k] of a batch): the time it failed (NaN:
-#: it ran through), the stepping outcome (stepping.OK, NONFINITE, ENERGY or TOO_STIFF), the
-#: most substeps one step took (on TOO_STIFF: the number the failing step would have needed),
-#: the cylinder length at the end (or at the last good state), m; then what a run carries from
-#: one slice of steps to the next: the controller's integral and holding flag, the command of
-#: the next step, the samples taken so far, and on a failure the index of the failed step.
-FAILED_AT, OUTCOME, MOST, LAST_Q1, INTEGRAL, HOLDING, NEXT_U, TAKEN, FAILED_STEP = range(9)
+#: it ran through), the outcome (outcomes.OK or a failure), the most substeps one step took
+#: (on TOO_STIFF: the number the failing step would have needed), the command of the last
+#: step taken; then what a run carries from one slice of steps to the next: the controller's
+#: integral and holding flag, the command of the next step, the samples taken so far, and on
+#: a failure the index of the failed step (the steps taken before it).
+FAILED_AT, OUTCOME, MOST, APPLIED_U, INTEGRAL, HOLDING, NEXT_U, TAKEN, FAILED_STEP = range(9)
 STATUS_SIZE = 9
 #: Where the signals of the streaming metrics are among the outputs, in add_sample's order.
 SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
@@ -45,35 +88,37 @@ SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
 
 @jitable
 def command_value(
-    controller: Callable[..., float], profile: tuple, path: tuple, control: Any, c: Any, q1_m: float, dt_s: float,
-    t_s: float,
-) -> float:  # fmt: skip
-    """The valve command of the step whose middle is ``t_s``: the open-loop ``profile``
-    (kind, times_s, values, offset, amplitude, frequency_hz; see profiles.profile_value), or
-    for kind ANGLE the model's ``controller`` (:func:`controller_value`, or
-    :func:`no_controller`) following ``path`` from cylinder length ``q1_m``; the controller's
-    state (integral, holding) moves on in ``control``."""
-    kind, times_s, values, offset, amplitude, frequency_hz = profile
-    if kind != ANGLE:
-        return profile_value(kind, times_s, values, offset, amplitude, frequency_hz, t_s)
-    return controller(path, control, c, q1_m, dt_s, t_s)
+    controller: Callable[..., float], command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float
+) -> float:
+    """The valve command of set ``k`` for the step whose middle is ``t_s``: the open-loop
+    profile of ``command``, or for kind ANGLE ``controller`` (:func:`controller_value`,
+    :func:`no_controller`, or interpreted any Python command) from the state ``y`` at the
+    step's start; the controller's state (integral, holding) moves on in ``control``."""
+    if command.kind != ANGLE:
+        return profile_value(
+            command.kind, command.times_s, command.values, command.offset, command.amplitude, command.frequency_hz,
+            t_s,
+        )  # fmt: skip
+    return controller(command, k, control, c, y, dt_s, t_s)
 
 
 @jitable
-def controller_value(path: tuple, control: Any, c: Any, q1_m: float, dt_s: float, t_s: float) -> float:
-    """The position controller's command following ``path`` = (knot times s, angles rad,
-    rates rad/s, order, gains kp ki deadband lower_limit). Physical mode only."""
-    knots_s, knots_rad, knot_rates, order, gains = path
-    ref, rate = setpoint_at(knots_s, knots_rad, knot_rates, order, t_s)
-    g = Gains(gains[0], gains[1], gains[2], gains[3])
-    u, state = position_command(g, ControlState(control[0], control[1]), q1_m, c, ref, rate, dt_s)
+def controller_value(command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
+    """The position controller's command following set ``k``'s knots of ``command`` from the
+    cylinder length y[0] (model.control.position_command). Physical mode only."""
+    ref, rate = setpoint_at(
+        command.knot_times_s[k], command.knot_angles_rad[k], command.knot_rates_rad_s[k], command.order, t_s
+    )
+    g = command.gains[k]
+    state = ControlState(float(control[0]), float(control[1]))
+    u, state = position_command(Gains(g[0], g[1], g[2], g[3]), state, y[0], c, ref, rate, dt_s)
     control[0] = state.integral
     control[1] = state.holding
     return u
 
 
 @jitable
-def no_controller(path: tuple, control: Any, c: Any, q1_m: float, dt_s: float, t_s: float) -> float:
+def no_controller(command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
     """The paper model's controller: none (its Constants have none of what the controller
     reads, its valve only lifts, and closed_loop.PositionLoop refuses paper mode): 0."""
     return 0.0
@@ -81,6 +126,7 @@ def no_controller(path: tuple, control: Any, c: Any, q1_m: float, dt_s: float, t
 
 @jitable
 def run_set(
+    step_once: Callable[..., Any],
     step: Callable[..., Any],
     derivative: Callable[..., Any],
     stiffness_rate: Callable[..., float],
@@ -90,66 +136,56 @@ def run_set(
     store: bool,
     c: Any,
     y: Any,
-    y0: Any,
-    profile: tuple,
-    path: tuple,
-    dt: float,
-    min_substeps: int,
-    limit: float,
-    max_substeps: int,
-    n_steps: int,
-    every: int,
-    energy_index: int,
-    energy_base: float,
-    settings: Any,
+    spec: RunSpec,
+    k: int,
+    state: Any,
+    status: Any,
     metrics: Any,
     rows: Any,
-    status: Any,
     first: int,
     last: int,
 ) -> int:
-    """Run one set with the method's ``step`` on the model's ``derivative``, ``stiffness_rate``,
-    ``energy``, ``outputs`` (a tuple of floats in the order of OUTPUT_NAMES) and
-    ``controller`` (see command_value); ``store``: whether the samples go into ``rows`` (a
-    constant in each call of :func:`batch_set`, so that the compiler may leave the outputs
-    the metrics do not take uncomputed).
+    """Run set ``k`` of ``spec`` with ``step_once`` (:func:`stepping.advance`, or interpreted a
+    function of its arguments that steps otherwise) taking the method's ``step`` on the model's
+    ``derivative``, ``stiffness_rate`` and ``energy``; samples of ``outputs`` (a tuple of floats
+    in the order of OUTPUT_NAMES); ``controller``: see command_value; ``store``: whether the
+    samples go into ``rows`` (a constant in each call of :func:`batch_set`, so that the compiler
+    may leave the outputs the metrics do not take uncomputed).
 
-    The set has constants ``c`` and runs from rest for ``n_steps`` steps of ``dt``, with the
-    valve command of ``profile`` and ``path`` (see command_value), taking a sample at the
-    start, every ``every`` steps and at the end, until a failure. One call does the loop's
-    passes ``first`` to ``last`` - 1 of 0 ... ``n_steps`` (pass 0 the start, pass i the i-th
-    step): a run is one call over (0, n_steps + 1) or several over consecutive slices, with
-    the same result bit for bit, so that a caller can return to Python between slices
-    (Ctrl-C, progress, streaming the rows out). ``y0`` holds the state (the initial state
-    before pass 0, then the state after the last pass done, or the last good one) and ``y``
-    the same as the kernel's state (a tuple or list), ``status`` the rest of what a run
-    carries (the slots above). Each sample goes into the streaming ``metrics`` accumulator
-    (with its ``settings``) and, with ``store``, into ``rows`` from row 0 at each call.
-    Returns the number of samples this call took.
+    The set has constants ``c`` and runs for ``spec.n_steps`` steps from ``state`` (``y``: the
+    same as the kernel keeps it, a tuple or a list), taking a sample at the start, every
+    ``spec.every`` steps and at the end, until a failure. One call does the loop's passes
+    ``first`` to ``last`` - 1 of 0 ... n_steps (pass 0 the start, pass i the i-th step): a run
+    is one call over (0, n_steps + 1) or several over consecutive slices, with the same result
+    bit for bit, so that a caller can return to Python between slices (Ctrl-C, progress,
+    streaming the rows out). ``state`` holds the state after the last pass done (the last good
+    one), ``status`` the rest of what a run carries (the slots above). Each sample goes into the
+    streaming ``metrics`` (with ``spec.measure``) and, with ``store``, into ``rows`` from row 0
+    at each call. Returns the number of samples this call took.
     """
-    control = status[INTEGRAL : HOLDING + 1]
+    dt = spec.dt_s
     half = 0.5 * dt
-    t = 0.0
+    control = status[INTEGRAL : HOLDING + 1]
+    t = spec.t0_s + spec.k0 * dt
     if first == 0:
-        status[FAILED_AT], status[OUTCOME], status[MOST], status[LAST_Q1] = math.nan, OK, min_substeps, y[0]
-        status[TAKEN], status[FAILED_STEP] = 0.0, -1.0
+        status[FAILED_AT], status[OUTCOME], status[MOST] = math.nan, OK, spec.min_substeps
+        status[APPLIED_U], status[TAKEN], status[FAILED_STEP] = math.nan, 0.0, -1.0
         control[0], control[1] = 0.0, 0.0
-        status[NEXT_U] = command_value(controller, profile, path, control, c, y[0], dt, t + half)
+        status[NEXT_U] = command_value(controller, spec.command, k, control, c, y, dt, t + half)
     elif status[OUTCOME] != OK:
         return 0
-    u = status[NEXT_U]
+    u = float(status[NEXT_U])
     base = int(status[TAKEN])
     taken = base
     for i in range(first, last):
         if i > 0:
-            t_start = (i - 1) * dt
-            _, outcome, most, y_new = advance(
-                step, derivative, stiffness_rate, energy, t_start, y, c, u, dt, min_substeps, limit, max_substeps, 1,
-                energy_index, energy_base,
+            t_start = spec.t0_s + (spec.k0 + i - 1) * dt
+            _, outcome, most, y_new = step_once(
+                step, derivative, stiffness_rate, energy, t_start, y, c, u, dt, spec.min_substeps, spec.limit,
+                spec.max_substeps, 1, spec.energy_index, spec.energy_base[k],
             )  # fmt: skip
             if outcome == OK and not within_triangle(y_new[0], c.a, c.b):
-                outcome = NONFINITE  # the rod left the geometry: the model cannot go on
-            status[LAST_Q1] = y[0]
+                outcome = OUT_OF_GEOMETRY  # the model cannot go on
             if outcome != OK:
                 status[FAILED_AT] = t_start if outcome == TOO_STIFF else t_start + dt
                 status[OUTCOME] = outcome
@@ -157,26 +193,43 @@ def run_set(
                 status[FAILED_STEP] = i - 1
                 break
             status[MOST] = max(status[MOST], most)
+            status[APPLIED_U] = u
             y = y_new
-            t = i * dt
-            u = command_value(controller, profile, path, control, c, y[0], dt, t + half)
-        if i % every == 0 or i == n_steps:
+            t = spec.t0_s + (spec.k0 + i) * dt
+            u = command_value(controller, spec.command, k, control, c, y, dt, t + half)
+        if i % spec.every == 0 or i == spec.n_steps:
             o = outputs(t, y, c, u)
-            add_sample(
-                metrics, settings, o[SAMPLED[0]], o[SAMPLED[1]], o[SAMPLED[2]], o[SAMPLED[3]], o[SAMPLED[4]],
-                o[SAMPLED[5]], o[SAMPLED[6]], o[SAMPLED[7]], o[SAMPLED[8]], o[SAMPLED[9]], o[SAMPLED[10]],
-            )  # fmt: skip
+            if spec.measure:
+                add_sample(
+                    metrics, spec.settings[k], o[SAMPLED[0]], o[SAMPLED[1]], o[SAMPLED[2]], o[SAMPLED[3]],
+                    o[SAMPLED[4]], o[SAMPLED[5]], o[SAMPLED[6]], o[SAMPLED[7]], o[SAMPLED[8]], o[SAMPLED[9]],
+                    o[SAMPLED[10]],
+                )  # fmt: skip
             if store:
                 for j in range(len(o)):
                     rows[taken - base, j] = o[j]
             taken += 1
-    if status[OUTCOME] == OK:
-        status[LAST_Q1] = y[0]
-    for j in range(len(y0)):
-        y0[j] = y[j]
+    for j in range(len(state)):
+        state[j] = y[j]
     status[NEXT_U] = u
     status[TAKEN] = taken
     return taken - base
+
+
+#: Where the command's fields end in a flat spec (:func:`flat`): after the constants.
+_COMMAND_END = 1 + len(Command._fields)
+
+
+def flat(spec: RunSpec) -> tuple:
+    """``spec`` as one flat tuple of arrays and numbers, as a parallel kernel takes it (numba's
+    parallel loop takes no tuple of arrays); :func:`spec_of` builds it again inside."""
+    return (spec.constants, *spec.command, *spec[2:])
+
+
+@jitable
+def spec_of(fields: tuple) -> RunSpec:
+    """The RunSpec of its :func:`flat` fields."""
+    return RunSpec(fields[0], Command(*fields[1:_COMMAND_END]), *fields[_COMMAND_END:])
 
 
 @jitable
@@ -190,27 +243,26 @@ def batch_set(
     constants_of: Callable[..., Any],
     state_of: Callable[..., Any],
     k: int,
-    C: Any, Y: Any, kind: int, times_s: Any, values: Any, offset: float, amplitude: float, frequency_hz: float,
-    KT: Any, KA: Any, KR: Any, order: int, G: Any, dt: float, min_substeps: int, limit: float, max_substeps: int,
-    n_steps: int, every: int, energy_index: int, EB: Any, S: Any, M: Any, ROWS: Any, STATUS: Any, TAKEN: Any,
-    first: int, last: int,
-) -> None:  # fmt: skip
-    """:func:`run_set` of set ``k`` of a batch, over its passes ``first`` ... ``last`` - 1 (see
-    batch.run_sets for the arguments after ``k``): the model's constants from the row ``C[k]``
-    (``constants_of``), its state from ``Y[k]`` (``state_of``, as the step keeps it)."""
-    profile = (kind, times_s, values, offset, amplitude, frequency_hz)
-    path = (KT[k], KA[k], KR[k], order, G[k])
-    c = constants_of(C[k])
-    y = state_of(Y[k])
-    if ROWS.shape[1] > 0:  # each call with its own constant store
-        TAKEN[k] = run_set(
-            step, derivative, stiffness_rate, energy, outputs, controller, True, c, y, Y[k], profile, path, dt,
-            min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k], S[k], M[k], ROWS[k], STATUS[k],
-            first, last,
-        )  # fmt: skip
+    states: Any,
+    status: Any,
+    metrics: Any,
+    rows: Any,
+    taken: Any,
+    first: int,
+    last: int,
+    *spec_fields: Any,
+) -> None:
+    """:func:`run_set` of set ``k`` of a batch over its passes ``first`` ... ``last`` - 1, with
+    the stepping loop :func:`stepping.advance` and the run's spec from its flat fields
+    (:func:`flat`): the model's constants from the row ``spec.constants[k]`` (``constants_of``),
+    its state from ``states[k]`` (``state_of``, as the step keeps it); ``status``, ``metrics``,
+    ``rows`` (its rows of this slice; none: no rows kept) and ``taken`` (its samples in this
+    slice) hold one entry per set."""
+    spec = spec_of(spec_fields)
+    c = constants_of(spec.constants[k])
+    y = state_of(states[k])
+    f = (step, derivative, stiffness_rate, energy, outputs, controller)
+    if rows.shape[1] > 0:  # each call with its own constant store
+        taken[k] = run_set(advance, *f, True, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)
     else:
-        TAKEN[k] = run_set(
-            step, derivative, stiffness_rate, energy, outputs, controller, False, c, y, Y[k], profile, path, dt,
-            min_substeps, limit, max_substeps, n_steps, every, energy_index, EB[k], S[k], M[k], ROWS[k], STATUS[k],
-            first, last,
-        )  # fmt: skip
+        taken[k] = run_set(advance, *f, False, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)

@@ -100,7 +100,17 @@ def trade_off_front(table: Mapping[str, np.ndarray]) -> np.ndarray:
 
 
 #: Metrics where a smaller value is the worse one; for every other metric a larger value is.
-LOWER_IS_WORSE = frozenset({"lift_completed", "rise_deg", "lift_m", "damping_ratio", "min_pressure_pa"})
+LOWER_IS_WORSE = frozenset(
+    {
+        "lift_completed",
+        "rise_deg",
+        "lift_m",
+        "damping_ratio",
+        "min_pressure_pa",
+        "natural_frequency_hz",
+        "linear_damping_ratio",
+    }
+)
 
 
 def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -> dict[str, np.ndarray]:

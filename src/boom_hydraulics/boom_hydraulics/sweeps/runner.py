@@ -106,7 +106,7 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
 
 
 def _settings(options: SweepOptions) -> dict[str, Any]:
-    """The keyword arguments of sweep.request and sweep.plan that the options give."""
+    """The keyword arguments of sweep.request that the options give."""
     return {
         "scenario": options.scenario,
         "duration_s": options.duration,
@@ -187,8 +187,9 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
     cost = sweep.estimate(configs, axes, duration_s=options.duration, sample=options.sample, count=options.samples,
                           batch_size=batch_size)  # fmt: skip
     sweep.check_fits(cost)
+    asked = sweep.request(configs, axes, batch_size=batch_size, **settings)
     if store.stored is not None:  # the folder's sweep must be this one: known before planning it
-        store.begin(sweep.request(configs, axes, batch_size=batch_size, **settings))
+        store.begin(asked.as_json())
     for path in store.removed:
         print(f"boom-sweep: note: removed {path}, left unfinished by an earlier run that was stopped", file=sys.stderr)
     if cost.plan_s >= 1:
@@ -198,7 +199,7 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
             file=sys.stderr,
             flush=True,
         )
-    plan = reached.plan = sweep.plan(configs, axes, batch_size=batch_size, **settings)
+    plan = reached.plan = sweep.plan(asked)
     store.begin(plan.request)
     return _run_plan(options, out, store, plan, cost, constraints, across)
 

@@ -1,11 +1,11 @@
 """Design sweeps: many parameter sets driven through one valve scenario, in batches.
 
-:func:`plan` turns base configs, axes and a scenario into points and batches; every
-batch holds points that can be integrated together (same mode, method, time step,
-substeps and valve command, see :mod:`batch`). :func:`run_batch` integrates one batch
-and returns one table row per point: the metrics of :mod:`analysis` plus a status
-and, where a point did not lift as asked, the reason. A batch is a plain picklable
-value, so it runs the same in this process or on a Dask worker.
+:func:`request` checks what a sweep is asked (base configs, axes, a scenario, ...) and
+:func:`plan` turns it into points and batches; every batch holds points that can be
+integrated together (same mode, method, time step, substeps and valve command, see
+:mod:`batch`). :func:`run_batch` integrates one batch and returns one table row per point:
+the metrics of :mod:`analysis` plus a status and, where a point did not lift as asked, the
+reason. A batch is a plain picklable value, so it runs the same in this process or on a Dask worker.
 """
 
 from __future__ import annotations
@@ -19,17 +19,16 @@ from typing import Any
 import numpy as np
 
 from ..analysis import metrics as analysis
+from ..analysis.linear_model import mid_stroke_modes
 from ..errors import BoomHydraulicsError, ConfigError
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
-from ..solve import commands, stepping, streaming
-from ..solve.batch import SHARED, run_sets, simulate_batch
+from ..solve import commands, streaming
+from ..solve.batch import SHARED, run_sets
 from ..solve.integrators import BATCHED
-from ..solve.simulation import MAX_SUBSTEPS
-from ..solve.streaming import SAMPLE_SIGNALS
 from .sampling import Axis, Spacing, point_count, sample_points
 
-#: Metric columns of a sweep table: name, unit, meaning (see analysis.metrics).
-METRICS: tuple[tuple[str, str, str], ...] = (
+#: Metric columns a sweep takes from each run: name, unit, meaning (see analysis.metrics).
+STREAMED_METRICS: tuple[tuple[str, str, str], ...] = (
     ("lift_completed", "1", "1 if the boom rose through the lift angle"),
     ("lift_time_s", "s", "time to rise through the lift angle"),
     ("lift_energy_j", "J", "energy drawn from the supply during the lift"),
@@ -51,8 +50,15 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("supply_energy_j", "J", "energy drawn from the supply over the whole run"),
     ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
 )
+assert tuple(m[0] for m in STREAMED_METRICS) == streaming.NAMES, "the streamed metrics are streaming's, in its order"
+#: Metric columns from each point's linear model at mid-stroke, valve centred (analysis.linear_model).
+LINEAR_METRICS: tuple[tuple[str, str, str], ...] = (
+    ("natural_frequency_hz", "Hz", "linear model at mid-stroke, valve centred: the hydraulic mode's natural frequency"),
+    ("linear_damping_ratio", "1", "linear model at mid-stroke, valve centred: the hydraulic mode's damping ratio"),
+)
+#: Metric columns of a sweep table: name, unit, meaning.
+METRICS = STREAMED_METRICS + LINEAR_METRICS
 METRIC_NAMES = tuple(name for name, _, _ in METRICS)
-assert METRIC_NAMES == streaming.NAMES, "a sweep's metrics are those streaming takes, in its order"
 
 #: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
 #: failed (the integration diverged or left the model's geometry), invalid (parameters
@@ -237,6 +243,37 @@ def _bases(configs: Sequence[tuple[str, Parameters]], scenario: str, duration_s:
     return bases
 
 
+@dataclass(frozen=True)
+class Request:
+    """What a sweep is asked, checked (:func:`request`), before a point is planned (:func:`plan`)."""
+
+    configs: tuple[tuple[str, Parameters], ...]  # (name, parameters) with the scenario's valve command
+    axes: tuple[Axis, ...]
+    scenario: str
+    duration_s: float
+    sample: str
+    count: int
+    seed: int
+    lift_angle_deg: float
+    every: int
+    batch_size: int
+
+    def as_json(self) -> dict[str, Any]:
+        """The request, JSON-able, as the sweep's folder keeps it (to match it when resuming)."""
+        return {
+            "configs": {name: as_dict(base) for name, base in self.configs},
+            "axes": [a.as_request() for a in self.axes],
+            "sample": self.sample,
+            "count": self.count,
+            "seed": self.seed,
+            "scenario": self.scenario,
+            "duration_s": self.duration_s,
+            "lift_angle_deg": self.lift_angle_deg,
+            "every": self.every,
+            "batch_size": self.batch_size,
+        }
+
+
 def request(
     configs: Sequence[tuple[str, Parameters]],
     axes: Sequence[Axis],
@@ -249,9 +286,10 @@ def request(
     lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
     every: int = 1,
     batch_size: int = 1000,
-) -> dict[str, Any]:
-    """What a sweep is asked, JSON-able, as :func:`plan` keeps it; checked, and found without
-    planning a point, so that a sweep folder can be matched against it before any planning."""
+) -> Request:
+    """What a sweep is asked, checked, and found without planning a point, so that a sweep
+    folder can be matched against it before any planning. ``configs`` are (name, parameters)
+    pairs; with more than one, the config name is a column of the table."""
     if not configs:
         raise ConfigError("a sweep needs at least one config")
     check_duration(duration_s)
@@ -262,52 +300,27 @@ def request(
     names = [name for name, _ in configs]
     if len(set(names)) != len(names):
         raise ConfigError(f"two configs share the name {names}; give the files different names")
-    return {
-        "configs": {name: as_dict(base) for name, base in _bases(configs, scenario, duration_s)},
-        "axes": [a.as_request() for a in axes],
-        "sample": sample,
-        "count": count,
-        "seed": seed,
-        "scenario": scenario,
-        "duration_s": duration_s,
-        "lift_angle_deg": lift_angle_deg,
-        "every": every,
-        "batch_size": batch_size,
-    }
+    bases = tuple(_bases(configs, scenario, duration_s))
+    return Request(bases, tuple(axes), scenario, duration_s, sample, count, seed, lift_angle_deg, every, batch_size)
 
 
-def plan(
-    configs: Sequence[tuple[str, Parameters]],
-    axes: Sequence[Axis],
-    *,
-    scenario: str = "lift",
-    duration_s: float = 5.0,
-    sample: str = "grid",
-    count: int = 0,
-    seed: int = 0,
-    lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
-    every: int = 1,
-    batch_size: int = 1000,
-) -> Plan:
-    """The points of ``axes`` (sampled by ``sample``) over every base config, driven by ``scenario``.
+def plan(asked: Request) -> Plan:
+    """The points of the request's axes (sampled by its ``sample``) over every base config,
+    driven by its scenario.
 
-    ``configs`` are (name, parameters) pairs; with more than one, the config name is a
-    column of the table. Points whose parameters are invalid (a rod wider than its
-    piston, say) are kept with the reason and not run. A sweep that cannot be held in
-    memory is refused before any point is planned (:func:`check_fits`).
+    Points whose parameters are invalid (a rod wider than its piston, say) are kept with the
+    reason and not run. A sweep that cannot be held in memory is refused before any point is
+    planned (:func:`check_fits`).
     """
-    asked = request(
-        configs, axes, scenario=scenario, duration_s=duration_s, sample=sample, count=count, seed=seed,
-        lift_angle_deg=lift_angle_deg, every=every, batch_size=batch_size,
-    )  # fmt: skip
-    check_fits(estimate(configs, axes, duration_s=duration_s, sample=sample, count=count, batch_size=batch_size))
-    bases = _bases(configs, scenario, duration_s)
-    samples = sample_points(axes, sample, count, seed)
+    configs, axes = asked.configs, asked.axes
+    check_fits(estimate(configs, axes, duration_s=asked.duration_s, sample=asked.sample, count=asked.count,
+                        batch_size=asked.batch_size))  # fmt: skip
+    samples = sample_points(axes, asked.sample, asked.count, asked.seed)
     columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
     points: list[dict[str, Any]] = []
     invalid: dict[int, str] = {}
     groups: dict[tuple, list[tuple[int, Parameters]]] = {}
-    for base_name, base in bases:
+    for base_name, base in configs:
         for values in samples:
             index = len(points)
             points.append({"config": base_name, **values} if len(configs) > 1 else dict(values))
@@ -320,83 +333,44 @@ def plan(
             groups.setdefault(key, []).append((index, params))
     batches = []
     for members in groups.values():
-        for start in range(0, len(members), batch_size):
-            chunk = members[start : start + batch_size]
+        for start in range(0, len(members), asked.batch_size):
+            chunk = members[start : start + asked.batch_size]
             batches.append(
                 Batch(
                     index=len(batches),
                     points=tuple(i for i, _ in chunk),
                     params=tuple(p for _, p in chunk),
-                    duration_s=duration_s,
-                    every=every,
-                    lift_angle_deg=lift_angle_deg,
+                    duration_s=asked.duration_s,
+                    every=asked.every,
+                    lift_angle_deg=asked.lift_angle_deg,
                 )
             )
-    return Plan(asked, columns, tuple(points), invalid, tuple(batches))
+    return Plan(asked.as_json(), columns, tuple(points), invalid, tuple(batches))
 
 
 def _hashable(value: Any) -> Any:
     return tuple(value) if isinstance(value, list) else value
 
 
-def _failure_reason(p: Parameters, failed_at_s: float, why: int, q1_m: float) -> str:
-    low, high = abs(p.b_m - p.a_m), p.a_m + p.b_m
-    if p.mode == "paper" and (q1_m > high - 0.01 or q1_m < low + 0.01):
-        return (
-            f"rod left the valid geometry at t = {failed_at_s:.4g} s (q1 = {q1_m:.4g} m, valid in "
-            f"({low:.4g}, {high:.4g}) m; paper mode has no end stops)"
-        )
-    step = f"time_step_s = {p.time_step_s:g} s with {p.method}"
-    if why == stepping.TOO_STIFF:
-        return (
-            f"too stiff at t = {failed_at_s:.4g} s: a stable {step} needs more than "
-            f"{MAX_SUBSTEPS} substeps (last q1 = {q1_m:.4g} m)"
-        )
-    if why == stepping.ENERGY:
-        return (
-            f"energy balance broken at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
-            f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
-        )
-    return (
-        f"state became non-finite at t = {failed_at_s:.4g} s (last q1 = {q1_m:.4g} m): "
-        f"the step ({step}) is too large for these parameters; try a smaller time_step_s"
-    )
-
-
 def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     """Integrate the points of ``batch`` together; one table row per point.
 
     Columns: ``point``, ``status``, ``reason``, ``failed_at_s`` and :data:`METRIC_NAMES`. The
-    compiled kernel takes the metrics while it integrates (batch.run_sets); without numba, the
-    numpy batch stores the signals and the same metrics are taken from them. A point that
-    fails stops where it failed; its metrics cover the run up to then.
+    run loop takes the metrics while it integrates (batch.run_sets: the compiled run kernel
+    in parallel where numba is available, else the same loop interpreted). A point that fails
+    stops where it failed, with the run's reason (outcomes.message); its metrics cover the run
+    up to then.
     """
     params = batch.params
     command = commands.for_batch(params)
-    n = len(params)
     runs = run_sets(params, batch.duration_s, command, every=batch.every, lift_angle_deg=batch.lift_angle_deg)
-    if runs is not None:
-        values = np.column_stack([runs.metrics[name] for name in METRIC_NAMES])
-        failed_at, failed_why, last_q1 = runs.failed_at_s, runs.failed_why, runs.last_q1_m
-    else:
-        signals = simulate_batch(params, batch.duration_s, command, every=batch.every, outputs=SAMPLE_SIGNALS)
-        failed_at, failed_why = signals["failed_at_s"], signals["failed_why"]
-        values, last_q1 = np.full((n, len(METRIC_NAMES)), np.nan), np.empty(n)
-        for k in range(n):
-            one = {name: signals[name][:, k] for name in SAMPLE_SIGNALS}
-            if math.isfinite(failed_at[k]):
-                keep = one["t"] <= failed_at[k]
-                one = {name: column[keep] for name, column in one.items()}
-            m = analysis.streamed(one, batch.lift_angle_deg, analysis.move_window(params[k]))
-            values[k] = [m[name] for name in METRIC_NAMES]
-            last_q1[k] = one["q1"][-1]
+    values = np.column_stack([*(runs.metrics[name] for name in streaming.NAMES), *mid_stroke_modes(params)])
     rows: dict[str, list] = {"status": [], "reason": []}
     completed = METRIC_NAMES.index("lift_completed")
     rise = METRIC_NAMES.index("rise_deg")
-    for k in range(n):
-        if math.isfinite(failed_at[k]):
+    for k, reason in enumerate(runs.reasons):
+        if reason is not None:
             status = "failed"
-            reason = _failure_reason(params[k], float(failed_at[k]), int(failed_why[k]), float(last_q1[k]))
         elif not values[k, completed]:
             status = "incomplete"
             reason = f"rose {values[k, rise]:.3g} deg of the {batch.lift_angle_deg:g} deg in {batch.duration_s:g} s"
@@ -408,7 +382,7 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
         "point": np.array(batch.points, dtype=np.int64),
         "status": np.array(rows["status"], dtype=str),
         "reason": np.array(rows["reason"], dtype=str),
-        "failed_at_s": np.asarray(failed_at, dtype=float),
+        "failed_at_s": np.asarray(runs.failed_at_s, dtype=float),
     }
     for j, name in enumerate(METRIC_NAMES):
         out[name] = values[:, j]

@@ -1,9 +1,10 @@
-"""The node's /diagnostics, once a second and after each service call that changes the run.
+"""The node's /diagnostics (CDR), once a second and after each service call that changes the run.
 
 Four statuses (five while recording): the drive (or the failure that stopped it), real time
 (lag, clock error, dropped backlogs), the commands (received and not applied), the run
 (resets, pauses, ~/step calls and the shift of the time origin: what boom-resim must know of
-a bag) and the recording.
+a bag) and the recording. Packed to CDR without rclpy: the node and ``boom-sim live``
+publish and record the same array.
 """
 
 from __future__ import annotations
@@ -11,12 +12,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.time import Time
+from .encoding import message, stamp, to_cdr
 
-from ..solve.pacing import Pacer
-from ..solve.simulation import Simulator
-from .commands import CommandCounts
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+OK, WARN, ERROR = 0, 1, 2  # DiagnosticStatus levels
+
+
+@dataclass
+class CommandCounts:
+    """Valve commands received, and those not applied, by why."""
+
+    received: int = 0
+    stale: int = 0  # older than command_timeout_s when received
+    lost: int = 0  # dropped by the middleware before the node took them
+    refused: int = 0  # the queue of future commands was full
 
 
 @dataclass
@@ -28,44 +37,45 @@ class RunCounts:
     step_calls: int = 0  # ~/step
 
 
-def _status(name: str, level: bytes, message: str, **values: Any) -> DiagnosticStatus:
-    return DiagnosticStatus(
+def _status(name: str, level: int, text: str, **values: Any) -> Any:
+    return message(
+        "diagnostic_msgs/msg/DiagnosticStatus",
         level=level,
         name=f"boom_sim: {name}",
-        message=message,
+        message=text,
         hardware_id="boom_hydraulics",
-        values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        values=[message("diagnostic_msgs/msg/KeyValue", key=k, value=str(v)) for k, v in values.items()],
     )
 
 
 def diagnostics(
     stamp_ns: int,
-    sim: Simulator,
+    sim: Any,
     failure: str | None,
     paused: bool,
-    pacer: Pacer,
+    pacer: Any,
     rate_hz: float,
     real_time_factor: float,
     commands: CommandCounts,
     run: RunCounts,
     origin_shift_s: float,
     recording: tuple[str | None, str] | None,
-) -> DiagnosticArray:
-    """The array at ``stamp_ns``; ``recording``: (its error or None, its folder) while recording.
-    Reading the pacer's dropped backlogs resets their count."""
-    array = DiagnosticArray()
-    array.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+) -> bytes:
+    """The array at ``stamp_ns`` of the run of ``sim`` (a solve.simulation.Simulator) paced by
+    ``pacer`` (a solve.pacing.Pacer); ``recording``: (its error or None, its folder) while
+    recording. Reading the pacer's dropped backlogs resets their count."""
+    status = []
     if failure:
-        array.status.append(_status("simulation", DiagnosticStatus.ERROR, f"stopped: {failure}"))
+        status.append(_status("simulation", ERROR, f"stopped: {failure}"))
     else:
         out = sim.outputs()
         # resting on an end stop is normal; cavitation and an open relief valve are not
         warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
         notes = ["at_end_stop"] if out.get("at_end_stop") else []
-        array.status.append(
+        status.append(
             _status(
                 "drive",
-                DiagnosticStatus.WARN if warnings else DiagnosticStatus.OK,
+                WARN if warnings else OK,
                 ", ".join(warnings + notes) or "ok",
                 sim_time_s=f"{sim.t:.3f}",
                 paused=paused,
@@ -74,10 +84,10 @@ def diagnostics(
             )
         )
     behind = pacer.lag_s > 2.0 / rate_hz
-    array.status.append(
+    status.append(
         _status(
             "real-time",
-            DiagnosticStatus.WARN if (behind or pacer.late_ticks) else DiagnosticStatus.OK,
+            WARN if (behind or pacer.late_ticks) else OK,
             "cannot keep up" if (behind or pacer.late_ticks) else "ok",
             lag_s=f"{pacer.lag_s:.4f}",
             clock_error_s=f"{pacer.clock_error_s:.6f}",
@@ -87,10 +97,10 @@ def diagnostics(
     )
     pacer.late_ticks = 0
     dropped = commands.stale + commands.lost + commands.refused
-    array.status.append(
+    status.append(
         _status(
             "commands",
-            DiagnosticStatus.WARN if dropped else DiagnosticStatus.OK,
+            WARN if dropped else OK,
             "some commands were not applied" if dropped else "ok",
             received=commands.received,
             stale=commands.stale,  # older than command_timeout_s when received
@@ -99,10 +109,10 @@ def diagnostics(
         )
     )
     # what a re-simulation of the bag must know: boom-resim refuses a run with resets or pauses
-    array.status.append(
+    status.append(
         _status(
             "run",
-            DiagnosticStatus.OK,
+            OK,
             "ok",
             resets=run.resets,
             pauses=run.pauses,
@@ -113,7 +123,7 @@ def diagnostics(
     if recording is not None:
         error, folder = recording
         if error is not None:
-            array.status.append(_status("recording", DiagnosticStatus.ERROR, f"stopped: {error}"))
+            status.append(_status("recording", ERROR, f"stopped: {error}"))
         else:
-            array.status.append(_status("recording", DiagnosticStatus.OK, "ok", folder=folder))
-    return array
+            status.append(_status("recording", OK, "ok", folder=folder))
+    return to_cdr(message(DIAGNOSTIC_ARRAY, header={"stamp": stamp(stamp_ns)}, status=status))

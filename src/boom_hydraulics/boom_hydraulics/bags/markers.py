@@ -1,4 +1,4 @@
-"""The crane as RViz/Foxglove markers in base_link: no TF needed to see it move.
+"""The crane as RViz/Foxglove markers in base_link, as CDR bytes: no TF needed to see it move.
 
 One MarkerArray per instant: the column, the boom, the payload, the cylinder barrel
 coloured by the piston-chamber pressure, the rod coloured by the rod-chamber pressure,
@@ -7,9 +7,9 @@ and a text over the cylinder. Pressure colours run from blue (tank) over green t
 text names it.
 
 :class:`CraneMarkers` works out what depends only on the parameters once and gives each
-instant's markers as fields (:class:`..bags.cdr.MarkerFields`): the node packs them
-straight into CDR (:meth:`CraneMarkers.cdr`), and :func:`crane_markers` makes the same
-markers into message objects.
+instant's markers as fields (:class:`.cdr.MarkerFields`), packed straight into CDR
+(:func:`.cdr.marker_array`), with no rclpy and no message object: the node publishes and
+records these bytes, and so does ``boom-sim live`` (:func:`crane_markers`).
 """
 
 from __future__ import annotations
@@ -18,15 +18,13 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from geometry_msgs.msg import Point, Quaternion, Vector3
-from std_msgs.msg import ColorRGBA
-from visualization_msgs.msg import Marker, MarkerArray
-
-from ..bags import cdr
-from ..bags.cdr import MarkerFields
 from ..model.kinematics import Chain, along_boom_xz, base_xz, chain, pivot_xz
 from ..model.robot_description import BASE_FRAME, drawing
+from . import cdr
+from .cdr import MarkerFields
 
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+CYLINDER, SPHERE, TEXT_VIEW_FACING = 3, 2, 9  # visualization_msgs/Marker's types
 NAMESPACE = "boom_crane"
 Colour = tuple[float, float, float, float]  # r g b a, 0..1
 RED: Colour = (1.0, 0.0, 0.0, 1.0)
@@ -66,7 +64,7 @@ def _segment(
     theta = math.atan2(dx, dz)  # a marker cylinder lies along z; turn it about y onto the segment
     return MarkerFields(
         _ID[marker_id],
-        Marker.CYLINDER,
+        CYLINDER,
         (start[0] + dx / 2, 0.0, start[1] + dz / 2),
         (0.0, math.sin(theta / 2), 0.0, math.cos(theta / 2)),
         (diameter_m, diameter_m, max(length, 1e-6)),
@@ -106,7 +104,7 @@ class CraneMarkers:
             _segment("boom", o, tip, d.boom_width, BOOM_YELLOW),
             MarkerFields(
                 _ID["payload"],
-                Marker.SPHERE,
+                SPHERE,
                 (tip[0], 0.0, tip[1] - radius),
                 _UPRIGHT,
                 (2 * radius, 2 * radius, 2 * radius),
@@ -116,7 +114,7 @@ class CraneMarkers:
             _segment("rod", (a[0] + rod_start * ux, a[1] + rod_start * uz), eye, p.rod_diameter_m, rod_colour),
             MarkerFields(
                 _ID["text"],
-                Marker.TEXT_VIEW_FACING,
+                TEXT_VIEW_FACING,
                 ((a[0] + eye[0]) / 2, 0.0, (a[1] + eye[1]) / 2 + TEXT_ABOVE_M),
                 _UPRIGHT,
                 (0.0, 0.0, TEXT_HEIGHT_M),
@@ -130,21 +128,7 @@ class CraneMarkers:
         return cdr.marker_array(stamp_ns, BASE_FRAME, NAMESPACE, self.fields(out, c))
 
 
-def _message(fields: MarkerFields, stamp: Any) -> Marker:
-    """The visualization_msgs/Marker of ``fields`` (with CDR, the same message)."""
-    m = Marker(ns=NAMESPACE, id=fields.id, type=fields.type, action=Marker.ADD, text=fields.text)
-    m.header.frame_id = BASE_FRAME
-    m.header.stamp = stamp
-    m.pose.position = Point(x=fields.position[0], y=fields.position[1], z=fields.position[2])
-    x, y, z, w = fields.orientation
-    m.pose.orientation = Quaternion(x=x, y=y, z=z, w=w)
-    m.scale = Vector3(x=fields.scale[0], y=fields.scale[1], z=fields.scale[2])
-    m.color = ColorRGBA(r=fields.color[0], g=fields.color[1], b=fields.color[2], a=fields.color[3])
-    return m
-
-
-def crane_markers(out: Mapping[str, Any], stamp: Any, p: Any) -> MarkerArray:
-    """The markers of the outputs ``out`` of one instant (Parameters ``p`` for the dimensions)
-    as a MarkerArray message, stamped ``stamp`` (builtin_interfaces/Time)."""
-    fields = CraneMarkers(p).fields(out, chain(p, float(out["q1"]), 0.0))
-    return MarkerArray(markers=[_message(f, stamp) for f in fields])
+def crane_markers(out: Mapping[str, Any], stamp_ns: int, p: Any) -> bytes:
+    """The visualization_msgs/MarkerArray (CDR) of the outputs ``out`` of one instant, stamped
+    ``stamp_ns`` (Parameters ``p`` for the dimensions)."""
+    return CraneMarkers(p).cdr(out, chain(p, float(out["q1"]), 0.0), stamp_ns)

@@ -14,10 +14,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..bags import cdr
-from ..bags.encoding import drive_state_cdr
 from ..model.kinematics import Chain, chain
 from ..model.robot_description import JOINTS
+from . import cdr
+from .encoding import drive_state_cdr
 from .markers import CraneMarkers
 
 CHAMBER_FRAMES = {"p1": "piston_chamber", "p2": "rod_chamber"}
@@ -60,6 +60,14 @@ def rod_force(out: Mapping[str, Any], stamp_ns: int) -> bytes:
     return _ROD_FORCE(stamp_ns, (float(out["f_hyd"]), 0.0, 0.0), _NO_TORQUE)
 
 
+def state_messages(out: Mapping[str, Any], stamp_ns: int, p: Any, c: Chain | None = None) -> list[bytes]:
+    """The state of one instant as the node publishes it at every tick, in the order of
+    its topics drive_state, joint_states, piston_pressure, rod_pressure and rod_force
+    (``c``: the chain of this instant, where the caller has it)."""
+    piston, rod = chamber_pressures(out, stamp_ns)
+    return [drive_state(out, stamp_ns), joint_state(out, stamp_ns, p, c), piston, rod, rod_force(out, stamp_ns)]
+
+
 class TickMessages:
     """Every message of one instant for Parameters ``params`` (the node makes a new one when
     they change): the state messages, and the markers when asked for."""
@@ -69,12 +77,10 @@ class TickMessages:
         self.crane = CraneMarkers(params)
 
     def state(self, out: Mapping[str, Any], stamp_ns: int, markers: bool) -> list[bytes]:
-        """DriveState, JointState, the piston and rod pressures, the rod force and, with
-        ``markers``, the MarkerArray, in that order, as CDR bytes."""
+        """The messages of :func:`state_messages` and, with ``markers``, the MarkerArray
+        after them, as CDR bytes."""
         c = chain(self.params, float(out["q1"]), float(out["v"]))
-        packed = [drive_state(out, stamp_ns), joint_state(out, stamp_ns, self.params, c)]
-        packed += chamber_pressures(out, stamp_ns)
-        packed.append(rod_force(out, stamp_ns))
+        packed = state_messages(out, stamp_ns, self.params, c)
         if markers:
             packed.append(self.crane.cdr(out, c, stamp_ns))
         return packed

@@ -1,0 +1,251 @@
+"""The linear model of the physical drive at an operating point: dx/dt = A x + B u, y = C x + D u.
+
+States x (deviations from the operating point): rod length q1, rod velocity v, the chamber
+pressures p1 and p2, the spool position x_v and the seals' bristle deflection s; the model's
+other states only count energy (they integrate power and never act back) and are left out.
+Input u: the valve command. Outputs y: q1 (m), v (m/s), p1 and p2 (Pa).
+
+A and B are the Jacobians of the model's own derivative (physical.derivative) with respect
+to the state and the command, by :mod:`.jacobian`; C picks the outputs out of the state.
+Frequency responses, gains and margins come from the ``control`` package (python-control):
+:meth:`LinearModel.system` is a ``control.StateSpace`` a user can go on with.
+
+The check on the hydraulic mode is the textbook natural frequency of a cylinder between two
+oil springs (:func:`oil_spring_frequency_rad_s`), sqrt(E S1^2 / (m V1) + E S2^2 / (m V2))
+with m = J k^2 the boom's inertia at the rod (eq. 8, 12, 13); near rest the seals add their
+presliding stiffness F_s / z_ba (docs/model.md, "Friction").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.linalg
+
+from ..model.geometry import lever_rad_per_m
+from ..model.mechanics import effective_mass_kg
+from ..model.parameters import Parameters
+from ..model.physical import chamber_volumes
+from .jacobian import CENTRAL, FORWARD, jacobian
+from .operating_point import MODEL, SPOOL, OperatingPoint, centred_batch
+
+if TYPE_CHECKING:
+    import control  # imported where used: it takes seconds to load, and a sweep needs none of it
+
+#: The states of the linear model: the physical model's states that act on the dynamics.
+STATES: tuple[int, ...] = tuple(i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy")
+STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
+STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
+#: The outputs (model state components), with their units.
+OUTPUTS: tuple[tuple[str, str, str], ...] = (
+    ("q1", "m", "rod position"),
+    ("v", "m/s", "rod velocity"),
+    ("p1", "Pa", "piston-chamber pressure"),
+    ("p2", "Pa", "rod-chamber pressure"),
+)
+OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+#: A mode this many times slower than the hydraulic one counts as slow (leakage, creep): the
+#: quasi-static gains hold it still.
+SLOW_RATIO = 100.0
+
+
+def _state_scales(p: Parameters) -> dict[str, float]:
+    return {"q1": 1.0, "v": 1.0, "p1": p.supply_pressure_pa, "p2": p.supply_pressure_pa, "x_v": 1.0, "bristle": 1.0}
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One eigenvalue of A: a complex pair counts once (the one with positive imaginary part)."""
+
+    eigenvalue: complex  # 1/s
+    natural_frequency_hz: float  # |lambda| / 2 pi
+    damping_ratio: float  # -Re(lambda) / |lambda| (1 for a real mode)
+    oscillatory: bool
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Stability margins of a loop gain L(s) (control.stability_margins)."""
+
+    gain_margin: float  # the factor by which the gain may grow before the loop goes unstable (inf: never)
+    phase_margin_deg: float
+    crossover_hz: float  # where |L| = 1 (gain crossover)
+    phase_crossover_hz: float  # where the phase of L is -180 deg (nan: nowhere)
+
+    @property
+    def gain_margin_db(self) -> float:
+        return 20.0 * math.log10(self.gain_margin) if self.gain_margin > 0 else math.nan
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """A, B, C, D of the drive at ``point`` (states STATE_NAMES, outputs OUTPUT_NAMES, SI units)."""
+
+    point: OperatingPoint
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+
+    def system(self) -> control.StateSpace:
+        """The model as a python-control state space (input ``u``, outputs q1, v, p1, p2)."""
+        import control
+
+        return control.ss(
+            self.A, self.B, self.C, self.D, inputs=["u"], outputs=list(OUTPUT_NAMES), states=list(STATE_NAMES)
+        )
+
+    def modes(self) -> list[Mode]:
+        """Every mode, slowest first."""
+        out = []
+        for lam in np.linalg.eigvals(self.A):
+            if lam.imag < 0.0:
+                continue
+            size = abs(lam)
+            out.append(Mode(complex(lam), size / (2 * math.pi), -lam.real / size if size else 1.0, lam.imag > 0.0))
+        return sorted(out, key=lambda m: m.natural_frequency_hz)
+
+    def hydraulic_mode(self) -> Mode | None:
+        """The oscillation of the boom on its oil springs (see :func:`hydraulic_eigenvalue`)."""
+        lam = hydraulic_eigenvalue(self.A[None], self.point.params)[0]
+        if not np.isfinite(lam):
+            return None
+        size = abs(lam)
+        return Mode(complex(lam), size / (2 * math.pi), -lam.real / size, True)
+
+    def dc_gains(self) -> np.ndarray:
+        """G(0), the static gain of each output per unit of valve command (control.dcgain, one
+        output at a time): inf where a mode at s = 0 integrates the command, nan where it is
+        undetermined (0/0)."""
+        import control
+
+        gains = []
+        for row in range(len(OUTPUT_NAMES)):
+            siso = control.ss(self.A, self.B, self.C[row : row + 1], self.D[row : row + 1])
+            gains.append(float(np.real(siso.dcgain())))
+        return np.array(gains)
+
+    def quasi_static_gains(self) -> np.ndarray:
+        """The gain of each output once the fast modes have settled while the slow ones (leakage,
+        creep: SLOW_RATIO times slower than the hydraulic mode, or slower) have not yet moved:
+        -C_f A_f^-1 B_f + D of the fast block, A split into fast and slow blocks by an ordered
+        real Schur form and a Sylvester equation (no eigenvectors: robust where slow modes repeat)."""
+        mode = self.hydraulic_mode()
+        limit = (abs(mode.eigenvalue) if mode else float(np.max(np.abs(np.linalg.eigvals(self.A))))) / SLOW_RATIO
+        s, z, k = scipy.linalg.schur(self.A, output="real", sort=lambda re, im: math.hypot(re, im) >= limit)
+        coupling = scipy.linalg.solve_sylvester(s[:k, :k], -s[k:, k:], -s[:k, k:])  # S11 X - X S22 = -S12
+        b = (z.T @ self.B)[:k] - coupling @ (z.T @ self.B)[k:]
+        return -(self.C @ z[:, :k]) @ np.linalg.solve(s[:k, :k], b)[:, 0] + self.D[:, 0]
+
+
+def hydraulic_eigenvalue(a: np.ndarray, p: Parameters) -> np.ndarray:
+    """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n): of the
+    oscillatory modes, the one whose eigenvector moves the rod's velocity most against the other
+    states (each in units of its scale); nan where every mode is real."""
+    values, vectors = np.linalg.eig(a)
+    scales = np.array([_state_scales(p)[n] for n in STATE_NAMES])
+    scaled = np.abs(vectors) * scales[:, None]
+    share = scaled[..., STATE_NAMES.index("v"), :] / np.sum(scaled, axis=-2)
+    share = np.where(values.imag > 0.0, share, -1.0)
+    best = np.argmax(share, axis=-1)
+    lam = np.take_along_axis(values, best[..., None], axis=-1)[..., 0]
+    return np.where(np.take_along_axis(share, best[..., None], axis=-1)[..., 0] >= 0.0, lam, np.nan)
+
+
+def _jacobian(c: Any, state: Sequence[Any], opening: Any, side: int, p: Parameters, xp: Any = math) -> np.ndarray:
+    """[A | B]: the derivative's Jacobian over the linear model's states and the command at
+    ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
+    scales = _state_scales(p)
+
+    def f(x: list) -> list:
+        y = list(state)
+        for i, xi in zip(STATES, x[:-1]):
+            y[i] = xi
+        d = MODEL.derivative(0.0, y, c, x[-1], xp)
+        return [d[i] for i in STATES]
+
+    x = [state[i] for i in STATES] + [opening]
+    sides = [side if i == SPOOL else CENTRAL for i in STATES]
+    sides.append(side)  # the command acts on the flows directly where there is no spool lag
+    return jacobian(f, x, [scales[n] for n in STATE_NAMES] + [1.0], sides)
+
+
+def linearize(point: OperatingPoint) -> LinearModel:
+    """The linear model at ``point`` (A, B by differences of the model's derivative)."""
+    j = _jacobian(MODEL.constants(point.params), point.state, point.opening, point.kink_side, point.params)
+    n = len(STATES)
+    cmat = np.zeros((len(OUTPUT_NAMES), n))
+    for row, name in enumerate(OUTPUT_NAMES):
+        cmat[row, STATE_NAMES.index(name)] = 1.0
+    return LinearModel(point, j[:, :n], j[:, n:], cmat, np.zeros((len(OUTPUT_NAMES), 1)))
+
+
+def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarray]:
+    """Natural frequency (Hz) and damping ratio of the hydraulic mode of each physical-mode
+    parameter set at mid-stroke with the valve centred, all sets at once (numpy); nan for a
+    paper-mode set, one without an oscillating mode or one whose operating point was not found."""
+    frequency, damping = np.full(len(params), np.nan), np.full(len(params), np.nan)
+    chosen = [k for k, p in enumerate(params) if p.mode == "physical"]
+    if not chosen:
+        return frequency, damping
+    sets = [params[k] for k in chosen]
+    q1 = np.array([0.5 * (p.cylinder_min_length_m + p.cylinder_max_length_m) for p in sets])
+    y, c, ok = centred_batch(sets, q1)
+    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np)[..., :, : len(STATES)]
+    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0]), np.nan)
+    size = np.abs(lam)
+    frequency[chosen] = size / (2 * math.pi)
+    damping[chosen] = -lam.real / size
+    return frequency, damping
+
+
+def effective_mass_at(p: Parameters, q1_m: Any, xp: Any = math) -> Any:
+    """m = J k^2: the boom and payload's inertia seen at the rod at length ``q1_m``, kg (eq. 8)."""
+    c = MODEL.constants(p)
+    return effective_mass_kg(c.inertia, lever_rad_per_m(q1_m, p.a_m, p.b_m, xp))
+
+
+def oil_spring_frequency_rad_s(p: Parameters, q1_m: float, seals: bool = False) -> float:
+    """sqrt(E S1^2 / (m V1) + E S2^2 / (m V2)) at rod length ``q1_m``, rad/s: the cylinder's mass
+    between its two oil columns, V1 and V2 the chamber volumes there (eq. 12, 13); with
+    ``seals``, plus their presliding stiffness F_s / z_ba (the LuGre bristles near rest)."""
+    c = MODEL.constants(p)
+    v1, v2, _, _ = chamber_volumes(q1_m, c)
+    stiffness = c.bulk_modulus * (c.s1 * c.s1 / v1 + c.s2 * c.s2 / v2)
+    if seals:
+        stiffness += c.static / c.presliding
+    return math.sqrt(stiffness / effective_mass_at(p, q1_m))
+
+
+def angle_gain(point: OperatingPoint) -> float:
+    """d(alpha)/dq1 at the operating point, rad/m (the lever k of eq. 5)."""
+    p = point.params
+    return lever_rad_per_m(point.q1_m, p.a_m, p.b_m)
+
+
+def loop_gain(model: LinearModel) -> control.TransferFunction:
+    """L(s) of the position controller around the drive: the PI controller on the boom-angle
+    error, (Kp + Ki / s) (model/control.py), times the drive from valve command to boom angle,
+    k G_q1(s). The feedforward acts outside the loop; the dead-band (which closes the valve
+    near the target) and the anti-windup (which stops the integral) are left out: the loop as
+    it is while the controller works on an error."""
+    import control
+
+    p = model.point.params
+    controller = control.tf(
+        [p.control_position_gain_1_rad, p.control_integral_gain_1_rad_s], [1.0, 0.0], inputs="e", outputs="u"
+    )
+    plant = control.ss2tf(model.system()[OUTPUT_NAMES.index("q1"), 0]) * angle_gain(model.point)
+    return controller * plant
+
+
+def margins(loop: Any) -> Margins:
+    """Gain and phase margins and the crossover frequencies of the loop gain ``loop``."""
+    import control
+
+    gm, pm, _, w_phase, w_gain, _ = control.stability_margins(loop)
+    return Margins(float(gm), float(pm), float(w_gain) / (2 * math.pi), float(w_phase) / (2 * math.pi))

@@ -1,0 +1,81 @@
+"""The re-simulations of a fit, on every core: the points a scan tries and the columns of a
+forward-difference Jacobian are independent, so they run side by side in worker processes.
+
+The workers are forked from the fitting process once the problem is read (the bag, the
+signals, the compiled kernels loaded): each starts at once with all of it. One worker, or a
+machine with one core, evaluates in this process.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+
+#: The problem the worker processes evaluate (set before they fork).
+_PROBLEM: Any = None
+
+
+def _residual(theta: np.ndarray, window_s: float) -> np.ndarray:
+    return _PROBLEM.residual(_PROBLEM.simulate(theta), window_s)
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+class Evaluations:
+    """The weighted residuals of a problem at many parameter points, ``workers`` at a time."""
+
+    def __init__(self, problem: Any, workers: int) -> None:
+        global _PROBLEM
+        _PROBLEM = problem
+        self.problem = problem
+        self.pool = None
+        if workers > 1:
+            self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+        self._memo: dict[tuple[bytes, float], np.ndarray] = {}
+
+    def __enter__(self) -> Evaluations:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def residuals(self, thetas: Sequence[np.ndarray], window_s: float) -> list[np.ndarray]:
+        """The residual at each of ``thetas``, averaged over ``window_s`` (0: raw)."""
+        if self.pool is None or len(thetas) == 1:
+            return [self.problem.residual(self.problem.simulate(th), window_s) for th in thetas]
+        self.problem.evaluations += len(thetas)
+        return list(self.pool.map(_residual, thetas, [window_s] * len(thetas)))
+
+    def function(self, window_s: float) -> Callable[[np.ndarray], np.ndarray]:
+        """f(theta) for least_squares, remembering its last values for :meth:`jacobian`."""
+
+        def f(theta: np.ndarray) -> np.ndarray:
+            (r,) = self.residuals([theta], window_s)
+            self._memo = {(theta.tobytes(), window_s): r}
+            return r
+
+        return f
+
+    def jacobian(self, window_s: float, step: float, high: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """J(theta) by forward differences of ``step`` (relative, at least ``step``), all columns at
+        once; a step that would cross the upper bound ``high`` goes the other way."""
+
+        def jac(theta: np.ndarray) -> np.ndarray:
+            key = (theta.tobytes(), window_s)
+            f0 = self._memo[key] if key in self._memo else self.residuals([theta], window_s)[0]
+            h = step * np.maximum(1.0, np.abs(theta))
+            h = np.where(theta + h > high, -h, h)
+            points = [theta + h[k] * np.eye(len(theta))[k] for k in range(len(theta))]
+            columns = self.residuals(points, window_s)
+            return np.column_stack([(c - f0) / hk for c, hk in zip(columns, h)])
+
+        return jac

@@ -1,0 +1,47 @@
+"""FMI 2.0 units from the model's unit strings: the name a tool shows, and the SI base units.
+
+The model spells its units ``N s/m^2``, ``m^3/(s Pa)``, ``1/rad`` (parameters.py,
+outputs.py). An FMU names each unit a variable uses in its UnitDefinitions, with the
+exponents of the SI base units, so that a tool (OpenModelica, Simulink) can check and
+convert them. The names here follow Modelica's unit syntax (``N.s/m2``, ``m3/(s.Pa)``),
+which those tools read.
+"""
+
+from __future__ import annotations
+
+#: The base units of FMI 2.0's BaseUnit element, in its order.
+BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+#: Each symbol the model's units use, as exponents of the base units.
+SYMBOLS: dict[str, dict[str, int]] = {
+    "1": {},
+    "kg": {"kg": 1},
+    "m": {"m": 1},
+    "s": {"s": 1},
+    "rad": {"rad": 1},
+    "Hz": {"s": -1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "Pa": {"kg": 1, "m": -1, "s": -2},
+    "J": {"kg": 1, "m": 2, "s": -2},
+    "W": {"kg": 1, "m": 2, "s": -3},
+}
+
+
+def base_exponents(unit: str) -> dict[str, int]:
+    """The base-unit exponents of a model unit: ``'N s/m^2'`` -> ``{'kg': 1, 'm': -1, 's': -1}``
+    (``''`` and ``'1'``: dimensionless, ``{}``). ValueError for a symbol not in :data:`SYMBOLS`."""
+    numerator, _, denominator = unit.partition("/")
+    total: dict[str, int] = {}
+    for part, sign in ((numerator, 1), (denominator.strip().removeprefix("(").removesuffix(")"), -1)):
+        for factor in part.split():
+            symbol, _, power = factor.partition("^")
+            if symbol not in SYMBOLS:
+                raise ValueError(f"unit {unit!r}: unknown symbol {symbol!r}; add it to fmu.units.SYMBOLS")
+            for base, exponent in SYMBOLS[symbol].items():
+                total[base] = total.get(base, 0) + sign * exponent * int(power or 1)
+    return {base: total[base] for base in BASE_UNITS if total.get(base)}
+
+
+def unit_name(unit: str) -> str:
+    """A model unit in Modelica's syntax: ``'N s/m^2'`` -> ``'N.s/m2'``; dimensionless ``''`` -> ``'1'``."""
+    return unit.strip().replace("^", "").replace(" ", ".") or "1"

@@ -1,0 +1,279 @@
+"""The energy ledger, from battery to hook: every term as a power, and the balance that closes.
+
+Every joule the battery gives ends in one term (eq. D29):
+
+    P_batt + P_res = P_R + P_m + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
+                     + P_fr + P_stop + P_amb + P_oil + dT/dt + dPi/dt
+
+- sources: the battery's chemical power P_batt = U I (negative while it takes power back)
+  and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
+- losses, each >= 0: battery resistance, motor and inverter, pump (volumetric and
+  hydro-mechanical), main relief, valve throttling (the 4/3 valve and load-holding valve,
+  or the EHA's checks), leakage (the valve paths' laminar part and the load-holding
+  valve's seat), port reliefs;
+- work on the surroundings: seal friction, the end stops (and the chamber that shrinks in
+  them), the ambient pressure on the rod's end (relative to tank pressure);
+- stored: what the oil takes in (chambers and supply line: compression, and the void while
+  cavitating), the kinetic and the potential energy (weight and spring).
+
+The hydraulic terms count pressures above tank pressure, as the model's energies do. Each
+link of the chain balances on its own (eq. D26-D28); their sum is eq. D29, an identity of
+the model's equations at every instant, so that the integrals of the terms balance over a
+cycle to the integrator's accuracy.
+
+Equations and conventions: docs/model.md, section "Energy ledger".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from types import ModuleType
+from typing import Any, NamedTuple
+
+from ..jit import jitable
+from .battery import battery_current_a, battery_loss_w, chemical_power_w, overloaded, state_of_charge_rate_1_s
+from .drives.constants import DriveConstants, Supply
+from .electric_motor import electrical_power_w, motor_loss_w
+from .pump import mechanical_loss_w, shaft_torque_n_m, volumetric_loss_w
+
+Num = Any  # float or numpy.ndarray
+
+#: The ledger's terms: name, unit, kind (source, loss, work, stored) and what each is, in the
+#: order of :class:`Ledger`. Each is an output signal; its integral (J) a state.
+TERMS: tuple[tuple[str, str, str, str], ...] = (
+    ("battery_power", "W", "source", "chemical power the battery gives (negative: takes back)"),
+    ("reservoir_power", "W", "source", "power the EHA's low-pressure reservoir gives, above tank pressure"),
+    ("battery_loss", "W", "loss", "battery's internal resistance, R I^2"),
+    ("motor_loss", "W", "loss", "electric motor and inverter"),
+    ("pump_volumetric_loss", "W", "loss", "pump leakage"),
+    ("pump_mechanical_loss", "W", "loss", "pump friction torque"),
+    ("main_relief_loss", "W", "loss", "main relief valve of the fixed pump"),
+    ("valve_loss", "W", "loss", "throttling in the 4/3 valve and load-holding valve, or the EHA's checks"),
+    ("leakage_loss", "W", "loss", "leakage of the valve's paths and of the load-holding valve's seat"),
+    ("port_relief_loss", "W", "loss", "the chambers' relief valves"),
+    ("friction_work", "W", "work", "work against the seal friction"),
+    ("end_stop_work", "W", "work", "work into the end stops and the chambers they shrink"),
+    ("ambient_work", "W", "work", "work against the ambient pressure on the rod's end, above tank pressure"),
+    ("oil_work", "W", "stored", "what the oil of chambers and supply line takes in (compression, voids)"),
+    ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
+    ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
+)
+TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
+#: The terms that supply energy; every other term takes it.
+SOURCES = tuple(name for name, _, kind, _ in TERMS if kind == "source")
+
+
+class Ledger(NamedTuple):
+    """Every term of the energy ledger at one instant, W (see :data:`TERMS`)."""
+
+    battery_power: Num
+    reservoir_power: Num
+    battery_loss: Num
+    motor_loss: Num
+    pump_volumetric_loss: Num
+    pump_mechanical_loss: Num
+    main_relief_loss: Num
+    valve_loss: Num
+    leakage_loss: Num
+    port_relief_loss: Num
+    friction_work: Num
+    end_stop_work: Num
+    ambient_work: Num
+    oil_work: Num
+    kinetic_power: Num
+    potential_power: Num
+
+
+assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
+
+
+class Chain(NamedTuple):
+    """The electric chain from the battery to the pump's outlet at one instant (SI; eq. D26)."""
+
+    torque: Num  # pump shaft torque, N m (eq. D2)
+    shaft_power: Num  # T w, W
+    motor_loss: Num  # W (eq. D6)
+    electrical_power: Num  # at the battery's terminals, W (eq. D5)
+    current: Num  # battery current, A, > 0 discharging (eq. D8)
+    battery_loss: Num  # W (eq. D9)
+    battery_power: Num  # U I, W (eq. D9)
+    soc_rate: Num  # dSoC/dt, 1/s (eq. D10)
+    pump_volumetric_loss: Num  # W (eq. D3)
+    pump_mechanical_loss: Num  # W (eq. D3)
+    hydraulic_power: Num  # dp Q at the pump's outlet, W
+    overloaded: Num  # 1.0 where the battery cannot give the power asked (eq. D11)
+
+
+class Cylinder(NamedTuple):
+    """The ledger's terms from the cylinder lines to the hook at one instant, W (eq. D28)."""
+
+    port_relief_loss: Num
+    oil_work: Num
+    friction_work: Num
+    end_stop_work: Num
+    ambient_work: Num
+    kinetic_power: Num
+    potential_power: Num
+
+
+@jitable
+def electric_chain(s: Supply, d: DriveConstants, xp: ModuleType = math) -> Chain:
+    """The pump at its operating point ``s`` through motor and inverter to the battery (eq. D26):
+    U I = R I^2 + P_m + P_v + P_hm + dp Q."""
+    torque = shaft_torque_n_m(s.displacement, s.speed, s.dp, d.torque_loss, xp)  # eq. D2
+    electrical = electrical_power_w(torque, s.speed, d.motor_copper, d.motor_iron)  # eq. D5
+    current = battery_current_a(electrical, d.battery_voltage, d.battery_resistance, xp)  # eq. D8
+    return Chain(
+        torque,
+        torque * s.speed,
+        motor_loss_w(torque, s.speed, d.motor_copper, d.motor_iron),  # eq. D6
+        electrical,
+        current,
+        battery_loss_w(current, d.battery_resistance),  # eq. D9
+        chemical_power_w(current, d.battery_voltage),  # eq. D9
+        state_of_charge_rate_1_s(current, d.battery_voltage, d.battery_capacity),  # eq. D10
+        volumetric_loss_w(s.dp, d.pump_leak),  # eq. D3
+        mechanical_loss_w(s.displacement, s.speed, s.dp, d.torque_loss, xp),  # eq. D3
+        s.dp * s.q_pump,
+        overloaded(electrical, d.battery_voltage, d.battery_resistance),  # eq. D11
+    )
+
+
+@jitable
+def valve_losses(
+    q_pa: Num,
+    q_at: Num,
+    q_pb: Num,
+    q_bt: Num,
+    p_port_pa: Num,
+    p_tank_pa: Num,
+    p1_pa: Num,
+    p2_pa: Num,
+    leak_m3_s_pa: Num,
+    a_side: Num,
+    seat_leak_m3_s_pa: Num,
+) -> tuple[Num, Num]:
+    """(throttling, leakage) in the 4/3 valve and the load-holding valve, W (eq. D27).
+
+    ``q_pa`` .. ``q_bt`` are the spool's path flows (hydraulics.valve_flows) and ``a_side`` the
+    share of the A paths' flow the load-holding valve passes (1, or its pilot opening where
+    it checks an outflow). Each path dissipates dp Q, of which G dp^2 is its leakage; the
+    closed seat leaks G_seat (p1 - p_t) with the power G_seat (p1 - p_t)^2. Their sum is the
+    supply's power less what reaches the cylinder lines ("Supply and relief valves")."""
+    dp_pa, dp_at = p_port_pa - p1_pa, p1_pa - p_tank_pa
+    dp_pb, dp_bt = p_port_pa - p2_pa, p2_pa - p_tank_pa
+    paths = a_side * (dp_pa * q_pa + dp_at * q_at) + dp_pb * q_pb + dp_bt * q_bt
+    leakage = (
+        leak_m3_s_pa * (a_side * (dp_pa * dp_pa + dp_at * dp_at) + dp_pb * dp_pb + dp_bt * dp_bt)
+        + seat_leak_m3_s_pa * dp_at * dp_at
+    )
+    return paths - leakage + seat_leak_m3_s_pa * dp_at * dp_at, leakage  # eq. D27
+
+
+@jitable
+def cylinder_side(
+    v: Num,
+    acc: Num,
+    p1_pa: Num,
+    p2_pa: Num,
+    q_in1: Num,
+    q_in2: Num,
+    dvol1_m2: Num,
+    dvol2_m2: Num,
+    q_relief1: Num,
+    q_relief2: Num,
+    f_friction_n: Num,
+    f_stop_n: Num,
+    f_spring_n: Num,
+    lever: Num,
+    lever_slope: Num,
+    cos_alpha: Num,
+    inertia: Num,
+    weight_coeff: Num,
+    s1: Num,
+    s2: Num,
+    p_tank_pa: Num,
+    p_ambient_pa: Num,
+) -> Cylinder:
+    """The ledger from the cylinder lines to the hook, W (eq. D28).
+
+    ``q_in1``, ``q_in2`` are the net flows into the chambers (after the port reliefs, which
+    take ``q_relief1``, ``q_relief2``), ``dvol1_m2``, ``dvol2_m2`` the chambers' dV/dq1, the
+    forces those on the rod (friction opposing, the stops' pushing it out, the spring's
+    pulling it in), and the rest the boom's lever, inertia and weight (physical.Constants).
+    What the lines take, sum (p - p_t)(Q_in + Q_relief), equals the sum of the terms."""
+    g1, g2 = p1_pa - p_tank_pa, p2_pa - p_tank_pa
+    displaced = (g1 * dvol1_m2 + g2 * dvol2_m2) * v  # (p - p_t) dV/dt of both chambers
+    rod = (g1 * s1 - g2 * s2) * v  # the same on the rod's areas: what turns into rod force
+    return Cylinder(
+        g1 * q_relief1 + g2 * q_relief2,
+        g1 * q_in1 + g2 * q_in2 - displaced,  # eq. D28: (p - p_t)(Q_in - dV/dt)
+        f_friction_n * v,
+        displaced - rod - f_stop_n * v,  # the stops' work, and the chamber that shrinks in them
+        (p_ambient_pa - p_tank_pa) * (s1 - s2) * v,
+        inertia * lever * v * (lever * acc + lever_slope * v * v),  # d/dt (J k^2 v^2 / 2) (eq. 8)
+        weight_coeff * cos_alpha * lever * v + f_spring_n * v,  # d/dt of Pi (eq. 9) and the spring's energy
+    )
+
+
+@jitable
+def assemble(chain: Chain, s: Supply, throttling: Num, leakage: Num, cylinder: Cylinder) -> Ledger:
+    """The whole ledger from its links (eq. D29): the electric chain, the drive's supply side,
+    the valve's losses (0 for pump_controlled, whose checks are its valves) and the cylinder."""
+    return Ledger(
+        chain.battery_power,
+        s.reservoir_power,
+        chain.battery_loss,
+        chain.motor_loss,
+        chain.pump_volumetric_loss,
+        chain.pump_mechanical_loss,
+        s.main_relief_loss,
+        throttling + s.check_loss,
+        leakage,
+        cylinder.port_relief_loss,
+        cylinder.friction_work,
+        cylinder.end_stop_work,
+        cylinder.ambient_work,
+        cylinder.oil_work + s.line_oil_work,
+        cylinder.kinetic_power,
+        cylinder.potential_power,
+    )
+
+
+@jitable
+def residual_w(ledger: Ledger) -> Num:
+    """Sources less every other term, W: zero but for rounding where the ledger's terms come
+    from one evaluation of the model (eq. D29)."""
+    return (
+        ledger.battery_power
+        + ledger.reservoir_power
+        - ledger.battery_loss
+        - ledger.motor_loss
+        - ledger.pump_volumetric_loss
+        - ledger.pump_mechanical_loss
+        - ledger.main_relief_loss
+        - ledger.valve_loss
+        - ledger.leakage_loss
+        - ledger.port_relief_loss
+        - ledger.friction_work
+        - ledger.end_stop_work
+        - ledger.ambient_work
+        - ledger.oil_work
+        - ledger.kinetic_power
+        - ledger.potential_power
+    )
+
+
+def energies_of(integrals: Mapping[str, float]) -> dict[str, float]:
+    """The ledger over a run, J, from the integrals of its terms (``integrals``: by term name,
+    with the battery's split into ``battery_drawn`` and ``battery_returned``, the integrals of
+    its positive and negative parts, both >= 0) plus ``imbalance``: the sources less the other
+    terms, and ``imbalance_ratio``: that over the energy drawn (0.005 is 0.5 %)."""
+    energies = dict(integrals)
+    sources = energies["battery_drawn"] - energies["battery_returned"] + energies["reservoir_power"]
+    taken = sum(energies[name] for name in TERM_NAMES if name not in SOURCES)
+    energies["imbalance"] = sources - taken
+    drawn = energies["battery_drawn"] + abs(energies["reservoir_power"])
+    energies["imbalance_ratio"] = abs(sources - taken) / drawn if drawn > 0.0 else 0.0
+    return energies

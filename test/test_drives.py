@@ -1,0 +1,299 @@
+"""The drives' elements against analytic cases: relief, fixed pump, load sensing, EHA, pump, motor, battery."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from boom_hydraulics.errors import ConfigError
+from boom_hydraulics.model import battery, config, electric_motor, geometry, hydraulics, pump
+from boom_hydraulics.model.drives import DRIVES, constants, fixed_pump, load_sensing, pump_controlled
+from boom_hydraulics.model.ledger import electric_chain
+from boom_hydraulics.model.parameters import DRIVES as DRIVE_CHOICES
+from boom_hydraulics.model.parameters import UNSOLVED, Parameters, describe, from_mapping, with_updates
+
+P = Parameters()
+D = constants(P)
+
+
+# --- the parameter and the registry ----------------------------------------------------
+
+
+def test_one_registry_of_drives_behind_one_start_only_parameter_defaulting_to_todays_source():
+    assert tuple(DRIVES) == DRIVE_CHOICES == describe("drive")["choices"]
+    assert P.drive == "pressure_compensated" and describe("drive")["start_only"]
+    assert describe("drive")["group"] == "plant"
+    for name, module in DRIVES.items():
+        assert len(module.STATE_NAMES) == len(module.STATE_SCALES) == 1, name
+        assert callable(module.supply) and callable(module.initial_state), name
+        assert module.VALVE == hasattr(module, "port_pressure_pa"), name
+    assert not pump_controlled.VALVE and callable(pump_controlled.ports)
+
+
+@pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing", "pump_controlled"])
+def test_a_drive_the_kernels_do_not_run_is_refused_in_one_line(drive):
+    with pytest.raises(ConfigError, match=rf"drive '{drive}' is not solved yet: .* set drive: pressure_compensated"):
+        from_mapping({"drive": drive})
+
+
+def test_the_drives_parameters_have_units_and_ranges_and_stay_out_of_the_node_and_default_file():
+    assert "drive" in UNSOLVED and "battery_capacity_kwh" in UNSOLVED and "payload_mass_kg" not in UNSOLVED
+    for name in UNSOLVED:
+        meta = describe(name)
+        assert meta["group"] == "plant" and meta["description"], name
+        assert meta["choices"] or (meta["unit"] is not None and meta["low"] is not None and meta["high"]), name
+    shipped = config.read_values(CONFIG / "default.yaml")
+    assert not set(UNSOLVED) & set(shipped)  # the node loads it: it must not promise a drive
+    assert config.load(CONFIG / "default.yaml") == Parameters()  # existing runs unchanged
+    with pytest.raises(ConfigError, match=r"'battery_voltage_v'.*must be > 0"):
+        from_mapping({"battery_voltage_v": 0.0})
+
+
+# --- relief valve and fixed pump ------------------------------------------------------
+
+
+def test_the_main_relief_is_closed_below_p_n_and_passes_the_pump_flow_at_p_n_plus_its_range():
+    p_n, span = P.supply_pressure_pa, P.main_relief_range_pa
+    flows = [fixed_pump.main_relief_flow_m3_s(p, D) for p in (p_n - 1e5, p_n, p_n + 0.5 * span, p_n + span)]
+    assert flows[0] == flows[1] == 0.0
+    assert flows[2] == pytest.approx(0.5 * P.pump_max_flow_m3_s, rel=1e-12)
+    assert flows[3] == pytest.approx(P.pump_max_flow_m3_s, rel=1e-12)
+
+
+def _line_rate(t: float, y: np.ndarray) -> list[float]:
+    """The supply line of the fixed pump with the valve closed (its P paths take nothing)."""
+    p = fixed_pump.port_pressure_pa(y[0], 0.0, 0.0, 0.0, D)
+    s = fixed_pump.supply(y[0], p, 0.0, 0.0, 0.0, 0.0, D)
+    chain = electric_chain(s, D)
+    losses = chain.battery_loss + chain.motor_loss + chain.pump_volumetric_loss + chain.pump_mechanical_loss
+    return [s.rate, chain.battery_power, losses + s.main_relief_loss, s.line_oil_work]
+
+
+def test_a_fixed_pump_dead_heading_settles_at_its_relief_pressure_with_the_line_time_constant():
+    """From p_n, where the relief cracks, the line is linear: p_ss + (p_n - p_ss) exp(-t / tau)."""
+    p_ss = fixed_pump.dead_head_pressure_pa(D)
+    g_total = D.pump_leak + D.g_main
+    assert p_ss == pytest.approx(P.supply_pressure_pa + (D.displacement * D.speed - D.pump_leak * (
+        P.supply_pressure_pa - P.tank_pressure_pa)) / g_total, rel=1e-12)  # fmt: skip
+    tau = P.supply_line_volume_m3 / (P.bulk_modulus_pa * g_total)
+    run = solve_ivp(_line_rate, (0.0, 5 * tau), [P.supply_pressure_pa, 0, 0, 0], rtol=1e-10, atol=1e-6,
+                    t_eval=[tau, 3 * tau, 5 * tau])  # fmt: skip
+    expected = p_ss + (P.supply_pressure_pa - p_ss) * np.exp(-run.t / tau)
+    np.testing.assert_allclose(run.y[0], expected, rtol=1e-8)
+    assert _line_rate(0.0, np.array([p_ss]))[0] == pytest.approx(0.0, abs=1e-3)  # Pa/s: it holds there
+
+
+def test_the_fixed_pump_spills_p_n_q_over_the_relief_and_draws_it_from_the_battery_while_the_boom_holds():
+    p_ss = fixed_pump.dead_head_pressure_pa(D)
+    s = fixed_pump.supply(p_ss, p_ss, 0.0, 0.0, 0.0, 0.0, D)
+    spill = p_ss - P.tank_pressure_pa
+    assert s.main_relief_loss == pytest.approx(spill * s.q_pump, rel=1e-9)  # all of the pump's flow
+    # p_n Q_max, less the pump's leakage (5 % at p_n), plus the relief's override (6 %)
+    assert 0.95 < s.main_relief_loss / (P.supply_pressure_pa * P.pump_max_flow_m3_s) < 1.06
+    chain = electric_chain(s, D)
+    efficiency = P.pump_hydromechanical_efficiency * P.motor_efficiency
+    assert chain.battery_power > s.main_relief_loss / efficiency  # and the battery's own loss on top
+
+
+def test_the_fixed_pump_line_stores_the_compression_energy_its_ledger_says():
+    """Ledger over a transient: drawn = losses + oil, and the oil's share is V (p - p_t)^2 / (2 E)."""
+    p0, t_end = P.tank_pressure_pa, 0.05
+    run = solve_ivp(_line_rate, (0.0, t_end), [p0, 0, 0, 0], rtol=1e-11, atol=[1e-6, 1e-9, 1e-9, 1e-12])
+    p_end, drawn, lost, oil = run.y[:, -1]
+    compression = P.supply_line_volume_m3 * ((p_end - p0) ** 2) / (2 * P.bulk_modulus_pa)
+    assert p_end > P.supply_pressure_pa  # the relief has opened within the transient
+    assert oil == pytest.approx(compression, rel=1e-6)
+    assert drawn == pytest.approx(lost + oil, rel=1e-9)
+
+
+# --- load sensing ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("opening", "expected"),
+    [(0.5, 9e6 + 2e6), (-0.5, 3e6 + 2e6), (0.0, 1e5 + 2e6), (0.025, 1e5 + 0.5 * (9e6 - 1e5) + 2e6)],
+)
+def test_load_sensing_heads_for_the_fed_ports_pressure_plus_its_margin(opening, expected):
+    assert load_sensing.target_pressure_pa(opening, 9e6, 3e6, D) == pytest.approx(expected, rel=1e-12)
+
+
+def test_load_sensing_is_capped_at_p_n():
+    assert load_sensing.target_pressure_pa(1.0, 15e6, 1e5, D) == P.supply_pressure_pa
+
+
+def test_load_sensing_tracks_a_rising_load_plus_its_margin_with_the_pumps_lag():
+    """A first-order lag behind p1 = p0 + r t settles to p1 + margin - r tau."""
+    rate, tau = 5e6, P.load_sensing_time_constant_s  # 5 MPa/s
+    p1 = lambda t: 4e6 + rate * t  # noqa: E731
+
+    def f(t, y):
+        return [load_sensing.supply(y[0], y[0], 1.0, p1(t), 1e5, 1e-4, D).rate]
+
+    t_end = 20 * tau  # the start's offset has decayed to 1e-9 of itself
+    run = solve_ivp(f, (0.0, t_end), [load_sensing.initial_state(D)], rtol=1e-10, atol=1.0)
+    assert run.y[0, -1] == pytest.approx(p1(t_end) + P.load_sensing_margin_pa - rate * tau, abs=20.0)
+
+
+def test_load_sensing_delivers_on_demand_at_its_own_pressure_and_falls_at_the_pumps_flow_limit():
+    z, p1 = 8e6, 6e6
+    assert load_sensing.port_pressure_pa(z, 0.1, p1, 1e5, D) == z  # a small opening takes less than Q_max
+    wide = constants(with_updates(P, orifice_diameter_m=0.006))  # passes Q_max at 0.35 MPa fully open
+    limited = load_sensing.port_pressure_pa(z, 1.0, 7e6, 1e5, wide)
+    assert 7e6 < limited < z
+    dp = limited - 7e6
+    assert hydraulics.orifice_flow(wide.k_valve, dp, wide.transition2) == pytest.approx(P.pump_max_flow_m3_s, rel=1e-9)
+    s = load_sensing.supply(z, z, 0.1, p1, 1e5, 2e-4, D)
+    assert s.q_pump == 2e-4 and s.dp == z - P.tank_pressure_pa
+    assert s.displacement * s.speed == pytest.approx(2e-4 + D.pump_leak * s.dp, rel=1e-12)  # eq. D4
+
+
+# --- pump, motor, battery -------------------------------------------------------------
+
+
+def test_the_pump_has_its_stated_efficiencies_pumping_and_the_losses_turn_round_as_a_motor():
+    dp, w = P.supply_pressure_pa - P.tank_pressure_pa, P.pump_speed_rad_s
+    q = pump.delivered_flow_m3_s(D.displacement, w, dp, D.pump_leak)
+    assert q / (D.displacement * w) == pytest.approx(P.pump_volumetric_efficiency, rel=1e-12)
+    torque = pump.shaft_torque_n_m(D.displacement, w, dp, D.torque_loss)
+    assert D.displacement * dp / torque == pytest.approx(P.pump_hydromechanical_efficiency, rel=1e-4)
+    as_motor = pump.shaft_torque_n_m(D.displacement, -w, dp, D.torque_loss)  # the oil drives it
+    assert as_motor / (D.displacement * dp) == pytest.approx(2.0 - 1.0 / P.pump_hydromechanical_efficiency, rel=1e-4)
+    for speed in (w, -w, 0.3, 0.0):
+        loss = pump.mechanical_loss_w(D.displacement, speed, dp, D.torque_loss)
+        assert loss >= 0.0 and pump.volumetric_loss_w(dp, D.pump_leak) > 0.0
+        shaft = pump.shaft_torque_n_m(D.displacement, speed, dp, D.torque_loss) * speed
+        flow = pump.delivered_flow_m3_s(D.displacement, speed, dp, D.pump_leak)
+        assert shaft == pytest.approx(dp * flow + pump.volumetric_loss_w(dp, D.pump_leak) + loss, rel=1e-12)
+
+
+def test_motor_losses_are_the_same_in_both_quadrants_with_eta_motoring_and_2_minus_1_over_eta_generating():
+    torque, speed, eta = P.motor_rated_torque_n_m, P.pump_speed_rad_s, P.motor_efficiency
+    k_c, k_s = D.motor_copper, D.motor_iron
+    motoring = electric_motor.electrical_power_w(torque, speed, k_c, k_s)
+    generating = electric_motor.electrical_power_w(-torque, speed, k_c, k_s)
+    assert torque * speed / motoring == pytest.approx(eta, rel=1e-12)
+    assert generating / (-torque * speed) == pytest.approx(2.0 - 1.0 / eta, rel=1e-12)
+    assert generating < 0.0  # it returns power
+    loss = electric_motor.motor_loss_w(torque, speed, k_c, k_s)
+    assert loss == electric_motor.motor_loss_w(-torque, -speed, k_c, k_s) == pytest.approx(
+        torque * speed * (1 / eta - 1), rel=1e-12)  # fmt: skip
+    holding = electric_motor.motor_loss_w(0.5 * torque, 0.0, k_c, k_s)  # a torque at standstill: copper only
+    assert holding == pytest.approx(0.25 * P.motor_copper_loss_fraction * loss, rel=1e-12)
+
+
+@pytest.mark.parametrize(("current", "power"), [(10.0, 48 * 10 - 0.1 * 100), (-10.0, -48 * 10 - 0.1 * 100)])
+def test_the_battery_current_solves_u_i_minus_r_i2_discharging_and_charging(current, power):
+    u, r = 48.0, 0.1
+    assert battery.battery_current_a(power, u, r) == pytest.approx(current, rel=1e-12)
+    assert battery.chemical_power_w(current, u) == pytest.approx(power + battery.battery_loss_w(current, r), rel=1e-12)
+    assert battery.battery_loss_w(current, r) == pytest.approx(10.0, rel=1e-12)  # heat both ways
+    capacity = 5.0 * battery.J_PER_KWH
+    assert battery.state_of_charge_rate_1_s(current, u, capacity) == pytest.approx(-u * current / capacity)
+    assert battery.battery_current_a(power, u, 0.0) == pytest.approx(power / u, rel=1e-12)
+
+
+def test_the_battery_flags_a_power_beyond_what_it_can_give():
+    u, r = 48.0, 0.1
+    assert battery.overloaded(0.99 * u * u / (4 * r), u, r) == 0.0
+    assert battery.overloaded(1.01 * u * u / (4 * r), u, r) == 1.0
+
+
+# --- the pump-controlled drive (EHA) --------------------------------------------------
+
+
+def _lossless_but_copper() -> tuple[Parameters, object]:
+    p = with_updates(
+        P,
+        pump_volumetric_efficiency=1.0,
+        pump_hydromechanical_efficiency=1.0,
+        motor_copper_loss_fraction=1.0,
+        battery_resistance_ohm=0.0,
+    )
+    return p, constants(p)
+
+
+def test_the_eha_regenerates_the_pumps_power_less_the_copper_loss_on_lowering():
+    """With copper the only loss: U I = D dp w + k_c (D dp)^2, negative for w < 0."""
+    p, d = _lossless_but_copper()
+    p1, p2, w = 8e6, p.reservoir_pressure_pa, -100.0  # lowering: the load drives the pump
+    flows = pump_controlled.ports(w, -1.0, p1, p2, d)
+    s = pump_controlled.supply(w, -1.0, p1, p2, flows, d)
+    chain = electric_chain(s, d)
+    torque = d.displacement * (p1 - p2)
+    expected = torque * w + d.motor_copper * torque**2
+    assert chain.battery_power == pytest.approx(expected, rel=1e-12)
+    assert chain.battery_power < 0.0 and chain.current < 0.0 and chain.soc_rate > 0.0  # it charges
+
+
+def _steady_lowering(v: float) -> dict[str, float]:
+    """The default EHA lowering the default boom at rod speed ``v`` < 0 at mid-stroke: the motor
+    speed that takes S1 |v| out of the piston chamber, and the rod chamber's pressure at which the
+    checks pass the area difference to the reservoir."""
+    q1 = 1.4
+    s1 = geometry.piston_area_m2(P.piston_diameter_m)
+    s2 = geometry.annulus_area_m2(P.piston_diameter_m, P.rod_diameter_m)
+    force = geometry.static_rod_force_of(P, q1)
+    p_r = P.reservoir_pressure_pa
+
+    def p1_of(p2):
+        return (force + p2 * s2 + P.ambient_pressure_pa * (s1 - s2)) / s1
+
+    def speed_of(p2):
+        return (s1 * v + D.pump_leak * (p1_of(p2) - p2)) / D.displacement  # Q_pump = S1 v
+
+    def rod_line_excess(p2):
+        flows = pump_controlled.ports(speed_of(p2), -1.0, p1_of(p2), p2, D)
+        return flows.q_b - (-s2 * v)  # into line B less what the rod chamber takes
+
+    p2 = brentq(rod_line_excess, p_r - 4e5, p_r + 4e5, xtol=1e-3)
+    p1, w = p1_of(p2), speed_of(p2)
+    flows = pump_controlled.ports(w, -1.0, p1, p2, D)
+    chain = electric_chain(pump_controlled.supply(w, -1.0, p1, p2, flows, D), D)
+    return {"p1": p1, "p2": p2, "w": w, "weight_power": force * -v, "hydraulic_power": (p1 - p2) * s1 * -v,
+            "returned": -chain.battery_power, "check_b": flows.q_check_b, "area_flow": (s1 - s2) * -v}  # fmt: skip
+
+
+def test_lowering_through_the_eha_returns_energy_but_less_than_the_potential_energy_given_up():
+    run = _steady_lowering(-0.1)
+    assert run["w"] < 0.0 and run["p1"] > run["p2"]
+    assert 0.0 < run["returned"] < run["hydraulic_power"] < run["weight_power"]
+    assert run["returned"] / run["weight_power"] > 0.5  # through pump, motor and battery: 0.89^2 and less
+    # the area difference goes to the reservoir through check B, just above its pressure
+    assert run["check_b"] == pytest.approx(-run["area_flow"], rel=1e-6)
+    assert 0.0 < run["p2"] - P.reservoir_pressure_pa < 0.1e6
+
+
+def test_the_eha_lifts_with_make_up_oil_from_the_reservoir_and_the_motor_follows_its_command():
+    p1, p2 = 8e6, 4e5  # the rod line below the reservoir: check B lets oil in
+    flows = pump_controlled.ports(100.0, 1.0, p1, p2, D)
+    assert flows.q_pump > 0.0 and flows.q_check_b > 0.0 and flows.q_check_a == pytest.approx(0.0, abs=1e-12)
+    s = pump_controlled.supply(100.0, 1.0, p1, p2, flows, D)
+    assert s.rate == pytest.approx((P.pump_speed_rad_s - 100.0) / P.motor_time_constant_s, rel=1e-12)
+    assert s.check_loss > 0.0 and s.reservoir_power > 0.0
+    assert electric_chain(s, D).battery_power > 0.0
+
+
+def test_without_a_motor_lag_the_speed_is_the_command():
+    d = constants(with_updates(P, motor_time_constant_s=0.0))
+    assert pump_controlled.motor_speed_rad_s(12.0, -0.5, d) == -0.5 * P.pump_speed_rad_s
+    s = pump_controlled.supply(12.0, -0.5, 5e6, 5e5, pump_controlled.ports(12.0, -0.5, 5e6, 5e5, d), d)
+    assert s.rate == 0.0 and s.speed == -0.5 * P.pump_speed_rad_s
+
+
+def test_the_elements_take_arrays_as_they_take_floats():
+    """A batch evaluates the drives on numpy arrays (xp=numpy) to the same values."""
+    p1 = np.array([3e6, 9e6, 2e5])
+    p2 = np.array([5e5, 6e5, 1e6])
+    w = np.array([50.0, -80.0, 0.0])
+    arrays = electric_chain(pump_controlled.supply(w, 0.3, p1, p2, pump_controlled.ports(w, 0.3, p1, p2, D, np), D, np),
+                            D, np)  # fmt: skip
+    for k in range(3):
+        flows = pump_controlled.ports(w[k], 0.3, p1[k], p2[k], D)
+        one = electric_chain(pump_controlled.supply(w[k], 0.3, p1[k], p2[k], flows, D), D)
+        assert [float(a[k]) for a in arrays] == pytest.approx(list(one), rel=1e-12, abs=1e-15)
+    assert math.isfinite(float(arrays.battery_power[2]))

@@ -1,0 +1,294 @@
+"""boom-sim fmu: the physical drive as an FMI 2.0 co-simulation FMU, run by fmpy in a
+process of its own (test/fmu_host.py) and held to boom-sim's own runs."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+from boom_hydraulics.model.geometry import static_rod_force_of
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve.simulation import Simulator
+
+BOOM_SIM = shutil.which("boom-sim")
+pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
+
+HOST = Path(__file__).with_name("fmu_host.py")
+C_HOST = Path(__file__).with_name("fmu_c_host.c")
+#: The parameter the host sets through FMI before one of its cycles.
+SUPPLY_PA = 12.0e6
+#: boom-sim's profile of the host's cycle: lift 3 s, hold 2 s, lower 3 s, hold 1 s.
+CYCLE = "steps:0=1,3=0,5=-1,8=0"
+OUTPUTS = ("q1", "v", "f_hyd", "p1", "p2", "alpha", "power", "supply_energy")
+#: fmi2Discard, the status of a refused step.
+DISCARD = 2
+
+
+def _boom_sim(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([BOOM_SIM, *map(str, args)], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("fmu") / "boom_drive.fmu"
+    result = _boom_sim("fmu", "--config", CONFIG / "default.yaml", "--out", out)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith(f"{out}: FMI 2.0 co-simulation FMU")
+    return out
+
+
+@pytest.fixture(scope="module")
+def report(fmu: Path) -> dict:
+    """What the host saw, in a process of its own: fmpy loads the FMU's binary there."""
+    result = subprocess.run(
+        [sys.executable, HOST, fmu, "--set", f"supply_pressure_pa={SUPPLY_PA!r}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr  # also: the host exits cleanly
+    return json.loads(result.stdout)
+
+
+def _cycle_csv(folder: Path, *sets: str) -> dict[str, np.ndarray]:
+    out = folder / f"cycle{len(sets)}.csv"
+    extra = [a for s in sets for a in ("--set", s)]
+    result = _boom_sim("run", "--config", CONFIG / "default.yaml", "--profile", CYCLE, "--duration", 9,
+                       "--every", 10, *extra, "--out", out)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with out.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    data = np.array(rows[1:], dtype=float)
+    return {header.split(" ")[0]: data[:, j] for j, header in enumerate(rows[0])}
+
+
+def _columns(run: dict) -> dict[str, np.ndarray]:
+    rows = np.array(run["rows"])
+    return {name: rows[:, j] for j, name in enumerate(run["columns"])}
+
+
+def _assert_equal_runs(fmu_run: dict[str, np.ndarray], boom_sim: dict[str, np.ndarray]) -> None:
+    assert len(fmu_run["t"]) == len(boom_sim["t"]) == 901
+    np.testing.assert_allclose(fmu_run["t"], boom_sim["t"], rtol=0, atol=1e-9)
+    for name in OUTPUTS:
+        scale = max(1.0, float(np.ptp(boom_sim[name])))
+        np.testing.assert_allclose(fmu_run[name], boom_sim[name], rtol=0, atol=1e-9 * scale, err_msg=name)
+
+
+def test_the_model_description_validates_and_names_units(fmu: Path, report: dict) -> None:
+    from fmpy import read_model_description
+
+    assert report["validate"] == []
+    description = read_model_description(str(fmu))
+    variables = {v.name: v for v in description.modelVariables}
+    assert {n for n, v in variables.items() if v.causality == "input"} == {"valve_command", "payload_mass_kg"}
+    assert {n for n, v in variables.items() if v.causality == "output"} == set(OUTPUTS)
+    units = {name: variables[name].unit for name in (*OUTPUTS, "bulk_modulus_pa", "viscous_friction_n_s_m")}
+    assert units == {"q1": "m", "v": "m/s", "f_hyd": "N", "p1": "Pa", "p2": "Pa", "alpha": "rad", "power": "W",
+                     "supply_energy": "J", "bulk_modulus_pa": "Pa", "viscous_friction_n_s_m": "N.s/m"}  # fmt: skip
+    base = {u.name: u.baseUnit for u in description.unitDefinitions}
+    assert (base["Pa"].kg, base["Pa"].m, base["Pa"].s) == (1, -1, -2)  # what a tool converts by
+    leakage = base[variables["valve_leakage_m3_s_pa"].unit]  # m^3/(s Pa)
+    assert (leakage.kg, leakage.m, leakage.s) == (-1, 4, 1)
+    assert variables["bulk_modulus_pa"].variability == "tunable"
+    assert variables["initial_length_m"].variability == "fixed"
+    assert float(variables["supply_pressure_pa"].start) == 16.0e6  # the config's value
+    assert "mode" not in variables  # the physical drive only
+
+
+def test_a_lift_hold_lower_cycle_equals_boom_sims_run(report: dict, tmp_path: Path) -> None:
+    run = _columns(report["cycle"])
+    _assert_equal_runs(run, _cycle_csv(tmp_path))
+    assert run["q1"].max() - run["q1"][0] > 0.3  # it lifted ...
+    assert run["q1"][-1] < run["q1"][0]  # ... and lowered the boom onto its end stop
+
+
+def test_a_parameter_set_through_fmi_takes_effect(report: dict, tmp_path: Path) -> None:
+    run, plain = _columns(report["cycle_set"]), _columns(report["cycle"])
+    _assert_equal_runs(run, _cycle_csv(tmp_path, f"supply_pressure_pa={SUPPLY_PA!r}"))
+    at_one_s = 100
+    assert run["q1"][at_one_s] < plain["q1"][at_one_s] - 0.01  # a lower supply pressure lifts slower
+
+
+def test_a_tunable_parameter_applies_from_the_next_step(report: dict) -> None:
+    """The supply pressure lowered after 0.5 s of lifting: the FMU goes on as the Simulator
+    does with the same change between its steps, and lifts less far than at 16 MPa."""
+    sim = Simulator(Parameters())
+    sim.step(1.0, 500)
+    sim.set_parameters(with_updates(sim.params, supply_pressure_pa=10.0e6))
+    sim.step(1.0, 500)
+    expected = sim.outputs()
+    got = dict(zip(("t", *OUTPUTS), report["tunable"]["after"]))
+    for name in OUTPUTS:
+        assert got[name] == pytest.approx(expected[name], rel=1e-9, abs=1e-9), name
+    unchanged = Simulator(Parameters())
+    unchanged.step(1.0, 1000)
+    assert got["q1"] < unchanged.outputs()["q1"] - 0.01
+
+
+def test_a_payload_taken_on_is_carried_by_the_rod(report: dict) -> None:
+    """Over the last second of each hold the rod force is, on average (the oil column still
+    rings), the static force of eq. 6 for the payload, to within the seals' breakaway friction."""
+    params = Parameters()
+    forces = {}
+    for key, payload_kg in (("held", 50.0), ("loaded", 150.0)):
+        rows = np.array(report["payload"][key])
+        force, q1 = rows[:, 1 + OUTPUTS.index("f_hyd")].mean(), rows[:, 1 + OUTPUTS.index("q1")].mean()
+        static = static_rod_force_of(with_updates(params, payload_mass_kg=payload_kg), q1)
+        assert abs(force - static) < params.static_friction_n, key
+        forces[key] = force
+    assert forces["loaded"] > 1.9 * forces["held"]  # 100 kg more at the tip: twice the rod force
+
+
+def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
+    refused = report["refusals"]
+    odd = refused["odd_step"]
+    assert odd["status"] == DISCARD and odd["terminated"]
+    assert odd["last_successful_s"] == 0.5 and odd["after"] == refused["before"]
+    assert "0.0015 s" in odd["message"] and "time_step_s" in odd["message"]
+    reasons = {
+        "wrong_time": "the FMU is at 0.5 s",
+        "zero_step": "not a whole number",
+        "nan_command": "valve_command must be a finite opening",
+        "bad_parameter": "piston_diameter_m",
+        "fixed_parameter": "time_step_s can only be set before initialization",
+    }
+    for case, reason in reasons.items():
+        assert refused[case]["status"] == DISCARD, case
+        assert reason in refused[case]["message"], refused[case]["message"]
+        assert "\n" not in refused[case]["message"]
+    assert refused["after_refusals"] == refused["before"]  # none of them moved the drive
+    assert refused["drifted"]["status"] == 0  # a host's time a little off the FMU's is taken as it
+
+
+def test_a_step_the_simulation_cannot_finish_is_not_taken(report: dict) -> None:
+    stiff = report["refusals"]["too_stiff"]
+    assert stiff["status"] == DISCARD and "too stiff at t = " in stiff["message"]
+    assert stiff["last_successful_s"] == 0.0 and stiff["after"] == stiff["start"]
+    assert stiff["shorter"][0] > stiff["start"][0] + 0.1  # a shorter step from there lifts the boom
+
+
+def test_reset_and_terminate(report: dict) -> None:
+    life = report["lifecycle"]
+    assert life["again"] == life["first"]  # reset: back to rest at t = 0, the same run again
+    assert life["supply_after_reset"] == 16.0e6  # ... with the exported parameters
+    assert life["default"][1] > life["first"][1] + 0.01  # 16 MPa lifts faster than the 12 MPa set before
+    assert life["after_terminate"]["status"] == DISCARD
+    assert "terminated" in life["after_terminate"]["message"]
+
+
+def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
+    fmu: Path, report: dict, tmp_path: Path
+) -> None:
+    """A C host, as OMSimulator, Simulink and fmi_adapter are, with the environment
+    docs/fmu.md gives (fmu.host_environment: libpython preloaded, PYTHONHOME, PYTHONPATH):
+    the same lift as fmpy's, a refused step, and a clean exit."""
+    compiler = shutil.which("cc")
+    if compiler is None or not sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        pytest.skip("needs a C compiler and a Python built with a shared libpython")
+    import fmpy
+
+    from boom_hydraulics.fmu.host_environment import environment
+
+    host = tmp_path / "host"
+    headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
+    subprocess.run([compiler, "-O1", "-I", headers, "-o", host, C_HOST, "-ldl"], check=True, timeout=120)
+    folder = tmp_path / "boom_drive"
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(folder)
+    env = dict(os.environ, **environment(sys.path))
+    result = subprocess.run([host, folder], env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr  # 0: it also exits cleanly
+    said = dict(line.split(" ", 1) for line in result.stdout.splitlines() if line.startswith(("q1 ", "refused ")))
+    assert float(said["q1"]) == report["lifecycle"]["default"][1]  # 1 s of lift, as in fmpy
+    assert said["refused"] == str(DISCARD) and "not a whole number of the drive's time steps" in result.stdout
+
+
+# --- the command line ---------------------------------------------------------------------
+
+
+def test_an_fmu_of_other_variables_than_the_installed_package_refuses_to_start(fmu: Path, tmp_path: Path) -> None:
+    from boom_hydraulics.errors import ConfigError
+    from boom_hydraulics.fmu.slave import BoomDrive
+
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(tmp_path)
+    resources = tmp_path / "resources"
+    assert BoomDrive(instance_name="as exported", resources=str(resources)).params == Parameters()
+    names = (resources / "variables.txt").read_text().split()
+    (resources / "variables.txt").write_text("".join(f"{name}\n" for name in names[:-1]))  # an older FMU
+    with pytest.raises(ConfigError, match="export it again with this installation's boom-sim fmu"):
+        BoomDrive(instance_name="older", resources=str(resources))
+
+
+def test_the_host_environment_prints_shell_exports() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "boom_hydraulics.fmu.host_environment"], capture_output=True, text=True, timeout=60
+    )
+    if result.returncode == 1:  # a Python without a shared libpython: said in one line
+        assert result.stderr.startswith("host_environment: error: ") and result.stderr.count("\n") == 1
+        return
+    assert result.returncode == 0, result.stderr
+    exported = dict(line.removeprefix("export ").split("=", 1) for line in result.stdout.splitlines())
+    assert set(exported) == {"LD_PRELOAD", "PYTHONHOME", "PYTHONPATH"}
+    assert Path(exported["LD_PRELOAD"]).is_file() and exported["PYTHONHOME"] == sys.base_prefix
+
+
+def test_fmu_holds_the_drive_its_parameters_and_the_binaries(fmu: Path) -> None:
+    with zipfile.ZipFile(fmu) as archive:
+        names = set(archive.namelist())
+        parameters = archive.read("resources/boom_drive.yaml").decode()
+    assert {"modelDescription.xml", "binaries/linux64/boom_drive.so", "resources/boom_drive_fmu.py"} <= names
+    assert "    supply_pressure_pa: 16000000.0\n" in parameters
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--config", CONFIG / "paper_fig8.yaml"), "the FMU is the physical drive; mode is 'paper'"),
+        (("--config", CONFIG / "default.yaml", "--set", "method=rk45"), "method 'rk45' has no fixed step"),
+        (("--config", CONFIG / "default.yaml", "--set", "piston_diameter_m=-1"), "piston_diameter_m"),
+    ],
+)
+def test_fmu_refuses_what_it_cannot_export_in_one_line(tmp_path: Path, args: tuple, message: str) -> None:
+    out = tmp_path / "boom_drive.fmu"
+    out.write_bytes(b"an earlier FMU")
+    result = _boom_sim("fmu", *args, "--out", out)
+    assert result.returncode == 2
+    assert result.stderr.startswith("boom-sim: error: ") and message in result.stderr
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert out.read_bytes() == b"an earlier FMU"  # whole or not at all: the old file stays
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["boom_drive.fmu"]  # no temporary left
+
+
+def test_fmu_refuses_an_output_that_is_or_holds_its_config(tmp_path: Path) -> None:
+    config = tmp_path / "drive.yaml"
+    shutil.copyfile(CONFIG / "default.yaml", config)
+    for out, says in ((config, "is the input"), (tmp_path, "holds the input"), (tmp_path / "x.zip", ".fmu file")):
+        result = _boom_sim("fmu", "--config", config, "--out", out)
+        assert result.returncode == 2, result.stderr
+        assert says in result.stderr and result.stderr.count("\n") == 1
+    assert config.read_bytes() == (CONFIG / "default.yaml").read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.yaml"]
+
+
+def test_nothing_of_the_build_is_left_in_the_exporting_process(tmp_path: Path) -> None:
+    from boom_hydraulics.fmu.export import write_fmu
+
+    path_before, modules_before = list(sys.path), set(sys.modules)
+    write_fmu(Parameters(), tmp_path / "boom_drive.fmu")
+    assert sys.path == path_before
+    assert "boom_drive_fmu" not in set(sys.modules) - modules_before
+    with zipfile.ZipFile(tmp_path / "boom_drive.fmu") as archive:
+        assert archive.testzip() is None

@@ -1,0 +1,185 @@
+"""The energy ledger from battery to hook closes for every drive, interpreted and compiled.
+
+The drives are not in the run kernels yet, so these tests put each drive in front of the
+physical model's cylinder and boom the way the kernels will: the drive's P-port pressure
+into the 4/3 valve (or the EHA's flows into the chambers), the model's load-holding valve
+and reliefs, and the model's own mechanics (physical._terms, whose forces and acceleration
+depend on the state alone)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from boom_hydraulics import jit
+from boom_hydraulics.model import ledger, physical
+from boom_hydraulics.model.drives import DRIVES, constants, pressure_compensated, pump_controlled
+from boom_hydraulics.model.hydraulics import load_holding_flow, pos, relief_flow, smaller, smoothstep, valve_flows
+from boom_hydraulics.model.parameters import Parameters, with_updates
+
+P = Parameters()
+C = physical.constants(P)
+D = constants(P)
+RNG = np.random.default_rng(23)
+
+
+def _random_state(rng: np.random.Generator) -> tuple[list[float], float, float]:
+    """A state anywhere the model goes: in the stroke or pressed into a stop, moving either way,
+    chambers from cavitating to the reliefs, the spool anywhere; and a drive state and command."""
+    q1 = rng.uniform(P.cylinder_min_length_m - 2e-3, P.cylinder_max_length_m + 2e-3)
+    z1, z2 = rng.uniform(-2e5, 2e7, size=2)
+    y = [q1, rng.uniform(-0.4, 0.4), z1, z2, rng.uniform(-1, 1), 0.0, 0.0, rng.uniform(-1, 1), 0.0, 0.0]
+    return y, rng.uniform(-2e5, 1.8e7), rng.uniform(-1, 1)
+
+
+def _cylinder(y: list[float], q_line1: float, q_line2: float) -> tuple[ledger.Cylinder, float, float]:
+    """The cylinder side of the ledger for flows ``q_line1``, ``q_line2`` into the chamber lines
+    (before the reliefs), with the model's mechanics at state ``y``; and the chambers' state rates."""
+    t = physical._terms(y, C, 0.0, math)
+    q_r1, q_r2 = relief_flow(t.p1, C.p_relief, C.g_relief), relief_flow(t.p2, C.p_relief, C.g_relief)
+    q_in1, q_in2 = q_line1 - q_r1, q_line2 - q_r2
+    spring = C.spring * (y[0] - C.spring_free)
+    cylinder = ledger.cylinder_side(
+        y[1], t.acc, t.p1, t.p2, q_in1, q_in2, t.dvol1, t.dvol2, q_r1, q_r2, t.f_friction, t.f_stop, spring,
+        t.lever, t.lever_slope, t.cos_alpha, C.inertia, C.weight_coeff, C.s1, C.s2, C.p_tank, C.p_ambient,
+    )  # fmt: skip
+    return cylinder, q_in1, q_in2
+
+
+def valve_drive_ledger(drive, y: list[float], z: float, d=D) -> tuple[ledger.Ledger, dict]:
+    """The ledger of a valve drive in front of the physical model at state ``y`` (spool y[4])."""
+    x = y[4]
+    p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
+    p_port = drive.port_pressure_pa(z, x, p1, p2, d)
+    q_pa, q_at, q_pb, q_bt = valve_flows(x, p_port, C.p_tank, p1, p2, C.k_valve, C.transition2, C.leak)
+    # the model's load-holding valve (physical._terms): outflow from A only as the pilot opens it
+    lowering = smaller(pos(-x) / physical.PILOT_FULL_OPENING, 1.0)
+    pilot = 1.0 - C.holding + C.holding * smoothstep(lowering)
+    port_a = q_pa - q_at
+    a_side = 1.0 - (1.0 - pilot) * (port_a < 0.0)
+    q_a = load_holding_flow(port_a, pilot, p1, C.p_tank, C.holding * C.seat_leak)
+    q_valve_in = a_side * q_pa + q_pb
+    s = drive.supply(z, p_port, x, p1, p2, q_valve_in, d)
+    throttling, leakage = ledger.valve_losses(
+        q_pa, q_at, q_pb, q_bt, p_port, C.p_tank, p1, p2, C.leak, a_side, C.holding * C.seat_leak
+    )
+    cylinder, q_in1, q_in2 = _cylinder(y, q_a, q_pb - q_bt)
+    terms = ledger.assemble(ledger.electric_chain(s, d), s, throttling, leakage, cylinder)
+    return terms, {"p_port": p_port, "q_in1": q_in1, "q_in2": q_in2, "valve_in": (p_port - C.p_tank) * q_valve_in}
+
+
+def eha_ledger(y: list[float], z: float, u: float, d=D) -> ledger.Ledger:
+    """The ledger of the EHA on the physical model's chambers at state ``y``."""
+    p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
+    flows = pump_controlled.ports(z, u, p1, p2, d)
+    s = pump_controlled.supply(z, u, p1, p2, flows, d)
+    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)
+    return ledger.assemble(ledger.electric_chain(s, d), s, 0.0, 0.0, cylinder)
+
+
+def _closes(terms: ledger.Ledger) -> bool:
+    scale = sum(abs(v) for v in terms)
+    return abs(ledger.residual_w(terms)) <= 1e-9 * scale
+
+
+VALVE_DRIVES = [name for name, module in DRIVES.items() if module.VALVE]
+
+
+def test_the_ledger_names_every_term_of_the_issue_once_with_its_kind():
+    assert ledger.TERM_NAMES == ledger.Ledger._fields and len(set(ledger.TERM_NAMES)) == len(ledger.TERMS)
+    assert ledger.SOURCES == ("battery_power", "reservoir_power")
+    assert {kind for _, unit, kind, _ in ledger.TERMS} == {"source", "loss", "work", "stored"}
+    assert all(unit == "W" for _, unit, _, _ in ledger.TERMS)
+
+
+def test_the_pressure_compensated_drive_feeds_the_valve_as_the_model_does_today():
+    """The reference drive in front of the valve gives the model's own flows and supply power,
+    and the valve's losses split as the model's valve loss (less the port reliefs)."""
+    for _ in range(200):
+        y, _, _ = _random_state(RNG)
+        t = physical._terms(y, C, 0.0, math)  # with the spool's lag, the flow paths see y[4]
+        terms, seen = valve_drive_ledger(pressure_compensated, y, pressure_compensated.initial_state(D))
+        assert seen["p_port"] == t.p_supply
+        assert (seen["q_in1"], seen["q_in2"]) == pytest.approx((t.q_in1, t.q_in2), rel=1e-12, abs=1e-18)
+        assert seen["valve_in"] == pytest.approx(t.power, rel=1e-12, abs=1e-9)
+        relief = terms.port_relief_loss
+        assert terms.valve_loss + terms.leakage_loss + relief == pytest.approx(t.loss, rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", VALVE_DRIVES)
+def test_the_ledger_of_a_valve_drive_closes_at_every_state(name):
+    drive = DRIVES[name]
+    for _ in range(300):
+        y, z, _ = _random_state(RNG)
+        terms, _ = valve_drive_ledger(drive, y, z)
+        assert _closes(terms), (name, y, z, ledger.residual_w(terms), terms)
+        losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
+        assert min(losses) >= -1e-9 * sum(map(abs, terms)), (name, terms)  # every loss takes, none gives
+
+
+def test_the_ledger_of_the_eha_closes_at_every_state_and_lowering_returns_power_to_the_battery():
+    returned = 0
+    for _ in range(300):
+        y, _, u = _random_state(RNG)
+        z = RNG.uniform(-1.2, 1.2) * P.pump_speed_rad_s
+        terms = eha_ledger(y, z, u)
+        assert _closes(terms), (y, z, u, ledger.residual_w(terms), terms)
+        losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
+        assert min(losses) >= -1e-9 * sum(map(abs, terms))
+        returned += terms.battery_power < 0.0
+    assert returned > 20  # the motor generates where the oil drives the pump
+
+
+def test_energies_of_a_cycle_report_the_imbalance_over_the_energy_drawn():
+    integrals = {name: 0.0 for name in ledger.TERM_NAMES if name != "battery_power"}
+    integrals.update(battery_drawn=1000.0, battery_returned=100.0, motor_loss=500.0, potential_power=396.0)
+    energies = ledger.energies_of(integrals)
+    assert energies["imbalance"] == pytest.approx(4.0) and energies["imbalance_ratio"] == pytest.approx(0.004)
+
+
+# --- the compiled path: the same functions, compiled by numba --------------------------
+
+numba = pytest.importorskip("numba")
+
+
+def _compiled_valve_drive(drive):
+    port, supply = drive.port_pressure_pa, drive.supply
+
+    @numba.njit
+    def run(z, x, p1, p2, q_valve_in, d):
+        p_port = port(z, x, p1, p2, d)
+        s = supply(z, p_port, x, p1, p2, q_valve_in, d)
+        return p_port, s, ledger.electric_chain(s, d)
+
+    return run
+
+
+@numba.njit
+def _compiled_eha(z, u, p1, p2, cylinder, d):
+    flows = pump_controlled.ports(z, u, p1, p2, d)
+    s = pump_controlled.supply(z, u, p1, p2, flows, d)
+    chain = ledger.electric_chain(s, d)
+    return flows, ledger.assemble(chain, s, 0.0, 0.0, cylinder)
+
+
+@pytest.mark.skipif(not jit.available(), reason="numba is switched off")
+def test_every_drive_and_the_ledger_compile_to_the_values_they_give_interpreted():
+    d = constants(with_updates(P, motor_time_constant_s=0.05))
+    for name in VALVE_DRIVES:
+        drive = DRIVES[name]
+        args = (9e6, 0.4, 7e6, 2e6, 2e-4)
+        compiled = _compiled_valve_drive(drive)(*args, d)
+        p_port = drive.port_pressure_pa(*args[:4], d)
+        s = drive.supply(args[0], p_port, *args[1:], d)
+        assert compiled[0] == pytest.approx(p_port, rel=1e-14), name
+        assert list(compiled[1]) == pytest.approx(list(s), rel=1e-12, abs=1e-18), name
+        assert list(compiled[2]) == pytest.approx(list(ledger.electric_chain(s, d)), rel=1e-12, abs=1e-15), name
+    y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0]
+    flows = pump_controlled.ports(-60.0, -0.5, 6e6, 5.2e5, d)
+    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)
+    compiled_flows, compiled = _compiled_eha(-60.0, -0.5, 6e6, 5.2e5, cylinder, d)
+    assert list(compiled_flows) == pytest.approx(list(flows), rel=1e-12)
+    assert list(compiled) == pytest.approx(list(eha_ledger(y, -60.0, -0.5, d)), rel=1e-12, abs=1e-12)
+    assert compiled.battery_power < 0.0 and _closes(compiled)  # lowering: it returns power
