@@ -1,19 +1,26 @@
 """Shared test setup: each test process talks ROS in a DDS domain of its own, and under
-pytest-xdist the compiled kernels are built once before the workers start."""
+pytest-xdist the compiled kernels are built once before the workers start. Nodes a test starts
+are stopped after it (``nodes``), or shared by the tests of a class (``shared_node``,
+``node_at_rest``); a tool's refusals run its main in the test process (``run_tool``); waits are
+for events, with a guard (``wait_for``, ``GUARD_S``)."""
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import io
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from importlib.metadata import entry_points
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import pytest
 
@@ -55,18 +62,35 @@ if "PYTEST_XDIST_WORKER" in os.environ or "ROS_DOMAIN_ID" not in os.environ:
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 
-#: What builds every compiled kernel the suite uses, two lanes run side by side: each a list of
-#: command lines run through the real tools (so the kernels get the types the tests give them).
+#: What the node compiles at its start (ros/node.py warms a new model or method the same way):
+#: the Simulator's stepping kernel and its outputs, through a step of none and the outputs.
+STEPPING = (
+    "import sys\n"
+    "from boom_hydraulics.model import config\n"
+    "from boom_hydraulics.model.parameters import with_updates\n"
+    "from boom_hydraulics.solve.simulation import Simulator\n"
+    "sim = Simulator(with_updates(config.load(sys.argv[1]), method=sys.argv[2]), jit=True)\n"
+    "sim.step(0.0, 0)\n"
+    "sim.outputs()\n"
+)
+
+#: What builds every compiled kernel the suite uses, two lanes run side by side, each kernel
+#: in one lane only (two processes compiling one kernel at once do the work twice): the
+#: whole-run kernels through the real tools (so the kernels get the types the tests give
+#: them), the stepping kernels as the node builds them (:data:`STEPPING`).
 WARM_UP_LANES = (
-    (
+    (  # the physical model's rk4 run kernel, its stepping (rk4, euler) and its outputs
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01"),
+        ("stepping", CONFIG / "default.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--target-angle-deg", "5"),
-        ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
+        ("boom-sweep", "--duration", "0.2", "--vary", "piston_diameter=0.05,0.06", "--no-plots", "--no-progress"),
+        ("stepping", CONFIG / "default.yaml", "euler"),
     ),
-    (
+    (  # the paper model's, the physical model's euler run kernel and ros2 stepping
+        ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
+        ("stepping", CONFIG / "paper_fig8.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "euler"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "ros2"),
-        ("boom-sweep", "--duration", "0.2", "--vary", "piston_diameter=0.05,0.06", "--no-plots", "--no-progress"),
     ),
 )
 
@@ -75,11 +99,16 @@ def _warm_up_lane(commands: tuple[tuple, ...], folder: Path) -> list[str]:
     """Run one lane's commands in turn; what failed (the tests then compile for themselves)."""
     failed = []
     for n, (tool, *args) in enumerate(commands):
-        exe = shutil.which(tool)
-        out = folder / f"{tool}-{n}"
-        argv = [exe, *map(str, args), "--out", str(out if tool == "boom-sweep" else out.with_suffix(".csv"))]
-        if exe is None or subprocess.run(argv, capture_output=True, text=True).returncode != 0:
-            failed.append(" ".join(argv[1:]) if exe else f"{tool} (not on PATH)")
+        if tool == "stepping":
+            argv = [sys.executable, "-c", STEPPING, *map(str, args)]
+        elif (exe := shutil.which(tool)) is None:
+            failed.append(f"{tool} (not on PATH)")
+            continue
+        else:
+            out = folder / f"{tool}-{n}"
+            argv = [exe, *map(str, args), "--out", str(out if tool == "boom-sweep" else out.with_suffix(".csv"))]
+        if subprocess.run(argv, capture_output=True, text=True).returncode != 0:
+            failed.append(" ".join(map(str, [tool, *args])))
     return failed
 
 
@@ -102,6 +131,20 @@ def pytest_sessionstart(session: pytest.Session) -> None:
             reporter.write_line("kernel warm-up: failed (the tests compile for themselves): " + "; ".join(failed))
 
 
+#: How long a wait for an event may take before the test fails, s: a guard, never a duration a
+#: passing test waits (on a machine at load 15 a node took over 30 s to start).
+GUARD_S = 120.0
+
+
+def wait_for(condition: Callable[[], object], what: str, guard_s: float = GUARD_S) -> None:
+    """Wait until ``condition()`` is true (an event: a thread's or another process's work),
+    polling every 10 ms; fail naming ``what`` if it is not within the guard."""
+    deadline = time.monotonic() + guard_s
+    while not condition():
+        assert time.monotonic() < deadline, f"{what}: not within {guard_s:g} s"
+        time.sleep(0.01)
+
+
 @pytest.fixture
 def python_exe() -> str:
     return sys.executable
@@ -110,34 +153,144 @@ def python_exe() -> str:
 BOOM_SIM = shutil.which("boom_sim")
 
 
-def start_node(*params: str, config_file: str = "default.yaml", record: bool = False) -> subprocess.Popen:
-    """boom_sim through its real entry point, with ``-p`` parameters; recording off unless asked."""
-    args = [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / config_file)]
+#: The node parameter every test node starts with, so that it keeps one time line on a loaded
+#: machine (a bag boom-resim reproduces, a pace measured over seconds): work off a backlog of up
+#: to 10 s rather than drop it. The default, 0.2 s, is a hiccup of a busy machine's scheduler, and
+#: a dropped backlog moves the time origin of command stamps (CI failed so at load). A test about
+#: dropping passes its own max_catch_up_s, which comes later and wins.
+NO_DROPPED_BACKLOG = "max_catch_up_s:=10.0"
+
+
+def start_node(
+    *params: str, config_file: str | None = "default.yaml", record: bool = False, ros_args: Sequence[str] = ()
+) -> subprocess.Popen:
+    """boom_sim through its real entry point, with ``ros_args`` (``-r`` remaps), the params file
+    from config/ (None: none) and ``-p`` parameters; recording off unless asked. The node holds
+    this process's DDS domain claim as long as it runs (the lock's file descriptor is passed on),
+    so a node that outlives its test process keeps the domain from another run's tests. It
+    starts with :data:`NO_DROPPED_BACKLOG`."""
+    args = [BOOM_SIM, "--ros-args", *ros_args, "-p", NO_DROPPED_BACKLOG]
+    if config_file is not None:
+        args += ["--params-file", str(CONFIG / config_file)]
     if not record:
         args += ["-p", "record:=false"]
     for p in params:
         args += ["-p", p]
-    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    claims = tuple(lock.fileno() for lock in _domain_claim)
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, pass_fds=claims)
 
 
 def stop_process(proc: subprocess.Popen) -> str:
-    """SIGINT (as Ctrl-C), a kill if it has not ended within 10 s; what it printed, if piped."""
+    """SIGINT (as Ctrl-C), a kill if it has not ended within 30 s; what it printed, if piped."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
         try:
-            proc.wait(timeout=10)
+            proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
     return proc.stdout.read() if proc.stdout and not proc.stdout.closed else ""
 
 
+class Nodes:
+    """The boom_sim processes of one test (:func:`start_node`), each stopped after the test
+    however it ends: a node left running would answer the next test in this DDS domain."""
+
+    def __init__(self) -> None:
+        self.started: list[subprocess.Popen] = []
+
+    def start(self, *params: str, **options: Any) -> subprocess.Popen:
+        proc = start_node(*params, **options)
+        self.started.append(proc)
+        return proc
+
+    def stop_all(self) -> None:
+        for proc in self.started:
+            stop_process(proc)
+
+
 @pytest.fixture
-def node() -> Iterator[subprocess.Popen]:
+def nodes() -> Iterator[Nodes]:
+    """Start nodes in a test with ``nodes.start(...)`` (as :func:`start_node`); all stopped after it."""
+    started = Nodes()
+    yield started
+    started.stop_all()
+
+
+@pytest.fixture
+def node(nodes: Nodes) -> subprocess.Popen:
     """boom_sim (default config, 0.5 s command timeout, no recording), stopped after the test."""
-    proc = start_node("command_timeout_s:=0.5")
+    return nodes.start("command_timeout_s:=0.5")
+
+
+#: The opening :func:`node_at_rest` sends until the node acts on it: too small to move the boom.
+HANDSHAKE_OPENING = 1e-6
+
+#: What the tests of a shared node start it with and put back before each (:func:`node_at_rest`).
+SHARED_NODE_START = {"payload_mass_kg": 50.0, "command_timeout_s": 0.5}  # (config/default.yaml's payload)
+
+
+@pytest.fixture(scope="class")
+def shared_node(ros_context) -> Iterator[subprocess.Popen]:
+    """One boom_sim (default config, no recording, :data:`SHARED_NODE_START`) for the tests of a
+    class, which take it through :func:`node_at_rest`: the tests of a class run one after the
+    other on one worker, and no other /boom_sim runs meanwhile (the class's node is stopped
+    before the file's next test). Stopped with SIGTERM, as a launch system stops a node, which
+    must end it with status 0."""
+    proc = start_node(*(f"{name}:={value}" for name, value in SHARED_NODE_START.items()))
     yield proc
-    stop_process(proc)
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        status = proc.wait(timeout=GUARD_S)
+    finally:
+        out = stop_process(proc)
+    assert status == 0, f"the shared node ended with status {status} on SIGTERM: {out}"
+
+
+@pytest.fixture
+def node_at_rest(shared_node: subprocess.Popen, client) -> subprocess.Popen:
+    """The class's shared node as a test finds a node it started itself: running, with the
+    start parameters, acting on this test's commands (DDS discovery done both ways: a node just
+    started takes longer to start than discovery takes), at rest (~/reset: valve closed, goals
+    ended), publishing."""
+    from std_srvs.srv import SetBool
+
+    from boom_hydraulics_msgs.srv import Reset
+
+    assert shared_node.poll() is None, f"the shared node has ended: {stop_process(shared_node)}"
+    assert client.call(client.pause, SetBool.Request(data=False)).success
+    for name, value in SHARED_NODE_START.items():
+        assert client.set_parameter(name, value).successful, name
+
+    def acted_on() -> bool:  # the node has found this client's publisher: it acts on its commands
+        client.command(HANDSHAKE_OPENING)
+        return client.spin_until(lambda: bool(client.states) and client.last().valve_command == HANDSHAKE_OPENING, 0.2)
+
+    assert client.spin_until(acted_on), "the shared node never acted on a command of this test's"
+    assert client.call(client.reset, Reset.Request()).success
+    client.states.clear()
+    assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the shared node"
+    return shared_node
+
+
+def run_tool(tool: str, *args: object, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """A command-line tool's ``main`` (its console script's entry point) run in this process,
+    as its console script runs it (``sys.exit(main(argv))``): the exit status and what it
+    printed, without the seconds of imports a new interpreter takes. The real console scripts
+    are the tests' that send signals, start nodes or check what a new process does."""
+    (entry,) = entry_points(group="console_scripts", name=tool)
+    argv = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    saved_argv, sys.argv = sys.argv, [tool, *argv]  # a program names itself after argv[0]
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), contextlib.chdir(cwd or os.getcwd()):
+            code = entry.load()(argv)
+    except SystemExit as stop:  # argparse's --help
+        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    finally:
+        sys.argv = saved_argv
+    return subprocess.CompletedProcess([tool, *argv], code, out.getvalue(), err.getvalue())
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,7 @@ import time
 from collections.abc import Callable
 
 import rclpy
+from conftest import GUARD_S
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -39,13 +40,24 @@ class Client:
         self.set_params = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
         self.get_params = self.node.create_client(GetParameters, f"{node_name}/get_parameters")
 
-    def spin_until(self, predicate: Callable[[], bool], timeout: float = 15.0) -> bool:
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = GUARD_S, opening: float | None = None) -> bool:
+        """Spin until ``predicate()`` (an event), publishing ``opening`` at about 50 Hz if given;
+        False if the guard ``timeout`` passes first."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if predicate():
                 return True
+            if opening is not None:
+                self.command(opening)
             rclpy.spin_once(self.node, timeout_sec=0.02)
         return predicate()
+
+    def acting_on(self, opening: float, valve_command: float | None = None) -> bool:
+        """Publish ``opening`` until the node's state shows it acts on it (its valve_command is
+        ``valve_command``, default ``opening``): an event, where a stretch of simulated time
+        would be a guess at how late the command arrives on a loaded machine."""
+        expected = opening if valve_command is None else valve_command
+        return self.spin_until(lambda: bool(self.states) and self.last().valve_command == expected, opening=opening)
 
     def spin_for(self, seconds: float, opening: float | None = None) -> None:
         """Spin, publishing ``opening`` at 50 Hz if given."""
@@ -64,9 +76,9 @@ class Client:
         """Spin until the node's states show ``seconds`` more of simulated time, publishing
         ``opening`` at about 50 Hz if given. A state's stamp is its simulated instant, so a
         loaded machine only makes this take longer, never changes what it covers."""
-        assert self.spin_until(lambda: bool(self.states), 60), "no drive_state from the node"
+        assert self.spin_until(lambda: bool(self.states)), "no drive_state from the node"
         end = self.sim_s() + seconds - 1e-9
-        deadline = time.monotonic() + 60.0 + 20.0 * seconds
+        deadline = time.monotonic() + GUARD_S + 20.0 * seconds
         while self.sim_s() < end:
             assert time.monotonic() < deadline, f"simulated time stood still at {self.sim_s():.3f} s"
             if opening is not None:
@@ -80,7 +92,7 @@ class Client:
             msg.header.stamp.nanosec = round((stamp_s - int(stamp_s)) * 1e9)
         self.pub.publish(msg)
 
-    def call(self, client, request, timeout: float = 10.0):
+    def call(self, client, request, timeout: float = GUARD_S):
         assert client.wait_for_service(timeout_sec=timeout), f"service {client.srv_name} not available"
         future = client.call_async(request)
         assert self.spin_until(future.done, timeout)

@@ -11,6 +11,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from conftest import run_tool
 
 pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message
@@ -28,8 +29,15 @@ BOOM_ANALYZE = shutil.which("boom-analyze")
 COMMAND = steps([0.0, 1.0, 1.6], [1.0, 0.0, -0.5])
 
 
-def _trajectory():
+@pytest.fixture(scope="module")
+def trajectory():
+    """A lift, hold and lower of 2.5 s (every 10th step), computed once for the module's tests."""
     return simulate(Parameters(), 2.5, COMMAND, every=10, jit=False)
+
+
+def _analyze(*args) -> subprocess.CompletedProcess:
+    """boom-analyze's main in this process (conftest.run_tool; test_node_bags runs the real one)."""
+    return run_tool("boom-analyze", *args)
 
 
 def _record(folder, tr) -> None:
@@ -50,8 +58,8 @@ def _record(folder, tr) -> None:
             rec.write("/drive_state", ns, serialize_message(msg))
 
 
-def test_a_bag_reads_back_to_the_signals_that_were_recorded(tmp_path):
-    tr = _trajectory()
+def test_a_bag_reads_back_to_the_signals_that_were_recorded(tmp_path, trajectory):
+    tr = trajectory
     _record(tmp_path / "run", tr)
     for bag in (tmp_path / "run", tmp_path / "run" / "run_0.mcap"):  # folder or single file
         signals = read_drive_states(bag)
@@ -60,8 +68,8 @@ def test_a_bag_reads_back_to_the_signals_that_were_recorded(tmp_path):
         assert np.allclose(signals["t"], tr["t"], atol=1e-9)
 
 
-def test_metrics_of_a_lift(tmp_path):
-    tr = _trajectory()
+def test_metrics_of_a_lift(trajectory):
+    tr = trajectory
     m = analysis.metrics(tr.columns)
     i_top = int(np.argmax(tr["q1"]))
     assert m["lift_m"] == pytest.approx(tr["q1"][i_top] - tr["q1"][0])
@@ -83,14 +91,12 @@ def test_oscillation_finds_frequency_and_damping_of_a_decaying_sine():
 
 
 @pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
-def test_boom_analyze_writes_signals_metrics_and_plots(tmp_path):
-    tr = _trajectory()
+def test_boom_analyze_writes_signals_metrics_and_plots(tmp_path, trajectory):
+    tr = trajectory
     _record(tmp_path / "a", tr)
     _record(tmp_path / "b", tr)
     out = tmp_path / "results"
-    result = subprocess.run(
-        [BOOM_ANALYZE, tmp_path / "a", tmp_path / "b", "--out", out], capture_output=True, text=True
-    )
+    result = _analyze(tmp_path / "a", tmp_path / "b", "--out", out)
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["a.csv", "a.npz", "a.metrics.json", "b.csv", "b.npz", "b.metrics.json", "dynamics.png", "drive.png"]
@@ -109,14 +115,14 @@ def test_boom_analyze_writes_signals_metrics_and_plots(tmp_path):
 
 @pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
 @pytest.mark.parametrize("case", ["missing", "not_mcap", "truncated", "no_drive_state"])
-def test_bad_bags_give_one_line_and_write_nothing(tmp_path, case):
+def test_bad_bags_give_one_line_and_write_nothing(tmp_path, trajectory, case):
     if case == "missing":
         bag, message = tmp_path / "nope", "no such bag folder or file"
     elif case == "not_mcap":
         bag, message = tmp_path / "x.mcap", "not an MCAP file"
         bag.write_text("hello")
     elif case == "truncated":
-        _record(tmp_path / "run", _trajectory())
+        _record(tmp_path / "run", trajectory)
         data = (tmp_path / "run" / "run_0.mcap").read_bytes()
         bag, message = (
             tmp_path / "cut.mcap",
@@ -128,7 +134,7 @@ def test_bad_bags_give_one_line_and_write_nothing(tmp_path, case):
             rec.write("/valve_command", 1, serialize_message(ValveCommand(opening=0.5)))
         bag, message = tmp_path / "other", "no boom_hydraulics_msgs/msg/DriveState topic"
     out = tmp_path / "results"
-    result = subprocess.run([BOOM_ANALYZE, bag, "--out", out], capture_output=True, text=True)
+    result = _analyze(bag, "--out", out)
     assert result.returncode == 1
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
@@ -162,14 +168,14 @@ def test_a_settling_hump_is_not_an_oscillation():
 
 @pytest.mark.skipif(BOOM_ANALYZE is None, reason="boom-analyze not on PATH")
 @pytest.mark.skipif(os.geteuid() != 0, reason="mounting a small tmpfs needs root")
-def test_a_full_disk_names_the_result_file_and_leaves_no_staging_folder(tmp_path):
-    _record(tmp_path / "a", _trajectory())
+def test_a_full_disk_names_the_result_file_and_leaves_no_staging_folder(tmp_path, trajectory):
+    _record(tmp_path / "a", trajectory)
     disk = tmp_path / "disk"
     disk.mkdir()
     subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)], check=True)
     try:
         out = disk / "results"
-        result = subprocess.run([BOOM_ANALYZE, tmp_path / "a", "--out", out], capture_output=True, text=True)
+        result = _analyze(tmp_path / "a", "--out", out)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 1 and len(lines) == 1 and "Traceback" not in result.stderr
         assert lines[0].startswith(f"boom-analyze: error: {out}/") and "No space left on device" in lines[0]

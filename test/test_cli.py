@@ -1,4 +1,5 @@
-"""boom-sim through its real entry point: outputs, and one-line errors without traceback."""
+"""boom-sim: outputs, and one-line errors without traceback; the first test through its real
+entry point (a new process), the others through its main in this process."""
 
 from __future__ import annotations
 
@@ -8,14 +9,15 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from conftest import CONFIG, run_tool
 
 BOOM_SIM = shutil.which("boom-sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
 
 
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([BOOM_SIM, *map(str, args)], capture_output=True, text=True, timeout=120)
+def _run(*args: object) -> subprocess.CompletedProcess:
+    """boom-sim's main in this process (conftest.run_tool)."""
+    return run_tool("boom-sim", *args)
 
 
 def _read(path):
@@ -26,7 +28,12 @@ def _read(path):
 
 def test_run_writes_a_row_per_step_with_named_unit_columns(tmp_path):
     out = tmp_path / "run.csv"
-    result = _run("run", "--config", CONFIG / "default.yaml", "--duration", "0.5", "--out", out)
+    result = subprocess.run(
+        [BOOM_SIM, "run", "--config", CONFIG / "default.yaml", "--duration", "0.5", "--out", out],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     header, data = _read(out)
     for column in (

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import CONFIG
+from conftest import CONFIG, run_tool
 
 BOOM_SIM = shutil.which("boom-sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
@@ -21,8 +21,9 @@ ROOT_ONLY = pytest.mark.skipif(os.geteuid() != 0, reason="mounting a small tmpfs
 GUARD_S = 60
 
 
-def _run(*args, **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run([BOOM_SIM, *map(str, args)], capture_output=True, text=True, timeout=GUARD_S, **kwargs)
+def _run(*args) -> subprocess.CompletedProcess:
+    """boom-sim's main in this process (conftest.run_tool); the signals go to real processes."""
+    return run_tool("boom-sim", *args)
 
 
 def _one_error_line(stderr: str) -> str:

@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, CONFIG, start_node
+from conftest import BOOM_SIM, CONFIG
 
 rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.srv import GetParameters  # noqa: E402
@@ -25,104 +25,97 @@ pytestmark = [
 ]
 
 
-def test_openings_hold_extend_and_retract(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the node"
-    q0, alpha0 = client.last().rod_position_m, client.last().boom_angle_rad
-    client.spin_sim(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
-    assert abs(client.last().rod_position_m - q0) < 5e-4
-    client.spin_sim(1.0, opening=1.0)
-    up = client.last()
-    assert up.rod_position_m > q0 + 0.05 and up.boom_angle_rad > alpha0 + 0.1
-    client.spin_sim(1.0, opening=-1.0)
-    down = client.last()
-    assert down.rod_position_m < up.rod_position_m - 0.05
-    assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
-    # the FluidPressure of a tick carries the same value and stamp as that tick's DriveState
-    by_stamp = {(s.header.stamp.sec, s.header.stamp.nanosec): s.piston_pressure_pa for s in client.states}
-    matched = [
-        (m.fluid_pressure, by_stamp[key])
-        for m in client.pressures
-        if (key := (m.header.stamp.sec, m.header.stamp.nanosec)) in by_stamp
-    ]
-    assert len(matched) > 10 and all(a == b for a, b in matched)
+class TestOneRunningNode:
+    """Tests that drive one node (conftest.shared_node), each finding it at rest with its start
+    parameters (conftest.node_at_rest), as if it had just started it. The node is stopped with
+    SIGTERM after the last of them and must end with status 0."""
+
+    def test_openings_hold_extend_and_retract(self, node_at_rest, client):
+        q0, alpha0 = client.last().rod_position_m, client.last().boom_angle_rad
+        client.spin_sim(1.0, opening=0.0)  # closed valve from rest: only leakage moves the rod
+        assert abs(client.last().rod_position_m - q0) < 5e-4
+        assert client.acting_on(1.0)
+        client.spin_sim(1.0, opening=1.0)
+        up = client.last()
+        assert up.rod_position_m > q0 + 0.05 and up.boom_angle_rad > alpha0 + 0.1
+        assert client.acting_on(-1.0)
+        client.spin_sim(1.0, opening=-1.0)
+        down = client.last()
+        assert down.rod_position_m < up.rod_position_m - 0.05
+        assert client.joints and client.joints[-1].name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
+        # the FluidPressure of a tick carries the same value and stamp as that tick's DriveState
+        by_stamp = {(s.header.stamp.sec, s.header.stamp.nanosec): s.piston_pressure_pa for s in client.states}
+        matched = [
+            (m.fluid_pressure, by_stamp[key])
+            for m in client.pressures
+            if (key := (m.header.stamp.sec, m.header.stamp.nanosec)) in by_stamp
+        ]
+        assert len(matched) > 10 and all(a == b for a, b in matched)
+
+    def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(self, node_at_rest, client):
+        assert client.acting_on(0.8)
+        client.spin_sim(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
+        assert client.last().valve_command == pytest.approx(0.8)
+        assert client.last().rod_velocity_m_s > 0.02
+        client.spin_sim(1.0)  # no commands: the spring-centred valve closes
+        assert client.last().valve_command == 0.0
+        assert node_at_rest.poll() is None  # still running
+
+    def test_out_of_range_opening_is_clamped(self, node_at_rest, client):
+        assert client.acting_on(7.0, valve_command=1.0)
+        assert max(s.valve_command for s in client.states) == 1.0
+
+    def test_bad_parameter_is_refused_with_a_reason_and_a_good_one_applies(self, node_at_rest, client):
+        bad = client.set_parameter("rod_diameter_m", 0.05)
+        assert not bad.successful and "must be smaller than piston_diameter_m" in bad.reason
+        got = client.call(client.get_params, GetParameters.Request(names=["rod_diameter_m"]))
+        assert got.values[0].double_value == 0.022  # the old value stays
+
+        def holding_pressure_after_reset() -> float:
+            """While paused, the only state published is the one reset publishes (at rest)."""
+            client.spin_for(0.2)
+            client.states.clear()
+            assert client.call(client.reset, Reset.Request()).success
+            assert client.spin_until(lambda: len(client.states) > 0)
+            return client.last().piston_pressure_pa
+
+        assert client.call(client.pause, SetBool.Request(data=True)).success
+        p_light = holding_pressure_after_reset()
+        assert client.set_parameter("payload_mass_kg", 150.0).successful
+        assert holding_pressure_after_reset() > 1.5 * p_light  # heavier payload, higher holding pressure
+
+    def test_reset_pause_and_step(self, node_at_rest, client):
+        result = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.6))
+        assert result.success
+        assert client.spin_until(lambda: abs(client.last().rod_position_m - 1.6) < 1e-3)
+        bad = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.9))
+        assert not bad.success and "outside the stroke" in bad.message
+        assert client.call(client.step, Step.Request(steps=5)).success is False  # not paused
+        assert client.call(client.pause, SetBool.Request(data=True)).success
+        first = client.call(client.step, Step.Request(steps=10))
+        second = client.call(client.step, Step.Request(steps=10))
+        assert first.success and second.sim_time_s == pytest.approx(first.sim_time_s + 0.010, abs=1e-9)
+        client.spin_for(0.3)
+        third = client.call(client.step, Step.Request(steps=1))
+        assert third.sim_time_s == pytest.approx(second.sim_time_s + 0.001, abs=1e-9)  # paused: time stood still
+        assert client.call(client.pause, SetBool.Request(data=False)).success
+
+    def test_diagnostics_report_the_end_stop(self, node_at_rest, client):
+        assert client.spin_until(lambda: client.last().at_end_stop, opening=1.0)  # the upper stop, about 2 s away
+        assert client.spin_until(  # diagnostics come at 1 Hz
+            lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), opening=1.0
+        )
+
+    def test_command_timeout_changed_at_run_time_takes_effect(self, node_at_rest, client):
+        assert client.set_parameter("command_timeout_s", 0.0).successful  # never close by itself
+        assert client.acting_on(0.6)
+        client.spin_sim(1.0)  # no commands for twice the start value of 0.5 s
+        assert client.last().valve_command == pytest.approx(0.6)
 
 
-def test_nan_is_ignored_and_the_valve_closes_after_the_timeout(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_sim(0.3, opening=0.8)
-    client.spin_sim(0.3, opening=math.nan)  # ignored: 0.8 stays, inside the 0.5 s timeout
-    assert client.last().valve_command == pytest.approx(0.8)
-    assert client.last().rod_velocity_m_s > 0.02
-    client.spin_sim(1.0)  # no commands: the spring-centred valve closes
-    assert client.last().valve_command == 0.0
-    assert node.poll() is None  # still running
-
-
-def test_out_of_range_opening_is_clamped(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_sim(0.3, opening=7.0)
-    assert client.last().valve_command == 1.0
-
-
-def test_bad_parameter_is_refused_with_a_reason_and_a_good_one_applies(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    bad = client.set_parameter("rod_diameter_m", 0.05)
-    assert not bad.successful and "must be smaller than piston_diameter_m" in bad.reason
-    got = client.call(client.get_params, GetParameters.Request(names=["rod_diameter_m"]))
-    assert got.values[0].double_value == 0.022  # the old value stays
-
-    def holding_pressure_after_reset() -> float:
-        """While paused, the only state published is the one reset publishes (at rest)."""
-        client.spin_for(0.2)
-        client.states.clear()
-        assert client.call(client.reset, Reset.Request()).success
-        assert client.spin_until(lambda: len(client.states) > 0)
-        return client.last().piston_pressure_pa
-
-    assert client.call(client.pause, SetBool.Request(data=True)).success
-    p_light = holding_pressure_after_reset()
-    assert client.set_parameter("payload_mass_kg", 150.0).successful
-    assert holding_pressure_after_reset() > 1.5 * p_light  # heavier payload, higher holding pressure
-
-
-def test_reset_pause_and_step(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    result = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.6))
-    assert result.success
-    assert client.spin_until(lambda: abs(client.last().rod_position_m - 1.6) < 1e-3)
-    bad = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.9))
-    assert not bad.success and "outside the stroke" in bad.message
-    assert client.call(client.step, Step.Request(steps=5)).success is False  # not paused
-    assert client.call(client.pause, SetBool.Request(data=True)).success
-    first = client.call(client.step, Step.Request(steps=10))
-    second = client.call(client.step, Step.Request(steps=10))
-    assert first.success and second.sim_time_s == pytest.approx(first.sim_time_s + 0.010, abs=1e-9)
-    client.spin_for(0.3)
-    third = client.call(client.step, Step.Request(steps=1))
-    assert third.sim_time_s == pytest.approx(second.sim_time_s + 0.001, abs=1e-9)  # paused: time stood still
-    assert client.call(client.pause, SetBool.Request(data=False)).success
-
-
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_signals_end_the_node_cleanly(client, sig):
-    proc = start_node()
-    assert client.spin_until(lambda: len(client.states) > 3)
-    proc.send_signal(sig)
-    assert proc.wait(timeout=10) == 0
-
-
-def test_diagnostics_report_the_end_stop(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    client.spin_sim(3.5, opening=1.0)  # drive into the upper end stop (about 2 s away)
-    assert client.last().at_end_stop
-    assert client.spin_until(  # diagnostics come at 1 Hz
-        lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), timeout=30
-    )
-
-
-def test_fast_run_with_clock_equals_the_headless_simulation(client):
+def test_fast_run_with_clock_equals_the_headless_simulation(nodes, client):
     """Real-time factor 0 (as fast as possible), /clock, a stamped scenario queued while paused."""
-    proc = start_node("real_time_factor:=0.0", "publish_clock:=true", "start_paused:=true", "command_timeout_s:=0.0")
+    proc = nodes.start("real_time_factor:=0.0", "publish_clock:=true", "start_paused:=true", "command_timeout_s:=0.0")
     try:
         scenario = [(0.0, 1.0), (3.0, 0.0), (5.0, -0.7), (8.0, 0.0)]
         assert client.pause.wait_for_service(timeout_sec=15)
@@ -152,9 +145,9 @@ def test_fast_run_with_clock_equals_the_headless_simulation(client):
     assert np.max(np.abs(q_node[keep] - headless["q1"][index[keep]])) < 1e-12
 
 
-def test_a_blow_up_stops_the_simulation_until_reset(client):
+def test_a_blow_up_stops_the_simulation_until_reset(nodes, client):
     """Paper mode has no end stops: fig. 8 leaves the valid geometry after 2.2 s."""
-    proc = start_node("real_time_factor:=4.0", "command_timeout_s:=0.0", config_file="paper_fig8.yaml")
+    proc = nodes.start("real_time_factor:=4.0", "command_timeout_s:=0.0", config_file="paper_fig8.yaml")
     try:
         assert client.spin_until(lambda: len(client.states) > 3)
         client.command(1.0)
@@ -174,10 +167,10 @@ def test_a_blow_up_stops_the_simulation_until_reset(client):
         assert proc.wait(timeout=10) == 0
 
 
-def test_stiff_settings_are_substepped_and_the_node_says_so(client):
+def test_stiff_settings_are_substepped_and_the_node_says_so(nodes, client):
     """1.6 GPa oil with 10 cm3 hoses: the node keeps its 1 ms step, takes the substeps the
     stability bound asks for, logs it once and reports it in /diagnostics."""
-    proc = start_node(
+    proc = nodes.start(
         "bulk_modulus_pa:=1.6e9", "piston_dead_volume_m3:=1e-5", "rod_dead_volume_m3:=1e-5", "command_timeout_s:=0.0"
     )
     try:
@@ -198,10 +191,10 @@ def test_stiff_settings_are_substepped_and_the_node_says_so(client):
     assert "stability bound: rk4 takes" in out and "substeps per time step of 0.001 s" in out
 
 
-def test_a_broken_energy_balance_stops_the_node_and_is_reported(client):
+def test_a_broken_energy_balance_stops_the_node_and_is_reported(nodes, client):
     """Euler at 3 substeps cannot hold the hydraulic oscillation of a lift: the guard stops
     the simulation and /diagnostics says why, naming the step."""
-    proc = start_node("method:=euler", "substeps:=3", "spool_time_constant_s:=0.0", "command_timeout_s:=0.0")
+    proc = nodes.start("method:=euler", "substeps:=3", "spool_time_constant_s:=0.0", "command_timeout_s:=0.0")
     try:
         assert client.spin_until(lambda: len(client.states) > 3)
         client.spin_sim(0.6, opening=1.0)
@@ -217,16 +210,16 @@ def test_a_broken_energy_balance_stops_the_node_and_is_reported(client):
         assert proc.wait(timeout=10) == 0
 
 
-def test_bad_node_parameter_at_start_is_one_clear_line():
-    proc = start_node("real_time_factor:=-2.0")
+def test_bad_node_parameter_at_start_is_one_clear_line(nodes):
+    proc = nodes.start("real_time_factor:=-2.0")
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "boom_sim: error:" in out and "real_time_factor" in out and "-2.0" in out
     assert "Traceback" not in out
 
 
-def test_bad_model_parameter_at_start_is_one_clear_line():
-    proc = start_node("rod_diameter_m:=0.05")
+def test_bad_model_parameter_at_start_is_one_clear_line(nodes):
+    proc = nodes.start("rod_diameter_m:=0.05")
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "boom_sim: error: rod_diameter_m (0.05 m) must be smaller than piston_diameter_m" in out
@@ -234,11 +227,11 @@ def test_bad_model_parameter_at_start_is_one_clear_line():
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_recording_holds_every_published_and_received_message(client, tmp_path, sig):
+def test_recording_holds_every_published_and_received_message(nodes, client, tmp_path, sig):
     from mcap.reader import make_reader
     from rosbags.highlevel import AnyReader
 
-    proc = start_node("command_timeout_s:=0.0", f"record_folder:={tmp_path}", record=True)
+    proc = nodes.start("command_timeout_s:=0.0", f"record_folder:={tmp_path}", record=True)
     assert client.spin_until(lambda: len(client.states) > 5)
     for _ in range(20):
         client.command(0.5)
@@ -277,11 +270,3 @@ def test_recording_holds_every_published_and_received_message(client, tmp_path, 
             assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
             assert "reliability:" in channel.metadata["offered_qos_profiles"]
         assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
-
-
-def test_command_timeout_changed_at_run_time_takes_effect(node, client):
-    assert client.spin_until(lambda: len(client.states) > 5)
-    assert client.set_parameter("command_timeout_s", 0.0).successful  # never close by itself
-    client.spin_sim(0.3, opening=0.6)
-    client.spin_sim(1.0)  # no commands for twice the start value of 0.5 s
-    assert client.last().valve_command == pytest.approx(0.6)

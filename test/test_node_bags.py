@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import re
 import shutil
 import signal
@@ -10,7 +9,7 @@ import subprocess
 
 import pytest
 import yaml
-from conftest import BOOM_SIM, start_node
+from conftest import BOOM_SIM
 
 rclpy = pytest.importorskip("rclpy")
 from bag_checks import check_bag  # noqa: E402
@@ -40,10 +39,10 @@ def _offers(info: dict, topic: str) -> list[tuple[str, str]]:
 
 
 @pytest.mark.parametrize("publish_clock", [False, True])
-def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(client, tmp_path, publish_clock):
+def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(nodes, client, tmp_path, publish_clock):
     """Log time is when a command was received; its stamp stays inside; QoS is what was offered."""
     params = [f"record_folder:={tmp_path}", "command_timeout_s:=0.0", f"publish_clock:={str(publish_clock).lower()}"]
-    proc = start_node(*params, record=True)
+    proc = nodes.start(*params, record=True)
     array_pub = client.node.create_publisher(
         Float64MultiArray, "commands", QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
     )
@@ -76,9 +75,9 @@ def test_commands_stamped_ahead_behind_or_not_at_all_give_a_true_bag(client, tmp
     assert all(abs(log_ns * 1e-9 - now) < 20.0 for log_ns, _ in kept)  # logged when received
 
 
-def test_a_live_bag_is_refused_and_a_killed_one_recovered_from_its_first_seconds(client, tmp_path):
+def test_a_live_bag_is_refused_and_a_killed_one_recovered_from_its_first_seconds(nodes, client, tmp_path):
     """Default chunks (1 MiB) fill in minutes; the 1 s flush bound is what keeps data."""
-    proc = start_node(f"record_folder:={tmp_path}", record=True)
+    proc = nodes.start(f"record_folder:={tmp_path}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) >= 300, timeout=30)  # 3 s of states
         (bag,) = tmp_path.iterdir()
@@ -115,8 +114,8 @@ def test_help_prints_the_parameters_and_starts_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []  # no bags/ folder, no node
 
 
-def test_resting_on_an_end_stop_is_normal(client):
-    proc = start_node("initial_length_m:=1.05")  # the lower end stop
+def test_resting_on_an_end_stop_is_normal(nodes, client):
+    proc = nodes.start("initial_length_m:=1.05")  # the lower end stop
     try:
         assert client.spin_until(
             lambda: any("at_end_stop" in s.message for d in client.diagnostics for s in d.status), timeout=20
@@ -128,24 +127,27 @@ def test_resting_on_an_end_stop_is_normal(client):
     assert resting.level == b"\x00", out
 
 
-def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(client):
-    """The pacing restarts with any parameter change: the step count means another time."""
-    proc = start_node()
+def test_a_new_time_step_at_run_time_keeps_the_simulation_on_the_clock(nodes, client):
+    """The pacing restarts with any parameter change: the step count means another time.
+    Simulated time is measured against the diagnostics' stamps (ROS time when they were made)
+    over four seconds, so a tick that a loaded machine delays a little changes neither much."""
+    proc = nodes.start()
     try:
         assert client.spin_until(lambda: len(client.states) > 50)  # half a second at 1 ms steps
         assert client.set_parameter("time_step_s", 0.002).successful
         client.diagnostics.clear()
-        assert client.spin_until(lambda: len(client.diagnostics) >= 3, timeout=10)
+        assert client.spin_until(lambda: len(client.diagnostics) >= 6)
     finally:
         out = _stop(proc)
-    sim_times = [
-        float(kv.value)
-        for d in client.diagnostics
+    at = [
+        (d.header.stamp.sec + d.header.stamp.nanosec * 1e-9, float(kv.value))
+        for d in client.diagnostics[1:]  # the first may have been made before the change
         for s in d.status
         if s.name.endswith("drive")
         for kv in s.values
         if kv.key == "sim_time_s"
     ]
-    rates = [b - a for a, b in itertools.pairwise(sim_times)]
-    assert rates and all(0.5 < r < 1.5 for r in rates), sim_times  # about a simulated second per second
+    (ros_a, sim_a), (ros_b, sim_b) = at[0], at[-1]
+    assert ros_b - ros_a > 3.0, at
+    assert 0.75 < (sim_b - sim_a) / (ros_b - ros_a) < 1.33, at  # a simulated second per second of ROS time
     assert "behind real time" not in out

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import BOOM_SIM, start_node, stop_process
+from conftest import BOOM_SIM, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -74,8 +74,8 @@ def _phases(output: str) -> dict[str, float]:
     return starts
 
 
-def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stops_with_it(client):
-    node = start_node("use_sim_time:=true", "command_timeout_s:=0")
+def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stops_with_it(nodes, client):
+    node = nodes.start("use_sim_time:=true", "command_timeout_s:=0")
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
     source = _clock_source("100.0", "0.5:4", "0:3", "2.0:3")
     try:
@@ -112,13 +112,13 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
     assert "following the ROS clock" in log
 
 
-def test_a_clock_that_jumps_back_resets_the_drive(client):
-    node = start_node("use_sim_time:=true", "command_timeout_s:=0")
+def test_a_clock_that_jumps_back_resets_the_drive(nodes, client):
+    node = nodes.start("use_sim_time:=true", "command_timeout_s:=0")
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
     source = _clock_source("50.0", "1.0:5", "jump:10.0", "1.0:3")
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=20)
-        client.spin_for(1.0, opening=1.0)  # lift: the rod leaves its initial length
+        client.spin_until(lambda: client.last().rod_position_m > 1.4, opening=1.0)  # lift: off its initial length
         lifted = client.last()
         assert client.spin_until(lambda: _stamp_s(client.last()) < 20.0, timeout=10), "no state after the jump"
         client.spin_for(0.5)
@@ -132,21 +132,21 @@ def test_a_clock_that_jumps_back_resets_the_drive(client):
     assert "the ROS clock jumped back" in log
 
 
-def test_use_sim_time_and_publish_clock_together_are_refused_in_one_line():
-    node = start_node("use_sim_time:=true", "publish_clock:=true")
+def test_use_sim_time_and_publish_clock_together_are_refused_in_one_line(nodes):
+    node = nodes.start("use_sim_time:=true", "publish_clock:=true")
     out, _ = node.communicate(timeout=60)
     assert node.returncode == 2
     assert out.strip().splitlines()[-1].startswith("boom_sim: error: use_sim_time and publish_clock are both true")
 
 
-def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(client, tmp_path):
+def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(nodes, client, tmp_path):
     """The bag starts at the first /clock (its time origin), its times are the clock's, and it
     has diagnostics; a command sent before the clock runs is recorded at its start."""
     from bag_checks import check_bag
 
     from boom_hydraulics.bags.reading import read_custom_data, read_drive_states
 
-    node = start_node("use_sim_time:=true", f"record_folder:={tmp_path}", "command_timeout_s:=0", record=True)
+    node = nodes.start("use_sim_time:=true", f"record_folder:={tmp_path}", "command_timeout_s:=0", record=True)
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
     assert client.spin_until(lambda: client.pub.get_subscription_count() > 0, timeout=10)
     client.spin_for(0.5)

@@ -10,7 +10,7 @@ import signal
 import subprocess
 
 import pytest
-from conftest import BOOM_SIM, start_node
+from conftest import BOOM_SIM
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -43,8 +43,8 @@ def _recording_status(client):
     return None
 
 
-def test_a_full_disk_stops_the_recording_not_the_run_and_the_bag_is_recoverable(client, small_disk):
-    proc = start_node(f"record_folder:={small_disk}", "record_chunk_kib:=16", "record_flush_s:=0.2", record=True)
+def test_a_full_disk_stops_the_recording_not_the_run_and_the_bag_is_recoverable(nodes, client, small_disk):
+    proc = nodes.start(f"record_folder:={small_disk}", "record_chunk_kib:=16", "record_flush_s:=0.2", record=True)
     try:
         assert client.spin_until(lambda: (s := _recording_status(client)) is not None and s.level == ERROR, 120)
         failed_at = len(client.states)

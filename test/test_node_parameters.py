@@ -7,7 +7,7 @@ import subprocess
 from collections.abc import Iterator
 
 import pytest
-from conftest import BOOM_SIM, CONFIG
+from conftest import BOOM_SIM, CONFIG, start_node
 
 rclpy = pytest.importorskip("rclpy")
 import yaml  # noqa: E402
@@ -29,15 +29,9 @@ NODE = "/crane1/boom_sim"
 @pytest.fixture(scope="module")
 def crane1(ros_context) -> Iterator[Client]:
     """A namespaced node started from a shipped params file (paper mode, fig. 8)."""
-    args = ["-r", "__ns:=/crane1", "--params-file", str(CONFIG / "paper_fig8.yaml"), "-p", "record:=false"]
     # an integer for a float, on the command line, after a double (rcl keeps the integer: the last, as meant)
-    args += ["-p", "payload_mass_kg:=55.0", "-p", "payload_mass_kg:=60"]
-    proc = subprocess.Popen(
-        [BOOM_SIM, "--ros-args", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    payload = ("payload_mass_kg:=55.0", "payload_mass_kg:=60")
+    proc = start_node(*payload, config_file="paper_fig8.yaml", ros_args=("-r", "__ns:=/crane1"))
     client = Client(NODE, namespace="/crane1")
     client.describe = client.node.create_client(DescribeParameters, f"{NODE}/describe_parameters")
     client.list = client.node.create_client(ListParameters, f"{NODE}/list_parameters")
@@ -172,7 +166,7 @@ def test_a_params_file_with_a_scenario_starts_the_node_which_says_once_it_ignore
     path = tmp_path / "scenario.yaml"
     path.write_text("/**:\n  ros__parameters:\n    command_profile: steps\n    command_times_s: [0, 2]\n"
                     "    command_values: [1.0, 0.0]\n    payload_mass_kg: 60\n")  # fmt: skip
-    args = [BOOM_SIM, "--ros-args", "--params-file", str(path), "-p", "record:=false", "-p", "jit:=false"]
+    args = [BOOM_SIM, "--ros-args", "--params-file", str(path), "-p", "record:=false"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = []
     try:

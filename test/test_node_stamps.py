@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import BOOM_SIM, start_node, stop_process
+from conftest import BOOM_SIM, run_tool, start_node, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
@@ -53,8 +53,8 @@ def _states(bag: Path) -> list[tuple[int, float, float]]:
     return rows
 
 
-def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(client, tmp_path):
-    proc = start_node(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
+def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(nodes, client, tmp_path):
+    proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)  # discovery both ways
@@ -81,7 +81,7 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(clien
         # acted at the step that starts within half a step of the stamp: between these two states
         assert before <= at_ns + DT_S * 0.5e9 and after >= at_ns - DT_S * 0.5e9 + DT_S * 1e9, (before, at_ns, after)
     # an unchanged re-simulation of this default-clock bag reproduces it
-    result = subprocess.run([RESIM, str(bag), "--out", str(tmp_path / "again")], capture_output=True, text=True)
+    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
     assert result.returncode == 0, result.stderr
     again = {ns: q1 for ns, q1, _ in _states(tmp_path / "again")}
     common = [(q1, again[ns]) for ns, q1, _ in states if ns in again]
@@ -89,8 +89,8 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(clien
     assert max(abs(a - b) for a, b in common) < 1e-6
 
 
-def test_a_stale_command_is_refused_with_the_reason_and_counted(client, tmp_path):
-    proc = start_node("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
+def test_a_stale_command_is_refused_with_the_reason_and_counted(nodes, client, tmp_path):
+    proc = nodes.start("command_timeout_s:=0.5", f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         assert client.spin_until(lambda: len(client.states) > 5, timeout=60)
         client.spin_for(0.3)
@@ -105,7 +105,7 @@ def test_a_stale_command_is_refused_with_the_reason_and_counted(client, tmp_path
     assert "older than command_timeout_s = 0.5 s, it is stale" in out
     # boom-resim applies the same rule: the stale command never acts there either
     (bag,) = (tmp_path / "bags").iterdir()
-    result = subprocess.run([RESIM, str(bag), "--out", str(tmp_path / "again")], capture_output=True, text=True)
+    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
     assert result.returncode == 0, result.stderr
     valves = {valve for _, _, valve in _states(tmp_path / "again")}
     assert 0.3 in valves and 0.7 not in valves

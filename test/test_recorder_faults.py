@@ -14,10 +14,10 @@ import os
 import random
 import shutil
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
+from conftest import run_tool, wait_for
 
 pytest.importorskip("rclpy")
 from bag_checks import check_bag
@@ -39,16 +39,6 @@ def _state(i: int, rng: random.Random) -> bytes:
     """Message i: its index in rod_position_m, the rest noise, so that chunks do not compress to nothing."""
     noise = ("rod_velocity_m_s", "piston_pressure_pa", "rod_pressure_pa")
     return serialize_message(DriveState(rod_position_m=float(i), **{name: rng.random() for name in noise}))
-
-
-def _wait(condition, timeout_s: float = 60.0) -> bool:
-    """Wait for an event of the writer thread (no fixed sleep: generous bound for a loaded machine)."""
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.01)
-    return True
 
 
 class FullDisk(recording.BagFile):
@@ -85,7 +75,8 @@ def _recorded_indices(bag: Path) -> list[int]:
 
 
 def _recover(bag: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    """boom-bag-recover's main in this process (conftest.run_tool)."""
+    return run_tool("boom-bag-recover", bag)
 
 
 def _check_failed_bag(rec: BagRecorder, cause: str) -> None:
@@ -108,7 +99,7 @@ def test_a_full_disk_stops_the_recording_and_the_complete_chunks_come_back(tmp_p
     messages = [_state(i, rng) for i in range(3000)]
     for i, data in enumerate(messages):
         rec.write("/drive_state", i + 1, data)
-    assert _wait(lambda: rec.failed), "the writer never reported the full disk"
+    wait_for(lambda: rec.failed, "the writer reporting the full disk")
     for _ in range(100):
         rec.write("/drive_state", 10**9, messages[0])  # a cheap no-op now
     assert rec.close() == tmp_path / "bag"
@@ -134,7 +125,7 @@ def test_a_disk_that_fails_while_the_bag_is_finished_leaves_it_for_recovery(tmp_
     rec = BagRecorder(tmp_path / "bag", [STATE], custom_data={"clock_origin_ns": "0"}, chunk_size=CHUNK, flush_s=0.05)
     for i in range(50):
         rec.write("/drive_state", i + 1, _state(i, rng))
-    assert _wait(lambda: rec.on_disk == 50)
+    wait_for(lambda: rec.on_disk == 50, "50 messages on the disk")
     monkeypatch.setattr(FullDisk, "budget", rec.file.stat().st_size + 100)  # the summary does not fit
     rec.close()
     _check_failed_bag(rec, "No space left on device")
@@ -152,7 +143,7 @@ def test_an_fsync_error_cuts_the_file_back_to_the_last_synced_chunk(tmp_path, mo
     rec = BagRecorder(tmp_path / "bag", [STATE], chunk_size=CHUNK, flush_s=3600.0)
     for i in range(1000):
         rec.write("/drive_state", i + 1, _state(i, rng))
-    assert _wait(lambda: rec.failed)
+    wait_for(lambda: rec.failed, "the writer reporting the failure")
     rec.close()
     _check_failed_bag(rec, "Input/output error")
     found = salvage(rec.file.read_bytes())
@@ -183,7 +174,7 @@ def test_a_real_full_disk_then_recovery_on_it_then_a_rerun_with_space(small_disk
     rec = BagRecorder(small_disk / "bag", [STATE], chunk_size=CHUNK, flush_s=3600.0)
     for i in range(3000):  # about 450 KiB of messages (compressed: over 100 KiB) for 64 KiB of disk
         rec.write("/drive_state", i + 1, _state(i, rng))
-    assert _wait(lambda: rec.failed)
+    wait_for(lambda: rec.failed, "the writer reporting the failure")
     rec.close()
     _check_failed_bag(rec, "No space left on device")
     assert rec.on_disk > 100

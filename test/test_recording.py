@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import shutil
-import time
 
 import pytest
 import yaml
+from conftest import wait_for
 
 pytest.importorskip("rclpy")
 from bag_checks import check_bag
@@ -68,16 +68,17 @@ def test_schemas_are_the_msg_texts_with_comments_as_rosbag2_stores_them():
 
 
 def test_chunks_reach_the_disk_at_once_and_then_within_the_flush_bound(tmp_path):
-    rec = BagRecorder(tmp_path / "bag", [STATE], flush_s=0.3)
+    """Events, not durations: the first message reaches the disk with an hour's flush bound
+    (at once, then), and the next ones in a chunk far from full once the bound is 0.3 s."""
+    rec = BagRecorder(tmp_path / "bag", [STATE], flush_s=3600.0)
     try:
         assert is_being_recorded(rec.file)
         rec.write("/drive_state", 1, _state(1))
-        time.sleep(0.2)
-        assert _messages_on_disk(rec.file) == 1  # the first message at once
+        wait_for(lambda: _messages_on_disk(rec.file) == 1, "the first message on the disk")
+        rec.flush_s = 0.3
         for ns in range(2, 12):
             rec.write("/drive_state", ns, _state(ns))
-        time.sleep(1.0)  # longer than flush_s: the chunk was closed though far from full
-        assert _messages_on_disk(rec.file) == 11
+        wait_for(lambda: _messages_on_disk(rec.file) == 11, "the chunk closed by the flush bound, far from full")
     finally:
         rec.close()
     assert not is_being_recorded(rec.file)

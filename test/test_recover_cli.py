@@ -1,7 +1,9 @@
 """boom-bag-recover on cut and damaged files, and after an interrupted run of its own, as a user meets it.
 
 A cut at any byte never gives a traceback: every complete chunk comes back, and a longer
-prefix never keeps fewer messages. An interrupted run leaves a state a rerun finishes.
+prefix never keeps fewer messages. An interrupted run leaves a state a rerun finishes. The
+command line runs as boom-bag-recover's main in this process (conftest.run_tool);
+test_node_bags and test_recovery run the real one.
 """
 
 from __future__ import annotations
@@ -11,10 +13,10 @@ import os
 import random
 import shutil
 import stat
-import subprocess
 from pathlib import Path
 
 import pytest
+from conftest import run_tool
 
 pytest.importorskip("rclpy")
 from bag_checks import check_bag
@@ -115,7 +117,7 @@ def test_the_command_line_recovers_a_cut_file(tmp_path, big_file, size):
         size = _chunk_ends(big_file)[10] + 500  # half way into the twelfth chunk
     bag = _cut_bag(tmp_path, big_file, size)
     expected = _independent_count(big_file[:size])
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    result = run_tool("boom-bag-recover", bag)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().splitlines() == [
         f"boom-bag-recover: {expected} messages kept in {bag / f'{bag.name}_0.mcap'} "
@@ -131,7 +133,7 @@ def test_the_command_line_recovers_a_cut_file(tmp_path, big_file, size):
 def test_a_file_cut_before_its_first_chunk_is_one_line(tmp_path, big_file):
     for size in (3, 30):
         bag = _cut_bag(tmp_path, big_file, size)
-        result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+        result = run_tool("boom-bag-recover", bag)
         assert result.returncode == 1 and "Traceback" not in result.stderr
         file = bag / f"{bag.name}_0.mcap"
         assert result.stderr.strip() == f"boom-bag-recover: error: {file}: no channel survived; nothing to recover"
@@ -149,7 +151,7 @@ def test_a_damaged_chunk_is_dropped_and_counted_and_the_rest_kept(tmp_path, big_
     found = salvage(bytes(damaged))
     whole = _independent_count(big_file[: ends[20]])
     assert found.dropped_chunks == 1 and 0 < len(found.messages) < whole
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    result = run_tool("boom-bag-recover", bag)
     assert result.returncode == 0, result.stderr
     assert f"{len(found.messages)} messages kept" in result.stdout and "1 damaged chunk(s) dropped" in result.stdout
     assert check_bag(bag) == {"/drive_state": len(found.messages)}
@@ -167,7 +169,7 @@ def test_a_rerun_removes_the_leftovers_of_a_killed_run_and_only_those(tmp_path, 
     for leftover in leftovers:
         (bag / leftover).write_bytes(b"half")
     (bag / ".notes.partial").write_text("the user's")  # not a name of ours
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    result = run_tool("boom-bag-recover", bag)
     assert result.returncode == 0, result.stderr
     first, last = result.stdout.strip().splitlines()
     assert first == f"boom-bag-recover: removed 2 leftover(s) of an interrupted run: {', '.join(sorted(leftovers))}"
@@ -181,7 +183,7 @@ def test_a_run_stopped_after_renaming_the_original_is_finished_by_the_next(tmp_p
     name = f"{bag.name}_0.mcap"
     original = (bag / name).read_bytes()
     os.rename(bag / name, bag / f"{name}.damaged")  # where a kill between the renames leaves it
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    result = run_tool("boom-bag-recover", bag)
     assert result.returncode == 0, result.stderr
     assert f"recovered again from {name}.damaged" in result.stdout
     assert check_bag(bag) == {"/drive_state": expected}
@@ -202,7 +204,7 @@ def test_a_run_stopped_before_metadata_yaml_is_finished_by_the_next(tmp_path, bi
 def test_a_damaged_file_beside_an_unfinished_one_is_still_refused(tmp_path, big_file):
     bag, _ = _killed(tmp_path, big_file)
     (bag / f"{bag.name}_0.mcap.damaged").write_bytes(b"the user's")
-    result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+    result = run_tool("boom-bag-recover", bag)
     assert result.returncode == 1 and "exists already; move it out" in result.stderr
     assert (bag / f"{bag.name}_0.mcap.damaged").read_bytes() == b"the user's"
 
@@ -214,7 +216,7 @@ def test_a_second_run_on_the_same_bag_is_refused_and_touches_nothing(tmp_path, b
     fd = os.open(bag, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # what a run in progress holds
-        result = subprocess.run([RECOVER, bag], capture_output=True, text=True, timeout=120)
+        result = run_tool("boom-bag-recover", bag)
     finally:
         os.close(fd)
     assert result.returncode == 1

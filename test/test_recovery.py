@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import time
 
 import pytest
+from conftest import wait_for
 
 pytest.importorskip("rclpy")
 from bag_checks import check_bag
@@ -31,11 +31,11 @@ def _killed_bag(tmp_path, flushed: int, unflushed: int):
     live = BagRecorder(tmp_path / "live", [STATE], custom_data={"clock_origin_ns": "0"}, flush_s=0.2)
     for i in range(flushed):
         live.write("/drive_state", i, serialize_message(DriveState(rod_position_m=float(i))))
-    time.sleep(0.6)  # past the flush bound: on disk
+    wait_for(lambda: live.on_disk == flushed, "the first messages in complete chunks on the disk")
     live.flush_s = 3600.0  # from now on nothing more reaches the disk
     for i in range(flushed, flushed + unflushed):
         live.write("/drive_state", i, serialize_message(DriveState(rod_position_m=float(i))))
-    time.sleep(0.2)
+    wait_for(lambda: sum(live.counts.values()) == flushed + unflushed, "the writer thread taking the rest")
     bag = tmp_path / "killed"
     bag.mkdir()
     shutil.copy(live.file, bag / "killed_0.mcap")

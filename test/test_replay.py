@@ -6,9 +6,11 @@ import shutil
 import signal
 import subprocess
 import time
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
+from conftest import GUARD_S, run_tool
 
 rclpy = pytest.importorskip("rclpy")
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
@@ -35,32 +37,62 @@ def _bag(folder):
         rec.write("/valve_command", 5_000_000, serialize_message(ValveCommand(opening=0.5)))
 
 
-def test_replay_publishes_every_message_in_order_with_its_spacing(tmp_path):
-    _bag(tmp_path / "run")
+@pytest.fixture
+def listener() -> Iterator:
+    """rclpy, and a node of the test's own to listen with (each test starts rclpy: the refusals
+    run boom-replay's main in this process, and it starts rclpy itself)."""
     rclpy.init()
     node = rclpy.create_node("replay_listener")
+    yield node
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+@pytest.fixture
+def start_replay() -> Iterator[Callable[..., subprocess.Popen]]:
+    """Start a real boom-replay process (stdout and stderr piped); any still running after the
+    test is killed."""
+    started: list[subprocess.Popen] = []
+
+    def start(*args: object) -> subprocess.Popen:
+        proc = subprocess.Popen(
+            [BOOM_REPLAY, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+
+
+def _spin_until(node, done: Callable[[], bool], what: str) -> None:
+    """Spin the listener until ``done()`` (an event), failing after the guard."""
+    deadline = time.monotonic() + GUARD_S
+    while not done():
+        assert time.monotonic() < deadline, f"{what}: not within {GUARD_S:g} s"
+        rclpy.spin_once(node, timeout_sec=0.02)
+
+
+def _replay(*args: object) -> subprocess.CompletedProcess:
+    """boom-replay's main in this process (conftest.run_tool), for what it refuses or does alone."""
+    return run_tool("boom-replay", *args)
+
+
+def test_replay_publishes_every_message_in_order_with_its_spacing(tmp_path, listener, start_replay):
+    _bag(tmp_path / "run")
     received: list[tuple[float, float]] = []
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    node.create_subscription(
+    listener.create_subscription(
         DriveState, "/drive_state", lambda m: received.append((time.monotonic(), m.rod_position_m)), qos
     )
     started = time.monotonic()
-    proc = subprocess.Popen(
-        [BOOM_REPLAY, tmp_path / "run", "--topics", "/drive_state", "--rate", "0.5", "--wait-for-subscribers"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        deadline = time.monotonic() + 30
-        while proc.poll() is None and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.02)
-        ran_s = time.monotonic() - started
-        for _ in range(20):
-            rclpy.spin_once(node, timeout_sec=0.02)
-    finally:
-        node.destroy_node()
-        rclpy.shutdown()
+    proc = start_replay(tmp_path / "run", "--topics", "/drive_state", "--rate", "0.5", "--wait-for-subscribers")
+    _spin_until(listener, lambda: proc.poll() is not None, "boom-replay's end")
+    ran_s = time.monotonic() - started
+    _spin_until(listener, lambda: len(received) >= 60, "the 60 states")
     out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert "published 60 messages" in out
@@ -85,7 +117,7 @@ def test_replay_errors_are_one_line(tmp_path, args, message):
     _bag(tmp_path / "run")
     (tmp_path / "empty").mkdir()
     args = [str(tmp_path / "run") if a == "BAG" else str(tmp_path / a) if a in ("nope", "empty") else a for a in args]
-    result = subprocess.run([BOOM_REPLAY, *args], capture_output=True, text=True, timeout=60)
+    result = _replay(*args)
     assert result.returncode == 1
     assert message in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
@@ -109,55 +141,36 @@ def _sparse_bag(folder, clock: bool = False):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, sig):
+def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, listener, start_replay, sig):
     _sparse_bag(tmp_path / "run")
-    rclpy.init()
-    node = rclpy.create_node("replay_signal_listener")
     got = []
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-    node.create_subscription(DriveState, "/drive_state", got.append, qos)
-    node.create_subscription(ValveCommand, "/valve_command", got.append, qos)
+    listener.create_subscription(DriveState, "/drive_state", got.append, qos)
+    listener.create_subscription(ValveCommand, "/valve_command", got.append, qos)
     # by default it waits for these subscribers, so the first messages (t = 0) arrive
-    proc = subprocess.Popen([BOOM_REPLAY, tmp_path / "run"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 30
-        while len(got) < 2 and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
-        assert len(got) == 2, "the first messages did not arrive"
-        sent = time.monotonic()  # it is waiting 20 s for the next messages now
-        proc.send_signal(sig)
-        out, err = proc.communicate(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        node.destroy_node()
-        rclpy.shutdown()
+    proc = start_replay(tmp_path / "run")
+    _spin_until(listener, lambda: len(got) >= 2, "the first messages")
+    assert len(got) == 2
+    sent = time.monotonic()  # it is waiting 20 s for the next messages now
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=20)
     # it waits in 50 ms slices; a bound far below the 20 s gap, loose for a loaded machine
     assert time.monotonic() - sent < 5.0
     assert proc.returncode == 0 and "Traceback" not in err
     assert "published 2 messages" in out
 
 
-def test_replay_waits_for_subscribers_by_default(tmp_path):
+def test_replay_waits_for_subscribers_by_default(tmp_path, start_replay):
     """As a user meets it: start boom-replay, then the listener; no message is lost to discovery."""
     _bag(tmp_path / "run")
-    proc = subprocess.Popen(
-        [BOOM_REPLAY, tmp_path / "run", "--topics", "/drive_state"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = start_replay(tmp_path / "run", "--topics", "/drive_state")
     rclpy.init()
     node = rclpy.create_node("late_listener")
     received: list[float] = []
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     try:
         node.create_subscription(DriveState, "/drive_state", lambda m: received.append(m.rod_position_m), qos)
-        deadline = time.monotonic() + 30
-        while proc.poll() is None and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.02)
-        for _ in range(20):
-            rclpy.spin_once(node, timeout_sec=0.02)
+        _spin_until(node, lambda: proc.poll() is not None and len(received) >= 60, "the replay of 60 states")
     finally:
         node.destroy_node()
         rclpy.shutdown()
@@ -168,16 +181,14 @@ def test_replay_waits_for_subscribers_by_default(tmp_path):
 
 def test_replay_without_waiting_and_without_subscribers_replays_at_once(tmp_path):
     _bag(tmp_path / "run")
-    result = subprocess.run([BOOM_REPLAY, tmp_path / "run", "--no-wait"], capture_output=True, text=True, timeout=60)
+    result = _replay(tmp_path / "run", "--no-wait")
     assert result.returncode == 0, result.stderr
     assert "published 61 messages" in result.stdout and "note" not in result.stderr
 
 
 def test_replay_without_subscribers_replays_after_the_wait_with_a_note(tmp_path):
     _bag(tmp_path / "run")
-    result = subprocess.run(
-        [BOOM_REPLAY, tmp_path / "run", "--wait-timeout", "0.2"], capture_output=True, text=True, timeout=60
-    )
+    result = _replay(tmp_path / "run", "--wait-timeout", "0.2")
     assert result.returncode == 0, result.stderr
     assert "note: no subscriber on" in result.stderr and "replaying anyway" in result.stderr
     assert "published 61 messages" in result.stdout
@@ -201,38 +212,25 @@ def test_replay_without_subscribers_replays_after_the_wait_with_a_note(tmp_path)
 )
 def test_bad_numbers_are_refused_in_one_line(tmp_path, args, option):
     _bag(tmp_path / "run")
-    result = subprocess.run([BOOM_REPLAY, tmp_path / "run", *args], capture_output=True, text=True, timeout=60)
+    result = _replay(tmp_path / "run", *args)
     assert result.returncode == 2, result.stderr
     assert option in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and result.stderr.startswith("boom-replay: error: ")
 
 
-def test_replay_offers_the_recorded_qos_and_one_clock(tmp_path):
+def test_replay_offers_the_recorded_qos_and_one_clock(tmp_path, listener, start_replay):
     _sparse_bag(tmp_path / "run", clock=True)
-    rclpy.init()
-    node = rclpy.create_node("qos_watcher")
-    proc = subprocess.Popen(
-        [BOOM_REPLAY, tmp_path / "run", "--clock", "--wait-for-subscribers", "--wait-timeout", "20"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-        got = []  # subscribers on the topics with messages (not /never): replay starts
-        node.create_subscription(DriveState, "/drive_state", got.append, qos)
-        node.create_subscription(ValveCommand, "/valve_command", got.append, qos)
-        node.create_subscription(Clock, "/clock", got.append, qos)
-        deadline = time.monotonic() + 20
-        while len(got) < 3 and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
-        assert len(got) >= 3, "replay did not start: it waited for /never"
-        offers = {t: [i.qos_profile.reliability for i in node.get_publishers_info_by_topic(t)] for t in TOPICS}
-    finally:
-        proc.send_signal(signal.SIGINT)
-        proc.communicate(timeout=20)
-        node.destroy_node()
-        rclpy.shutdown()
+    proc = start_replay(tmp_path / "run", "--clock", "--wait-for-subscribers", "--wait-timeout", "60")
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    got = []  # subscribers on the topics with messages (not /never): replay starts
+    listener.create_subscription(DriveState, "/drive_state", got.append, qos)
+    listener.create_subscription(ValveCommand, "/valve_command", got.append, qos)
+    listener.create_subscription(Clock, "/clock", got.append, qos)
+    _spin_until(listener, lambda: len(got) >= 3 or proc.poll() is not None, "the replay's start")
+    assert len(got) >= 3, f"replay did not start: it waited for /never ({proc.communicate()[1]})"
+    offers = {t: [i.qos_profile.reliability for i in listener.get_publishers_info_by_topic(t)] for t in TOPICS}
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=20)
     assert offers["/drive_state"] == [ReliabilityPolicy.RELIABLE]
     assert offers["/valve_command"] == [ReliabilityPolicy.BEST_EFFORT]  # as its publisher offered
     assert len(offers["/clock"]) == 1  # the bag's own, not a second one from --clock

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, start_node
+from conftest import BOOM_SIM, run_tool, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from bag_checks import check_bag  # noqa: E402
@@ -25,6 +25,11 @@ from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 BOOM_RESIM = shutil.which("boom-resim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None or BOOM_RESIM is None, reason="run through tools/with-env")
+
+
+def resim_main(*args) -> subprocess.CompletedProcess:
+    """boom-resim's main in this process (conftest.run_tool; test_resim_refusals runs the real one)."""
+    return run_tool("boom-resim", *args)
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +75,7 @@ def recorded(tmp_path_factory):
 
 
 def test_unchanged_resimulation_reproduces_the_recorded_run(recorded, tmp_path):
-    result = subprocess.run([BOOM_RESIM, recorded, "--out", tmp_path / "same"], capture_output=True, text=True)
+    result = resim_main(recorded, "--out", tmp_path / "same")
     assert result.returncode == 0, result.stderr
     original, again = read_drive_states(recorded), read_drive_states(tmp_path / "same")
     # it lifted and lowered (each for 0.5 s: the node's command timeout closes the valve)
@@ -84,9 +89,7 @@ def test_unchanged_resimulation_reproduces_the_recorded_run(recorded, tmp_path):
 
 def test_what_if_a_heavier_payload(recorded, tmp_path):
     out = tmp_path / "heavy"
-    result = subprocess.run(
-        [BOOM_RESIM, recorded, "--set", "payload_mass_kg=250", "--out", out], capture_output=True, text=True
-    )
+    result = resim_main(recorded, "--set", "payload_mass_kg=250", "--out", out)
     assert result.returncode == 0, result.stderr
     original, heavy = read_drive_states(recorded), read_drive_states(out)
     lift = lambda s: s["q1"].max() - s["q1"][0]  # noqa: E731
@@ -123,7 +126,7 @@ def test_a_bag_from_an_earlier_model_is_resimulated_without_its_retired_paramete
 )
 def test_bad_changes_are_refused_and_nothing_is_written(recorded, tmp_path, args, message):
     out = tmp_path / "never"
-    result = subprocess.run([BOOM_RESIM, recorded, *args, "--out", out], capture_output=True, text=True)
+    result = resim_main(recorded, *args, "--out", out)
     assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
     assert not out.exists()
 
@@ -132,18 +135,12 @@ def test_bad_changes_are_refused_and_nothing_is_written(recorded, tmp_path, args
 def namespaced(tmp_path_factory):
     """A run of /crane1/boom_sim with /clock whose payload is changed while it runs."""
     folder = tmp_path_factory.mktemp("ns_bags")
-    args = ["-r", "__ns:=/crane1", "-p", f"record_folder:={folder}", "-p", "publish_clock:=true"]
-    args += ["-p", "real_time_factor:=2.0", "-p", "command_timeout_s:=0.0"]
-    proc = subprocess.Popen(
-        [BOOM_SIM, "--ros-args", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    params = (f"record_folder:={folder}", "publish_clock:=true", "real_time_factor:=2.0", "command_timeout_s:=0.0")
+    proc = start_node(*params, config_file=None, record=True, ros_args=("-r", "__ns:=/crane1"))
     rclpy.init()
     client = Client("/crane1/boom_sim", namespace="/crane1")
     try:
-        assert client.spin_until(lambda: len(client.states) > 3, timeout=30)
+        assert client.spin_until(lambda: len(client.states) > 3)
         client.spin_for(0.5)
         now = client.last().header.stamp.sec + client.last().header.stamp.nanosec * 1e-9
         client.command(1.0, stamp_s=now + 1.0)  # ahead of the node's simulated time
@@ -166,14 +163,14 @@ def namespaced(tmp_path_factory):
 def test_a_parameter_changed_while_running_is_recorded_and_resimulated_at_its_time(namespaced, tmp_path):
     assert namespaced.name.endswith("_crane1_boom_sim")  # the node's name and namespace in the folder name
     check_bag(namespaced)
-    result = subprocess.run([BOOM_RESIM, namespaced, "--out", tmp_path / "again"], capture_output=True, text=True)
+    result = resim_main(namespaced, "--out", tmp_path / "again")
     assert result.returncode == 0, result.stderr
     check_bag(tmp_path / "again")
     with AnyReader([tmp_path / "again"]) as reader:
         topics = {c.topic for c in reader.connections}
     assert "/crane1/drive_state" in topics and "/drive_state" not in topics  # stays namespaced
     original, again = read_drive_states(namespaced), read_drive_states(tmp_path / "again")
-    assert np.array_equal(original["t"], again["t"]) and len(original["t"]) > 150  # the same instants
+    assert np.array_equal(original["t"], again["t"]) and len(original["t"]) > 20  # the same instants (a tick each)
     assert np.max(np.abs(original["q1"] - again["q1"])) < 1e-12  # commands and change at the same instants
     assert np.max(np.abs(original["p1"] - again["p1"])) < 1e-6
     # the heavier payload shows: the holding pressure rose after the change
@@ -182,7 +179,7 @@ def test_a_parameter_changed_while_running_is_recorded_and_resimulated_at_its_ti
 
 def test_runs_overlay_on_their_common_origin(namespaced, tmp_path):
     resim = tmp_path / "heavy"
-    subprocess.run([BOOM_RESIM, namespaced, "--set", "payload_mass_kg=150", "--out", resim], check=True)
+    assert resim_main(namespaced, "--set", "payload_mass_kg=150", "--out", resim).returncode == 0
     for align in ("origin", "command"):
         first_open = [
             (s := read_drive_states(bag, align))["t"][np.nonzero(s["u"])[0][0]] for bag in (namespaced, resim)
@@ -196,14 +193,10 @@ def test_runs_overlay_on_their_common_origin(namespaced, tmp_path):
 
 def test_resim_refuses_to_write_over_its_input_and_writes_nothing_when_it_fails(namespaced, tmp_path):
     for out in (namespaced, namespaced.parent):
-        result = subprocess.run([BOOM_RESIM, namespaced, "--out", out], capture_output=True, text=True)
+        result = resim_main(namespaced, "--out", out)
         assert result.returncode == 2 and "input" in result.stderr
     check_bag(namespaced)  # untouched
-    stopped = subprocess.run(
-        [BOOM_RESIM, namespaced, "--set", "mode=paper", "--set", "orifice_diameter_m=0.01", "--out", tmp_path / "x"],
-        capture_output=True,
-        text=True,
-    )
+    stopped = resim_main(namespaced, "--set", "mode=paper", "--set", "orifice_diameter_m=0.01", "--out", tmp_path / "x")
     assert stopped.returncode == 1 and "paper mode has no end stops" in stopped.stderr  # leaves the geometry
     assert len(stopped.stderr.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []  # no bag, no staging folder left
@@ -212,8 +205,6 @@ def test_resim_refuses_to_write_over_its_input_and_writes_nothing_when_it_fails(
 def test_a_truncated_bag_is_one_line(namespaced, tmp_path):
     data = next(namespaced.glob("*.mcap")).read_bytes()
     (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
-    result = subprocess.run(
-        [BOOM_RESIM, tmp_path / "cut.mcap", "--out", tmp_path / "x"], capture_output=True, text=True
-    )
+    result = resim_main(tmp_path / "cut.mcap", "--out", tmp_path / "x")
     assert result.returncode == 1 and "truncated" in result.stderr and "boom-bag-recover" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1

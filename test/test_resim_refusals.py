@@ -9,11 +9,12 @@ import shutil
 import signal
 import subprocess
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, start_node, stop_process
+from conftest import BOOM_SIM, run_tool, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message  # noqa: E402
@@ -129,7 +130,8 @@ def synthetic_bag(
 
 
 def resim(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([BOOM_RESIM, *map(str, args)], capture_output=True, text=True, timeout=120)
+    """boom-resim's main in this process (conftest.run_tool): its exit status and output."""
+    return run_tool("boom-resim", *args)
 
 
 def one_line(result: subprocess.CompletedProcess, prog: str = "boom-resim") -> str:
@@ -212,8 +214,7 @@ def test_a_bag_written_by_boom_resim_is_re_simulated(tmp_path):
 def test_a_damaged_metadata_yaml_is_one_line(tmp_path, content, message, tool):
     bag = synthetic_bag(tmp_path / "run")
     (bag / "metadata.yaml").write_bytes(content)
-    args = [shutil.which(tool), bag] + (["--out", tmp_path / "out"] if tool == "boom-resim" else ["--no-wait"])
-    result = subprocess.run(list(map(str, args)), capture_output=True, text=True, timeout=60)
+    result = run_tool(tool, bag, *(["--out", tmp_path / "out"] if tool == "boom-resim" else ["--no-wait"]))
     assert result.returncode == 1
     err = one_line(result, tool)
     assert message in err and "read its MCAP file" in err
@@ -267,29 +268,36 @@ def _long_bag(folder: Path) -> Path:
     return folder
 
 
-def _wait_for_staging(folder: Path, proc: subprocess.Popen) -> Path:
-    """The staging folder's bag file, once the running boom-resim has created it."""
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and proc.poll() is None:
-        found = list(folder.glob(".out.*.partial/bag/*.mcap"))
-        if found:
-            return found[0]
-        time.sleep(0.01)
-    raise AssertionError(f"boom-resim made no staging folder (exit {proc.poll()}): {proc.stderr.read()}")
-
-
-@pytest.mark.parametrize(
-    ("sig", "code", "line"),
-    [(signal.SIGINT, 130, "interrupted (Ctrl-C)"), (signal.SIGTERM, 143, "terminated (SIGTERM)")],
-)
-def test_an_interrupted_resim_ends_in_one_line_and_leaves_nothing(tmp_path, sig, code, line):
+@pytest.fixture
+def running_resim(tmp_path) -> Iterator[tuple[subprocess.Popen, Path]]:
+    """A real boom-resim process on an hour-long bag into ``results/out``, once it has made its
+    staging folder's bag file (the event: it is writing); (the process, the results folder).
+    Stopped after the test if it still runs."""
     bag = _long_bag(tmp_path / "run")
     results = tmp_path / "results"
     results.mkdir()
     proc = subprocess.Popen(
         [BOOM_RESIM, bag, "--out", results / "out"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    _wait_for_staging(results, proc)
+    try:
+        deadline = time.monotonic() + 120  # a guard only: the staging file is the event waited for
+        while not list(results.glob(".out.*.partial/bag/*.mcap")):
+            assert proc.poll() is None, f"boom-resim made no staging folder (exit {proc.poll()}): {proc.stderr.read()}"
+            assert time.monotonic() < deadline, "boom-resim made no staging folder within 120 s"
+            time.sleep(0.01)
+        yield proc, results
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "line"),
+    [(signal.SIGINT, 130, "interrupted (Ctrl-C)"), (signal.SIGTERM, 143, "terminated (SIGTERM)")],
+)
+def test_an_interrupted_resim_ends_in_one_line_and_leaves_nothing(running_resim, sig, code, line):
+    proc, results = running_resim
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == code
@@ -297,14 +305,8 @@ def test_an_interrupted_resim_ends_in_one_line_and_leaves_nothing(tmp_path, sig,
     assert list(results.iterdir()) == []
 
 
-def test_a_killed_resim_is_cleaned_up_by_the_next_run(tmp_path):
-    bag = _long_bag(tmp_path / "run")
-    results = tmp_path / "results"
-    results.mkdir()
-    proc = subprocess.Popen(
-        [BOOM_RESIM, bag, "--out", results / "out"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    _wait_for_staging(results, proc)
+def test_a_killed_resim_is_cleaned_up_by_the_next_run(running_resim, tmp_path):
+    proc, results = running_resim
     proc.kill()
     proc.communicate(timeout=30)
     (left,) = list(results.iterdir())
@@ -336,29 +338,21 @@ def test_a_full_disk_names_the_new_bag_and_leaves_nothing(tmp_path):
 
 def _settle(client, seconds_of_states: int) -> None:
     n = len(client.states)
-    assert client.spin_until(lambda: len(client.states) >= n + seconds_of_states, timeout=30)
+    assert client.spin_until(lambda: len(client.states) >= n + seconds_of_states)
 
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="run through tools/with-env")
-def test_a_reset_node_run_is_refused_as_a_user_meets_it(tmp_path):
+def test_a_reset_node_run_is_refused_as_a_user_meets_it(tmp_path, nodes, client):
     """Record a default-clock run, lift, reset it twice through ~/reset, stop it with Ctrl-C,
     and re-simulate: refused in one line naming the resets."""
-    from ros_client import Client
-
-    proc = start_node(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
-    rclpy.init()
-    client = Client()
-    try:
-        assert client.spin_until(lambda: len(client.states) > 3, timeout=30)
-        client.command(1.0)
-        _settle(client, 30)
-        for _ in range(2):
-            assert client.call(client.reset, Reset.Request()).success
-            _settle(client, 10)
-    finally:
-        client.node.destroy_node()
-        rclpy.shutdown()
-        stop_process(proc)
+    proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
+    assert client.spin_until(lambda: len(client.states) > 3)
+    client.command(1.0)
+    _settle(client, 30)
+    for _ in range(2):
+        assert client.call(client.reset, Reset.Request()).success
+        _settle(client, 10)
+    stop_process(proc)
     (bag,) = list((tmp_path / "bags").iterdir())
     result = resim(bag, "--out", tmp_path / "out")
     assert result.returncode == 2
@@ -367,31 +361,23 @@ def test_a_reset_node_run_is_refused_as_a_user_meets_it(tmp_path):
 
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="run through tools/with-env")
-def test_a_paused_and_stepped_run_on_its_own_clock_is_reproduced(tmp_path):
+def test_a_paused_and_stepped_run_on_its_own_clock_is_reproduced(tmp_path, nodes, client):
     """With publish_clock a pause and steps keep simulated time one line: re-simulated exactly."""
-    from ros_client import Client
-
-    proc = start_node(
+    proc = nodes.start(
         f"record_folder:={tmp_path / 'bags'}", "publish_clock:=true", "command_timeout_s:=0.0", record=True
     )
-    rclpy.init()
-    client = Client()
-    try:
-        assert client.spin_until(lambda: len(client.states) > 3, timeout=30)
-        client.command(1.0)
-        _settle(client, 20)
-        assert client.call(client.pause, SetBool.Request(data=True)).success
-        client.command(-0.5)  # received while paused
-        for _ in range(3):
-            assert client.call(client.step, Step.Request(steps=7)).success
-        assert client.call(client.pause, SetBool.Request(data=False)).success
-        _settle(client, 20)
-        client.command(0.0)
-        _settle(client, 10)
-    finally:
-        client.node.destroy_node()
-        rclpy.shutdown()
-        stop_process(proc)
+    assert client.spin_until(lambda: len(client.states) > 3)
+    client.command(1.0)
+    _settle(client, 20)
+    assert client.call(client.pause, SetBool.Request(data=True)).success
+    client.command(-0.5)  # received while paused
+    for _ in range(3):
+        assert client.call(client.step, Step.Request(steps=7)).success
+    assert client.call(client.pause, SetBool.Request(data=False)).success
+    _settle(client, 20)
+    client.command(0.0)
+    _settle(client, 10)
+    stop_process(proc)
     (bag,) = list((tmp_path / "bags").iterdir())
     result = resim(bag, "--out", tmp_path / "out")
     assert result.returncode == 0, result.stderr

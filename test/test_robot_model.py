@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import BOOM_SIM, ROOT, start_node
+from conftest import BOOM_SIM, ROOT
 
 from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
@@ -38,7 +38,7 @@ def _position(robot, frame: str) -> np.ndarray:
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
 @pytest.mark.usefixtures("ros_context")
-def test_forward_kinematics_with_the_published_joints_closes_the_chain(client):
+def test_forward_kinematics_with_the_published_joints_closes_the_chain(nodes, client):
     """robot_description and joint_states from the running node, at three rod lengths: rod_eye
     lands on boom_rod_mount within 1 mm, and the boom tip is at the model's angle."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -46,7 +46,7 @@ def test_forward_kinematics_with_the_published_joints_closes_the_chain(client):
 
     from boom_hydraulics_msgs.srv import Reset
 
-    node = start_node("payload_mass_kg:=120.0")
+    node = nodes.start("payload_mass_kg:=120.0")
     try:
         descriptions: list[String] = []
         latched = QoSProfile(

@@ -8,7 +8,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from conftest import CONFIG, run_tool
 
 pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message
@@ -34,8 +34,10 @@ def _bag(folder, n: int = 60) -> None:
             rec.write("/drive_state", ns, serialize_message(msg))
 
 
-def _run(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=300, cwd=cwd)
+def _run(tool: str, *args, cwd=None) -> subprocess.CompletedProcess:
+    """The tool's main in this process (conftest.run_tool); what a new process does is
+    test_help_of_boom_sim_needs_no_ros_graph's and the demo's."""
+    return run_tool(tool, *args, cwd=cwd)
 
 
 def test_analyze_keeps_what_the_user_kept_in_its_folder(tmp_path):
@@ -44,7 +46,7 @@ def test_analyze_keeps_what_the_user_kept_in_its_folder(tmp_path):
     out.mkdir()
     (out / "notes.txt").write_text("mine")
     (out / "run1.csv").write_text("an old result")
-    result = _run(TOOLS["boom-analyze"], tmp_path / "run1", "--out", out)
+    result = _run("boom-analyze", tmp_path / "run1", "--out", out)
     assert result.returncode == 0, result.stderr
     assert (out / "notes.txt").read_text() == "mine"
     assert (out / "run1.csv").read_text() != "an old result"  # its own file, replaced
@@ -59,7 +61,7 @@ def test_analyze_into_the_current_folder_touches_nothing_else(tmp_path):
     work.mkdir()
     (work / "thesis.tex").write_text("years of work")
     (work / "data").mkdir()
-    result = _run(TOOLS["boom-analyze"], tmp_path / "bags" / "run1", "--out", ".", cwd=work)
+    result = _run("boom-analyze", tmp_path / "bags" / "run1", "--out", ".", cwd=work)
     assert result.returncode == 0, result.stderr
     assert (work / "thesis.tex").read_text() == "years of work" and (work / "data").is_dir()
     assert (work / "run1.csv").is_file()
@@ -67,7 +69,7 @@ def test_analyze_into_the_current_folder_touches_nothing_else(tmp_path):
 
 def test_analyze_of_the_current_folder_writes_beside_it(tmp_path):
     _bag(tmp_path / "run1")
-    result = _run(TOOLS["boom-analyze"], ".", cwd=tmp_path / "run1")
+    result = _run("boom-analyze", ".", cwd=tmp_path / "run1")
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "run1.analysis" / "run1.csv").is_file()
 
@@ -76,17 +78,25 @@ def test_analyze_of_the_current_folder_writes_beside_it(tmp_path):
 def test_an_output_that_is_or_holds_the_input_is_refused(tmp_path, out):
     _bag(tmp_path / "run2")
     before = sorted(p.name for p in (tmp_path / "run2").iterdir())
-    result = _run(TOOLS["boom-analyze"], "run2", "--out", out, cwd=tmp_path)
+    result = _run("boom-analyze", "run2", "--out", out, cwd=tmp_path)
     assert result.returncode == 2 and "input" in result.stderr and len(result.stderr.splitlines()) == 1
     assert sorted(p.name for p in (tmp_path / "run2").iterdir()) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run2"]
 
 
-def test_study_writes_its_figures_beside_others(tmp_path):
+def test_study_writes_its_figures_beside_others(tmp_path, monkeypatch):
+    """(Its solver study shortened to two runs of 0.05 s: the files are the point here, every
+    figure of the full study is test_studies'.)"""
+    from boom_hydraulics.analysis import studies
+
+    solver_study = studies.solver_study
+    monkeypatch.setattr(
+        studies, "solver_study", lambda p, s, steps: solver_study(p, 0.05, {"euler": [1e-3], "rk4": [1e-3]})
+    )
     out = tmp_path / "figures"
     out.mkdir()
     (out / "sweep_trade_off.png").write_bytes(b"the README's figure")
-    result = _run(TOOLS["boom-study"], "paper", "--out", out, "--duration", "0.3")
+    result = _run("boom-study", "paper", "--out", out, "--duration", "0.3")
     assert result.returncode == 0, result.stderr
     assert (out / "sweep_trade_off.png").read_bytes() == b"the README's figure"
     assert {"fig3_angles.png", "fig8.png", "solver_study.csv", "statics.csv"} <= {p.name for p in out.iterdir()}
@@ -99,9 +109,9 @@ def test_sim_and_sweep_refuse_to_write_over_their_config(tmp_path):
     config_file = tmp_path / "mine.yaml"
     shutil.copy(CONFIG / "default.yaml", config_file)
     text = config_file.read_text()
-    run = _run(TOOLS["boom-sim"], "run", "--config", config_file, "--duration", "0.1", "--out", config_file)
+    run = _run("boom-sim", "run", "--config", config_file, "--duration", "0.1", "--out", config_file)
     assert run.returncode == 2 and "is the input" in run.stderr
-    sweep = _run(TOOLS["boom-sweep"], "--config", config_file, "--vary", "payload=0,50", "--out", tmp_path)
+    sweep = _run("boom-sweep", "--config", config_file, "--vary", "payload=0,50", "--out", tmp_path)
     assert sweep.returncode == 2 and "holds the input" in sweep.stderr
     assert config_file.read_text() == text and sorted(p.name for p in tmp_path.iterdir()) == ["mine.yaml"]
 
@@ -118,7 +128,7 @@ def test_csv_time_keeps_every_nanosecond(tmp_path):
 
 @pytest.mark.parametrize("tool", sorted(TOOLS))
 def test_help_is_plain_text_and_names_each_default_once(tool):
-    result = _run(TOOLS[tool], "--help")
+    result = _run(tool, "--help")
     assert result.returncode == 0, result.stderr
     assert "``" not in result.stdout and "usage:" in result.stdout
     for line in result.stdout.splitlines():
@@ -126,7 +136,7 @@ def test_help_is_plain_text_and_names_each_default_once(tool):
 
 
 def test_help_of_boom_sim_needs_no_ros_graph():
-    result = _run(shutil.which("boom_sim"), "-h")
+    result = subprocess.run([shutil.which("boom_sim"), "-h"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0 and "record_folder" in result.stdout
 
 
@@ -138,7 +148,7 @@ def test_help_of_boom_sim_needs_no_ros_graph():
     ],
 )
 def test_bad_durations_are_one_line_before_anything_runs(tmp_path, tool, args, message):
-    result = _run(TOOLS[tool], *args, cwd=tmp_path)
+    result = _run(tool, *args, cwd=tmp_path)
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert result.stderr.strip().splitlines() == [f"{tool}: error: {result.stderr.split('error: ', 1)[1].strip()}"]
     assert message in result.stderr
@@ -148,7 +158,12 @@ def test_bad_durations_are_one_line_before_anything_runs(tmp_path, tool, args, m
 @pytest.mark.skipif(shutil.which("boom_sim") is None, reason="run through tools/with-env")
 def test_the_demo_drives_the_node_records_and_analyses_the_run(tmp_path):
     """make run: the node in its own process, the scenario on valve_command, the bag analysed."""
-    result = _run(TOOLS["boom-demo"], "--params-file", CONFIG / "default.yaml", "--duration", "3", "--bags", tmp_path)
+    result = subprocess.run(
+        [TOOLS["boom-demo"], "--params-file", CONFIG / "default.yaml", "--duration", "3", "--bags", tmp_path],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     table = [line.split() for line in lines if line.strip() and line.split()[0].replace(".", "").isdigit()]

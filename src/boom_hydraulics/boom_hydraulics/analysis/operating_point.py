@@ -31,7 +31,7 @@ from ..model.control import full_opening_rate
 from ..model.geometry import boom_angle_rad, lever_rad_per_m
 from ..model.hydraulics import orifice_pressure_drop
 from ..model.parameters import Parameters
-from ..solve.batch import stacked_constants
+from ..solve.closed_loop import stacked_constants
 from .jacobian import CENTRAL, FORWARD, jacobian
 
 MODEL = MODELS["physical"]

@@ -146,8 +146,11 @@ def replay(
                     return published  # SIGINT/SIGTERM: stop cleanly
                 if clock_pub is not None:
                     clock_pub.publish(Clock(clock=Time(nanoseconds=log_ns).to_msg()))
-                publishers[connection.id].publish(bytes(raw))  # CDR as recorded
+                # counted first: a Ctrl-C raises KeyboardInterrupt at any line, and one between
+                # a publish and its count (the moment a user who saw the message presses it)
+                # would leave a message that went out uncounted
                 published += 1
+                publishers[connection.id].publish(bytes(raw))  # CDR as recorded
             if not loop or not rclpy.ok():
                 break
         _sleep(0.2)  # let the last messages leave before the node goes
