@@ -14,9 +14,17 @@ BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name packag
 	$(wildcard config/*.yaml) \
 	tools/build tools/cmake/drop_missing_include_dirs.cmake
 
-.PHONY: setup run node test lint imports bench clean
+# the compiled model in numba's on-disk cache (tools/warm-up): again when a source the kernels
+# compile or the default configuration changed, or when the cache folder the stamp names is
+# gone (a cleared ~/.cache)
+WARM_STAMP := install/.boom-warm-stamp
+PACKAGE := src/boom_hydraulics/boom_hydraulics
+KERNEL_SOURCES := $(wildcard $(PACKAGE)/model/*.py $(PACKAGE)/solve/*.py) $(PACKAGE)/jit.py config/default.yaml
+CACHE_THERE := $(shell read -r folder 2>/dev/null < $(WARM_STAMP) && { [ "$$folder" = none ] || [ -d "$$folder" ]; } && echo yes)
 
-setup: $(BUILD_STAMP)
+.PHONY: setup run node test lint imports bench clean FORCE
+
+setup: $(BUILD_STAMP) $(WARM_STAMP)
 
 $(DEPS_STAMP): requirements.txt requirements-nodeps.txt constraints.txt
 	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
@@ -29,6 +37,12 @@ $(DEPS_STAMP): requirements.txt requirements-nodeps.txt constraints.txt
 $(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
 	tools/build
 	@touch $@
+
+# compiles before the first run, so that the node starts at once (it writes the stamp itself)
+$(WARM_STAMP): $(BUILD_STAMP) $(KERNEL_SOURCES) $(if $(CACHE_THERE),,FORCE)
+	$(WITH_ENV) python tools/warm-up --stamp $@
+
+FORCE:
 
 run: setup
 	$(WITH_ENV) boom-demo --params-file config/default.yaml

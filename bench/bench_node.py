@@ -1,48 +1,103 @@
-"""Node benchmarks: CPU share, publish jitter and clock lock at real time; fastest real-time factor.
+"""Node benchmarks: speed as fast as possible and CPU share at real time, side by side with
+another commit; publish jitter and clock lock at real time; where a tick's time goes.
 
-    tools/with-env python bench/bench_node.py [--seconds 60]     # about three minutes
+    tools/with-env python bench/bench_node.py [--seconds 20] [--rounds 3] [--against CHECKOUT]
 
-1. The node in its own process at real-time factor 1 (100 Hz publishing, 1 ms RK4
-   physics, interpreted and compiled): its CPU share of one core (from /proc), the
-   period between consecutive drive_state stamps (the node's clock at publish: p50, p99,
-   max) and how far simulated time trails the steady clock (the node's diagnostics).
-2. The node's stepping in this process, without DDS: simulated seconds per wall second
-   of ``advance`` alone (no publishing) and of the as-fast-as-possible tick (advance +
-   publish), interpreted and compiled.
-3. Where a tick's time goes (recording on, as by default): stepping, the model's outputs,
-   building each message, serialising, publishing and recording, per tick of 10 steps.
+1. Side by side (``--against``: a built checkout of another commit, e.g. a ``git worktree``
+   with ``tools/build`` run in it): in rounds, this checkout's node, then the other's, then
+   this one's again (A B A B...), so that a load that changes in the meantime shows as spread,
+   not as a difference between the two:
+   - the node as fast as possible (real_time_factor 0, 10 steps and a publish of every
+     per-tick message per tick: publishing every 10 ms of simulated time), in a process of
+     its own without DDS subscribers, simulated s per wall s: without and with its bag;
+   - the node at real-time factor 1 in its own process (100 Hz publishing, 1 ms RK4,
+     compiled, recording as by default), driven by this process (it subscribes and sends
+     valve commands at 20 Hz): its CPU share of one core (from /proc).
+   Each figure is the median over the rounds, with the smallest and the largest, and the
+   ratio of this checkout's median to the other's. Without ``--against``, this checkout alone.
+2. Real time in detail, interpreted and compiled: the CPU share, the period between
+   consecutive drive_state stamps (the node's clock at publish: p50, p99, max) and how far
+   simulated time trails the steady clock (the node's diagnostics).
+3. The node's stepping in this process, without DDS: ``advance`` alone and the as-fast-as-
+   possible tick (advance + publish), interpreted and compiled.
+4. Where a tick's time goes (recording on, as by default): stepping, the model's outputs,
+   packing the messages, publishing and recording, per tick of 10 steps.
 
-Bags go to a temporary folder and are removed.
+The side-by-side table, with the date, the machine and both commits, is also written to
+bench/results/node-<UTC date-time>.md. Bags go to a temporary folder and are removed. The
+runs talk ROS in a DDS domain of their own (as the tests do), so that no other node on the
+machine answers them.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "test"))
+# importing the tests' conftest claims a DDS domain that no test process (or other bench)
+# holds, for this process and the nodes it starts (a ROS_DOMAIN_ID given is kept)
+import conftest  # noqa: E402, F401
+import numpy as np  # noqa: E402
+import rclpy  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from tables import commit, table, write_results  # noqa: E402
 
-from boom_hydraulics.bags import messages
-from boom_hydraulics.ros import node as node_module
-from boom_hydraulics.ros import recording as recording_module
-from boom_hydraulics.ros.node import BoomSimNode
-from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics.bags import messages  # noqa: E402
+from boom_hydraulics.ros import recording as recording_module  # noqa: E402
+from boom_hydraulics.ros.node import BoomSimNode  # noqa: E402
+from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "default.yaml"
+CONFIG = Path("config") / "default.yaml"  # of the checkout that runs the node
 BAGS = Path(tempfile.mkdtemp(prefix="bench_node_bags."))  # removed at the end
 ARGS = ["--ros-args", "-p", f"record_folder:={BAGS}"]
+
+#: The fast run in a checkout's own environment: only what every commit since the node's
+#: thin redesign has (BoomSimNode, drive.current, on_tick, _begin_recording, recording.finish).
+FAST_RUN = """
+import json, sys, time
+import rclpy
+from boom_hydraulics.ros.node import BoomSimNode
+rclpy.init(args=["--ros-args", "-p", "record_folder:=" + sys.argv[1], "-p", "real_time_factor:=0.0"])
+node = BoomSimNode()
+node.drive.current = 0.3  # the valve a third open: the drive moves, the messages change
+def rate(ticks):
+    best = float("inf")
+    for _ in range(3):  # the least disturbed of three blocks
+        t0 = time.perf_counter()
+        for _ in range(ticks):
+            node.on_tick()  # as fast as possible: 10 steps and a publish per tick
+        best = min(best, time.perf_counter() - t0)
+    return ticks * 0.01 / best
+for _ in range(100):  # warm: caches, the first markers
+    node.on_tick()
+fast = rate(500)
+node.clock.restart()
+node._begin_recording()  # as start() does, without the loop thread
+recorded = rate(500)
+node.recording.finish()
+node.destroy()
+print(json.dumps({"fast": fast, "recorded": recorded}))
+"""
+
+
+def with_env(checkout: Path) -> list[str]:
+    """The command prefix that runs a program in ``checkout``'s environment."""
+    return [str(checkout / "tools" / "with-env")]
 
 
 def cpu_seconds(pid: int) -> float:
@@ -50,15 +105,24 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
 
 
-def real_time_run(seconds: float, jit: bool) -> float:
-    """Print the real-time figures of one run; return its CPU share of one core."""
-    exe = shutil.which("boom_sim")
+@dataclass
+class RealTime:
+    """One real-time run: CPU share of one core, drive_state periods (ms), clock errors (ms)."""
+
+    cpu: float
+    periods_ms: np.ndarray
+    clock_errors_ms: np.ndarray
+
+
+def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT) -> RealTime:
+    """The node of ``checkout`` at real-time factor 1 for ``seconds``, driven from here."""
     proc = subprocess.Popen(
         [
-            exe,
+            *with_env(checkout),
+            "boom_sim",  # (with-env execs it: the pid is the node's)
             "--ros-args",
             "--params-file",
-            str(CONFIG),
+            str(checkout / CONFIG),
             "-p",
             "command_timeout_s:=0.0",
             "-p",
@@ -87,6 +151,8 @@ def real_time_run(seconds: float, jit: bool) -> float:
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, qos)
     pub = node.create_publisher(ValveCommand, "valve_command", qos)
     while len(stamps) < 100:  # up and running for a second
+        if proc.poll() is not None:
+            raise RuntimeError(f"boom_sim of {checkout} ended with status {proc.returncode} before it published")
         rclpy.spin_once(node, timeout_sec=0.01)
     stamps.clear()
     clock_errors.clear()
@@ -98,25 +164,93 @@ def real_time_run(seconds: float, jit: bool) -> float:
             next_command += 0.05
         rclpy.spin_once(node, timeout_sec=0.005)
     cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
-    proc.send_signal(signal.SIGINT)
-    proc.wait(timeout=10)
     node.destroy_node()
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=60)
+    except subprocess.TimeoutExpired:  # (SIGINT ignored: started from a shell's background job)
+        proc.kill()
+        proc.wait()
+        raise RuntimeError(f"boom_sim of {checkout} did not stop on SIGINT within 60 s: killed") from None
+    return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3)
 
-    period_ms = np.diff(np.array(stamps)) * 1e3
-    errors_ms = np.array(clock_errors) * 1e3
+
+def print_real_time(run: RealTime, seconds: float, jit: bool) -> None:
     path = "compiled" if jit else "interpreted"
+    periods, errors = run.periods_ms, run.clock_errors_ms
     print(f"\nReal time (factor 1), {seconds:.0f} s, 100 Hz publishing, dt = 1 ms RK4, {path}")
-    print(f"  CPU share of one core (all threads)   {cpu * 100:.1f} %   (target <= 8 %)")
-    print(f"  drive_state messages                  {len(stamps)} (expected {seconds * 100:.0f})")
+    print(f"  CPU share of one core (all threads)   {run.cpu * 100:.1f} %   (target <= 8 %)")
+    print(f"  drive_state messages                  {len(periods) + 1} (expected {seconds * 100:.0f})")
     print(
-        f"  publish period (node stamps)          p50 {np.percentile(period_ms, 50):.2f} ms, "
-        f"p99 {np.percentile(period_ms, 99):.2f} ms, max {period_ms.max():.2f} ms   (target p99 <= 12 ms)"
+        f"  publish period (node stamps)          p50 {np.percentile(periods, 50):.2f} ms, "
+        f"p99 {np.percentile(periods, 99):.2f} ms, max {periods.max():.2f} ms   (target p99 <= 12 ms)"
     )
     print(
-        f"  sim time behind steady clock at tick  last {errors_ms[-1]:.3f} ms, largest {errors_ms.max():.3f} ms "
+        f"  sim time behind steady clock at tick  last {errors[-1]:.3f} ms, largest {errors.max():.3f} ms "
         f"(1 Hz samples; target within 1 ms after 60 s)"
     )
-    return cpu
+
+
+def fast_run(checkout: Path) -> dict[str, float]:
+    """{"fast": without a bag, "recorded": with it}: simulated s per wall s of ``checkout``'s node."""
+    out = subprocess.run(
+        [*with_env(checkout), "python", "-c", FAST_RUN, str(BAGS)],
+        cwd=checkout,
+        capture_output=True,
+        text=True,
+    )
+    if out.returncode != 0:
+        raise RuntimeError(f"the fast run of {checkout} failed: {out.stderr.strip().splitlines()[-1:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def side_by_side(checkouts: list[Path], rounds: int, seconds: float) -> dict[Path, dict[str, list[float]]]:
+    """The figures of each checkout, measured in turn in every round (A B A B ...)."""
+    figures: dict[Path, dict[str, list[float]]] = {c: defaultdict(list) for c in checkouts}
+    for n in range(rounds):
+        for checkout in checkouts:
+            rates = fast_run(checkout)
+            cpu = real_time_run(seconds, True, checkout).cpu
+            for key, value in (*rates.items(), ("cpu", cpu)):
+                figures[checkout][key].append(value)
+            print(
+                f"round {n + 1}/{rounds}, {commit(checkout)}: as fast as possible {rates['fast']:.0f}x "
+                f"({rates['recorded']:.0f}x recording), CPU at real time {cpu * 100:.1f} %",
+                flush=True,
+            )
+    return figures
+
+
+def _spread(values: list[float], scale: float, unit: str) -> str:
+    """The median, with the smallest and the largest: '102x (95-110)'."""
+    lo, mid, hi = min(values) * scale, statistics.median(values) * scale, max(values) * scale
+    return f"{mid:.1f}{unit} ({lo:.1f}-{hi:.1f})" if unit == " %" else f"{mid:.0f}{unit} ({lo:.0f}-{hi:.0f})"
+
+
+ROWS = (  # key, what, scale, unit, target, met
+    ("fast", "as fast as possible, publishing every 10 ms", 1.0, "x", ">= 100x", lambda v: v >= 100),
+    ("recorded", "the same, recording its bag", 1.0, "x", "", None),
+    ("cpu", "CPU share of one core at real time (100 Hz)", 100.0, " %", "<= 8 %", lambda v: v <= 8.0),
+)
+
+
+def side_by_side_table(figures: dict[Path, dict[str, list[float]]], rounds: int) -> str:
+    """Print and return the table of :func:`side_by_side` (this checkout first)."""
+    checkouts = list(figures)
+    header = ["node (compiled)", *(f"{commit(c)} ({'this' if c == ROOT else c.name})" for c in checkouts)]
+    if len(checkouts) == 2:
+        header.append("ratio")
+    header += ["target", "met"]
+    rows = []
+    for key, what, scale, unit, target, met in ROWS:
+        row = [what, *(_spread(figures[c][key], scale, unit) for c in checkouts)]
+        medians = [statistics.median(figures[c][key]) * scale for c in checkouts]
+        if len(checkouts) == 2:
+            row.append(f"{medians[0] / medians[1]:.2f}")
+        row += [target, ("yes" if met(medians[0]) else "NO") if met else ""]
+        rows.append(row)
+    title = f"Node speed, median (smallest-largest) of {rounds} rounds taken in turn ({os.cpu_count()} cores)"
+    return table(title, header, rows)
 
 
 def in_process_rates() -> dict[bool, tuple[float, float]]:
@@ -171,10 +305,8 @@ def tick_breakdown() -> None:
         spent: dict[str, float] = defaultdict(float)
         _timed(node, "advance", "stepping (advance)", spent)
         _timed(node.sim, "outputs", "model outputs", spent)
-        for name in ("drive_state", "joint_state", "chamber_pressures", "rod_force"):
-            _timed(messages, name, "building messages", spent)
-        _timed(node_module, "crane_markers", "building markers (every 5th tick)", spent)
-        _timed(recording_module, "serialize_message", "serialising", spent)
+        _timed(messages.TickMessages, "state", "packing messages (markers every 5th tick)", spent)
+        _timed(recording_module, "serialize_message", "serialising (message objects)", spent)
         for publisher in (node.state_pub, node.joint_pub, node.p1_pub, node.p2_pub, node.force_pub, node.markers_pub):
             _timed(publisher, "publish", "publishing", spent)
         node.clock.restart()
@@ -186,28 +318,49 @@ def tick_breakdown() -> None:
             node.on_tick()
         total = time.perf_counter() - t0
         spent["rest (tick logic, locks, pacing)"] = max(0.0, total - sum(spent.values()))
-        rows.append(("compiled" if jit else "interpreted", total / ticks, dict(spent)))
+        rows.append(("compiled" if jit else "interpreted", ticks, total, dict(spent)))
         node.recording.finish()
         node.destroy()
-    labels = list(rows[0][2])
-    print(f"  {'stage':<36} {'interpreted':>12} {'compiled':>10}")
+    labels = list(rows[0][3])
+    print(f"  {'stage':<42} {'interpreted':>12} {'compiled':>10}")
     for label in labels:
-        values = [f"{r[2].get(label, 0.0) / (2000 if r[0] == 'compiled' else 300) * 1e6:.0f}" for r in rows]
-        print(f"  {label:<36} {values[0]:>12} {values[1]:>10}")
-    print(f"  {'whole tick':<36} {rows[0][1] * 1e6:>12.0f} {rows[1][1] * 1e6:>10.0f}")
+        values = [f"{r[3].get(label, 0.0) / r[1] * 1e6:.0f}" for r in rows]
+        print(f"  {label:<42} {values[0]:>12} {values[1]:>10}")
+    print(f"  {'whole tick':<42} {rows[0][2] / rows[0][1] * 1e6:>12.0f} {rows[1][2] / rows[1][1] * 1e6:>10.0f}")
+
+
+def checkout_path(text: str) -> Path:
+    """--against: a built checkout (its tools/with-env and install/ present)."""
+    path = Path(text).resolve()
+    if not (path / "tools" / "with-env").is_file() or not (path / "install" / "setup.bash").is_file():
+        raise argparse.ArgumentTypeError(
+            f"{text} is not a built checkout (no tools/with-env or install/setup.bash): "
+            "create one with 'git worktree add DIR COMMIT', then run tools/build in it"
+        )
+    return path
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=60.0, help="length of the real-time run")
+    parser.add_argument("--seconds", type=float, default=20.0, help="length of each real-time run (default 20)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of the side-by-side figures (default 3)")
+    parser.add_argument("--against", type=checkout_path, help="a built checkout of the commit to compare with")
+    parser.add_argument("--side-by-side-only", action="store_true", help="only the side-by-side table")
     args = parser.parse_args()
     rclpy.init()
-    real_time_run(args.seconds, jit=False)
-    real_time_run(args.seconds, jit=True)
-    in_process_rates()
-    tick_breakdown()
-    rclpy.try_shutdown()
-    shutil.rmtree(BAGS, ignore_errors=True)  # created by this run
+    try:
+        checkouts = [ROOT] + ([args.against] if args.against else [])
+        text = side_by_side_table(side_by_side(checkouts, args.rounds, args.seconds), args.rounds)
+        commits = ", ".join(f"{commit(c)} ({c})" for c in checkouts)
+        print(f"written to {write_results('node', text, f'commits: {commits}')}")
+        if not args.side_by_side_only:
+            for jit in (False, True):
+                print_real_time(real_time_run(args.seconds, jit), args.seconds, jit)
+            in_process_rates()
+            tick_breakdown()
+    finally:
+        rclpy.try_shutdown()
+        shutil.rmtree(BAGS, ignore_errors=True)  # created by this run
     return 0
 
 

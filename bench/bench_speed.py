@@ -13,26 +13,19 @@ bench/results/speed-<UTC date-time>.md.
 from __future__ import annotations
 
 import argparse
-import datetime
 import os
-import platform
 import shutil
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import rclpy
 from bench_model import batch_throughput, scipy_comparison, step_cost
-from bench_node import BAGS, in_process_rates, real_time_run
+from bench_node import BAGS, in_process_rates, print_real_time, real_time_run
 from bench_sweep import full_sweep
-from tables import table
+from tables import table, write_results
 
-from boom_hydraulics.files import write_bytes
 from boom_hydraulics.solve import accelerate
-
-#: Where each run's table goes, with its date and machine (docs/performance.md links it).
-RESULTS = Path(__file__).resolve().parent / "results"
 
 FIRST_START = """
 import time
@@ -78,7 +71,11 @@ def main() -> int:
 
     rclpy.init()
     try:
-        cpu = {jit: real_time_run(args.seconds, jit) for jit in (False, True)}
+        cpu = {}
+        for jit in (False, True):
+            run = real_time_run(args.seconds, jit)
+            print_real_time(run, args.seconds, jit)
+            cpu[jit] = run.cpu
         rates = in_process_rates()
     finally:
         rclpy.try_shutdown()
@@ -138,54 +135,8 @@ def main() -> int:
         ["what", "measured", "target", "met"],
         rows,
     )
-    print(f"written to {write_results(text)}")
+    print(f"written to {write_results('speed', text)}")
     return 0
-
-
-def machine() -> str:
-    """The machine a run was measured on: cores and processor model (Linux), Python, numba."""
-    model = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{os.cpu_count()} cores, {model}; Python {platform.python_version()}, numba {numba_version()}"
-
-
-def numba_version() -> str:
-    try:
-        import numba
-    except ImportError:
-        return "absent"
-    return numba.__version__
-
-
-def commit() -> str:
-    """The checkout's commit (with '+changes' when its tracked files differ), or 'unknown'."""
-    root = Path(__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True)
-        dirty = subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=root, capture_output=True)
-    except OSError:
-        return "unknown"
-    return head.stdout.strip() + ("+changes" if dirty.returncode else "") if head.returncode == 0 else "unknown"
-
-
-def write_results(text: str) -> Path:
-    """The table with the date, the machine and the commit, as bench/results/speed-<UTC time>.md
-    (whole or not at all): figures stay with the run that measured them, not in prose."""
-    now = datetime.datetime.now(datetime.UTC)
-    path = RESULTS / f"speed-{now:%Y%m%d-%H%M%S}.md"
-    body = (
-        f"# bench_speed.py, {now:%Y-%m-%d %H:%M} UTC\n\n"
-        f"- machine: {machine()}\n- commit: {commit()}\n- command: {' '.join(sys.argv)}\n\n"
-        f"```{text}\n```\n"
-    )
-    write_bytes(path, body.encode())
-    return path
 
 
 if __name__ == "__main__":

@@ -1,8 +1,21 @@
-"""What the benchmark scripts share: a printed table and best-of timing."""
+"""What the benchmark scripts share: a printed table, best-of timing, and the file each run's
+table is written to, with the date, the machine and the commit."""
 
 from __future__ import annotations
 
+import datetime
+import os
+import platform
+import subprocess
+import sys
 import time
+from pathlib import Path
+
+from boom_hydraulics.files import write_bytes
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Where each run's table goes, with its date and machine (docs/performance.md links it).
+RESULTS = ROOT / "bench" / "results"
 
 
 def table(title: str, header: list[str], rows: list[list[str]]) -> str:
@@ -22,3 +35,50 @@ def best_of(fn, repeat: int = 3) -> float:
         fn()
         times.append(time.perf_counter() - t0)
     return min(times)
+
+
+def machine() -> str:
+    """The machine a run was measured on: cores and processor model (Linux), Python, numba."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{os.cpu_count()} cores, {model}; Python {platform.python_version()}, numba {numba_version()}"
+
+
+def numba_version() -> str:
+    try:
+        import numba
+    except ImportError:
+        return "absent"
+    return numba.__version__
+
+
+def commit(checkout: Path = ROOT) -> str:
+    """The checkout's commit (with '+changes' when its tracked files differ), or 'unknown'."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True)
+        dirty = subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=checkout, capture_output=True)
+    except OSError:
+        return "unknown"
+    return head.stdout.strip() + ("+changes" if dirty.returncode else "") if head.returncode == 0 else "unknown"
+
+
+def write_results(name: str, text: str, commits: str = "") -> Path:
+    """The table with the date, the machine and the commit (or ``commits``, a line naming the
+    checkouts measured), as bench/results/<name>-<UTC time>.md (whole or not at all): figures
+    stay with the run that measured them, not in prose."""
+    now = datetime.datetime.now(datetime.UTC)
+    path = RESULTS / f"{name}-{now:%Y%m%d-%H%M%S}.md"
+    script = Path(sys.argv[0]).name
+    body = (
+        f"# {script}, {now:%Y-%m-%d %H:%M} UTC\n\n"
+        f"- machine: {machine()}\n- {commits or 'commit: ' + commit()}\n- command: {' '.join(sys.argv)}\n\n"
+        f"```{text}\n```\n"
+    )
+    write_bytes(path, body.encode())
+    return path

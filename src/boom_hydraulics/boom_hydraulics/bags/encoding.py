@@ -10,6 +10,7 @@ and need no rclpy.
 from __future__ import annotations
 
 import functools
+import operator
 from collections.abc import Mapping
 from typing import Any
 
@@ -48,7 +49,11 @@ DRIVE_STATE_FIELDS: dict[str, str] = {
     "relief_open": "relief_open",
 }
 FLAGS = ("at_end_stop", "cavitation", "relief_open")
-_DRIVE_STATE_OUTPUTS = tuple((name, name in FLAGS) for name in DRIVE_STATE_FIELDS.values())
+# the outputs of the float64 fields and of the flags, in the message's order (taken in one call each)
+_FLOATS = operator.itemgetter(*(name for name in DRIVE_STATE_FIELDS.values() if name not in FLAGS))
+_FLAGS = operator.itemgetter(*(name for name in DRIVE_STATE_FIELDS.values() if name in FLAGS))
+_PACK_SHAPE = (len(DRIVE_STATE_FIELDS) - len(FLAGS), len(FLAGS))  # float64 fields, flags
+_PACK_DRIVE_STATE = cdr.drive_state_packer(BASE_FRAME, *_PACK_SHAPE)
 
 
 @functools.cache
@@ -125,8 +130,8 @@ def stamp(stamp_ns: int) -> dict[str, int]:
 
 def drive_state_cdr(out: Mapping[str, Any], stamp_ns: int, frame_id: str = BASE_FRAME) -> bytes:
     """CDR of a boom_hydraulics_msgs/DriveState of the model outputs ``out``, stamped ``stamp_ns``."""
-    floats = [float(out[name]) for name, flag in _DRIVE_STATE_OUTPUTS if not flag]
-    return cdr.drive_state(stamp_ns, frame_id, floats, [bool(out[name]) for name, flag in _DRIVE_STATE_OUTPUTS if flag])
+    pack = _PACK_DRIVE_STATE if frame_id == BASE_FRAME else cdr.drive_state_packer(frame_id, *_PACK_SHAPE)
+    return pack(stamp_ns, _FLOATS(out), _FLAGS(out))
 
 
 def setpoint_cdr(joint: str, angle_rad: float, rate_rad_s: float, stamp_ns: int) -> bytes:

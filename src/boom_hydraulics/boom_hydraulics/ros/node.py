@@ -51,7 +51,6 @@ from boom_hydraulics_msgs.srv import Reset, Step
 from ..bags import cdr, messages
 from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
-from ..bags.markers import crane_markers
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
@@ -136,6 +135,9 @@ class BoomSimNode(Node):
         )
         self._markers_every = max(1, round(self.clock.rate_hz / MARKERS_HZ))
         self._ticks = 0
+        self._messages = messages.TickMessages(self.sim.params)
+        # in the order TickMessages.state packs them
+        self._state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.markers_pub)
         self._description_due = False  # a parameter change asks for robot_description again
         self._checked: Any = None  # the model parameters on_set checked, for post_set to apply
         self._changed_at_ns = 0
@@ -528,23 +530,24 @@ class BoomSimNode(Node):
 
     # --- output ------------------------------------------------------------------------------
     def publish_state(self) -> None:
+        """The state messages of now (and the markers, every ``_markers_every`` call), as CDR
+        bytes packed with layouts bound once per parameter set (:class:`messages.TickMessages`)."""
         out = self.sim.outputs()
-        if not all(math.isfinite(float(v)) for v in out.values()):
+        # one sum is finite when every output is; only a sum that is not looks at each one
+        if not math.isfinite(sum(out.values())) and not all(math.isfinite(float(v)) for v in out.values()):
             return  # a NaN never reaches a topic
         clock = self.clock
         stamp_ns = clock.state_stamp_ns()
         if self.clock_pub is not None:
             self.recording.publish([(self.clock_pub, cdr.clock(stamp_ns))], stamp_ns)
         log_ns = stamp_ns if clock.publishes else clock.now_ns()  # when it is published
-        p = self.sim.params
-        state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub)
-        # CDR bytes, packed without message objects
-        tick: list[tuple[Any, Any]] = list(zip(state_pubs, messages.state_messages(out, stamp_ns, p)))
+        if self._messages.params is not self.sim.params:  # new parameters: new dimensions for the markers
+            self._messages = messages.TickMessages(self.sim.params)
+        self._ticks += 1
+        packed = self._messages.state(out, stamp_ns, markers=self._ticks % self._markers_every == 0)
+        tick = list(zip(self._state_pubs, packed))  # (the markers' publisher is the last: only when packed)
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
-        self._ticks += 1
-        if self._ticks % self._markers_every == 0:
-            tick.append((self.markers_pub, crane_markers(out, stamp_ns, p)))
         self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:
