@@ -9,8 +9,9 @@ Stopping: Ctrl-C or SIGTERM ends the scenario; each is passed on to the node as 
 (the node runs in its own process group, so a terminal's Ctrl-C reaches it once, through
 here), and boom-demo waits for the node to finish its bag, then exits 130 naming the bag.
 If boom-demo is killed, the node gets SIGINT from the kernel (Linux: PR_SET_PDEATHSIG) and
-still finishes its bag. boom-demo waits for the node to start for as long as it runs: its
-first start compiles the model, which takes long on a busy machine.
+still finishes its bag. boom-demo waits for the node to start for as long as it runs: a
+start that finds no compiled model in the cache (``make setup`` fills it) compiles it, which
+takes long on a busy machine.
 """
 
 from __future__ import annotations
@@ -191,7 +192,8 @@ def _drive(node_proc: subprocess.Popen, stopper: Stopper, duration_s: float) -> 
     driver = ScenarioDriver(CYCLE)
     try:
         print(
-            "boom-demo: starting boom_sim (its first start compiles the model: a minute on a busy machine)",
+            "boom-demo: starting boom_sim (a start without the compiled model in the cache compiles it: a minute "
+            "on a busy machine)",
             file=sys.stderr,
         )
         while driver.state is None and not stopper.stopped:  # as long as the node runs: no deadline
