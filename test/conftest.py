@@ -263,11 +263,7 @@ def node_at_rest(shared_node: subprocess.Popen, client) -> subprocess.Popen:
     for name, value in SHARED_NODE_START.items():
         assert client.set_parameter(name, value).successful, name
 
-    def acted_on() -> bool:  # the node has found this client's publisher: it acts on its commands
-        client.command(HANDSHAKE_OPENING)
-        return client.spin_until(lambda: bool(client.states) and client.last().valve_command == HANDSHAKE_OPENING, 0.2)
-
-    assert client.spin_until(acted_on), "the shared node never acted on a command of this test's"
+    client.handshake(HANDSHAKE_OPENING)  # the node acts on this client's commands, and none is left on the way
     assert client.call(client.reset, Reset.Request()).success
     client.states.clear()
     assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the shared node"

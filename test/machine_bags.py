@@ -38,7 +38,7 @@ CYCLE = ((0.2, 1.0), (1.0, 0.0), (1.6, -0.6), (2.3, 0.0))
 def valve_command(stamp_ns: int, opening: float) -> bytes:
     """boom_hydraulics_msgs/ValveCommand (header, float64 opening); stamp 0: apply on arrival."""
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-    return cdr.pack(("i", "I", "I", ("s", 1), "d"), [sec, nanosec, 1, b"\0", opening])
+    return cdr.layout(("i", "I", "I", ("s", 1), "d")).pack(cdr.ENCAPSULATION, sec, nanosec, 1, b"\0", opening)
 
 
 def record_machine(

@@ -59,6 +59,24 @@ class Client:
         expected = opening if valve_command is None else valve_command
         return self.spin_until(lambda: bool(self.states) and self.last().valve_command == expected, opening=opening)
 
+    def handshake(self, opening: float = 1e-6) -> None:
+        """Return once the node has taken every command this client sent so far (DDS discovery
+        done both ways), leaving its valve at about ``opening`` (default: too small to move the
+        boom). Each try sends a new value (``opening`` times 1 + k/1000) and waits 0.2 s for a
+        state that shows it; the node takes one publisher's commands in order, so a state with
+        the newest value means none is left on the way to act later (a late one would override
+        a goal, or be missing from the node's bag)."""
+        sent = 0
+
+        def acted_on() -> bool:
+            nonlocal sent
+            value = opening * (1.0 + sent / 1000.0)
+            sent += 1
+            self.command(value)
+            return self.spin_until(lambda: bool(self.states) and self.last().valve_command == value, 0.2)
+
+        assert self.spin_until(acted_on), f"the node never acted on this client's commands ({sent} sent)"
+
     def spin_for(self, seconds: float, opening: float | None = None) -> None:
         """Spin, publishing ``opening`` at 50 Hz if given."""
         end = time.monotonic() + seconds

@@ -123,9 +123,12 @@ def main(args: list[str] | None = None) -> None:
         return
     started = False
     start_error: str | None = None
-    start = _Start(node)
+    start: _Start | None = None
     try:
-        start.start()  # (a signal may come during it: the first log line is out before it)
+        # (a signal may come from here on: the first log line is out; a KeyboardInterrupt is
+        # raised where Python code runs next, so no call stands outside this try)
+        start = _Start(node)
+        start.start()
         start.wait()
         started = True
         node.motion.spin_in_background()
@@ -144,7 +147,8 @@ def main(args: list[str] | None = None) -> None:
             raise
     finally:
         _shield_signals()
-        start.finish()  # a signal came during the start: let it end, then finish what it began
+        if start is not None:
+            start.finish()  # a signal came during the start: let it end, then finish what it began
         recorded = _finish(node, started)
         rclpy.try_shutdown()
     if start_error is not None:
