@@ -227,7 +227,7 @@ def node(nodes: Nodes) -> subprocess.Popen:
 HANDSHAKE_OPENING = 1e-6
 
 #: What the tests of a shared node start it with and put back before each (:func:`node_at_rest`).
-SHARED_NODE_START = {"payload_mass_kg": 50.0, "command_timeout_s": 0.5}  # (config/default.yaml's payload)
+SHARED_NODE_START = {"payload_mass_kg": 50.0, "external_rod_force_n": 0.0, "command_timeout_s": 0.5}  # (default.yaml's)
 
 
 @pytest.fixture(scope="class")

@@ -54,7 +54,7 @@ int main(int argc, char **argv) {
         printf("instantiate failed\n");
         return 1;
     }
-    fmi2ValueReference valve = 0, q1 = 2; /* the first input and the first output */
+    fmi2ValueReference valve = 0, q1 = 3; /* the first input and the first output (after the three inputs) */
     fmi2Real opening = 1.0, value = 0.0;
     if (fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) != fmi2OK ||
         fmi2EnterInitializationMode(c) != fmi2OK || fmi2ExitInitializationMode(c) != fmi2OK) {

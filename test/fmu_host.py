@@ -6,7 +6,9 @@ prints what it saw as one JSON document on stdout.
 Scenarios, each on fresh instances of the FMU: ``validate`` (fmpy's check of the model
 description), ``cycle`` (lift 3 s, hold 2 s, lower 3 s, hold 1 s at communication steps
 of STEP_S), ``cycle_set`` (the same with the parameters of --set given through FMI
-before initialization), ``payload`` (a payload taken on while the boom holds),
+before initialization), ``cycle_force`` (the same with the external rod force input held
+at FORCE_CYCLE_N), ``payload`` (a payload taken on while the boom holds), ``external_force``
+(an external rod force put on the rod while the boom holds),
 ``tunable`` (a parameter set between two steps), ``refusals`` (steps the FMU must refuse,
 and what it logged) and ``lifecycle`` (reset and terminate).
 """
@@ -40,6 +42,10 @@ STEP_S = 0.01
 #: The valve command of the lift-hold-lower cycle: (until s, opening).
 CYCLE = ((3.0, 1.0), (5.0, 0.0), (8.0, -1.0), (9.0, 0.0))
 OUTPUTS = ("q1", "v", "f_hyd", "p1", "p2", "alpha", "power", "supply_energy")
+#: The external rod force of the cycle_force scenario, N (negative: it pushes the rod in, a heavier load).
+FORCE_CYCLE_N = -2000.0
+#: The external rod force put on the held boom in the external_force scenario, N (extending: it helps hold).
+FORCE_HELD_N = 2000.0
 
 
 class Host:
@@ -133,6 +139,18 @@ def payload(host: Host) -> dict[str, Any]:
     return {"held": held, "loaded": loaded}
 
 
+def external_force(host: Host) -> dict[str, Any]:
+    """Lift for 1 s, hold 3 s, push the rod out with FORCE_HELD_N, hold 3 s: the rows of each hold's last second."""
+    fmu = host.instance()
+    host.run(fmu, 1.0, lambda t: 1.0)
+    held = host.run(fmu, 4.0, lambda t: 0.0, t=1.0)[-100:]
+    host.set(fmu, "f_ext", FORCE_HELD_N)
+    pushed = host.run(fmu, 7.0, lambda t: 0.0, t=4.0)[-100:]
+    fmu.terminate()
+    fmu.freeInstance()
+    return {"held": held, "pushed": pushed}
+
+
 def tunable(host: Host) -> dict[str, Any]:
     """Lift for 0.5 s, then at 10 MPa supply pressure (set between two steps) for 0.5 s more."""
     fmu = host.instance()
@@ -158,6 +176,9 @@ def refusals(host: Host) -> dict[str, Any]:
     host.set(fmu, "valve_command", math.nan)
     result["nan_command"] = host.refused(lambda: fmu.doStep(0.5, STEP_S))
     host.set(fmu, "valve_command", 1.0)
+    host.set(fmu, "f_ext", math.nan)
+    result["nan_force"] = host.refused(lambda: fmu.doStep(0.5, STEP_S))
+    host.set(fmu, "f_ext", 0.0)
     host.set(fmu, "piston_diameter_m", -0.04)
     result["bad_parameter"] = host.refused(lambda: fmu.doStep(0.5, STEP_S))
     host.set(fmu, "piston_diameter_m", 0.04)
@@ -218,7 +239,9 @@ def main() -> None:
         "validate": validate_fmu(args.fmu),
         "cycle": cycle(host, {}),
         "cycle_set": cycle(host, parameters),
+        "cycle_force": cycle(host, {"f_ext": FORCE_CYCLE_N}),
         "payload": payload(host),
+        "external_force": external_force(host),
         "tunable": tunable(host),
         "refusals": refusals(host),
         "lifecycle": lifecycle(host),

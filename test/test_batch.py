@@ -25,14 +25,16 @@ def test_each_set_of_a_batch_runs_as_its_single_run_bit_for_bit(jit):
         with_updates(base, piston_diameter_m=d, rod_diameter_m=0.55 * d, payload_mass_kg=m, bulk_modulus_pa=e)
         for d, m, e in [(0.032, 0.0, 1e9), (0.05, 100.0, 1.5e9), (0.08, 200.0, 0.7e9)]
     ]
+    params.append(with_updates(params[1], external_rod_force_n=-3000.0))  # the last of the constants row
     command = commands.steps([0.0, 0.5], [1.0, -0.5])
     runs = run_sets(params, 1.0, command, every=20, store=True, jit=jit)
-    assert np.isnan(runs.failed_at_s).all() and runs.reasons == [None] * 3
+    assert np.isnan(runs.failed_at_s).all() and runs.reasons == [None] * 4
     for k, p in enumerate(params):
         single = simulate(p, 1.0, command, every=20, jit=jit)
         for name in OUTPUT_NAMES:  # the same loop, steps, commands and samples
             assert np.array_equal(runs.columns(k)[name], single[name]), name
     assert runs.columns(0)["q1"][-1] != runs.columns(2)["q1"][-1]  # the sets differ
+    assert runs.columns(3)["q1"][-1] != runs.columns(1)["q1"][-1]  # ... by the external force alone too
 
 
 @pytest.mark.parametrize("jit", JIT, ids=["interpreted", "compiled"])

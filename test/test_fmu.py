@@ -31,6 +31,9 @@ SUPPLY_PA = 12.0e6
 #: boom-sim's profile of the host's cycle: lift 3 s, hold 2 s, lower 3 s, hold 1 s.
 CYCLE = "steps:0=1,3=0,5=-1,8=0"
 OUTPUTS = ("q1", "v", "f_hyd", "p1", "p2", "alpha", "power", "supply_energy")
+#: The external rod forces of the host's scenarios (fmu_host.FORCE_CYCLE_N, FORCE_HELD_N), N.
+FORCE_CYCLE_N = -2000.0
+FORCE_HELD_N = 2000.0
 #: fmi2Discard, the status of a refused step.
 DISCARD = 2
 
@@ -92,7 +95,10 @@ def test_the_model_description_validates_and_names_units(fmu: Path, report: dict
     assert report["validate"] == []
     description = read_model_description(str(fmu))
     variables = {v.name: v for v in description.modelVariables}
-    assert {n for n, v in variables.items() if v.causality == "input"} == {"valve_command", "payload_mass_kg"}
+    assert {n for n, v in variables.items() if v.causality == "input"} == {"valve_command", "payload_mass_kg", "f_ext"}
+    f_ext = variables["f_ext"]
+    assert (f_ext.unit, f_ext.variability, float(f_ext.start)) == ("N", "continuous", 0.0)
+    assert "external_rod_force_n" not in variables  # the input sets it
     assert {n for n, v in variables.items() if v.causality == "output"} == set(OUTPUTS)
     units = {name: variables[name].unit for name in (*OUTPUTS, "bulk_modulus_pa", "viscous_friction_n_s_m")}
     assert units == {"q1": "m", "v": "m/s", "f_hyd": "N", "p1": "Pa", "p2": "Pa", "alpha": "rad", "power": "W",
@@ -151,6 +157,30 @@ def test_a_payload_taken_on_is_carried_by_the_rod(report: dict) -> None:
     assert forces["loaded"] > 1.9 * forces["held"]  # 100 kg more at the tip: twice the rod force
 
 
+def test_a_run_with_an_external_rod_force_equals_boom_sims_run_with_it(report: dict, tmp_path: Path) -> None:
+    """The f_ext input held over a whole cycle is boom-sim's external_rod_force_n; pushing the rod
+    in (a heavier load), it lifts less far in the first second than without."""
+    run, plain = _columns(report["cycle_force"]), _columns(report["cycle"])
+    _assert_equal_runs(run, _cycle_csv(tmp_path, f"external_rod_force_n={FORCE_CYCLE_N!r}"))
+    at_one_s = 100
+    assert run["q1"][at_one_s] < plain["q1"][at_one_s] - 0.005
+
+
+def test_an_external_force_on_the_held_boom_is_taken_off_the_hydraulic_force(report: dict) -> None:
+    """Over the last second of each hold (valve closed, the load-holding valve shut) the hydraulic
+    rod force carries the boom's static force of eq. 6 less the external force (eq. 11 at rest),
+    to within the seals' breakaway friction: pushing the rod out with FORCE_HELD_N takes that off
+    the oil's force p1 S1 - p2 S2."""
+    params = Parameters()
+    forces = {}
+    for key, external_n in (("held", 0.0), ("pushed", FORCE_HELD_N)):
+        rows = np.array(report["external_force"][key])
+        force, q1 = rows[:, 1 + OUTPUTS.index("f_hyd")].mean(), rows[:, 1 + OUTPUTS.index("q1")].mean()
+        assert abs(force - (static_rod_force_of(params, q1) - external_n)) < params.static_friction_n, key
+        forces[key] = force
+    assert forces["held"] - forces["pushed"] == pytest.approx(FORCE_HELD_N, abs=2 * params.static_friction_n)
+
+
 def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
     refused = report["refusals"]
     odd = refused["odd_step"]
@@ -161,6 +191,7 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
         "wrong_time": "the FMU is at 0.5 s",
         "zero_step": "not a whole number",
         "nan_command": "valve_command must be a finite opening",
+        "nan_force": "'external_rod_force_n' must be finite",
         "bad_parameter": "piston_diameter_m",
         "fixed_parameter": "time_step_s can only be set before initialization",
     }

@@ -4,7 +4,8 @@ The drives are not in the run kernels yet, so these tests put each drive in fron
 physical model's cylinder and boom the way the kernels will: the drive's P-port pressure
 into the 4/3 valve (or the EHA's flows into the chambers), the model's load-holding valve
 and reliefs, and the model's own mechanics (physical._terms, whose forces and acceleration
-depend on the state alone)."""
+depend on the state alone). The states are random, and so is the external rod force
+(external_rod_force_n) that a mechanical network puts on the rod."""
 
 from __future__ import annotations
 
@@ -20,9 +21,18 @@ from boom_hydraulics.model.hydraulics import load_holding_flow, pos, relief_flow
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
 P = Parameters()
-C = physical.constants(P)
 D = constants(P)
 RNG = np.random.default_rng(23)
+#: The largest external rod force the random states take, N (the default boom holds with 4.9 kN).
+EXTERNAL_N = 3.0e4
+
+
+def _constants(rng: np.random.Generator) -> physical.Constants:
+    """The model's constants with a random external rod force, pushing or pulling."""
+    return physical.constants(with_updates(P, external_rod_force_n=rng.uniform(-EXTERNAL_N, EXTERNAL_N)))
+
+
+C = _constants(RNG)
 
 
 def _random_state(rng: np.random.Generator) -> tuple[list[float], float, float]:
@@ -34,21 +44,22 @@ def _random_state(rng: np.random.Generator) -> tuple[list[float], float, float]:
     return y, rng.uniform(-2e5, 1.8e7), rng.uniform(-1, 1)
 
 
-def _cylinder(y: list[float], q_line1: float, q_line2: float) -> tuple[ledger.Cylinder, float, float]:
+def _cylinder(y: list[float], q_line1: float, q_line2: float, c=C) -> tuple[ledger.Cylinder, float, float]:
     """The cylinder side of the ledger for flows ``q_line1``, ``q_line2`` into the chamber lines
     (before the reliefs), with the model's mechanics at state ``y``; and the chambers' state rates."""
-    t = physical._terms(y, C, 0.0, math)
-    q_r1, q_r2 = relief_flow(t.p1, C.p_relief, C.g_relief), relief_flow(t.p2, C.p_relief, C.g_relief)
+    t = physical._terms(y, c, 0.0, math)
+    q_r1, q_r2 = relief_flow(t.p1, c.p_relief, c.g_relief), relief_flow(t.p2, c.p_relief, c.g_relief)
     q_in1, q_in2 = q_line1 - q_r1, q_line2 - q_r2
-    spring = C.spring * (y[0] - C.spring_free)
+    spring = c.spring * (y[0] - c.spring_free)
     cylinder = ledger.cylinder_side(
         y[1], t.acc, t.p1, t.p2, q_in1, q_in2, t.dvol1, t.dvol2, q_r1, q_r2, t.f_friction, t.f_stop, spring,
-        t.lever, t.lever_slope, t.cos_alpha, C.inertia, C.weight_coeff, C.s1, C.s2, C.p_tank, C.p_ambient,
+        t.lever, t.lever_slope, t.cos_alpha, c.inertia, c.weight_coeff, c.s1, c.s2, c.p_tank, c.p_ambient,
+        c.f_external,
     )  # fmt: skip
     return cylinder, q_in1, q_in2
 
 
-def valve_drive_ledger(drive, y: list[float], z: float, d=D) -> tuple[ledger.Ledger, dict]:
+def valve_drive_ledger(drive, y: list[float], z: float, d=D, c=C) -> tuple[ledger.Ledger, dict]:
     """The ledger of a valve drive in front of the physical model at state ``y`` (spool y[4])."""
     x = y[4]
     p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
@@ -65,17 +76,17 @@ def valve_drive_ledger(drive, y: list[float], z: float, d=D) -> tuple[ledger.Led
     throttling, leakage = ledger.valve_losses(
         q_pa, q_at, q_pb, q_bt, p_port, C.p_tank, p1, p2, C.leak, a_side, C.holding * C.seat_leak
     )
-    cylinder, q_in1, q_in2 = _cylinder(y, q_a, q_pb - q_bt)
+    cylinder, q_in1, q_in2 = _cylinder(y, q_a, q_pb - q_bt, c)
     terms = ledger.assemble(ledger.electric_chain(s, d), s, throttling, leakage, cylinder)
     return terms, {"p_port": p_port, "q_in1": q_in1, "q_in2": q_in2, "valve_in": (p_port - C.p_tank) * q_valve_in}
 
 
-def eha_ledger(y: list[float], z: float, u: float, d=D) -> ledger.Ledger:
+def eha_ledger(y: list[float], z: float, u: float, d=D, c=C) -> ledger.Ledger:
     """The ledger of the EHA on the physical model's chambers at state ``y``."""
     p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
     flows = pump_controlled.ports(z, u, p1, p2, d)
     s = pump_controlled.supply(z, u, p1, p2, flows, d)
-    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)
+    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b, c)
     return ledger.assemble(ledger.electric_chain(s, d), s, 0.0, 0.0, cylinder)
 
 
@@ -113,8 +124,10 @@ def test_the_ledger_of_a_valve_drive_closes_at_every_state(name):
     drive = DRIVES[name]
     for _ in range(300):
         y, z, _ = _random_state(RNG)
-        terms, _ = valve_drive_ledger(drive, y, z)
-        assert _closes(terms), (name, y, z, ledger.residual_w(terms), terms)
+        c = _constants(RNG)
+        terms, _ = valve_drive_ledger(drive, y, z, c=c)
+        assert _closes(terms), (name, y, z, c.f_external, ledger.residual_w(terms), terms)
+        assert terms.external_work == -c.f_external * y[1]  # F_ext v, the work the surroundings do
         losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
         assert min(losses) >= -1e-9 * sum(map(abs, terms)), (name, terms)  # every loss takes, none gives
 
@@ -124,8 +137,9 @@ def test_the_ledger_of_the_eha_closes_at_every_state_and_lowering_returns_power_
     for _ in range(300):
         y, _, u = _random_state(RNG)
         z = RNG.uniform(-1.2, 1.2) * P.pump_speed_rad_s
-        terms = eha_ledger(y, z, u)
-        assert _closes(terms), (y, z, u, ledger.residual_w(terms), terms)
+        c = _constants(RNG)
+        terms = eha_ledger(y, z, u, c=c)
+        assert _closes(terms), (y, z, u, c.f_external, ledger.residual_w(terms), terms)
         losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
         assert min(losses) >= -1e-9 * sum(map(abs, terms))
         returned += terms.battery_power < 0.0

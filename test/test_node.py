@@ -84,6 +84,32 @@ class TestOneRunningNode:
         assert client.set_parameter("payload_mass_kg", 150.0).successful
         assert holding_pressure_after_reset() > 1.5 * p_light  # heavier payload, higher holding pressure
 
+    def test_an_external_rod_force_set_at_run_time_is_carried_and_nan_is_refused(self, node_at_rest, client):
+        """Pushing the rod out with F_ext while the closed valve holds the boom: the oil gives
+        up that much of its force p1 S1 - p2 S2 (the spool's leakage moves p1 and p2 meanwhile,
+        their force balance stays), and held at rest after a reset, the piston chamber holds the
+        boom at exactly F_ext / S1 less pressure (eq. 11 at rest)."""
+        force_n, s1 = 2000.0, math.pi * 0.04**2 / 4  # the boom's static load is 4.9 kN
+        nan = client.set_parameter("external_rod_force_n", math.nan)
+        assert not nan.successful and "external_rod_force_n" in nan.reason and "nan" in nan.reason  # rclpy's range
+        assert "\n" not in nan.reason
+        assert client.spin_until(lambda: len(client.states) > 0)
+        f_held = client.last().hydraulic_force_n
+        assert client.set_parameter("external_rod_force_n", force_n).successful
+        assert client.spin_until(lambda: client.last().hydraulic_force_n < f_held - 0.5 * force_n)
+
+        def pressure_after_reset() -> float:
+            client.spin_for(0.2)
+            client.states.clear()
+            assert client.call(client.reset, Reset.Request()).success
+            assert client.spin_until(lambda: len(client.states) > 0)
+            return client.last().piston_pressure_pa
+
+        assert client.call(client.pause, SetBool.Request(data=True)).success
+        pushed = pressure_after_reset()
+        assert client.set_parameter("external_rod_force_n", 0.0).successful
+        assert pressure_after_reset() - pushed == pytest.approx(force_n / s1, rel=1e-6)
+
     def test_reset_pause_and_step(self, node_at_rest, client):
         result = client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.6))
         assert result.success

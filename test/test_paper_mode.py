@@ -56,6 +56,19 @@ def test_initial_pressure_is_the_listing_static_pressure():
     assert expected == pytest.approx(3.870e6, rel=1e-3)
 
 
+def test_an_external_rod_force_acts_beside_the_piston_force_of_eq_16():
+    """F_ext (positive extending) enters eq. 16 where p S1 does: the listing's p0 drops by
+    F_ext / S1, and at that pressure the acceleration is the one without the force."""
+    params = config.load(CONFIG / "paper_fig8.yaml")
+    pushed = with_updates(params, external_rod_force_n=2000.0)
+    s1 = np.pi * 0.04**2 / 4
+    y0, y = paper.initial_state(params), paper.initial_state(pushed)
+    assert y0[2] - y[2] == pytest.approx(2000.0 / s1, rel=1e-12)
+    c0, c = paper.constants(params), paper.constants(pushed)
+    assert paper.derivative(0.0, y, c, 0.0)[1] == pytest.approx(paper.derivative(0.0, y0, c0, 0.0)[1], rel=1e-9)
+    assert paper.derivative(0.0, y0, c, 0.0)[1] > paper.derivative(0.0, y0, c0, 0.0)[1]  # pushing out: it extends
+
+
 def test_40mm_first_moves_backwards_then_extends_fast():
     tr = _run("paper_fig8")
     early = tr["t"] < 0.3

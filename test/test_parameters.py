@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from conftest import CONFIG
 
@@ -33,6 +35,16 @@ def test_numbers_read_as_ros2_reads_them(tmp_path):
     )
     p = config.load(f)
     assert p.bulk_modulus_pa == 1.5e9 and p.rtol == 1e-7 and p.payload_mass_kg == 80.0
+
+
+def test_an_external_rod_force_in_a_params_file_pushes_either_way_and_must_be_finite(tmp_path):
+    f = tmp_path / "p.yaml"
+    f.write_text("/**:\n  ros__parameters:\n    external_rod_force_n: -1500\n")
+    assert config.load(f).external_rod_force_n == -1500.0  # an integer is taken as the float
+    assert Parameters().external_rod_force_n == 0.0
+    for bad, message in ((math.nan, "must be finite"), (2e7, "must be <= 10000000.0"), (-2e7, "must be >=")):
+        with pytest.raises(ConfigError, match=message):
+            with_updates(Parameters(), external_rod_force_n=bad)
 
 
 def test_wildcard_node_section_and_nested_names(tmp_path):

@@ -1,16 +1,18 @@
 """What the FMU shows a host: its inputs, outputs and parameters, each with unit, range and description.
 
-- Inputs: the valve command and the payload mass (held over each communication step).
+- Inputs: the valve command, the payload mass and the external rod force (held over each
+  communication step).
 - Outputs: rod position, velocity and force, both chamber pressures, boom angle, supply
   power and energy, under the names boom-sim's CSV columns have (model.outputs).
 - Parameters: every numeric plant parameter the solvers read, with its unit (tunable: a new
   value applies from the next communication step on), and the solver's method, time step
   and substeps and the initial rod state (fixed: set before initialization).
 
-The mode is physical (the corrected drive) and the payload is an input, so neither is a
-parameter. Ranges are the model's own (parameters.py); an exclusive lower bound (a
-diameter > 0) is not written as an FMI ``min``, which is inclusive, and is refused at the
-bound itself like any value out of range.
+The mode is physical (the corrected drive), and the payload and the external rod force
+(``f_ext``, the model's ``external_rod_force_n``) are inputs, so none of them is a
+parameter. Ranges are the model's own (parameters.py); an exclusive lower bound (a diameter
+> 0) is not written as an FMI ``min``, which is inclusive, and is refused at the bound
+itself like any value out of range.
 """
 
 from __future__ import annotations
@@ -31,6 +33,9 @@ VARIABLES_FILE = "variables.txt"
 
 VALVE_COMMAND = "valve_command"
 PAYLOAD = "payload_mass_kg"
+#: The input of the external rod force, and the model parameter it sets.
+EXTERNAL_FORCE = "f_ext"
+EXTERNAL_FORCE_PARAMETER = "external_rod_force_n"
 
 
 @dataclass(frozen=True)
@@ -68,6 +73,16 @@ INPUTS = (
         low=0.0,
         high=describe(PAYLOAD)["high"],
     ),
+    Variable(
+        EXTERNAL_FORCE,
+        "input",
+        "float",
+        "N",
+        describe(EXTERNAL_FORCE_PARAMETER)["description"]
+        + "; the force a mechanical network puts on the rod, held over each communication step",
+        low=describe(EXTERNAL_FORCE_PARAMETER)["low"],
+        high=describe(EXTERNAL_FORCE_PARAMETER)["high"],
+    ),
 )
 
 #: The outputs, by the model's names: rod position, velocity and force, the pressures, the
@@ -78,9 +93,10 @@ OUTPUTS = tuple(Variable(name, "output", "float", *_MODEL_OUTPUTS[name]) for nam
 
 #: Parameters that only take effect at initialization: the solver's and the initial rod state.
 FIXED = ("method", "time_step_s", "substeps", "initial_length_m", "initial_velocity_m_s")
-#: Plant parameters that are not FMU parameters: the mode is physical, the payload an input,
-#: and the drives' parameters that no solver reads yet (as the node does not declare them).
-NOT_PARAMETERS = ("mode", PAYLOAD, *UNSOLVED)
+#: Plant parameters that are not FMU parameters: the mode is physical, the payload and the
+#: external rod force inputs, and the drives' parameters that no solver reads yet (as the
+#: node does not declare them).
+NOT_PARAMETERS = ("mode", PAYLOAD, EXTERNAL_FORCE_PARAMETER, *UNSOLVED)
 
 
 def _parameter(name: str) -> Variable:

@@ -3,7 +3,7 @@
 pythonfmu's binary calls this class for every FMI function. A communication step of h
 seconds takes h / time_step_s steps of the same compiled kernel boom-sim and the node
 step (solve.simulation.Simulator.step: the stability-bound substeps and the energy
-guard), with the valve command and the payload held over the step.
+guard), with the valve command, the payload and the external rod force held over the step.
 
 A step the drive cannot take is refused as FMI 2.0 says (fmi2DoStep returns fmi2Discard,
 pythonfmu's status for a do_step that returns False): a step that does not start where the
@@ -35,6 +35,7 @@ from ..model.parameters import Parameters, from_mapping
 from ..solve.command_queue import valve_opening
 from ..solve.simulation import Simulator
 from .interface import (
+    EXTERNAL_FORCE_PARAMETER,
     FIXED,
     INPUTS,
     MODEL_IDENTIFIER,
@@ -139,6 +140,7 @@ class BoomDrive(Fmi2Slave):
         self.default_experiment = DefaultExperiment(start_time=0.0, step_size=self.exported.time_step_s)
         self.valve_command = 0.0
         self.payload_mass_kg = self.exported.payload_mass_kg
+        self.f_ext = self.exported.external_rod_force_n  # the input interface.EXTERNAL_FORCE
         self.params = self.exported  # the parameters in effect
         self.changes: dict[str, Any] = {}  # parameters set through FMI, in effect from the next step
         self.sim: Simulator | None = None  # from initialization to termination
@@ -251,12 +253,14 @@ class BoomDrive(Fmi2Slave):
         self._observe()
 
     def _next_parameters(self, initializing: bool) -> Parameters:
-        """The parameters in effect with what was set through FMI and the payload input (the
-        same object when nothing changed); ConfigError naming a refused value, or a fixed
+        """The parameters in effect with what was set through FMI and the payload and
+        external-force inputs (the same object when nothing changed); ConfigError naming a refused value, or a fixed
         parameter set to another value after initialization."""
         changes = {name: value for name, value in self.changes.items() if value != getattr(self.params, name)}
         if self.payload_mass_kg != self.params.payload_mass_kg:
             changes[PAYLOAD] = self.payload_mass_kg
+        if self.f_ext != self.params.external_rod_force_n:
+            changes[EXTERNAL_FORCE_PARAMETER] = self.f_ext
         if not changes:
             return self.params
         late = [name for name in changes if name in FIXED and not initializing]

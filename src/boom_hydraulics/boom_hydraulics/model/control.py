@@ -7,7 +7,8 @@ The controller turns a boom-angle setpoint (angle and rate) into a valve opening
 
 - **Feedforward.** kff(q1) = 1 / (k(q1) v_full(q1)): the opening whose steady rod speed
   gives the setpoint's rate. v_full is the rod speed at full opening of a quasi-static
-  meter-in/meter-out pair of equal orifices, against the static load of eq. 6:
+  meter-in/meter-out pair of equal orifices, against the static load of eq. 6 less the
+  external rod force F_ext:
   lifting S1 v = K sqrt(p_s - p1), S2 v = K sqrt(p2 - p_t) with p1 S1 - p2 S2 = F give
   v_up = K sqrt((p_s S1 - p_t S2 - F) / (S1^3 + S2^3)); lowering likewise
   v_down = K sqrt((F + p_s S2 - p_t S1) / (S1^3 + S2^3)); each at most the pump's flow
@@ -84,7 +85,8 @@ def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Nu
     """Boom rates (rad/s) at full opening, lifting and lowering, at cylinder length ``q1_m``
     (the feedforward's plant model; ``c``: physical-mode Constants)."""
     lever = lever_rad_per_m(q1_m, c.a, c.b, xp)
-    force = c.weight_coeff * cos_boom_angle(q1_m, c.a, c.b, c.h, xp) * lever  # eq. 6: F = M_g k
+    # eq. 6: F = M_g k, less the external rod force that carries part of it (eq. 11)
+    force = c.weight_coeff * cos_boom_angle(q1_m, c.a, c.b, c.h, xp) * lever - c.f_external
     cubes = c.s1 * c.s1 * c.s1 + c.s2 * c.s2 * c.s2
     margin = _MIN_MARGIN * c.p_supply * (c.s1 + c.s2)
     v_up = c.k_valve * xp.sqrt(larger(c.p_supply * c.s1 - c.p_tank * c.s2 - force, margin) / cubes)

@@ -3,7 +3,7 @@
 Every joule the battery gives ends in one term (eq. D29):
 
     P_batt + P_res = P_R + P_m + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
-                     + P_fr + P_stop + P_amb + P_oil + dT/dt + dPi/dt
+                     + P_fr + P_stop + P_amb + P_ext + P_oil + dT/dt + dPi/dt
 
 - sources: the battery's chemical power P_batt = U I (negative while it takes power back)
   and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
@@ -12,7 +12,8 @@ Every joule the battery gives ends in one term (eq. D29):
   or the EHA's checks), leakage (the valve paths' laminar part and the load-holding
   valve's seat), port reliefs;
 - work on the surroundings: seal friction, the end stops (and the chamber that shrinks in
-  them), the ambient pressure on the rod's end (relative to tank pressure);
+  them), the ambient pressure on the rod's end (relative to tank pressure), the external
+  rod force (P_ext = -F_ext v: negative where the surroundings push the rod the way it moves);
 - stored: what the oil takes in (chambers and supply line: compression, and the void while
   cavitating), the kinetic and the potential energy (weight and spring).
 
@@ -55,6 +56,7 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("friction_work", "W", "work", "work against the seal friction"),
     ("end_stop_work", "W", "work", "work into the end stops and the chambers they shrink"),
     ("ambient_work", "W", "work", "work against the ambient pressure on the rod's end, above tank pressure"),
+    ("external_work", "W", "work", "work against the external rod force, -F_ext v (negative: it drives the rod)"),
     ("oil_work", "W", "stored", "what the oil of chambers and supply line takes in (compression, voids)"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
@@ -80,6 +82,7 @@ class Ledger(NamedTuple):
     friction_work: Num
     end_stop_work: Num
     ambient_work: Num
+    external_work: Num
     oil_work: Num
     kinetic_power: Num
     potential_power: Num
@@ -113,6 +116,7 @@ class Cylinder(NamedTuple):
     friction_work: Num
     end_stop_work: Num
     ambient_work: Num
+    external_work: Num
     kinetic_power: Num
     potential_power: Num
 
@@ -195,14 +199,16 @@ def cylinder_side(
     s2: Num,
     p_tank_pa: Num,
     p_ambient_pa: Num,
+    f_external_n: Num,
 ) -> Cylinder:
     """The ledger from the cylinder lines to the hook, W (eq. D28).
 
     ``q_in1``, ``q_in2`` are the net flows into the chambers (after the port reliefs, which
     take ``q_relief1``, ``q_relief2``), ``dvol1_m2``, ``dvol2_m2`` the chambers' dV/dq1, the
     forces those on the rod (friction opposing, the stops' pushing it out, the spring's
-    pulling it in), and the rest the boom's lever, inertia and weight (physical.Constants).
-    What the lines take, sum (p - p_t)(Q_in + Q_relief), equals the sum of the terms."""
+    pulling it in, the external force ``f_external_n`` extending it), and the rest the boom's
+    lever, inertia and weight (physical.Constants). What the lines take,
+    sum (p - p_t)(Q_in + Q_relief), equals the sum of the terms."""
     g1, g2 = p1_pa - p_tank_pa, p2_pa - p_tank_pa
     displaced = (g1 * dvol1_m2 + g2 * dvol2_m2) * v  # (p - p_t) dV/dt of both chambers
     rod = (g1 * s1 - g2 * s2) * v  # the same on the rod's areas: what turns into rod force
@@ -212,6 +218,7 @@ def cylinder_side(
         f_friction_n * v,
         displaced - rod - f_stop_n * v,  # the stops' work, and the chamber that shrinks in them
         (p_ambient_pa - p_tank_pa) * (s1 - s2) * v,
+        -f_external_n * v,  # eq. D28: P_ext, the drive's work against F_ext (eq. 11)
         inertia * lever * v * (lever * acc + lever_slope * v * v),  # d/dt (J k^2 v^2 / 2) (eq. 8)
         weight_coeff * cos_alpha * lever * v + f_spring_n * v,  # d/dt of Pi (eq. 9) and the spring's energy
     )
@@ -235,6 +242,7 @@ def assemble(chain: Chain, s: Supply, throttling: Num, leakage: Num, cylinder: C
         cylinder.friction_work,
         cylinder.end_stop_work,
         cylinder.ambient_work,
+        cylinder.external_work,
         cylinder.oil_work + s.line_oil_work,
         cylinder.kinetic_power,
         cylinder.potential_power,
@@ -259,6 +267,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.friction_work
         - ledger.end_stop_work
         - ledger.ambient_work
+        - ledger.external_work
         - ledger.oil_work
         - ledger.kinetic_power
         - ledger.potential_power

@@ -54,6 +54,7 @@ class Constants(NamedTuple):
     coulomb: Num
     viscous: Num
     spring: Num
+    f_external: Num  # F_ext, N, positive extending: beside p S1 in eq. 16
 
 
 def constants(p: Parameters) -> Constants:
@@ -78,11 +79,13 @@ def constants(p: Parameters) -> Constants:
         coulomb=p.coulomb_friction_n,
         viscous=p.viscous_friction_n_s_m,
         spring=p.spring_stiffness_n_m,
+        f_external=p.external_rod_force_n,
     )
 
 
 def initial_pressure_pa(p: Parameters, q1_m: float) -> float:
-    """p0 of the listing: g L1 cos(alpha0) / (a sin(phi0) S1) (0.5 m1 + mb), Pa."""
+    """p0 of the listing: g L1 cos(alpha0) / (a sin(phi0) S1) (0.5 m1 + mb), Pa, less
+    F_ext / S1 where an external rod force carries part of the boom (eq. 16)."""
     alpha0 = boom_angle_rad(q1_m, p.a_m, p.b_m, p.support_height_m)
     phi0 = rod_boom_angle_rad(q1_m, p.a_m, p.b_m)
     s1 = piston_area_m2(p.piston_diameter_m)
@@ -92,7 +95,7 @@ def initial_pressure_pa(p: Parameters, q1_m: float) -> float:
         * math.cos(alpha0)
         / (p.a_m * math.sin(phi0) * s1)
         * (0.5 * p.boom_mass_kg + p.payload_mass_kg)
-    )
+    ) - p.external_rod_force_n / s1
 
 
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
@@ -121,7 +124,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     acc = paper_acceleration(
         q1,
         v,
-        p1 * c.s1,
+        p1 * c.s1 + c.f_external,  # eq. 16: F_ext acts beside the piston force p S1
         paper_friction_n(v, c.coulomb, c.viscous),
         c.spring,
         c.inertia,

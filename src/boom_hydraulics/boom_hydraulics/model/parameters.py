@@ -169,6 +169,15 @@ class Parameters:
     payload_mass_kg: float = _plant(
         50.0, "kg", "mb: payload mass at the boom tip (L1)", low=0.0, low_inclusive=True, high=1.0e5
     )
+    external_rod_force_n: float = _plant(
+        0.0,
+        "N",
+        "F_ext: external force on the rod along the cylinder axis, positive extending (as the hydraulic force "
+        "p1 S1 - p2 S2); e.g. a mechanical network pushing back on the rod (eq. 11)",
+        low=-1.0e7,
+        low_inclusive=True,
+        high=1.0e7,
+    )
 
     # --- cylinder ------------------------------------------------------------------------
     piston_diameter_m: float = _plant(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)

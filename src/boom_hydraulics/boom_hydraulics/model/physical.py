@@ -114,6 +114,7 @@ class Constants(NamedTuple):
     spring_free: Num
     stop_k: Num
     stop_damping: Num  # Hunt-Crossley lambda, N s/m^2
+    f_external: Num  # F_ext, N, positive extending (eq. 11)
 
 
 def constants(p: Parameters) -> Constants:
@@ -158,20 +159,23 @@ def constants(p: Parameters) -> Constants:
         spring_free=p.spring_free_length_m,
         stop_k=p.end_stop_stiffness_n_m,
         stop_damping=p.end_stop_damping_n_s_m2,
+        f_external=p.external_rod_force_n,
     )
 
 
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     """Rod at rest at ``q1_m`` (default q1(0)), valve closed, seals relaxed, rod chamber at
-    tank pressure, piston chamber at the pressure that holds the boom statically (eq. 6);
-    at the lower end stop the boom is parked on it, with the piston chamber at tank pressure."""
+    tank pressure, piston chamber at the pressure that holds the boom statically (eq. 6) with
+    the external rod force's share taken off (eq. 11 at rest), at least tank pressure; at the
+    lower end stop the boom is parked on it, with the piston chamber at tank pressure."""
     q1 = p.initial_length_m if q1_m is None else q1_m
     force = static_rod_force_of(p, q1)
     s1 = piston_area_m2(p.piston_diameter_m)
     s2 = annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
     spring = p.spring_stiffness_n_m * (q1 - p.spring_free_length_m)
     p2 = p.tank_pressure_pa
-    p1 = (force + spring + p2 * s2 + p.ambient_pressure_pa * (s1 - s2)) / s1
+    p1 = (force - p.external_rod_force_n + spring + p2 * s2 + p.ambient_pressure_pa * (s1 - s2)) / s1
+    p1 = max(p1, p.tank_pressure_pa)  # an external force that more than carries the boom: no holding pressure
     if q1 <= p.cylinder_min_length_m:
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom
     return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
@@ -249,7 +253,8 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     ratio = stribeck_level(v, c.coulomb_ratio, 1.0, c.stribeck, xp)  # g(v) / F_s
     ds = bristle_rate(v, s, ratio, c.presliding)
     f_friction = seal_friction_n(v, s, ds, c.static, c.presliding, c.presliding_damping, c.stribeck, c.viscous, xp)
-    f_rod = f_hyd - f_friction - c.spring * (q1 - c.spring_free) + f_stop  # eq. 11 without the boom load
+    # eq. 11 without the boom load; F_ext (docs/model.md, "Mechanics") acts where f_hyd does, same sign
+    f_rod = f_hyd - f_friction - c.spring * (q1 - c.spring_free) + f_stop + c.f_external
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     dk = lever_derivative(q1, c.a, c.b, xp)
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)

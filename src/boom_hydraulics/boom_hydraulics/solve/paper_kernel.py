@@ -53,6 +53,7 @@ def constants_of(row: Any) -> model.Constants:
         row[14],
         row[15],
         row[16],
+        row[17],
     )
 
 

@@ -73,6 +73,7 @@ def constants_of(row: Any) -> model.Constants:
         row[34],
         row[35],
         row[36],
+        row[37],
     )
 
 
