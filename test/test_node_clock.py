@@ -53,15 +53,6 @@ def _wall_stamps(client, seconds: float, until: subprocess.Popen | None = None) 
     return seen
 
 
-def _rate(samples: list[tuple[float, float]]) -> float:
-    """Stamp seconds per wall second over ``samples``: the slope of a straight line through
-    them all, so that one state received late (a loaded machine) does not tilt it."""
-    import numpy as np
-
-    wall, stamps = np.array(samples).T
-    return float(np.polyfit(wall - wall[0], stamps, 1)[0])
-
-
 def _phases(output: str) -> dict[str, float]:
     """The clock source's phase starts: {'0.5': clock s, '0.0': ..., 'end': ...}."""
     starts = {}
@@ -89,10 +80,10 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
     double = [(w, s) for w, s in samples if double_s + 0.3 < s < phases["end"] - 0.1]
     # stamps are the ROS clock's: the external clock's 100 s and on, not wall time and not zero
     assert min(s for _, s in samples) >= 100.0 and max(s for _, s in samples) <= phases["end"] + 0.01
-    # (the pace is measured against wall time, the one thing here that a loaded machine can
-    # disturb: a node that falls behind works off its backlog, so the margins allow for that)
-    assert len(half) > 50 and _rate(half) == pytest.approx(0.5, abs=0.1)
-    assert len(double) > 50 and _rate(double) == pytest.approx(2.0, abs=0.4)
+    # that simulated time kept the clock's pace, half and double, is the diagnostics' check below
+    # (stamp and simulated time of one message); against this client's wall time a loaded
+    # machine would distort it, as this client takes the states late, then in a burst
+    assert len(half) > 50 and len(double) > 50
     # states come at publish_rate_hz of the clock's time, whatever its pace: 10 ms of it apart
     for phase in (half, double):
         spacings = sorted(b - a for (_, a), (_, b) in itertools.pairwise(phase))
