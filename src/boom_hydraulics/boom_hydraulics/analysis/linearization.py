@@ -272,6 +272,6 @@ def _dc_gain_words(dc: np.ndarray, units: dict[str, str]) -> str:
     none = [n for n, g in zip(lm.OUTPUT_NAMES, dc) if not np.isfinite(g)]
     head = f"G(0): {', '.join(finite)}; " if finite else ""
     return (
-        f"{head}{', '.join(none)} have no static gain over all time (a mode at s = 0, oil trapped behind the "
-        "closed valves, integrates the command): take the gain with the slow modes held"
+        f"{head}{', '.join(none)} have no static gain over all time (a mode at s = 0 integrates the command): "
+        "take the gain with the slow modes held"
     )
