@@ -223,7 +223,7 @@ def node(nodes: Nodes) -> subprocess.Popen:
     return nodes.start("command_timeout_s:=0.5")
 
 
-#: The opening :func:`node_at_rest` sends until the node acts on it: too small to move the boom.
+#: The opening of a handshake (ros_client.Client.handshake, :func:`node_at_rest`): too small to move the boom.
 HANDSHAKE_OPENING = 1e-6
 
 #: What the tests of a shared node start it with and put back before each (:func:`node_at_rest`).
@@ -263,7 +263,7 @@ def node_at_rest(shared_node: subprocess.Popen, client) -> subprocess.Popen:
     for name, value in SHARED_NODE_START.items():
         assert client.set_parameter(name, value).successful, name
 
-    client.handshake(HANDSHAKE_OPENING)  # the node acts on this client's commands, and none is left on the way
+    client.handshake()  # the node acts on this client's commands, and none is left on the way
     assert client.call(client.reset, Reset.Request()).success
     client.states.clear()
     assert client.spin_until(lambda: len(client.states) > 5), "no drive_state from the shared node"

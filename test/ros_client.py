@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from conftest import GUARD_S
+from conftest import GUARD_S, HANDSHAKE_OPENING
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -59,10 +59,10 @@ class Client:
         expected = opening if valve_command is None else valve_command
         return self.spin_until(lambda: bool(self.states) and self.last().valve_command == expected, opening=opening)
 
-    def handshake(self, opening: float = 1e-6) -> None:
+    def handshake(self, opening: float = HANDSHAKE_OPENING) -> None:
         """Return once the node has taken every command this client sent so far (DDS discovery
-        done both ways), leaving its valve at about ``opening`` (default: too small to move the
-        boom). Each try sends a new value (``opening`` times 1 + k/1000) and waits 0.2 s for a
+        done both ways), leaving its valve at about ``opening`` (default: too small to move
+        the boom). Each try sends a new value (``opening`` times 1 + k/1000) and waits 0.2 s for a
         state that shows it; the node takes one publisher's commands in order, so a state with
         the newest value means none is left on the way to act later (a late one would override
         a goal, or be missing from the node's bag)."""
@@ -76,6 +76,15 @@ class Client:
             return self.spin_until(lambda: bool(self.states) and self.last().valve_command == value, 0.2)
 
         assert self.spin_until(acted_on), f"the node never acted on this client's commands ({sent} sent)"
+
+    def status_values(self, status_suffix: str) -> dict[str, str]:
+        """The key-values of the newest diagnostics status whose name ends in ``status_suffix``
+        ({} before any)."""
+        for array in reversed(self.diagnostics):
+            for status in array.status:
+                if status.name.endswith(status_suffix):
+                    return {kv.key: kv.value for kv in status.values}
+        return {}
 
     def spin_for(self, seconds: float, opening: float | None = None) -> None:
         """Spin, publishing ``opening`` at 50 Hz if given."""

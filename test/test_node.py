@@ -254,15 +254,6 @@ def _reset_while_paused(client) -> DriveState:
     return next(s for s in reversed(client.states) if s.supply_energy_j == 0.0)
 
 
-def _received(client) -> int | None:
-    """The valve commands the node says it received, in the newest diagnostics (None: none yet)."""
-    for array in reversed(client.diagnostics):
-        for status in array.status:
-            if status.name.endswith("commands"):
-                return next(int(kv.value) for kv in status.values if kv.key == "received")
-    return None
-
-
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_recording_holds_every_published_and_received_message(nodes, client, tmp_path, sig):
     from mcap.reader import make_reader
@@ -276,8 +267,8 @@ def test_recording_holds_every_published_and_received_message(nodes, client, tmp
         client.spin_for(0.05)
     assert client.spin_until(lambda: client.last().valve_command == sent[-1])
     client.diagnostics.clear()  # the node's count of the commands it received, made after the last one
-    assert client.spin_until(lambda: _received(client) is not None)
-    received = _received(client)
+    assert client.spin_until(lambda: "received" in client.status_values("commands"))
+    received = int(client.status_values("commands")["received"])
     ticks = len(client.states)
     assert client.spin_until(lambda: len(client.states) > ticks + 100)  # a second of ticks more
     proc.send_signal(sig)  # either signal finishes the bag

@@ -34,15 +34,6 @@ def _ns(stamp) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def _values(client, status_suffix: str) -> dict[str, str]:
-    """The key-values of the newest diagnostics status whose name ends in ``status_suffix``."""
-    for array in reversed(client.diagnostics):
-        for status in array.status:
-            if status.name.endswith(status_suffix):
-                return {kv.key: kv.value for kv in status.values}
-    return {}
-
-
 def _states(bag: Path) -> list[tuple[int, float, float]]:
     """(header stamp ns, rod position m, valve command) of each recorded DriveState."""
     with AnyReader([bag]) as reader:
@@ -103,7 +94,7 @@ def test_a_stale_command_is_refused_with_the_reason_and_counted(nodes, client, t
         # stamps on the node's clock, the system clock: the newest state this client has taken
         # may be older than that on a loaded machine
         client.command(0.7, stamp_s=time.time() - 3.0)  # 3 s old: older than the timeout
-        assert client.spin_until(lambda: _values(client, "commands").get("stale") == "1")
+        assert client.spin_until(lambda: client.status_values("commands").get("stale") == "1")
         assert all(s.valve_command != 0.7 for s in client.states)  # it never acted
         client.command(0.3, stamp_s=time.time() - 0.1)  # late, not stale
         assert client.spin_until(lambda: client.last().valve_command == 0.3)
@@ -129,8 +120,8 @@ def test_use_sim_time_is_start_only_and_step_is_bounded(node, client):
     t0 = huge.sim_time_s
     small = client.call(client.step, Step.Request(steps=25))
     assert small.success and math.isclose(small.sim_time_s - t0, 25 * DT_S, abs_tol=1e-9)
-    assert client.spin_until(lambda: _values(client, "run").get("step_calls") == "1", timeout=30)
-    assert _values(client, "run")["pauses"] == "1"
+    assert client.spin_until(lambda: client.status_values("run").get("step_calls") == "1", timeout=30)
+    assert client.status_values("run")["pauses"] == "1"
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
@@ -165,7 +156,7 @@ def test_commands_a_flood_drops_are_counted_in_diagnostics(node, client):
     )  # the flood's publisher is the topic's only one: its sequence numbers tell the gaps
 
     def counts() -> tuple[int, int]:
-        values = _values(client, "commands")
+        values = client.status_values("commands")
         return int(values.get("received", 0)), int(values.get("lost", 0))
 
     def send_until_received() -> bool:
@@ -189,7 +180,7 @@ def test_commands_a_flood_drops_are_counted_in_diagnostics(node, client):
     assert client.spin_until(accounted, timeout=60), (before, counts())
     received, lost = counts()
     assert received - before[0] + lost - before[1] <= sent + 1, (before, counts())
-    assert int(_values(client, "commands")["lost"]) > 0
+    assert int(client.status_values("commands")["lost"]) > 0
 
 
 def _loading_rclpy(proc: subprocess.Popen) -> bool:
