@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 import signal
 import time
 
@@ -68,6 +69,17 @@ class Mover:
         """Whether the node logged ``text`` since this Mover was made."""
         since = (self.since.sec, self.since.nanosec)
         return any(text in entry.msg and (entry.stamp.sec, entry.stamp.nanosec) >= since for entry in self.logs)
+
+    def accepted_targets_rad(self) -> list[float]:
+        """The targets of the goals the node accepted since this Mover was made, in the order it
+        logged them ("MoveBoom: a -> b deg ...")."""
+        since = (self.since.sec, self.since.nanosec)
+        found = (
+            re.match(r"MoveBoom: \S+ -> (\S+) deg", entry.msg)
+            for entry in self.logs
+            if (entry.stamp.sec, entry.stamp.nanosec) >= since
+        )
+        return [math.radians(float(m.group(1))) for m in found if m is not None]
 
 
 @pytest.fixture
@@ -202,6 +214,10 @@ class TestMovesOnOneNode:
         results = [h.get_result_async() for h in handles]
         assert client.spin_until(lambda: all(f.done() for f in results), timeout=120), sum(f.done() for f in results)
         ended = [(f.result().status, f.result().result) for f in results]
+        # the node takes the goals in the order they were sent: its log names their targets in turn
+        targets = [0.3 + 0.001 * k for k in range(100)]
+        assert client.spin_until(lambda: len(mover.accepted_targets_rad()) >= len(targets), timeout=GUARD_S)
+        assert mover.accepted_targets_rad() == pytest.approx(targets, abs=2e-4)  # (logged to 0.01 deg)
         for status, result in ended[:-1]:  # each preempted by the next, unless it settled before the next came
             if status == GoalStatus.STATUS_SUCCEEDED:  # (a loaded machine spreads the burst over many ticks)
                 assert result.message.startswith("settled") and abs(result.final_error_rad) <= 2 * DEADBAND

@@ -39,7 +39,7 @@ from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
@@ -117,7 +117,11 @@ class Motion:
             goal_callback=self._on_goal,
             handle_accepted_callback=self._on_accepted,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
-            callback_group=ReentrantCallbackGroup(),
+            # one request at a time, in the order they arrive: in a reentrant group the executor's
+            # two threads took two goals of a burst side by side, and the one accepted last (which
+            # preempts the other) need not be the one sent last. Execute callbacks run as tasks
+            # outside the group, so a goal waiting for its end holds none of it.
+            callback_group=MutuallyExclusiveCallbackGroup(),
             # a burst of goals (each preempting the one before) must not overflow the services'
             # default queue of 10 requests, or the clients wait for answers that never come
             goal_service_qos_profile=SERVICE_QUEUE,
