@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CONFIG
+from conftest import CONFIG, run_tool
 
 BOOM_SWEEP = shutil.which("boom-sweep")
 pytestmark = pytest.mark.skipif(BOOM_SWEEP is None, reason="boom-sweep not on PATH (run through tools/with-env)")
@@ -21,8 +21,9 @@ FOUR_POINTS = ["--vary", "piston_diameter=0.04,0.06", "--vary", "payload=0,150",
 FOUR_POINTS += ["--lift-angle-deg", "8", "--no-plots"]
 
 
-def _sweep(*args: object, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([BOOM_SWEEP, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+def _sweep(*args: object) -> subprocess.CompletedProcess:
+    """boom-sweep's main in this process (conftest.run_tool): the tests that signal it run the real one."""
+    return run_tool("boom-sweep", *args)
 
 
 def _load(path: Path) -> dict[str, np.ndarray]:

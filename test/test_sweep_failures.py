@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_tool
 
 BOOM_SWEEP = shutil.which("boom-sweep")
 BOOM_SIM_NODE = shutil.which("boom_sim")
@@ -21,8 +22,9 @@ pytestmark = pytest.mark.skipif(BOOM_SWEEP is None, reason="boom-sweep not on PA
 TWO = ["--vary", "payload=0,100", "--duration", "0.5", "--lift-angle-deg", "8", "--no-plots"]
 
 
-def _sweep(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([BOOM_SWEEP, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+def _sweep(*args: object) -> subprocess.CompletedProcess:
+    """boom-sweep's main in this process (conftest.run_tool): the tests that signal it run the real one."""
+    return run_tool("boom-sweep", *args)
 
 
 def _one_error(result: subprocess.CompletedProcess, status: int, words: str) -> None:
@@ -126,7 +128,7 @@ def test_stale_temporaries_of_a_killed_run_are_removed_and_nothing_else(copy):
 
 
 def test_a_billion_points_are_refused_at_once_with_their_size(tmp_path):
-    result = _sweep("--vary", "piston_diameter=0.04:0.08:1000000000", "--out", tmp_path / "s", timeout=60)
+    result = _sweep("--vary", "piston_diameter=0.04:0.08:1000000000", "--out", tmp_path / "s")
     _one_error(result, 2, "1000000000 points need about 4.1 TB of memory")
     assert not (tmp_path / "s").exists()
 
@@ -167,13 +169,13 @@ def test_a_large_sweep_says_its_size_before_planning_and_stops_on_ctrl_c(tmp_pat
     ],
 )
 def test_an_absurd_number_is_one_line_exit_2_and_no_folder(tmp_path, args, words):
-    result = _sweep(*args, "--out", tmp_path / "s", timeout=60)
+    result = _sweep(*args, "--out", tmp_path / "s")
     _one_error(result, 2, words)
     assert not (tmp_path / "s").exists()
 
 
 def test_an_unknown_parameter_points_to_a_command_that_lists_them(tmp_path):
-    result = _sweep("--vary", "piston_size=0.04,0.06", "--out", tmp_path / "s", timeout=60)
+    result = _sweep("--vary", "piston_size=0.04,0.06", "--out", tmp_path / "s")
     _one_error(result, 2, "(boom_sim --help lists them)")
     if BOOM_SIM_NODE is not None:  # and that command does list them
         listing = subprocess.run([BOOM_SIM_NODE, "--help"], capture_output=True, text=True, timeout=60)
