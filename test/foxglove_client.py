@@ -62,7 +62,9 @@ class FoxgloveClient:
     client channels, parameters."""
 
     def __init__(self, port: int) -> None:
-        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, open_timeout=30)
+        # an unbounded queue: with a bounded one, a subscribed client stops reading when it is full,
+        # never reads the server's close frame, and each close waited out its 10 s timeout
+        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, open_timeout=30, max_queue=None)
         self.ws = self._connection.__enter__()
         self.info = self._json(lambda m: m["op"] == "serverInfo")
         self.channels: dict[str, dict] = {}
