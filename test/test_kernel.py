@@ -102,3 +102,15 @@ def test_a_failing_set_in_slices_stops_where_it_does_in_one_call(monkeypatch):
     sliced = run_sets([fig8], 3.0, commands.constant(1.0), every=10, store=True)
     assert sliced.failed_at_s[0] == whole.failed_at_s[0] and sliced.samples[0] == whole.samples[0]
     assert np.array_equal(sliced.columns(0)["q1"], whole.columns(0)["q1"])
+
+
+@pytest.mark.parametrize("n_sets", [1, 3])
+def test_every_command_gives_the_run_kernel_arguments_of_one_type(n_sets):
+    """A profile and a position loop hand the run kernel the same numba types, so that one
+    compile serves both: a read-only knot array (broadcast for one set) was another type, and
+    each first closed-loop run compiled the whole kernel again (15 s)."""
+    numba = pytest.importorskip("numba")
+    loop = commands.from_parameters(from_mapping(commands.parse_profile("angle:0=25,0.8=15"), base=Parameters()))
+    kinds = [commands.constant(0.5), commands.steps([0.0, 0.6], [1.0, 0.0]), loop]
+    types = [tuple(numba.typeof(field) for field in c.kernel_command(n_sets)) for c in kinds]
+    assert types[0] == types[1] == types[2]

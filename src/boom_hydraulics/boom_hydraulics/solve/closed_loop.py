@@ -69,8 +69,10 @@ class PositionLoop:
         if not self.fresh:
             return None
         path = self.path
+        # fresh writable arrays: a read-only view (as broadcasting gives for one set) is another
+        # type to numba, and a second compile of the whole run kernel (15 s)
         knots = [
-            np.ascontiguousarray(np.broadcast_to(a, (len(a), n_sets)).T)
+            np.array(np.broadcast_to(a, (len(a), n_sets)).T, order="C")
             for a in (path.times_s, path.angles_rad, path.rates_rad_s)
         ]
         gains = np.column_stack([np.broadcast_to(np.asarray(g, dtype=float), (n_sets,)) for g in self.gains])
