@@ -79,17 +79,17 @@ STEPPING = (
 #: whole-run kernels through the real tools (so the kernels get the types the tests give
 #: them), the stepping kernels as the node builds them (:data:`STEPPING`).
 WARM_UP_LANES = (
-    (  # the physical model's rk4 run kernel, its stepping (rk4, euler) and its outputs
+    (  # the physical model's rk4 and euler run kernels (setup compiled rk4), its stepping, outputs
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01"),
         ("stepping", CONFIG / "default.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--target-angle-deg", "5"),
         ("boom-sweep", "--duration", "0.2", "--vary", "piston_diameter=0.05,0.06", "--no-plots", "--no-progress"),
+        ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "euler"),
         ("stepping", CONFIG / "default.yaml", "euler"),
     ),
-    (  # the paper model's, the physical model's euler run kernel and ros2 stepping
+    (  # the paper model's run kernel and stepping, the physical model's ros2 stepping
         ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
         ("stepping", CONFIG / "paper_fig8.yaml", "rk4"),
-        ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "euler"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "ros2"),
     ),
 )
