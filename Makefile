@@ -50,11 +50,13 @@ run: setup
 node: setup
 	$(WITH_ENV) boom_sim --ros-args --params-file config/default.yaml
 
-# The floors' import contract first, then the suite on every core: a worker per core, each
-# test file on one worker (its module fixtures made once), the compiled kernels built once
-# before the workers start (test/conftest.py).
+# The floors' import contract first, then the suite on every core: a worker per core and one
+# more (many node tests wait on a node's clock, and the extra worker runs a test meanwhile),
+# each test file on one worker (its module fixtures made once), the compiled kernels built once before
+# the workers start (test/conftest.py).
+TEST_WORKERS := $(shell echo $$(( $$(nproc) + 1 )))
 test: setup imports
-	$(WITH_ENV) python -m pytest -q -n auto --dist loadfile test
+	$(WITH_ENV) python -m pytest -q -n $(TEST_WORKERS) --dist loadfile test
 
 lint: setup imports
 	$(WITH_ENV) ruff check src test bench
