@@ -131,6 +131,35 @@ def pytest_sessionstart(session: pytest.Session) -> None:
             reporter.write_line("kernel warm-up: failed (the tests compile for themselves): " + "; ".join(failed))
 
 
+#: The test files that take longest (``--durations=0`` of a run on 2 busy cores: 20 s and more
+#: each), longest first. They are handed to the workers before the others, so that no worker is
+#: left running a long file while the rest are done; a file missing here only runs later.
+LONGEST_FIRST = (
+    "test_node.py",
+    "test_sweep_cli.py",
+    "test_node_bags.py",
+    "test_node_clock.py",
+    "test_node_stamps.py",
+    "test_node_motion.py",
+    "test_stepping.py",
+    "test_demo.py",
+    "test_studies.py",
+    "test_node_parameters.py",
+    "test_tool_outputs.py",
+    "test_fmu.py",
+    "test_resim_refusals.py",
+    "test_resim.py",
+    "test_live.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The files of :data:`LONGEST_FIRST` first, in its order, then the rest as collected; the
+    tests of a file keep their order (pytest-xdist's loadfile hands out whole files in this order)."""
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 #: How long a wait for an event may take before the test fails, s: a guard, never a duration a
 #: passing test waits (on a machine at load 15 a node took over 30 s to start).
 GUARD_S = 120.0
