@@ -1,6 +1,6 @@
 """Speed and memory targets side by side: every row of the performance table in one run.
 
-    tools/with-env python bench/bench_speed.py [--seconds 20]     # about five minutes
+    tools/with-env python bench/bench_speed.py [--seconds 20] [--against CHECKOUT]   # five minutes each
 
 Runs the measurements of bench_model, bench_node and bench_sweep that the targets name
 (each prints its own table as it goes), then one table: what was measured, the target,
@@ -8,22 +8,32 @@ and whether it is met. scipy's LSODA and RK45 are timed on the same 1.5 s lift a
 accuracy RK4 reaches at 1 ms. Nothing is asserted: these machines are shared and noisy.
 The table, with the date, the machine and the commit, is also written to
 bench/results/speed-<UTC date-time>.md.
+
+``--against CHECKOUT`` (a built checkout of another commit: ``git worktree add DIR COMMIT``,
+then ``tools/build`` in it with this checkout's ``.venv`` linked in) first runs that
+checkout's own bench_speed in its own environment, then this one, and puts every row of
+both side by side: for each figure of a row (the parts between " / "), this checkout's
+figure divided by the other's, so that a load that slows the machine for both shows as
+little as possible. The rows are matched by what they measure (the words before the first
+comma or colon).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import rclpy
 from bench_model import batch_throughput, scipy_comparison, step_cost
-from bench_node import BAGS, in_process_rates, print_real_time, real_time_run
+from bench_node import BAGS, checkout_path, in_process_rates, print_real_time, real_time_run, with_env
 from bench_sweep import full_sweep
-from tables import table, write_results
+from tables import ROOT, commit, table, write_results
 
 from boom_hydraulics.solve import accelerate
 
@@ -47,13 +57,77 @@ def first_start_s() -> float:
     return min(times[1:])
 
 
+TITLE = "Speed and memory targets"
+NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+
+
+def printed_rows(text: str) -> list[list[str]]:
+    """The rows of the targets' table in what a bench_speed printed: its columns are cut where
+    the rule under the header leaves a gap."""
+    lines = text.splitlines()
+    start = next((k for k, line in enumerate(lines) if line.startswith(TITLE)), None)
+    if start is None or len(lines) < start + 3:
+        raise ValueError("no table of the targets in what it printed")
+    rule = lines[start + 2]
+    bounds = [m.span() for m in re.finditer(r"-+", rule)]
+    rows = []
+    for line in lines[start + 3 :]:
+        if not line.strip() or line.startswith("written to"):
+            break
+        ends = [a for a, _ in bounds[1:]] + [None]
+        rows.append([line[a:end].strip() for (a, _), end in zip(bounds, ends)])
+    return rows
+
+
+def measured_by(checkout: Path, seconds: float) -> list[list[str]]:
+    """The rows of ``checkout``'s own bench_speed, run in its own environment."""
+    print(f"bench_speed of {checkout} ({commit(checkout)}), in its own environment ...", flush=True)
+    out = subprocess.run(
+        [*with_env(checkout), "python", "bench/bench_speed.py", "--seconds", f"{seconds:g}"],
+        cwd=checkout,
+        capture_output=True,
+        text=True,
+    )
+    if out.returncode != 0:
+        raise RuntimeError(f"bench_speed of {checkout} ended with status {out.returncode}: {out.stderr.strip()[-400:]}")
+    return printed_rows(out.stdout)
+
+
+def what_of(label: str) -> str:
+    """What a row measures: its words before the first comma or colon."""
+    return re.split(r"[,:]", label, maxsplit=1)[0].strip()
+
+
+def ratios(this: str, other: str) -> str:
+    """This checkout's figures over the other's, one for each part between " / "."""
+    parts = []
+    for a, b in zip(this.split(" / "), other.split(" / ")):
+        x, y = NUMBER.search(a), NUMBER.search(b)
+        parts.append(f"{float(x.group()) / float(y.group()):.2f}" if x and y and float(y.group()) != 0 else "-")
+    return " / ".join(parts)
+
+
+def side_by_side(rows: list[list[str]], others: list[list[str]], other: Path) -> str:
+    """Print and return this run's rows beside the other checkout's, with the ratios."""
+    by_what = {what_of(r[0]): r for r in others}
+    combined = []
+    for what, now, target, met in rows:
+        theirs = by_what.get(what_of(what))
+        mine = [what, now, theirs[1] if theirs else "(not measured)", ratios(now, theirs[1]) if theirs else ""]
+        combined.append([*mine, target, met])
+    header = ["what", f"{commit()} (this)", f"{commit(other)} ({other.name})", "ratio, per figure", "target", "met"]
+    return table(f"{TITLE}, side by side ({os.cpu_count()} cores; {other.name} first, then this)", header, combined)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="length of each real-time node run")
+    parser.add_argument("--against", type=checkout_path, help="a built checkout of the commit to compare with")
     args = parser.parse_args()
     if not accelerate.available():
         print("numba is not available: the compiled rows cannot be measured")
         return 1
+    others = measured_by(args.against, args.seconds) if args.against else None
     rows: list[list[str]] = []
 
     def row(what: str, now: str, target: str, met: bool) -> None:
@@ -130,12 +204,13 @@ def main() -> int:
         "O(points), not O(points x steps)",
         large < 2 * small,  # 10x the points: the table grows, the batches do not
     )
-    text = table(
-        f"Speed and memory targets ({os.cpu_count()} cores; measured in this run)",
-        ["what", "measured", "target", "met"],
-        rows,
-    )
-    print(f"written to {write_results('speed', text)}")
+    text = table(f"{TITLE} ({os.cpu_count()} cores; measured in this run)", ["what", "measured", "target", "met"], rows)
+    if others is not None:
+        text = side_by_side(rows, others, args.against)
+        commits = f"commits: {commit()} ({ROOT}), {commit(args.against)} ({args.against})"
+        print(f"written to {write_results('speed', text, commits)}")
+    else:
+        print(f"written to {write_results('speed', text)}")
     return 0
 
 
