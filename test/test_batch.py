@@ -54,3 +54,30 @@ def test_batch_members_must_share_mode_method_and_step():
         run_sets([Parameters(), with_updates(Parameters(), time_step_s=2e-3)], 0.1, commands.constant(0.0))
     with pytest.raises(ConfigError, match="fixed-step method"):
         run_sets([with_updates(Parameters(), method="rk45")], 0.1, commands.constant(0.0))
+
+
+@pytest.mark.parametrize("config_file", ["default.yaml", "paper_fig8.yaml"])
+def test_a_models_samples_are_its_outputs_that_the_run_metrics_take(config_file):
+    """The run loop feeds the metrics from the model's ``samples`` (without computing the other
+    outputs): at states across the stroke, cavitating, relieving and in motion, they are the
+    outputs of SAMPLE_NAMES to the bit, so a sweep measures what a stored run shows."""
+    from boom_hydraulics.model import MODELS
+    from boom_hydraulics.model.outputs import SAMPLE_NAMES
+
+    params = config.load(CONFIG / config_file)
+    model = MODELS[params.mode]
+    c = model.constants(params)
+    rest = np.array(model.initial_state(params), dtype=float)
+    rng = np.random.default_rng(7)
+    picks = [OUTPUT_NAMES.index(name) for name in SAMPLE_NAMES]
+    for _ in range(200):
+        y = rest * rng.uniform(0.2, 1.8, rest.size) + rng.normal(0.0, 1e-3, rest.size)
+        y[0] = rest[0] * rng.uniform(0.8, 1.2)  # a length across the stroke
+        y[2:4] = rng.uniform(-1e6, 40e6, 2) if params.mode == "physical" else (rng.uniform(-1e6, 40e6), y[3])
+        t, u = rng.uniform(0.0, 10.0), rng.uniform(-1.0, 1.0)
+        outputs = model.outputs(t, y.tolist(), c, u)
+        assert model.samples(t, y.tolist(), c, u) == tuple(outputs[i] for i in picks)
+    flags = [model.samples(0.0, [*rest[:2], p, p, *rest[4:]], c, 0.0) for p in (-2e6, 1e9)]
+    assert flags[0][SAMPLE_NAMES.index("cavitation")] == 1.0
+    if params.mode == "physical":
+        assert flags[1][SAMPLE_NAMES.index("relief_open")] == 1.0

@@ -42,6 +42,14 @@ class Model(Protocol):
         """An estimate of the Jacobian's largest eigenvalue magnitude over the next ``dt``, 1/s."""
         ...
 
+    def outputs(self, t: float, y: list, c: Any, u: Any, xp: ModuleType = math) -> tuple:
+        """Every output as a tuple in the order of outputs.OUTPUT_NAMES (flags 1.0 or 0.0)."""
+        ...
+
+    def samples(self, t: float, y: list, c: Any, u: Any, xp: ModuleType = math) -> tuple:
+        """The outputs of outputs.SAMPLE_NAMES alone (what the run metrics take), as outputs gives them."""
+        ...
+
     def observe(self, t: float, y: list, c: Any, u: Any, xp: ModuleType = math) -> dict[str, Any]:
         """Every output (solve.simulation.OUTPUTS) at this state and command."""
         ...

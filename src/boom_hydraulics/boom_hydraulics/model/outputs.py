@@ -38,6 +38,11 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("pump_saturated", "bool", "pump at its maximum flow"),
 )
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+#: The outputs the run metrics take (solve.streaming), in their order: each model's ``samples``
+#: gives these alone, so that a run that keeps no table computes nothing else per sample.
+SAMPLE_NAMES = (
+    "t", "q1", "v", "alpha", "p1", "p2", "u", "cavitation", "relief_open", "supply_energy", "valve_loss_energy",
+)  # fmt: skip
 #: Outputs that are flags (0.0 or 1.0 in a table of floats).
 BOOLEAN_OUTPUTS = tuple(name for name, unit, _ in OUTPUTS if unit == "bool")
 #: Where the flags are among the outputs.

@@ -194,6 +194,27 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
     )
 
 
+@jitable
+def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """The outputs the run metrics take (model.outputs.SAMPLE_NAMES, in its order), as
+    :func:`outputs` gives them, without computing the others (a test holds them equal)."""
+    q1 = y[0]
+    zero = 0.0 * q1
+    return (
+        t,  # t
+        q1,  # q1
+        y[1],  # v
+        boom_angle_rad(q1, c.a, c.b, c.h, xp),  # alpha
+        y[2],  # p1
+        zero,  # p2
+        u,  # u
+        1.0 * (y[2] < 0.0),  # cavitation
+        1.0 * (zero != zero),  # relief_open
+        y[3],  # supply_energy
+        y[4],  # valve_loss_energy
+    )
+
+
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
     """The outputs by name (flags as booleans): :func:`outputs` through model.outputs.by_name."""
     return by_name(outputs(t, y, c, u, xp))

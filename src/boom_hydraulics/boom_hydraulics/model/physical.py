@@ -428,6 +428,29 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
     )
 
 
+@jitable
+def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> tuple:
+    """The outputs the run metrics take (model.outputs.SAMPLE_NAMES, in its order), as
+    :func:`outputs` gives them, without computing the others (a test holds them equal)."""
+    q1 = y[0]
+    p1 = chamber_pressure_pa(y[2], c.p_cav)
+    p2 = chamber_pressure_pa(y[3], c.p_cav)
+    relieving = (relief_flow(p1, c.p_relief, c.g_relief) > 0.0) | (relief_flow(p2, c.p_relief, c.g_relief) > 0.0)
+    return (
+        t,  # t
+        q1,  # q1
+        y[1],  # v
+        boom_angle_rad(q1, c.a, c.b, c.h, xp),  # alpha
+        p1,  # p1
+        p2,  # p2
+        u,  # u
+        1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
+        1.0 * relieving,  # relief_open
+        y[5],  # supply_energy
+        y[6],  # valve_loss_energy
+    )
+
+
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:
     """The outputs by name (flags as booleans): :func:`outputs` through model.outputs.by_name."""
     return by_name(outputs(t, y, c, u, xp))

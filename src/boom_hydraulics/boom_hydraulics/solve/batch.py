@@ -199,7 +199,7 @@ def python_sets(
         step_once = advance if stepper is None else compiled_stepping(stepper, np.array(c, dtype=float))
         controller = kernel.controller_value if encoded else guard.command(command, k)
         functions = (guard.stepping(step_once), step, model.derivative, model.stiffness_rate, model.energy,
-                     model.outputs, controller)  # fmt: skip
+                     model.outputs, model.samples, controller)  # fmt: skip
         sets.append((guard, functions, c))
     return sets
 

@@ -32,10 +32,9 @@ from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
 from ..model.setpoints import setpoint_at
 from .outcomes import OK, OUT_OF_GEOMETRY, TOO_STIFF
-from .outputs import OUTPUT_NAMES
 from .profiles import ANGLE, profile_value
 from .stepping import advance
-from .streaming import SAMPLE_SIGNALS, add_sample
+from .streaming import add_sample
 
 
 class Command(NamedTuple):
@@ -82,8 +81,6 @@ class RunSpec(NamedTuple):
 #: a failure the index of the failed step (the steps taken before it).
 FAILED_AT, OUTCOME, MOST, APPLIED_U, INTEGRAL, HOLDING, NEXT_U, TAKEN, FAILED_STEP = range(9)
 STATUS_SIZE = 9
-#: Where the signals of the streaming metrics are among the outputs, in add_sample's order.
-SAMPLED = tuple(OUTPUT_NAMES.index(name) for name in SAMPLE_SIGNALS)
 
 
 @jitable
@@ -132,6 +129,7 @@ def run_set(
     stiffness_rate: Callable[..., float],
     energy: Callable[..., float],
     outputs: Callable[..., tuple],
+    samples: Callable[..., tuple],
     controller: Callable[..., float],
     store: bool,
     c: Any,
@@ -147,10 +145,12 @@ def run_set(
 ) -> int:
     """Run set ``k`` of ``spec`` with ``step_once`` (:func:`stepping.advance`, or interpreted a
     function of its arguments that steps otherwise) taking the method's ``step`` on the model's
-    ``derivative``, ``stiffness_rate`` and ``energy``; samples of ``outputs`` (a tuple of floats
-    in the order of OUTPUT_NAMES); ``controller``: see command_value; ``store``: whether the
-    samples go into ``rows`` (a constant in each call of :func:`batch_set`, so that the compiler
-    may leave the outputs the metrics do not take uncomputed).
+    ``derivative``, ``stiffness_rate`` and ``energy``; at each sample the model's ``samples``
+    (the outputs the metrics take) go into the metrics, and with ``store`` (a constant in each
+    call of :func:`batch_set`) all its ``outputs`` (a tuple of floats in the order of
+    OUTPUT_NAMES) into ``rows``: a run that keeps no table computes no other output (which the
+    compiler did not leave out by itself: the batch kernel was 20 % slower with all of them);
+    ``controller``: see command_value.
 
     The set has constants ``c`` and runs for ``spec.n_steps`` steps from ``state`` (``y``: the
     same as the kernel keeps it, a tuple or a list), taking a sample at the start, every
@@ -198,14 +198,10 @@ def run_set(
             t = spec.t0_s + (spec.k0 + i) * dt
             u = command_value(controller, spec.command, k, control, c, y, dt, t + half)
         if i % spec.every == 0 or i == spec.n_steps:
-            o = outputs(t, y, c, u)
-            if spec.measure:
-                add_sample(
-                    metrics, spec.settings[k], o[SAMPLED[0]], o[SAMPLED[1]], o[SAMPLED[2]], o[SAMPLED[3]],
-                    o[SAMPLED[4]], o[SAMPLED[5]], o[SAMPLED[6]], o[SAMPLED[7]], o[SAMPLED[8]], o[SAMPLED[9]],
-                    o[SAMPLED[10]],
-                )  # fmt: skip
+            if spec.measure:  # the model's samples alone: the outputs they take, not all of them
+                add_sample(metrics, spec.settings[k], *samples(t, y, c, u))
             if store:
+                o = outputs(t, y, c, u)
                 for j in range(len(o)):
                     rows[taken - base, j] = o[j]
             taken += 1
@@ -239,6 +235,7 @@ def batch_set(
     stiffness_rate: Callable[..., float],
     energy: Callable[..., float],
     outputs: Callable[..., tuple],
+    samples: Callable[..., tuple],
     controller: Callable[..., float],
     constants_of: Callable[..., Any],
     state_of: Callable[..., Any],
@@ -261,7 +258,7 @@ def batch_set(
     spec = spec_of(spec_fields)
     c = constants_of(spec.constants[k])
     y = state_of(states[k])
-    f = (step, derivative, stiffness_rate, energy, outputs, controller)
+    f = (step, derivative, stiffness_rate, energy, outputs, samples, controller)
     if rows.shape[1] > 0:  # each call with its own constant store
         taken[k] = run_set(advance, *f, True, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)
     else:

@@ -105,7 +105,15 @@ def batch_euler(*arguments: Any) -> None:
     """kernel.batch_set with explicit Euler over every set of a batch, in parallel
     (``arguments``: see batch.run_sets); no controller (the paper valve only lifts)."""
     for k in prange(arguments[0].shape[0]):
-        f = (euler_step, model.derivative, model.stiffness_rate, model.energy, model.outputs, run.no_controller)
+        f = (
+            euler_step,
+            model.derivative,
+            model.stiffness_rate,
+            model.energy,
+            model.outputs,
+            model.samples,
+            run.no_controller,
+        )
         run.batch_set(*f, constants_of, state_of, k, *arguments)
 
 
@@ -113,7 +121,15 @@ def batch_euler(*arguments: Any) -> None:
 def batch_rk4(*arguments: Any) -> None:
     """kernel.batch_set with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
     for k in prange(arguments[0].shape[0]):
-        f = (rk4_step, model.derivative, model.stiffness_rate, model.energy, model.outputs, run.no_controller)
+        f = (
+            rk4_step,
+            model.derivative,
+            model.stiffness_rate,
+            model.energy,
+            model.outputs,
+            model.samples,
+            run.no_controller,
+        )
         run.batch_set(*f, constants_of, state_of, k, *arguments)
 
 

@@ -125,7 +125,15 @@ def batch_euler(*arguments: Any) -> None:
     """kernel.batch_set with explicit Euler over every set of a batch, in parallel
     (``arguments``: see batch.run_sets); the position controller."""
     for k in prange(arguments[0].shape[0]):
-        f = (euler_step, model.derivative, model.stiffness_rate, model.energy, model.outputs, run.controller_value)
+        f = (
+            euler_step,
+            model.derivative,
+            model.stiffness_rate,
+            model.energy,
+            model.outputs,
+            model.samples,
+            run.controller_value,
+        )
         run.batch_set(*f, constants_of, state_of, k, *arguments)
 
 
@@ -133,7 +141,15 @@ def batch_euler(*arguments: Any) -> None:
 def batch_rk4(*arguments: Any) -> None:
     """kernel.batch_set with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
     for k in prange(arguments[0].shape[0]):
-        f = (rk4_step, model.derivative, model.stiffness_rate, model.energy, model.outputs, run.controller_value)
+        f = (
+            rk4_step,
+            model.derivative,
+            model.stiffness_rate,
+            model.energy,
+            model.outputs,
+            model.samples,
+            run.controller_value,
+        )
         run.batch_set(*f, constants_of, state_of, k, *arguments)
 
 

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from ..jit import jitable
+from ..model.outputs import SAMPLE_NAMES
 
 #: The metrics, in the order :func:`finish` writes them.
 NAMES = (
@@ -69,10 +70,8 @@ NAMES = (
     "valve_loss_energy_j",
 )
 
-#: The signals add_sample takes, in its order (names of simulation outputs).
-SAMPLE_SIGNALS = (
-    "t", "q1", "v", "alpha", "p1", "p2", "u", "cavitation", "relief_open", "supply_energy", "valve_loss_energy",
-)  # fmt: skip
+#: The signals add_sample takes, in its order (names of simulation outputs; a model's ``samples``).
+SAMPLE_SIGNALS = SAMPLE_NAMES
 
 #: A turning point of the ringing counts once p1 has come back from it by more than this, Pa.
 RIPPLE_PA = 1.0e3
