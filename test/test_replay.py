@@ -89,7 +89,8 @@ def test_replay_publishes_every_message_in_order_with_its_spacing(tmp_path, list
         DriveState, "/drive_state", lambda m: received.append((time.monotonic(), m.rod_position_m)), qos
     )
     started = time.monotonic()
-    proc = start_replay(tmp_path / "run", "--topics", "/drive_state", "--rate", "0.5", "--wait-for-subscribers")
+    waiting = ("--wait-for-subscribers", "--wait-timeout", GUARD_S)  # a guard far above any discovery
+    proc = start_replay(tmp_path / "run", "--topics", "/drive_state", "--rate", "0.5", *waiting)
     _spin_until(listener, lambda: proc.poll() is not None, "boom-replay's end")
     ran_s = time.monotonic() - started
     _spin_until(listener, lambda: len(received) >= 60, "the 60 states")
@@ -147,8 +148,10 @@ def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, listener
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     listener.create_subscription(DriveState, "/drive_state", got.append, qos)
     listener.create_subscription(ValveCommand, "/valve_command", got.append, qos)
-    # by default it waits for these subscribers, so the first messages (t = 0) arrive
-    proc = start_replay(tmp_path / "run")
+    # it waits for these subscribers (the guard far above any discovery), so the first messages
+    # (t = 0) arrive: by default it starts after 10 s without them, and on a loaded machine the
+    # listener then met the messages of t = 20 s first (it published 4 before the signal)
+    proc = start_replay(tmp_path / "run", "--wait-for-subscribers", "--wait-timeout", GUARD_S)
     _spin_until(listener, lambda: len(got) >= 2, "the first messages")
     assert len(got) == 2
     sent = time.monotonic()  # it is waiting 20 s for the next messages now
