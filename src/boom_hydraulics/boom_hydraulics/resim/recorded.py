@@ -4,6 +4,7 @@ the published state instants, and the node's own counts of what breaks the time 
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -50,6 +51,9 @@ class Recorded:
     opening: float = math.nan  # commands
     changes: dict[str, Any] = field(default_factory=dict)  # parameter events
     stamp_ns: int = 0  # a ValveCommand's header stamp (0: unset)
+    # commands: the node's simulated instant (a stamp on its clock) when it took the command,
+    # known from the drive states logged before it; None in a bag without them
+    taken_ns: int | None = None
 
 
 @dataclass
@@ -108,6 +112,24 @@ def _messages(reader: AnyReader, connections: Sequence[Any]):
         yield connection, log_ns, raw, reader.deserialize(raw, connection.msgtype)
 
 
+class NodeInstants:
+    """The node's simulated instant (as a stamp on its clock) when it took a message logged at
+    some time. The node takes commands between ticks, and each tick ends with the DriveState of
+    its last step: the instant is that of the last state logged at or before the message (the
+    time origin before the first). On the node's own clock it equals the message's log time
+    while the node keeps up; when it falls behind (a loaded machine, a stall it catches up on),
+    only this says when a command that was unstamped or already passed took effect."""
+
+    def __init__(self, origin_ns: int, logged: Sequence[tuple[int, int]]) -> None:
+        self.origin_ns = origin_ns
+        self.log_ns = [log for log, _ in logged]  # never decreasing: one channel's log times
+        self.stamp_ns = [stamp for _, stamp in logged]
+
+    def at(self, log_ns: int) -> int:
+        k = bisect.bisect_right(self.log_ns, log_ns)
+        return self.stamp_ns[k - 1] if k else self.origin_ns
+
+
 def _parameter_value(value: Any) -> Any:
     field_name = _VALUE_FIELDS.get(value.type)
     if field_name is None:
@@ -135,10 +157,12 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
     try:
         with AnyReader([bag]) as reader:
             states = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
-            recorded_states = sorted(
-                (_stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
-                for _, _, _, msg in _messages(reader, states[:1])
-            )
+            logged_states = [
+                (log_ns, _stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
+                for _, log_ns, _, msg in _messages(reader, states[:1])
+            ]
+            recorded_states = sorted(row[1:] for row in logged_states)
+            node_instants = NodeInstants(description.clock_origin_ns, [row[:2] for row in logged_states])
             wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
             topics = [
                 Topic(c.topic, c.msgtype, tuple(getattr(c.ext, "offered_qos_profiles", ())) or (offered_qos(),))
@@ -166,14 +190,24 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                     at_ns = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec
                     changes.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), changes=values))
                     continue
+                # the node's rule: at its stamp, or at the node's instant when it took the command
+                # if unstamped or already passed (without drive states: when it was logged)
+                taken_ns = node_instants.at(log_ns) if logged_states else None
                 if connection.msgtype == VALVE_COMMAND:
-                    # the node's rule: at its stamp, or when received if unstamped or already passed
-                    stamp_ns = _stamp_ns(msg)
-                    opening, at_ns = msg.opening, max(stamp_ns, log_ns)
+                    stamp_ns, opening = _stamp_ns(msg), msg.opening
                 else:
-                    stamp_ns, opening, at_ns = 0, (msg.data[0] if len(msg.data) == 1 else math.nan), log_ns
+                    stamp_ns, opening = 0, (msg.data[0] if len(msg.data) == 1 else math.nan)
+                at_ns = max(stamp_ns, log_ns if taken_ns is None else taken_ns)
                 commands.append(
-                    Recorded(at_ns, log_ns, connection.topic, bytes(raw), float(opening), stamp_ns=stamp_ns)
+                    Recorded(
+                        at_ns,
+                        log_ns,
+                        connection.topic,
+                        bytes(raw),
+                        float(opening),
+                        stamp_ns=stamp_ns,
+                        taken_ns=taken_ns,
+                    )
                 )
             end_ns = reader.end_time
     except AnyReaderError as exc:

@@ -3,13 +3,16 @@
 The bag's own parameters (stored by the node) are the base; --config replaces them, --set
 changes single ones. Parameters changed while the node ran (recorded from its
 /parameter_events) change at the same simulated instants here, with the --set values kept
-on top. Commands apply by the node's rule (command_queue): at their header stamp, or when
-received if unstamped or already passed; with its command timeout. The new bag has a
-DriveState at each instant the node published one (rounded to the steps of a changed
-time_step_s), on the recorded topic (a namespaced run stays namespaced), and the original
-commands and parameter events, so both runs overlay sample for sample. Exact for runs
-recorded with publish_clock; with ROS-time stamps a command's time is known to within one
-publish period. A run whose drive was reset, or, on ROS-time stamps, paused, resumed or
+on top. Commands apply by the node's rule (command_queue): at their header stamp, or, if
+unstamped or already passed, at the simulated instant the node took them; with its command
+timeout. The node takes commands between ticks, and each tick ends with a DriveState: that
+instant is the last state's logged before the command (recorded.NodeInstants), also where
+the node fell behind its clock. The new bag has a DriveState at each instant the node
+published one (rounded to the steps of a changed time_step_s), on the recorded topic (a
+namespaced run stays namespaced), and the original commands and parameter events, so both
+runs overlay sample for sample. Exact for runs on the node's own clock (with or without
+publish_clock); on use_sim_time, where a tick can end between two states, a command's time
+is known to within one publish period. A run whose drive was reset, or, on ROS-time stamps, paused, resumed or
 stepped, is refused (exit 2): its time line is not one continuous line from its origin
 (see bags.continuity). A run that cannot be simulated to its end writes nothing; an
 interrupted one (Ctrl-C: exit 130, SIGTERM: 143) neither, and a killed one's temporary
@@ -58,8 +61,13 @@ class _Resimulation:
         self.sim = Simulator(from_mapping(values))
         self.drive = CommandedDrive(self.sim, run.command_timeout_s)
         self.pending = deque(run.parameter_changes)
+        # commands wait here for the instant the node took them (see take); without drive states
+        # they are queued at once, each for when it was logged or stamped
+        taken = [c for c in run.commands if c.taken_ns is not None]
+        self.waiting = deque(sorted(taken, key=lambda c: (c.taken_ns, c.log_ns)))
         for command in run.commands:
-            self._push(command)
+            if command.taken_ns is None:
+                self._push(command, self.seconds(command.at_ns))
 
     def seconds(self, at_ns: int) -> float:
         """Simulated time of a time on the node's clock."""
@@ -73,7 +81,7 @@ class _Resimulation:
                 timeout_s = float(change.changes["command_timeout_s"])
         return timeout_s
 
-    def _push(self, command: Recorded) -> None:
+    def _push(self, command: Recorded, at_s: float) -> None:
         u = valve_opening(command.opening, self.sim.params.mode)
         if u is None:
             return
@@ -81,7 +89,15 @@ class _Resimulation:
             self.seconds(command.stamp_ns), self.seconds(command.log_ns), self._timeout_at(command.log_ns)
         ):
             return  # the node refused it as stale when it arrived
-        self.drive.push(self.seconds(command.at_ns), u)
+        self.drive.push(at_s, u)
+
+    def take(self, now_ns: int) -> None:
+        """The commands the node took at the state instant ``now_ns`` (or before), queued as the
+        node queued them (ros.commands): at their stamp, or now if unstamped; a passed stamp
+        acts at the next step, and the command timeout counts from it."""
+        while self.waiting and self.waiting[0].taken_ns <= now_ns:
+            command = self.waiting.popleft()
+            self._push(command, self.seconds(command.stamp_ns) if command.stamp_ns else self.sim.t)
 
     def take_over(self, control: Control) -> None:
         """The controller drives from now along the recorded setpoints (from where the boom is)."""
@@ -179,6 +195,7 @@ class Replay:
             if steps <= 0:
                 continue
             resim.apply_changes()  # the node changes parameters between ticks, at a state instant
+            resim.take(now_ns)  # and takes commands between ticks
             if now_ns in starts:  # a goal or trajectory was taken between these instants
                 resim.take_over(starts[now_ns])
             resim.drive.advance(steps)  # a SimulationError ends it
