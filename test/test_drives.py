@@ -35,14 +35,22 @@ def test_one_registry_of_drives_behind_one_start_only_parameter_defaulting_to_to
     assert not pump_controlled.VALVE and callable(pump_controlled.ports)
 
 
-@pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing", "pump_controlled"])
-def test_a_drive_the_kernels_do_not_run_is_refused_in_one_line(drive):
-    with pytest.raises(ConfigError, match=rf"drive '{drive}' is not solved yet: .* set drive: pressure_compensated"):
-        from_mapping({"drive": drive})
+def test_a_drive_the_kernels_do_not_run_is_refused_in_one_line():
+    refusal = r"drive 'pump_controlled' is not solved yet: .* set drive: pressure_compensated"
+    with pytest.raises(ConfigError, match=refusal):
+        from_mapping({"drive": "pump_controlled"})
 
 
-def test_the_drives_parameters_have_units_and_ranges_and_stay_out_of_the_node_and_default_file():
-    assert "drive" in UNSOLVED and "battery_capacity_kwh" in UNSOLVED and "payload_mass_kg" not in UNSOLVED
+@pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing"])
+def test_a_drive_in_paper_mode_is_refused_in_one_line(drive):
+    with pytest.raises(ConfigError, match=rf"drive '{drive}' needs physical mode: .* set mode: physical"):
+        from_mapping({"drive": drive, "mode": "paper"})
+
+
+def test_the_unsolved_parameters_have_units_and_ranges_and_stay_out_of_the_node_and_default_file():
+    """The motor's, the battery's and the EHA's: only the ledger's elements read them."""
+    assert "battery_capacity_kwh" in UNSOLVED and "reservoir_pressure_pa" in UNSOLVED
+    assert not {"drive", "supply_line_volume_m3", "load_sensing_margin_pa", "payload_mass_kg"} & set(UNSOLVED)
     for name in UNSOLVED:
         meta = describe(name)
         assert meta["group"] == "plant" and meta["description"], name

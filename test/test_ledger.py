@@ -1,6 +1,6 @@
 """The energy ledger from battery to hook closes for every drive, interpreted and compiled.
 
-The drives are not in the run kernels yet, so these tests put each drive in front of the
+The run loop does not integrate the ledger yet, so these tests put each drive in front of the
 physical model's cylinder and boom the way the kernels will: the drive's P-port pressure
 into the 4/3 valve (or the EHA's flows into the chambers), the model's load-holding valve
 and reliefs, and the model's own mechanics (physical._terms, whose forces and acceleration
@@ -25,6 +25,9 @@ D = constants(P)
 RNG = np.random.default_rng(23)
 #: The largest external rod force the random states take, N (the default boom holds with 4.9 kN).
 EXTERNAL_N = 3.0e4
+#: The model's drive state z_d of the default drive (pressure_compensated: p_n): the model's
+#: own valve flows below are those of today's source.
+P_N = P.supply_pressure_pa
 
 
 def _constants(rng: np.random.Generator) -> physical.Constants:
@@ -40,7 +43,7 @@ def _random_state(rng: np.random.Generator) -> tuple[list[float], float, float]:
     chambers from cavitating to the reliefs, the spool anywhere; and a drive state and command."""
     q1 = rng.uniform(P.cylinder_min_length_m - 2e-3, P.cylinder_max_length_m + 2e-3)
     z1, z2 = rng.uniform(-2e5, 2e7, size=2)
-    y = [q1, rng.uniform(-0.4, 0.4), z1, z2, rng.uniform(-1, 1), 0.0, 0.0, rng.uniform(-1, 1), 0.0, 0.0]
+    y = [q1, rng.uniform(-0.4, 0.4), z1, z2, rng.uniform(-1, 1), 0.0, 0.0, rng.uniform(-1, 1), 0.0, 0.0, P_N]
     return y, rng.uniform(-2e5, 1.8e7), rng.uniform(-1, 1)
 
 
@@ -190,7 +193,7 @@ def test_every_drive_and_the_ledger_compile_to_the_values_they_give_interpreted(
         assert compiled[0] == pytest.approx(p_port, rel=1e-14), name
         assert list(compiled[1]) == pytest.approx(list(s), rel=1e-12, abs=1e-18), name
         assert list(compiled[2]) == pytest.approx(list(ledger.electric_chain(s, d)), rel=1e-12, abs=1e-15), name
-    y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0]
+    y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0, P_N]
     flows = pump_controlled.ports(-60.0, -0.5, 6e6, 5.2e5, d)
     cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)
     compiled_flows, compiled = _compiled_eha(-60.0, -0.5, 6e6, 5.2e5, cylinder, d)

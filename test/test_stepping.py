@@ -27,13 +27,15 @@ from boom_hydraulics.solve.simulation import Simulator
 CYCLE = ([0.0, 3.0, 4.0, 7.0], [1.0, 0.0, -1.0, 0.0])  # lift, hold, lower, hold: 9 s
 STIFF = {"bulk_modulus_pa": 1.6e9, "piston_dead_volume_m3": 1e-5, "rod_dead_volume_m3": 1e-5}
 JIT = accelerate.available()
+#: LSODA's absolute tolerance by the kind of each state component (physical.STATE_SCALES).
+ATOL = {"length": 1e-10, "velocity": 1e-10, "pressure": 1e-2, "unit": 1e-10, "energy": 1e-6}
 
 
 def reference(p: Parameters, every_s: float = 0.01, duration_s: float = 9.0) -> dict[str, np.ndarray]:
     """The 9 s cycle by LSODA (rtol 1e-9): q1, p1, p2 every ``every_s`` and the supply energy."""
     c = physical.constants(p)
     y = physical.initial_state(p)
-    atol = [1e-10, 1e-10, 1e-2, 1e-2, 1e-10, 1e-6, 1e-6, 1e-10, 1e-6, 1e-6]
+    atol = [ATOL[scale] for scale in physical.STATE_SCALES]
     ends = [*CYCLE[0][1:], duration_s]
     rows = []
     for start, end, u in zip(CYCLE[0], ends, CYCLE[1]):

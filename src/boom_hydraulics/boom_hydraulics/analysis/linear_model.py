@@ -36,8 +36,11 @@ from .operating_point import MODEL, SPOOL, OperatingPoint, centred_batch
 if TYPE_CHECKING:
     import control  # imported where used: it takes seconds to load, and a sweep needs none of it
 
-#: The states of the linear model: the physical model's states that act on the dynamics.
-STATES: tuple[int, ...] = tuple(i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy")
+#: The states of the linear model: the physical model's states that act on the dynamics (the
+#: drive's state is p_n, the only drive a linear model is taken of: operating_point).
+STATES: tuple[int, ...] = tuple(
+    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i != MODEL.DRIVE_STATE
+)
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
 #: The outputs (model state components), with their units.

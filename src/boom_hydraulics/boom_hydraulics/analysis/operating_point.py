@@ -157,6 +157,11 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     [-1, 1] or a point where no steady state exists (the pump or a relief valve limits it)."""
     if p.mode != "physical":
         raise ConfigError("a linear model is taken of the physical drive: set mode: physical")
+    if p.drive != "pressure_compensated":
+        raise ConfigError(
+            f"a linear model is taken with the supply held at p_n (drive: pressure_compensated); drive '{p.drive}' "
+            "adds a supply state it does not hold yet: set drive: pressure_compensated"
+        )
     check_inside_stroke(p, q1_m)
     if not (math.isfinite(opening) and -1.0 <= opening <= 1.0):
         raise ConfigError(f"--opening must be a valve opening in [-1, 1], got {opening}")
@@ -189,9 +194,9 @@ def _motion_guess(c: Any, q1_m: float, opening: float) -> tuple[float, float, fl
     drop1 = orifice_pressure_drop(k, c.s1 * abs(v), c.transition2)  # meter-in lifting, meter-out lowering
     drop2 = orifice_pressure_drop(k, c.s2 * abs(v), c.transition2)
     if opening > 0.0:
-        p1, p2 = c.p_supply - drop1, c.p_tank + drop2
+        p1, p2 = c.p_set - drop1, c.p_tank + drop2
     else:
-        p1, p2 = c.p_tank + drop1, c.p_supply - drop2
+        p1, p2 = c.p_tank + drop1, c.p_set - drop2
     return v, p1, p2, math.copysign(c.coulomb_ratio, v)
 
 

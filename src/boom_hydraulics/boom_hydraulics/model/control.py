@@ -88,10 +88,10 @@ def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Nu
     # eq. 6: F = M_g k, less the external rod force that carries part of it (eq. 11)
     force = c.weight_coeff * cos_boom_angle(q1_m, c.a, c.b, c.h, xp) * lever - c.f_external
     cubes = c.s1 * c.s1 * c.s1 + c.s2 * c.s2 * c.s2
-    margin = _MIN_MARGIN * c.p_supply * (c.s1 + c.s2)
-    v_up = c.k_valve * xp.sqrt(larger(c.p_supply * c.s1 - c.p_tank * c.s2 - force, margin) / cubes)
-    v_down = c.k_valve * xp.sqrt(larger(force + c.p_supply * c.s2 - c.p_tank * c.s1, margin) / cubes)
-    return lever * smaller(v_up, c.pump_max_flow / c.s1), lever * smaller(v_down, c.pump_max_flow / c.s2)
+    margin = _MIN_MARGIN * c.p_set * (c.s1 + c.s2)
+    v_up = c.k_valve * xp.sqrt(larger(c.p_set * c.s1 - c.p_tank * c.s2 - force, margin) / cubes)
+    v_down = c.k_valve * xp.sqrt(larger(force + c.p_set * c.s2 - c.p_tank * c.s1, margin) / cubes)
+    return lever * smaller(v_up, c.max_flow / c.s1), lever * smaller(v_down, c.max_flow / c.s2)
 
 
 @jitable

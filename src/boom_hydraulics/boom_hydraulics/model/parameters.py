@@ -49,8 +49,8 @@ DRIVE_NAMES: dict[str, str] = {
 }
 DRIVES = tuple(DRIVE_NAMES)
 #: The drives the solvers run. The others are model elements (model/drives/) that the run
-#: kernels do not call yet (issue 23, phase 2): a run that asks for one is refused.
-SOLVED_DRIVES = ("pressure_compensated",)
+#: kernels do not call yet: a run that asks for one is refused.
+SOLVED_DRIVES = ("pressure_compensated", "fixed_pump", "load_sensing")
 COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 
 #: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
@@ -103,8 +103,14 @@ def _plant(default: Any, unit: str, description: str, **limits: Any) -> Any:
 
 
 def _drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
-    """A plant parameter of the drives and their electric supply (docs/model.md, "Drives")."""
+    """A plant parameter of the drives and their electric supply that no solver reads yet
+    (docs/model.md, "Drives")."""
     return _param("plant", default, unit, description, solved=False, **limits)
+
+
+def _valve_drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    """A plant parameter of the valve drives the solvers run (docs/model.md, "Drives")."""
+    return _param("plant", default, unit, description, **limits)
 
 
 def _solver(default: Any, unit: str, description: str, **limits: Any) -> Any:
@@ -340,7 +346,7 @@ class Parameters:
     relief_rated_flow_m3_s: float = _plant(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
     # --- drives, pump, electric motor and battery (docs/model.md, "Drives"; eq. D1-D25) ----
-    drive: str = _drive(
+    drive: str = _valve_drive(
         "pressure_compensated",
         "",
         "Drive that feeds the cylinder: pressure_compensated (the reference), fixed_pump (the paper's "
@@ -348,7 +354,7 @@ class Parameters:
         choices=DRIVES,
         start_only=True,
     )
-    pump_speed_rad_s: float = _drive(
+    pump_speed_rad_s: float = _valve_drive(
         157.08,
         "rad/s",
         "Pump shaft speed of the constant-speed drives (157.08: 1500 rpm), and the top speed (command +-1) "
@@ -356,7 +362,7 @@ class Parameters:
         low=0.0,
         high=1000.0,
     )
-    pump_volumetric_efficiency: float = _drive(
+    pump_volumetric_efficiency: float = _valve_drive(
         0.95,
         "",
         "Pump's delivered over geometric flow at supply_pressure_pa and pump_speed_rad_s: sets its leakage (eq. D1)",
@@ -410,10 +416,10 @@ class Parameters:
     battery_initial_soc: float = _drive(
         1.0, "", "Battery's state of charge at the start, 1 full (eq. D10)", low=0.0, low_inclusive=True, high=1.0
     )
-    supply_line_volume_m3: float = _drive(
+    supply_line_volume_m3: float = _valve_drive(
         2.0e-4, "m^3", "fixed_pump: oil volume between pump and valve, hoses included (eq. D13)", low=0.0, high=0.1
     )
-    main_relief_range_pa: float = _drive(
+    main_relief_range_pa: float = _valve_drive(
         1.0e6,
         "Pa",
         "fixed_pump: pressure rise over supply_pressure_pa at which the main relief passes pump_max_flow_m3_s "
@@ -421,14 +427,14 @@ class Parameters:
         low=0.0,
         high=1.0e8,
     )
-    load_sensing_margin_pa: float = _drive(
+    load_sensing_margin_pa: float = _valve_drive(
         2.0e6,
         "Pa",
         "load_sensing: pump pressure above the fed port's pressure (typically 1.5-2.5 MPa) (eq. D17)",
         low=0.0,
         high=1.0e7,
     )
-    load_sensing_time_constant_s: float = _drive(
+    load_sensing_time_constant_s: float = _valve_drive(
         0.05,
         "s",
         "load_sensing: first-order lag of the pump's pressure behind its target (eq. D18)",
@@ -654,6 +660,11 @@ def _check_plant(p: Parameters) -> None:
                 f"cavitation_pressure_pa ({p.cavitation_pressure_pa} Pa) must be below "
                 f"tank_pressure_pa ({p.tank_pressure_pa} Pa); both are absolute"
             )
+    if p.mode == "paper" and p.drive != DRIVES[0]:
+        raise ConfigError(
+            f"drive '{p.drive}' needs physical mode: the paper's model has its ideal source only; "
+            f"set mode: physical, or drive: {DRIVES[0]}"
+        )
     if p.drive not in SOLVED_DRIVES:
         raise ConfigError(
             f"drive '{p.drive}' is not solved yet: its elements are in model/drives (docs/model.md, Drives), "

@@ -1,12 +1,15 @@
 """Physical mode: the corrected boom drive with both chambers, a 4/3 valve and end stops.
 
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
-s (seal bristle deflection / presliding displacement), W (J), |W| (J)].
+s (seal bristle deflection / presliding displacement), W (J), |W| (J), z_d (the drive's state)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
 floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
 change of the stored energy :func:`energy` (|W| its absolute value): the energy balance the
-stepping checks. Pressures are absolute. What this mode corrects in the paper's equations is
-listed in docs/model.md: the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
+stepping checks. z_d is the state of the drive that feeds the valve (model/drives,
+``drive``): the supply line's liquid state for fixed_pump, the pump's pressure for
+load_sensing; pressure_compensated starts it at p_n and reads the parameter instead (a
+changed supply_pressure_pa acts at once). Pressures are absolute. What this mode corrects
+in the paper's equations is listed in docs/model.md: the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
 with volumes that follow the rod, a laminar-turbulent orifice, spool lag, supply limit,
 reliefs, mass-conserving cavitation, a load-holding valve, LuGre seal friction, ambient
 pressure on the rod and Hunt-Crossley end stops. Functions work on floats and, for batches,
@@ -22,6 +25,9 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
+from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated
+from .drives import constants as drive_constants
+from .drives.constants import DriveConstants
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_level
 from .geometry import (
@@ -42,7 +48,6 @@ from .hydraulics import (
     pos,
     relief_flow,
     smaller,
-    supply_pressure,
     valve_flows,
     void_volume_m3,
 )
@@ -63,10 +68,16 @@ STATE_NAMES = (
     "bristle",
     "energy_change",
     "energy_change_abs",
+    "drive_state",
 )
-STATE_SCALES = ("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy")
+STATE_SCALES = (
+    *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
+    "pressure",
+)
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
 ENERGY_STATES = (8, 9)
+#: Index of the drive's state z_d.
+DRIVE_STATE = 10
 #: The stepping takes the substeps that :func:`stiffness_rate` asks for.
 STABILITY_BOUND = True
 
@@ -75,7 +86,11 @@ PILOT_FULL_OPENING = 0.05
 
 
 class Constants(NamedTuple):
-    """Values derived once from :class:`Parameters` (floats, or arrays for a batch)."""
+    """Values derived once from :class:`Parameters` (floats, or arrays for a batch).
+
+    The fields the valve drives read have the names of :class:`DriveConstants`' (a test
+    holds them equal), so that the drive functions (model/drives) take these constants as
+    their ``d``."""
 
     a: Num
     b: Num
@@ -98,10 +113,10 @@ class Constants(NamedTuple):
     seat_leak: Num  # seat leakage of the closed load-holding valve, m^3/(s Pa)
     lag: Num  # 1.0 with a spool lag, 0.0 without
     inv_tau: Num  # 1 / spool time constant (0 without lag)
-    p_supply: Num
+    p_set: Num  # p_n: the pump's pressure (pressure_compensated), the main relief's (fixed_pump), Pa
     p_tank: Num
     p_ambient: Num
-    pump_max_flow: Num
+    max_flow: Num  # Q_max: the pump's flow at speed, m^3/s
     p_relief: Num
     g_relief: Num
     coulomb_ratio: Num  # F_c / F_s, at least 1e-3 (1 without stiction)
@@ -115,11 +130,25 @@ class Constants(NamedTuple):
     stop_k: Num
     stop_damping: Num  # Hunt-Crossley lambda, N s/m^2
     f_external: Num  # F_ext, N, positive extending (eq. 11)
+    fixed: Num  # 1.0 for drive fixed_pump, else 0.0
+    sensing: Num  # 1.0 for drive load_sensing, else 0.0
+    speed: Num  # w_n, rad/s
+    displacement: Num  # D, m^3/rad (eq. D4)
+    pump_leak: Num  # G_p, m^3/(s Pa) (eq. D1)
+    line_volume: Num  # V_s of fixed_pump, m^3
+    g_main: Num  # main relief conductance, m^3/(s Pa) (eq. D12)
+    ls_margin: Num  # load-sensing margin, Pa
+    ls_inv_tau: Num  # 1 / load-sensing pump time constant, 1/s
+
+
+#: The fields of Constants that are DriveConstants' too (the same values under the same names).
+DRIVE_FIELDS = tuple(name for name in Constants._fields if name in DriveConstants._fields)
 
 
 def constants(p: Parameters) -> Constants:
     """Derived constants of one parameter set."""
     lag = 1.0 if p.spool_time_constant_s > 0.0 else 0.0
+    d = drive_constants(p)
     k_valve = orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3)
     return Constants(
         a=p.a_m,
@@ -143,10 +172,10 @@ def constants(p: Parameters) -> Constants:
         seat_leak=p.load_holding_leakage_m3_s_pa,
         lag=lag,
         inv_tau=lag / p.spool_time_constant_s if lag else 0.0,
-        p_supply=p.supply_pressure_pa,
+        p_set=p.supply_pressure_pa,
         p_tank=p.tank_pressure_pa,
         p_ambient=p.ambient_pressure_pa,
-        pump_max_flow=p.pump_max_flow_m3_s,
+        max_flow=p.pump_max_flow_m3_s,
         p_relief=p.relief_pressure_pa,
         g_relief=p.relief_rated_flow_m3_s / p.relief_range_pa,
         coulomb_ratio=max(p.coulomb_friction_n / p.static_friction_n, 1e-3) if p.static_friction_n > 0.0 else 1.0,
@@ -160,6 +189,15 @@ def constants(p: Parameters) -> Constants:
         stop_k=p.end_stop_stiffness_n_m,
         stop_damping=p.end_stop_damping_n_s_m2,
         f_external=p.external_rod_force_n,
+        fixed=1.0 if p.drive == "fixed_pump" else 0.0,
+        sensing=1.0 if p.drive == "load_sensing" else 0.0,
+        speed=d.speed,
+        displacement=d.displacement,
+        pump_leak=d.pump_leak,
+        line_volume=d.line_volume,
+        g_main=d.g_main,
+        ls_margin=d.ls_margin,
+        ls_inv_tau=d.ls_inv_tau,
     )
 
 
@@ -167,7 +205,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     """Rod at rest at ``q1_m`` (default q1(0)), valve closed, seals relaxed, rod chamber at
     tank pressure, piston chamber at the pressure that holds the boom statically (eq. 6) with
     the external rod force's share taken off (eq. 11 at rest), at least tank pressure; at the
-    lower end stop the boom is parked on it, with the piston chamber at tank pressure."""
+    lower end stop the boom is parked on it, with the piston chamber at tank pressure. The
+    drive starts in its own initial state (model/drives: the pump was running)."""
     q1 = p.initial_length_m if q1_m is None else q1_m
     force = static_rod_force_of(p, q1)
     s1 = piston_area_m2(p.piston_diameter_m)
@@ -178,7 +217,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     p1 = max(p1, p.tank_pressure_pa)  # an external force that more than carries the boom: no holding pressure
     if q1 <= p.cylinder_min_length_m:
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    z_d = DRIVES[p.drive].initial_state(drive_constants(p))
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d]
 
 
 class Terms(NamedTuple):
@@ -191,7 +231,7 @@ class Terms(NamedTuple):
     vol2: Num
     dvol1: Num  # dV/dq1, m^2
     dvol2: Num
-    p_supply: Num  # supply pressure after the pump's flow limit, Pa
+    p_supply: Num  # the valve's P-port pressure: the drive's, after the pump's flow limit, Pa
     q_in1: Num  # net flow into the piston chamber, m^3/s (eq. 12)
     q_in2: Num  # net flow into the rod chamber, m^3/s (eq. 13)
     q_relief1: Num  # port relief flows to tank, m^3/s
@@ -208,6 +248,7 @@ class Terms(NamedTuple):
     acc: Num  # rod acceleration, m/s^2 (eq. 11)
     power: Num  # power drawn from the supply, W
     loss: Num  # power dissipated in the valve, the load-holding valve and the reliefs, W
+    drive_rate: Num  # dz_d/dt, the drive's state rate (model/drives)
 
 
 @jitable
@@ -233,7 +274,12 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
-    ps = supply_pressure(x, c.p_supply, p1, p2, c.k_valve, c.transition2, c.pump_max_flow, xp)
+    # the P port: the pump at p_n (today's source holds the parameter's p_n, whatever z_d says) or
+    # at load_sensing's pressure z_d, at most what the open path takes at its flow limit (eq. D19);
+    # for fixed_pump the supply line's pressure (eq. D13)
+    z_d = y[10]
+    ps = pressure_compensated.port_pressure_pa(c.p_set + c.sensing * (z_d - c.p_set), x, p1, p2, c, xp)
+    ps = ps + c.fixed * (fixed_pump.port_pressure_pa(z_d, x, p1, p2, c, xp) - ps)
     q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak, xp)
     # the load-holding valve lets oil out of the piston chamber only when the pilot opens it
     lowering = smaller(pos(-x) / PILOT_FULL_OPENING, 1.0)
@@ -261,6 +307,9 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     power = (ps - c.p_tank) * (q_pa + q_pb)
     loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
+    # the drive's state: fixed_pump's line (eq. D13), load_sensing's lag (eq. D18); p_n stands still
+    drive_rate = c.fixed * fixed_pump.supply(z_d, ps, x, p1, p2, q_pa + q_pb, c, xp).rate
+    drive_rate = drive_rate + c.sensing * load_sensing.supply(z_d, ps, x, p1, p2, q_pa + q_pb, c, xp).rate
     return Terms(
         x,
         p1,
@@ -286,6 +335,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         acc,
         power,
         loss,
+        drive_rate,
     )
 
 
@@ -293,10 +343,12 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
 def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     """H: the energy stored in the drive, J: kinetic and potential energy of boom and
     payload, spring, seal bristles, end stops, and the compression of the oil
-    V (p - p_tank)^2 / (2 E) in each chamber. Its change is checked against W."""
+    V (p - p_tank)^2 / (2 E) in each chamber and in fixed_pump's supply line. Its change is
+    checked against W."""
     q1, v, s = y[0], y[1], y[7]
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
+    ps = chamber_pressure_pa(y[10], c.p_cav)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     return (
@@ -306,6 +358,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + 0.5 * c.static * c.presliding * s * s
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
+        + c.fixed * c.line_volume * (ps - c.p_tank) * (ps - c.p_tank) / (2.0 * c.bulk_modulus)
     )
 
 
@@ -319,6 +372,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     g1, g2 = t.p1 - c.p_tank, t.p2 - c.p_tank
     dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
     dp2 = t.dz2 * (y[3] > c.p_cav)
+    dps = t.drive_rate * (y[10] > c.p_cav)
     return (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
         + c.weight_coeff * t.cos_alpha * k * v
@@ -326,6 +380,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + c.static * c.presliding * s * t.bristle_rate
         + c.stop_k * (d_high - d_low) * v
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
+        + c.fixed * c.line_volume * (t.p_supply - c.p_tank) * dps / c.bulk_modulus
     )
 
 
@@ -346,6 +401,7 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.bristle_rate,
         rate,
         abs(rate),
+        terms.drive_rate,
     )
 
 
@@ -356,7 +412,8 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     The fastest modes: a chamber against its open orifice in the laminar region
     (E / V dQ/dp), the oil springs, seals, end stop and spring against the boom's effective
     mass (sqrt(k / m)), the seal and end-stop damping (c / m), the seals' relaxation when
-    sliding (|v| / (z_ba r)), and the spool lag (1 / tau). An explicit method is stable
+    sliding (|v| / (z_ba r)), the spool lag (1 / tau), fixed_pump's supply line against its
+    relief, pump leakage and valve (E / V_s dQ/dp), and load_sensing's lag. An explicit method is stable
     when dt times this stays inside its stability region (see integrators.Method).
     """
     q1, v = y[0], y[1]
@@ -365,7 +422,7 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     slope = c.k_laminar * opening + 2.0 * c.leak
     # a relief valve counts where the chamber's pressure can reach it within this step
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
-    inflow = c.pump_max_flow  # the most the valve can feed a chamber
+    inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
     chamber1 = stiff1 * (slope + c.g_relief * relief_near1)
@@ -387,6 +444,12 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, xp.sqrt(stiffness / mass))
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
+    # fixed_pump's line: its relief where it can reach it within this step, the pump's leakage, the valve
+    line_stiffness = c.bulk_modulus / c.line_volume
+    relief_near = y[10] + line_stiffness * c.max_flow * dt > c.p_set
+    line = line_stiffness * (c.g_main * relief_near + c.pump_leak + slope)
+    rate = larger(rate, c.fixed * line)
+    rate = larger(rate, c.sensing * c.ls_inv_tau)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -424,7 +487,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
         1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
-        1.0 * (terms.p_supply < c.p_supply),  # pump_saturated
+        1.0 * (terms.p_supply < c.p_set + c.sensing * (y[10] - c.p_set)),  # pump_saturated: below the pump's pressure
     )
 
 

@@ -18,8 +18,9 @@ import numpy as np
 
 from .. import jit
 from ..jit import jitable, kernel, prange
-from ..model import control, end_stops, friction, geometry, hydraulics, mechanics, outputs, setpoints
+from ..model import control, end_stops, friction, geometry, hydraulics, mechanics, outputs, pump, setpoints
 from ..model import physical as model
+from ..model.drives import fixed_pump, load_sensing, pressure_compensated
 from . import integrators, profiles, stepping, streaming
 from . import kernel as run
 from .integrators import euler_step, rk4_step, ros2_step
@@ -27,6 +28,7 @@ from .integrators import euler_step, rk4_step, ros2_step
 #: Every source the kernels compile: a change to any of them gives a fresh cache.
 SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
+    *jit.module_sources(pump, pressure_compensated, fixed_pump, load_sensing),
     *jit.module_sources(model, integrators, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
@@ -74,13 +76,22 @@ def constants_of(row: Any) -> model.Constants:
         row[35],
         row[36],
         row[37],
+        row[38],
+        row[39],
+        row[40],
+        row[41],
+        row[42],
+        row[43],
+        row[44],
+        row[45],
+        row[46],
     )
 
 
 @jitable
 def state_of(row: Any) -> tuple:
     """The state as a tuple (the euler and rk4 steps keep it so)."""
-    return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9])
+    return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10])
 
 
 @jitable
