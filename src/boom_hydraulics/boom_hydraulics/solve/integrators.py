@@ -25,6 +25,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .. import jit
 from ..errors import SimulationError
 from ..jit import compiled_as, jitable
 
@@ -52,17 +53,56 @@ def rk4_combination(y: Sequence, h6: float, k1: Sequence, k2: Sequence, k3: Sequ
     return [yi + h6 * (a + 2.0 * (b + c) + d) for yi, a, b, c, d in zip(y, k1, k2, k3, k4)]
 
 
+def _component_sums(combine: Callable[..., Any], arity: int) -> Any:
+    """A numba intrinsic ``f(y, h, k_1 .. k_arity)`` that builds a state tuple of floats whose
+    i-th component is ``combine(builder, y_i, h, k_1i, ...)``: straight-line code, one sum per
+    component, at any state size (a loop of tuple_setitem, which LLVM leaves rolled at 11
+    components, keeps the tuple in memory and ran 5 times slower). Without numba, None."""
+    if jit.numba is None:
+        return None
+    from numba.core import types
+    from numba.extending import intrinsic
+
+    def floats(context: Any, builder: Any, of: Any, value: Any) -> list:
+        return [context.cast(builder, builder.extract_value(value, i), of[i], types.float64) for i in range(len(of))]
+
+    def typed(y: Any, h: Any, ks: tuple) -> Any:
+        out = types.UniTuple(types.float64, len(y))
+
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            hv = context.cast(builder, args[1], h, types.float64)
+            ys = floats(context, builder, y, args[0])
+            columns = zip(ys, *(floats(context, builder, k, a) for k, a in zip(ks, args[2:])))
+            value = context.get_constant_undef(out)
+            for i, (yi, *ki) in enumerate(columns):
+                value = builder.insert_value(value, combine(builder, yi, hv, *ki), i)
+            return value
+
+        return out(y, h, *ks), codegen
+
+    if arity == 1:
+        return intrinsic(lambda typingctx, y, h, k: typed(y, h, (k,)))
+    return intrinsic(lambda typingctx, y, h, k1, k2, k3, k4: typed(y, h, (k1, k2, k3, k4)))
+
+
+#: y + h k, per component (:func:`stage`'s sums, in its order).
+_stage_sums = _component_sums(lambda b, y, h, k: b.fadd(y, b.fmul(h, k)), 1)
+#: y + h6 (k1 + 2 (k2 + k3) + k4), per component (:func:`rk4_combination`'s sums, in its order).
+_rk4_sums = _component_sums(
+    lambda b, y, h6, k1, k2, k3, k4: b.fadd(
+        y, b.fmul(h6, b.fadd(b.fadd(k1, b.fmul(k1.type(2.0), b.fadd(k2, k3))), k4))
+    ),
+    4,
+)
+
+
 @compiled_as(stage)
 def _stage_compiled(y: Any, h: Any, k: Any) -> Callable[..., Any]:
-    """:func:`stage` as compiled code runs it: the same sums, written into a copy of the tuple
-    (the implementation's annotations are those of this typing function, as numba asks)."""
-    from numba.cpython.unsafe.tuple import tuple_setitem
+    """:func:`stage` as compiled code runs it: the same sums, built into a tuple of the state's
+    size (the implementation's annotations are those of this typing function, as numba asks)."""
 
     def into_tuple(y: Any, h: Any, k: Any) -> Callable[..., Any]:
-        out = y
-        for i in range(len(y)):
-            out = tuple_setitem(out, i, y[i] + h * k[i])
-        return out
+        return _stage_sums(y, h, k)
 
     return into_tuple
 
@@ -70,13 +110,9 @@ def _stage_compiled(y: Any, h: Any, k: Any) -> Callable[..., Any]:
 @compiled_as(rk4_combination)
 def _rk4_combination_compiled(y: Any, h6: Any, k1: Any, k2: Any, k3: Any, k4: Any) -> Callable[..., Any]:
     """:func:`rk4_combination` as compiled code runs it (see :func:`_stage_compiled`)."""
-    from numba.cpython.unsafe.tuple import tuple_setitem
 
     def into_tuple(y: Any, h6: Any, k1: Any, k2: Any, k3: Any, k4: Any) -> Callable[..., Any]:
-        out = y
-        for i in range(len(y)):
-            out = tuple_setitem(out, i, y[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]))
-        return out
+        return _rk4_sums(y, h6, k1, k2, k3, k4)
 
     return into_tuple
 
