@@ -1,9 +1,9 @@
 """The energy ledger from battery to hook closes for every drive, interpreted and compiled.
 
-The run loop does not integrate the ledger yet, so these tests put each drive in front of the
-physical model's cylinder and boom the way the kernels will: the drive's P-port pressure
-into the 4/3 valve (or the EHA's flows into the chambers), the model's load-holding valve
-and reliefs, and the model's own mechanics (physical._terms, whose forces and acceleration
+The valve drives' ledger is the model's own (physical.ledger, from the terms of its
+derivative). The EHA is not in the run loop yet, so these tests put it in front of the
+physical model's cylinder and boom the way the kernels will: its flows into the chambers,
+the model's reliefs and its own mechanics (physical._terms, whose forces and acceleration
 depend on the state alone). The states are random, and so is the external rod force
 (external_rod_force_n) that a mechanical network puts on the rod."""
 
@@ -16,8 +16,8 @@ import pytest
 
 from boom_hydraulics import jit
 from boom_hydraulics.model import ledger, physical
-from boom_hydraulics.model.drives import DRIVES, constants, pressure_compensated, pump_controlled
-from boom_hydraulics.model.hydraulics import load_holding_flow, pos, relief_flow, smaller, smoothstep, valve_flows
+from boom_hydraulics.model.drives import DRIVES, constants, pump_controlled
+from boom_hydraulics.model.hydraulics import relief_flow
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
 P = Parameters()
@@ -30,9 +30,9 @@ EXTERNAL_N = 3.0e4
 P_N = P.supply_pressure_pa
 
 
-def _constants(rng: np.random.Generator) -> physical.Constants:
-    """The model's constants with a random external rod force, pushing or pulling."""
-    return physical.constants(with_updates(P, external_rod_force_n=rng.uniform(-EXTERNAL_N, EXTERNAL_N)))
+def _constants(rng: np.random.Generator, drive: str = "pressure_compensated") -> physical.Constants:
+    """The model's constants of ``drive`` with a random external rod force, pushing or pulling."""
+    return physical.constants(with_updates(P, drive=drive, external_rod_force_n=rng.uniform(-EXTERNAL_N, EXTERNAL_N)))
 
 
 C = _constants(RNG)
@@ -62,28 +62,6 @@ def _cylinder(y: list[float], q_line1: float, q_line2: float, c=C) -> tuple[ledg
     return cylinder, q_in1, q_in2
 
 
-def valve_drive_ledger(drive, y: list[float], z: float, d=D, c=C) -> tuple[ledger.Ledger, dict]:
-    """The ledger of a valve drive in front of the physical model at state ``y`` (spool y[4])."""
-    x = y[4]
-    p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
-    p_port = drive.port_pressure_pa(z, x, p1, p2, d)
-    q_pa, q_at, q_pb, q_bt = valve_flows(x, p_port, C.p_tank, p1, p2, C.k_valve, C.transition2, C.leak)
-    # the model's load-holding valve (physical._terms): outflow from A only as the pilot opens it
-    lowering = smaller(pos(-x) / physical.PILOT_FULL_OPENING, 1.0)
-    pilot = 1.0 - C.holding + C.holding * smoothstep(lowering)
-    port_a = q_pa - q_at
-    a_side = 1.0 - (1.0 - pilot) * (port_a < 0.0)
-    q_a = load_holding_flow(port_a, pilot, p1, C.p_tank, C.holding * C.seat_leak)
-    q_valve_in = a_side * q_pa + q_pb
-    s = drive.supply(z, p_port, x, p1, p2, q_valve_in, d)
-    throttling, leakage = ledger.valve_losses(
-        q_pa, q_at, q_pb, q_bt, p_port, C.p_tank, p1, p2, C.leak, a_side, C.holding * C.seat_leak
-    )
-    cylinder, q_in1, q_in2 = _cylinder(y, q_a, q_pb - q_bt, c)
-    terms = ledger.assemble(ledger.electric_chain(s, d), s, throttling, leakage, cylinder)
-    return terms, {"p_port": p_port, "q_in1": q_in1, "q_in2": q_in2, "valve_in": (p_port - C.p_tank) * q_valve_in}
-
-
 def eha_ledger(y: list[float], z: float, u: float, d=D, c=C) -> ledger.Ledger:
     """The ledger of the EHA on the physical model's chambers at state ``y``."""
     p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
@@ -108,28 +86,39 @@ def test_the_ledger_names_every_term_of_the_issue_once_with_its_kind():
     assert all(unit == "W" for _, unit, _, _ in ledger.TERMS)
 
 
-def test_the_pressure_compensated_drive_feeds_the_valve_as_the_model_does_today():
-    """The reference drive in front of the valve gives the model's own flows and supply power,
-    and the valve's losses split as the model's valve loss (less the port reliefs)."""
+def _valve_drive_state(rng: np.random.Generator, name: str) -> list[float]:
+    """A random state with the drive state of ``name`` (p_n for today's source)."""
+    y, z, _ = _random_state(rng)
+    y[physical.DRIVE_STATE] = P_N if name == "pressure_compensated" else z
+    return y
+
+
+@pytest.mark.parametrize("name", VALVE_DRIVES)
+def test_the_valve_drives_ledger_splits_the_models_own_supply_power_and_valve_loss(name):
+    """What the drive delivers at the P port is the model's supply power, and the valve's and
+    load-holding valve's losses plus the port reliefs are the model's valve loss; today's
+    source delivers exactly what the valve takes (eq. D4)."""
+    c = physical.constants(with_updates(P, drive=name))
     for _ in range(200):
-        y, _, _ = _random_state(RNG)
-        t = physical._terms(y, C, 0.0, math)  # with the spool's lag, the flow paths see y[4]
-        terms, seen = valve_drive_ledger(pressure_compensated, y, pressure_compensated.initial_state(D))
-        assert seen["p_port"] == t.p_supply
-        assert (seen["q_in1"], seen["q_in2"]) == pytest.approx((t.q_in1, t.q_in2), rel=1e-12, abs=1e-18)
-        assert seen["valve_in"] == pytest.approx(t.power, rel=1e-12, abs=1e-9)
+        y = _valve_drive_state(RNG, name)
+        t = physical._terms(y, c, y[4], math)  # with the spool's lag, the flow paths see y[4]
+        terms = physical.ledger(0.0, y, c, y[4])
         relief = terms.port_relief_loss
         assert terms.valve_loss + terms.leakage_loss + relief == pytest.approx(t.loss, rel=1e-9, abs=1e-9)
+        s = physical.drive_supply(y, c, t)
+        delivered = s.dp * s.q_pump - s.main_relief_loss - s.line_oil_work  # what the P port takes
+        assert delivered == pytest.approx(t.power, rel=1e-9, abs=1e-6)
+        if name == "pressure_compensated":
+            assert s.q_pump == t.q_valve_in and t.p_supply <= P_N
 
 
 @pytest.mark.parametrize("name", VALVE_DRIVES)
 def test_the_ledger_of_a_valve_drive_closes_at_every_state(name):
-    drive = DRIVES[name]
     for _ in range(300):
-        y, z, _ = _random_state(RNG)
-        c = _constants(RNG)
-        terms, _ = valve_drive_ledger(drive, y, z, c=c)
-        assert _closes(terms), (name, y, z, c.f_external, ledger.residual_w(terms), terms)
+        y = _valve_drive_state(RNG, name)
+        c = _constants(RNG, name)
+        terms = physical.ledger(0.0, y, c, y[4])
+        assert _closes(terms), (name, y, c.f_external, ledger.residual_w(terms), terms)
         assert terms.external_work == -c.f_external * y[1]  # F_ext v, the work the surroundings do
         losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
         assert min(losses) >= -1e-9 * sum(map(abs, terms)), (name, terms)  # every loss takes, none gives
@@ -161,16 +150,9 @@ def test_energies_of_a_cycle_report_the_imbalance_over_the_energy_drawn():
 numba = pytest.importorskip("numba")
 
 
-def _compiled_valve_drive(drive):
-    port, supply = drive.port_pressure_pa, drive.supply
-
-    @numba.njit
-    def run(z, x, p1, p2, q_valve_in, d):
-        p_port = port(z, x, p1, p2, d)
-        s = supply(z, p_port, x, p1, p2, q_valve_in, d)
-        return p_port, s, ledger.electric_chain(s, d)
-
-    return run
+@numba.njit
+def _compiled_ledger(y, c, u):
+    return physical.ledger(0.0, y, c, u)
 
 
 @numba.njit
@@ -185,14 +167,11 @@ def _compiled_eha(z, u, p1, p2, cylinder, d):
 def test_every_drive_and_the_ledger_compile_to_the_values_they_give_interpreted():
     d = constants(with_updates(P, motor_time_constant_s=0.05))
     for name in VALVE_DRIVES:
-        drive = DRIVES[name]
-        args = (9e6, 0.4, 7e6, 2e6, 2e-4)
-        compiled = _compiled_valve_drive(drive)(*args, d)
-        p_port = drive.port_pressure_pa(*args[:4], d)
-        s = drive.supply(args[0], p_port, *args[1:], d)
-        assert compiled[0] == pytest.approx(p_port, rel=1e-14), name
-        assert list(compiled[1]) == pytest.approx(list(s), rel=1e-12, abs=1e-18), name
-        assert list(compiled[2]) == pytest.approx(list(ledger.electric_chain(s, d)), rel=1e-12, abs=1e-15), name
+        c = physical.constants(with_updates(P, drive=name))
+        for _ in range(20):
+            y = _valve_drive_state(RNG, name)
+            compiled, interpreted = _compiled_ledger(tuple(y), c, y[4]), physical.ledger(0.0, y, c, y[4])
+            assert list(compiled) == pytest.approx(list(interpreted), rel=1e-12, abs=1e-9), name
     y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0, P_N]
     flows = pump_controlled.ports(-60.0, -0.5, 6e6, 5.2e5, d)
     cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)

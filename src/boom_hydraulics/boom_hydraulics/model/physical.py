@@ -24,10 +24,12 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from ..jit import jitable
 from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated
 from .drives import constants as drive_constants
-from .drives.constants import DriveConstants
+from .drives.constants import DriveConstants, Supply
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_level
 from .geometry import (
@@ -51,6 +53,7 @@ from .hydraulics import (
     valve_flows,
     void_volume_m3,
 )
+from .ledger import Ledger, assemble, cylinder_side, electric_chain, valve_losses
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
 from .parameters import Parameters
@@ -139,6 +142,12 @@ class Constants(NamedTuple):
     g_main: Num  # main relief conductance, m^3/(s Pa) (eq. D12)
     ls_margin: Num  # load-sensing margin, Pa
     ls_inv_tau: Num  # 1 / load-sensing pump time constant, 1/s
+    torque_loss: Num  # c_f of the pump (eq. D2)
+    motor_copper: Num  # k_c, W/(N m)^2 (eq. D6)
+    motor_iron: Num  # k_s, W/(rad/s) (eq. D6)
+    battery_voltage: Num  # U, V
+    battery_resistance: Num  # R, ohm
+    battery_capacity: Num  # E_usable, J
 
 
 #: The fields of Constants that are DriveConstants' too (the same values under the same names).
@@ -198,6 +207,12 @@ def constants(p: Parameters) -> Constants:
         g_main=d.g_main,
         ls_margin=d.ls_margin,
         ls_inv_tau=d.ls_inv_tau,
+        torque_loss=d.torque_loss,
+        motor_copper=d.motor_copper,
+        motor_iron=d.motor_iron,
+        battery_voltage=d.battery_voltage,
+        battery_resistance=d.battery_resistance,
+        battery_capacity=d.battery_capacity,
     )
 
 
@@ -232,6 +247,12 @@ class Terms(NamedTuple):
     dvol1: Num  # dV/dq1, m^2
     dvol2: Num
     p_supply: Num  # the valve's P-port pressure: the drive's, after the pump's flow limit, Pa
+    q_pa: Num  # the spool's path flows, m^3/s (hydraulics.valve_flows)
+    q_at: Num
+    q_pb: Num
+    q_bt: Num
+    a_side: Num  # the share of the A paths' flow the load-holding valve passes
+    q_valve_in: Num  # what the valve's P paths take from the drive, m^3/s
     q_in1: Num  # net flow into the piston chamber, m^3/s (eq. 12)
     q_in2: Num  # net flow into the rod chamber, m^3/s (eq. 13)
     q_relief1: Num  # port relief flows to tank, m^3/s
@@ -277,16 +298,19 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     # the P port: the pump at p_n (today's source holds the parameter's p_n, whatever z_d says) or
     # at load_sensing's pressure z_d, at most what the open path takes at its flow limit (eq. D19);
     # for fixed_pump the supply line's pressure (eq. D13)
+    # (a drive no set uses is skipped: compiled, each set branches to its own drive's equations)
     z_d = y[10]
     ps = pressure_compensated.port_pressure_pa(c.p_set + c.sensing * (z_d - c.p_set), x, p1, p2, c, xp)
-    ps = ps + c.fixed * (fixed_pump.port_pressure_pa(z_d, x, p1, p2, c, xp) - ps)
+    if np.any(c.fixed != 0.0):
+        ps = ps + c.fixed * (fixed_pump.port_pressure_pa(z_d, x, p1, p2, c, xp) - ps)
     q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak, xp)
     # the load-holding valve lets oil out of the piston chamber only when the pilot opens it
     lowering = smaller(pos(-x) / PILOT_FULL_OPENING, 1.0)
     pilot = 1.0 - c.holding + c.holding * lowering * lowering * (3.0 - 2.0 * lowering)  # smoothstep: no kink
     port_a = q_pa - q_at
     q_a = load_holding_flow(port_a, pilot, p1, c.p_tank, c.holding * c.seat_leak)
-    q_pa = q_pa * (1.0 - (1.0 - pilot) * (port_a < 0.0))  # what the pump delivers through A
+    a_side = 1.0 - (1.0 - pilot) * (port_a < 0.0)
+    q_valve_in = q_pa * a_side + q_pb  # what the pump delivers through A and B
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
     q_in1 = q_a - q_r1  # Q_1 into the piston chamber
@@ -305,11 +329,14 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     dk = lever_derivative(q1, c.a, c.b, xp)
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
-    power = (ps - c.p_tank) * (q_pa + q_pb)
+    power = (ps - c.p_tank) * q_valve_in
     loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
     # the drive's state: fixed_pump's line (eq. D13), load_sensing's lag (eq. D18); p_n stands still
-    drive_rate = c.fixed * fixed_pump.supply(z_d, ps, x, p1, p2, q_pa + q_pb, c, xp).rate
-    drive_rate = drive_rate + c.sensing * load_sensing.supply(z_d, ps, x, p1, p2, q_pa + q_pb, c, xp).rate
+    drive_rate = 0.0 * z_d
+    if np.any(c.fixed != 0.0):
+        drive_rate = drive_rate + c.fixed * fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
+    if np.any(c.sensing != 0.0):
+        drive_rate = drive_rate + c.sensing * load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
     return Terms(
         x,
         p1,
@@ -319,6 +346,12 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         dvol1,
         dvol2,
         ps,
+        q_pa,
+        q_at,
+        q_pb,
+        q_bt,
+        a_side,
+        q_valve_in,
         q_in1,
         q_in2,
         q_r1,
@@ -348,9 +381,12 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     q1, v, s = y[0], y[1], y[7]
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
-    ps = chamber_pressure_pa(y[10], c.p_cav)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
+    line = 0.0 * q1  # fixed_pump's supply line
+    if np.any(c.fixed != 0.0):
+        ps = chamber_pressure_pa(y[10], c.p_cav)
+        line = c.fixed * c.line_volume * (ps - c.p_tank) * (ps - c.p_tank) / (2.0 * c.bulk_modulus)
     return (
         0.5 * c.inertia * k * k * v * v  # T (eq. 8)
         + c.weight_coeff * xp.sin(boom_angle_rad(q1, c.a, c.b, c.h, xp))
@@ -358,7 +394,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + 0.5 * c.static * c.presliding * s * s
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
-        + c.fixed * c.line_volume * (ps - c.p_tank) * (ps - c.p_tank) / (2.0 * c.bulk_modulus)
+        + line
     )
 
 
@@ -372,7 +408,10 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     g1, g2 = t.p1 - c.p_tank, t.p2 - c.p_tank
     dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
     dp2 = t.dz2 * (y[3] > c.p_cav)
-    dps = t.drive_rate * (y[10] > c.p_cav)
+    line = 0.0 * q1  # fixed_pump's supply line
+    if np.any(c.fixed != 0.0):
+        dps = t.drive_rate * (y[10] > c.p_cav)
+        line = c.fixed * c.line_volume * (t.p_supply - c.p_tank) * dps / c.bulk_modulus
     return (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
         + c.weight_coeff * t.cos_alpha * k * v
@@ -380,7 +419,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + c.static * c.presliding * s * t.bristle_rate
         + c.stop_k * (d_high - d_low) * v
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
-        + c.fixed * c.line_volume * (t.p_supply - c.p_tank) * dps / c.bulk_modulus
+        + line
     )
 
 
@@ -445,10 +484,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     # fixed_pump's line: its relief where it can reach it within this step, the pump's leakage, the valve
-    line_stiffness = c.bulk_modulus / c.line_volume
-    relief_near = y[10] + line_stiffness * c.max_flow * dt > c.p_set
-    line = line_stiffness * (c.g_main * relief_near + c.pump_leak + slope)
-    rate = larger(rate, c.fixed * line)
+    if np.any(c.fixed != 0.0):
+        line_stiffness = c.bulk_modulus / c.line_volume
+        relief_near = y[10] + line_stiffness * c.max_flow * dt > c.p_set
+        rate = larger(rate, c.fixed * line_stiffness * (c.g_main * relief_near + c.pump_leak + slope))
     rate = larger(rate, c.sensing * c.ls_inv_tau)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
@@ -512,6 +551,82 @@ def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[5],  # supply_energy
         y[6],  # valve_loss_energy
     )
+
+
+@jitable
+def _either(pc: Num, fixed: Num, sensing: Num, c: Constants) -> Num:
+    """The value of the drive in use, of the values each valve drive gives."""
+    return pc + c.fixed * (fixed - pc) + c.sensing * (sensing - pc)
+
+
+@jitable
+def drive_supply(y: list, c: Constants, t: Terms, xp: ModuleType = math) -> Supply:
+    """The supply side of the drive in use at state ``y`` with the model's terms ``t``: the
+    pump's operating point and the supply-side terms of the ledger (model/drives)."""
+    z, ps, x, q = y[DRIVE_STATE], t.p_supply, t.spool, t.q_valve_in
+    pc = pressure_compensated.supply(z, ps, x, t.p1, t.p2, q, c, xp)
+    fp = fixed_pump.supply(z, ps, x, t.p1, t.p2, q, c, xp)
+    ls = load_sensing.supply(z, ps, x, t.p1, t.p2, q, c, xp)
+    return Supply(
+        _either(pc.rate, fp.rate, ls.rate, c),
+        _either(pc.displacement, fp.displacement, ls.displacement, c),
+        _either(pc.speed, fp.speed, ls.speed, c),
+        _either(pc.dp, fp.dp, ls.dp, c),
+        _either(pc.q_pump, fp.q_pump, ls.q_pump, c),
+        _either(pc.main_relief_loss, fp.main_relief_loss, ls.main_relief_loss, c),
+        _either(pc.line_oil_work, fp.line_oil_work, ls.line_oil_work, c),
+        _either(pc.check_loss, fp.check_loss, ls.check_loss, c),
+        _either(pc.reservoir_power, fp.reservoir_power, ls.reservoir_power, c),
+    )
+
+
+@jitable
+def ledger(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> Ledger:
+    """The energy ledger from battery to hook at state ``y`` (docs/model.md, "Energy ledger";
+    eq. D26-D29): the drive's pump through motor and inverter to the battery, the valve's and
+    load-holding valve's throttling and leakage, and the cylinder to the hook, all from the
+    model's own terms, so that its terms balance at every state (ledger.residual_w)."""
+    terms = _terms(y, c, u, xp)
+    supply = drive_supply(y, c, terms, xp)
+    throttling, leakage = valve_losses(
+        terms.q_pa,
+        terms.q_at,
+        terms.q_pb,
+        terms.q_bt,
+        terms.p_supply,
+        c.p_tank,
+        terms.p1,
+        terms.p2,
+        c.leak,
+        terms.a_side,
+        c.holding * c.seat_leak,
+    )  # eq. D27
+    cylinder = cylinder_side(
+        y[1],
+        terms.acc,
+        terms.p1,
+        terms.p2,
+        terms.q_in1,
+        terms.q_in2,
+        terms.dvol1,
+        terms.dvol2,
+        terms.q_relief1,
+        terms.q_relief2,
+        terms.f_friction,
+        terms.f_stop,
+        c.spring * (y[0] - c.spring_free),
+        terms.lever,
+        terms.lever_slope,
+        terms.cos_alpha,
+        c.inertia,
+        c.weight_coeff,
+        c.s1,
+        c.s2,
+        c.p_tank,
+        c.p_ambient,
+        c.f_external,
+    )  # eq. D28
+    return assemble(electric_chain(supply, c, xp), supply, throttling, leakage, cylinder)  # eq. D26, D29
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:

@@ -85,6 +85,12 @@ def constants_of(row: Any) -> model.Constants:
         row[44],
         row[45],
         row[46],
+        row[47],
+        row[48],
+        row[49],
+        row[50],
+        row[51],
+        row[52],
     )
 
 
