@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..jit import jitable
+from ..jit import compiled_as, jitable
 from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated
 from .drives import constants as drive_constants
 from .drives.constants import DriveConstants, Supply
@@ -86,6 +86,25 @@ STABILITY_BOUND = True
 
 #: Spool opening towards lowering at which the pilot has fully opened the load-holding valve.
 PILOT_FULL_OPENING = 0.05
+
+
+def in_use(flag: Num) -> bool:
+    """Whether a 0/1 flag of the constants (a float, or an array of a batch's sets) is set for
+    any set: the model skips the equations of a drive no set uses."""
+    if isinstance(flag, float):
+        return flag != 0.0
+    return bool(np.any(flag != 0.0))
+
+
+@compiled_as(in_use)
+def _in_use_compiled(flag: Any) -> Any:
+    """:func:`in_use` as compiled code runs it: a branch on the flag of the set (the
+    implementation's annotations are those of this typing function, as numba asks)."""
+
+    def of_set(flag: Any) -> Any:
+        return np.any(flag != 0.0)
+
+    return of_set
 
 
 class Constants(NamedTuple):
@@ -298,10 +317,10 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     # the P port: the pump at p_n (today's source holds the parameter's p_n, whatever z_d says) or
     # at load_sensing's pressure z_d, at most what the open path takes at its flow limit (eq. D19);
     # for fixed_pump the supply line's pressure (eq. D13)
-    # (a drive no set uses is skipped: compiled, each set branches to its own drive's equations)
+    # (a drive no set uses is skipped, in_use: compiled, each set branches to its own drive's equations)
     z_d = y[10]
     ps = pressure_compensated.port_pressure_pa(c.p_set + c.sensing * (z_d - c.p_set), x, p1, p2, c, xp)
-    if np.any(c.fixed != 0.0):
+    if in_use(c.fixed):
         ps = ps + c.fixed * (fixed_pump.port_pressure_pa(z_d, x, p1, p2, c, xp) - ps)
     q_pa, q_at, q_pb, q_bt = valve_flows(x, ps, c.p_tank, p1, p2, c.k_valve, c.transition2, c.leak, xp)
     # the load-holding valve lets oil out of the piston chamber only when the pilot opens it
@@ -333,9 +352,9 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
     # the drive's state: fixed_pump's line (eq. D13), load_sensing's lag (eq. D18); p_n stands still
     drive_rate = 0.0 * z_d
-    if np.any(c.fixed != 0.0):
+    if in_use(c.fixed):
         drive_rate = drive_rate + c.fixed * fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
-    if np.any(c.sensing != 0.0):
+    if in_use(c.sensing):
         drive_rate = drive_rate + c.sensing * load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
     return Terms(
         x,
@@ -384,7 +403,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     line = 0.0 * q1  # fixed_pump's supply line
-    if np.any(c.fixed != 0.0):
+    if in_use(c.fixed):
         ps = chamber_pressure_pa(y[10], c.p_cav)
         line = c.fixed * c.line_volume * (ps - c.p_tank) * (ps - c.p_tank) / (2.0 * c.bulk_modulus)
     return (
@@ -409,7 +428,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
     dp2 = t.dz2 * (y[3] > c.p_cav)
     line = 0.0 * q1  # fixed_pump's supply line
-    if np.any(c.fixed != 0.0):
+    if in_use(c.fixed):
         dps = t.drive_rate * (y[10] > c.p_cav)
         line = c.fixed * c.line_volume * (t.p_supply - c.p_tank) * dps / c.bulk_modulus
     return (
@@ -484,7 +503,7 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     # fixed_pump's line: its relief where it can reach it within this step, the pump's leakage, the valve
-    if np.any(c.fixed != 0.0):
+    if in_use(c.fixed):
         line_stiffness = c.bulk_modulus / c.line_volume
         relief_near = y[10] + line_stiffness * c.max_flow * dt > c.p_set
         rate = larger(rate, c.fixed * line_stiffness * (c.g_main * relief_near + c.pump_leak + slope))
