@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, CONFIG
+from conftest import BOOM_SIM, CONFIG, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.srv import GetParameters  # noqa: E402
@@ -203,6 +203,37 @@ def test_stiff_settings_are_substepped_and_the_node_says_so(nodes, client):
         out, _ = proc.communicate(timeout=10)
     assert proc.returncode == 0
     assert "stability bound: rk4 takes" in out and "substeps per time step of 0.001 s" in out
+
+
+def test_a_node_started_with_a_small_fixed_pump_lifts_at_the_pumps_flow(nodes, client):
+    """drive:=fixed_pump (start-only): the valve fully open, the boom rises as fast as the pump's
+    delivered flow fills the piston chamber (eq. D1), the relief shut below p_n."""
+    from boom_hydraulics.model.drives import constants as drive_constants
+    from boom_hydraulics.model.parameters import from_mapping
+    from boom_hydraulics.model.physical import constants
+
+    proc = nodes.start("drive:=fixed_pump", "pump_max_flow_m3_s:=2.0e-4", "command_timeout_s:=0.0")
+    try:
+        assert client.spin_until(lambda: len(client.states) > 3)
+        start = client.last().rod_position_m
+        client.command(1.0)
+        # the line and the boom ring for the first few centimetres; from 10 to 15 cm the lift is steady
+        assert client.spin_until(lambda: client.last().rod_position_m > start + 0.15)
+        steady = [s for s in client.states if start + 0.10 <= s.rod_position_m <= start + 0.15]
+        first, last = steady[0], steady[-1]
+        seconds = (last.header.stamp.sec - first.header.stamp.sec) + (
+            last.header.stamp.nanosec - first.header.stamp.nanosec
+        ) * 1e-9
+        velocity = (last.rod_position_m - first.rod_position_m) / seconds
+    finally:
+        out = stop_process(proc)
+    p = from_mapping({"pump_max_flow_m3_s": 2.0e-4, "drive": "fixed_pump"})
+    d = drive_constants(p)
+    # the line below p_n: at most the pump's geometric flow, at least what it delivers at p_n
+    most = d.displacement * d.speed / constants(p).s1
+    least = (d.displacement * d.speed - d.pump_leak * (p.supply_pressure_pa - p.tank_pressure_pa)) / constants(p).s1
+    assert least * 0.99 < velocity < most, (least, velocity, most)
+    assert ", drive fixed_pump" in out
 
 
 def test_a_broken_energy_balance_stops_the_node_and_is_reported(nodes, client):

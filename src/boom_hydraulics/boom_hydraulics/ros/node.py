@@ -207,9 +207,10 @@ class BoomSimNode(Node):
             if mode is ClockMode.FOLLOWED
             else f"real-time factor {rtf:g}{' (as fast as possible)' if rtf == 0 else ''}"
         )
+        drive = f", drive {p.drive}" if p.mode == "physical" else ""
         self.get_logger().info(
             f"{p.mode} mode, {p.method} dt={p.time_step_s} s, {self.clock.rate_hz:g} Hz, {pace}, "
-            f"{'compiled' if self.sim.compiled else 'interpreted'}"
+            f"{'compiled' if self.sim.compiled else 'interpreted'}{drive}"
         )
 
     def start(self) -> None:
