@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import run_tool
 
 from boom_hydraulics.model import physical
 from boom_hydraulics.model.drives import constants as drive_constants
@@ -93,3 +94,12 @@ def test_each_drive_runs_the_same_compiled_and_interpreted(drive):
     for name in ("q1", "p1", "p2", "p_supply", "supply_energy"):
         scale = np.max(np.abs(interpreted[name]))
         assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
+
+
+def test_a_supply_line_too_stiff_to_step_says_which_parameter_to_change(tmp_path):
+    result = run_tool(
+        "boom-sim", "run", "--set", "drive=fixed_pump", "--set", "supply_line_volume_m3=1e-9", "--duration", "0.1",
+        "--out", tmp_path / "run.csv",
+    )  # fmt: skip
+    assert result.returncode == 1 and "too stiff" in result.stderr and "a larger supply_line_volume_m3" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "run.csv").exists()

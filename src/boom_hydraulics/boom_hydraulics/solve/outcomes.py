@@ -70,7 +70,9 @@ def message(p: Parameters, outcome: int, t_s: float, y: Sequence[float], needed_
         return (
             f"too stiff at t = {t_s:.6g} s: a stable {p.method} step of {p.time_step_s:g} s needs "
             f"{needed_substeps} substeps, more than {MAX_SUBSTEPS} ({state}); use method ros2 (implicit) "
-            "or larger dead volumes, a lower bulk_modulus_pa or a smaller orifice"
+            "or larger dead volumes"
+            + (", a larger supply_line_volume_m3" if p.drive == "fixed_pump" else "")
+            + ", a lower bulk_modulus_pa or a smaller orifice"
         )
     if outcome == OUT_OF_GEOMETRY:
         low, high = triangle_bounds_m(p.a_m, p.b_m)
