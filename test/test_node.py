@@ -214,7 +214,7 @@ def test_a_node_started_with_a_small_fixed_pump_lifts_at_the_pumps_flow(nodes, c
 
     proc = nodes.start("drive:=fixed_pump", "pump_max_flow_m3_s:=2.0e-4", "command_timeout_s:=0.0")
     try:
-        assert client.spin_until(lambda: len(client.states) > 3)
+        client.handshake()  # discovery done both ways: the command below reaches the node
         start = client.last().rod_position_m
         client.command(1.0)
         # the line and the boom ring for the first few centimetres; from 10 to 15 cm the lift is steady

@@ -18,24 +18,27 @@ from boom_hydraulics.solve.command_queue import CommandedDrive, stale
 from boom_hydraulics.solve.simulation import Simulator
 
 TICK_S, TIMEOUT_S = 0.01, 1.0
-#: The node's tick thread is stalled (a loaded machine, a debugger) from 1.0 s to 2.5 s of its
+#: A tick starts this late after the instant it steps to, and publishes its state this late, s.
+TICK_START_S, TICK_PUBLISH_S = 5e-4, 7e-4
+#: The node's tick thread is stalled (a loaded machine, a debugger) from 2.0 s to 3.5 s of its
 #: clock, then catches the whole backlog up in one tick.
-STALL_S = (1.0, 2.5)
+STALL_S = (2.0, 3.5)
 #: (log time s, stamp s or None for unstamped, opening), as the node received them
 COMMANDS = (
     (0.2051, None, 0.8),  # unstamped: acts now
-    (0.5003, 0.45, 0.0),  # passed, not stale: acts at the next step, times out from its stamp
-    (1.6, 0.2, 0.9),  # stale when it arrived: refused
-    (2.4002, None, -0.5),  # unstamped while the ticks lag: acts where the node was, 1.0 s
-    (2.4501, 2.3, 0.6),  # passed on the clock, but ahead of the lagging node: acts at 2.3 s
+    (0.5003, 0.45, 0.3),  # passed, not stale: acts at the next step, times out 1 s after its stamp
+    (0.7003, None, -0.2),  # logged after the instant 0.70, before its tick: acts at 0.69
+    (2.6, 1.2, 0.9),  # stale when it arrived: refused
+    (3.4002, None, -0.5),  # unstamped while the ticks lag: acts where the node was, 2.0 s
+    (3.4501, 3.3, 0.6),  # passed on the clock, but ahead of the lagging node: acts at 3.3 s
 )
 
 
 def _record_lagging_node(folder: Path) -> dict[int, float]:
     """A bag as a boom_sim node on the system clock records it when its ticks stall: one
     DriveState at the end of each tick, stamped with the simulated instant and logged when
-    published, and the commands logged when received, taken between ticks by the node's rule
-    (ros.commands). Returns the rod position at each state stamp."""
+    published (a little after it), and the commands logged when received, taken between ticks
+    by the node's rule (ros.commands). Returns the rod position at each state stamp."""
     params = from_mapping({})
     sim = Simulator(params)
     drive = CommandedDrive(sim, TIMEOUT_S)
@@ -47,7 +50,7 @@ def _record_lagging_node(folder: Path) -> dict[int, float]:
     custom = run_description(params, EPOCH_NS, 1 / TICK_S, TIMEOUT_S, node="/boom_sim")
     with BagRecorder(folder, topics, custom_data=custom) as rec:
         for wall_s in ticks:
-            while commands and commands[0][0] < wall_s:  # taken between ticks
+            while commands and commands[0][0] < wall_s + TICK_START_S:  # taken before this tick
                 log_s, stamp_s, opening = commands.pop(0)
                 stamp_ns = 0 if stamp_s is None else EPOCH_NS + round(stamp_s * 1e9)
                 rec.write("/valve_command", EPOCH_NS + round(log_s * 1e9), valve_command(stamp_ns, opening))
@@ -56,7 +59,8 @@ def _record_lagging_node(folder: Path) -> dict[int, float]:
             drive.advance(round(wall_s / dt) - sim.step_count)
             stamp_ns = EPOCH_NS + round(sim.t * 1e9)
             rods[stamp_ns] = float(sim.outputs()["q1"])
-            rec.write("/drive_state", EPOCH_NS + round((wall_s + 2e-4) * 1e9), drive_state_cdr(sim.outputs(), stamp_ns))
+            log_ns = EPOCH_NS + round((wall_s + TICK_PUBLISH_S) * 1e9)
+            rec.write("/drive_state", log_ns, drive_state_cdr(sim.outputs(), stamp_ns))
     return rods
 
 
@@ -73,3 +77,7 @@ def test_a_run_whose_node_fell_behind_resimulates_as_it_ran(tmp_path):
     assert recorded["u"][caught_up] == 0.6
     assert np.max(np.abs(again["q1"] - np.array(list(rods.values())))) < 1e-12
     assert np.array_equal(again["u"], recorded["u"])
+    # and boom-resim's own bag re-simulates the same: its states keep the recorded log times
+    result = run_tool("boom-resim", tmp_path / "again", "--out", tmp_path / "once_more")
+    assert result.returncode == 0, result.stderr
+    assert np.max(np.abs(read_drive_states(tmp_path / "once_more")["q1"] - again["q1"])) < 1e-12

@@ -506,7 +506,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     if in_use(c.fixed):
         line_stiffness = c.bulk_modulus / c.line_volume
         relief_near = y[10] + line_stiffness * c.max_flow * dt > c.p_set
-        rate = larger(rate, c.fixed * line_stiffness * (c.g_main * relief_near + c.pump_leak + slope))
+        # the line against its relief and the pump's leakage, and against a chamber through the
+        # open path: G E (1/V_s + 1/V), the two oil springs in series
+        line = line_stiffness * (c.g_main * relief_near + c.pump_leak + slope) + slope * larger(stiff1, stiff2)
+        rate = larger(rate, c.fixed * line)
     rate = larger(rate, c.sensing * c.ls_inv_tau)
     return larger(rate, c.inv_tau + 0.0 * q1)
 

@@ -64,6 +64,7 @@ class RecordedRun:
     end_ns: int
     state_topic: str
     state_ns: list[int]  # the instants the node published DriveState at
+    state_log_ns: list[int]  # when it published each (its log time), in the order of state_ns
     topics: list[Topic]  # of the commands and parameter events, with their recorded offers
     commands: list[Recorded]
     parameter_changes: list[Recorded]
@@ -115,18 +116,22 @@ def _messages(reader: AnyReader, connections: Sequence[Any]):
 class NodeInstants:
     """The node's simulated instant (as a stamp on its clock) when it took a message logged at
     some time. The node takes commands between ticks, and each tick ends with the DriveState of
-    its last step: the instant is that of the last state logged at or before the message (the
-    time origin before the first). On the node's own clock it equals the message's log time
-    while the node keeps up; when it falls behind (a loaded machine, a stall it catches up on),
-    only this says when a command that was unstamped or already passed took effect."""
+    its last step: the instant is that of the last state logged before the message (the time
+    origin before the first). On the node's own clock it equals the message's log time while
+    the node keeps up; when it falls behind (a loaded machine, a stall it catches up on), only
+    this says when a command that was unstamped or already passed took effect. A state and a
+    message logged at the same time: with publish_clock (log times are simulated time) the
+    tick came first, so the state counts; on a shared clock (use_sim_time) the clock had not
+    moved since the tick before, so it does not."""
 
     def __init__(self, origin_ns: int, logged: Sequence[tuple[int, int]]) -> None:
         self.origin_ns = origin_ns
         self.log_ns = [log for log, _ in logged]  # never decreasing: one channel's log times
         self.stamp_ns = [stamp for _, stamp in logged]
+        self._after = bisect.bisect_right if origin_ns == 0 else bisect.bisect_left  # origin 0: publish_clock
 
     def at(self, log_ns: int) -> int:
-        k = bisect.bisect_right(self.log_ns, log_ns)
+        k = self._after(self.log_ns, log_ns)
         return self.stamp_ns[k - 1] if k else self.origin_ns
 
 
@@ -161,7 +166,7 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                 (log_ns, _stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
                 for _, log_ns, _, msg in _messages(reader, states[:1])
             ]
-            recorded_states = sorted(row[1:] for row in logged_states)
+            recorded_states = sorted(logged_states, key=lambda row: row[1])
             node_instants = NodeInstants(description.clock_origin_ns, [row[:2] for row in logged_states])
             wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
             topics = [
@@ -220,11 +225,12 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
         description=description,
         end_ns=end_ns,
         state_topic=states[0].topic if states else "/drive_state",
-        state_ns=[row[0] for row in recorded_states],
+        state_ns=[row[1] for row in recorded_states],
+        state_log_ns=[row[0] for row in recorded_states],
         topics=topics,
         commands=commands,
         parameter_changes=sorted(changes, key=lambda r: r.at_ns),
         setpoints=setpoints,
         run_counts=run_counts,
-        state_signals=tuple(list(column) for column in zip(*recorded_states))[1:] or ((), (), (), ()),
+        state_signals=tuple(list(column) for column in zip(*recorded_states))[2:] or ((), (), (), ()),
     )

@@ -10,13 +10,14 @@ instant is the last state's logged before the command (recorded.NodeInstants), a
 the node fell behind its clock. The new bag has a DriveState at each instant the node
 published one (rounded to the steps of a changed time_step_s), on the recorded topic (a
 namespaced run stays namespaced), and the original commands and parameter events, so both
-runs overlay sample for sample. Exact for runs on the node's own clock (with or without
-publish_clock); on use_sim_time, where a tick can end between two states, a command's time
-is known to within one publish period. A run whose drive was reset, or, on ROS-time stamps, paused, resumed or
-stepped, is refused (exit 2): its time line is not one continuous line from its origin
-(see bags.continuity). A run that cannot be simulated to its end writes nothing; an
-interrupted one (Ctrl-C: exit 130, SIGTERM: 143) neither, and a killed one's temporary
-folder is removed by the next run to the same --out.
+runs overlay sample for sample; its states are logged at the times the node published
+them, so that a re-simulation of it finds the same instants. Exact for runs on the node's
+own clock at real time or with publish_clock; on use_sim_time, where a tick can end between
+two states, a command's time is known to within one publish period. A run whose drive was
+reset, or, on ROS-time stamps, paused, resumed or stepped, is refused (exit 2): its time
+line is not one continuous line from its origin (see bags.continuity). A run that cannot be
+simulated to its end writes nothing; an interrupted one (Ctrl-C: exit 130, SIGTERM: 143)
+neither, and a killed one's temporary folder is removed by the next run to the same --out.
 
 Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
 the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
@@ -73,11 +74,12 @@ class _Resimulation:
         """Simulated time of a time on the node's clock."""
         return (at_ns - self.run.clock_origin_ns) * 1e-9
 
-    def _timeout_at(self, at_ns: int) -> float:
-        """The command timeout in effect at ``at_ns`` (the recorded changes of it included)."""
+    def _timeout_at(self, log_ns: int) -> float:
+        """The command timeout in effect when a message logged at ``log_ns`` arrived (the
+        recorded changes of it included, by their own log times: both on the node's clock)."""
         timeout_s = self.run.command_timeout_s
         for change in self.run.parameter_changes:
-            if change.at_ns <= at_ns and "command_timeout_s" in change.changes:
+            if change.log_ns <= log_ns and "command_timeout_s" in change.changes:
                 timeout_s = float(change.changes["command_timeout_s"])
         return timeout_s
 
@@ -181,6 +183,9 @@ class Replay:
         self._resim = _Resimulation(run, dict(values) | dict(overrides), overrides)
         self.params = self._resim.sim.params
         self.instants = run.state_ns or _grid(run, self.params.time_step_s)
+        # when the node published the state of each instant (the grid's: at its instant)
+        self.log_ns = dict(zip(run.state_ns, run.state_log_ns))
+        self.instant_ns = run.clock_origin_ns  # the instant of the state just given
         self.done = 0
 
     def __iter__(self) -> Iterator[tuple[int, dict[str, Any]]]:
@@ -191,17 +196,18 @@ class Replay:
         now_ns = run.clock_origin_ns
         for at_ns in self.instants:
             self.done += 1  # the recorded run's state instants: runs overlay sample for sample
-            steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
-            if steps <= 0:
-                continue
             resim.apply_changes()  # the node changes parameters between ticks, at a state instant
             resim.take(now_ns)  # and takes commands between ticks
             if now_ns in starts:  # a goal or trajectory was taken between these instants
                 resim.take_over(starts[now_ns])
+            steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
+            if steps <= 0:  # rounds onto the last instant (a longer time_step_s): what comes there acts from here
+                now_ns = at_ns
+                continue
             resim.drive.advance(steps)  # a SimulationError ends it
             if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
                 resim.drive.let_go()
-            now_ns = at_ns
+            now_ns = self.instant_ns = at_ns
             yield run.clock_origin_ns + round(resim.sim.t * 1e9), resim.sim.outputs()
 
 
@@ -232,10 +238,13 @@ def resimulate(
         ):
             for stamp_ns, outputs in replay:
                 progress.update(replay.done - progress.n)
-                while recorded and recorded[0].log_ns <= stamp_ns:  # the recorded messages, in log order
+                # logged when the node published the state of this instant, so that a re-simulation
+                # of this bag finds the node's instants as in the recorded run (NodeInstants)
+                log_ns = replay.log_ns.get(replay.instant_ns, stamp_ns)
+                while recorded and recorded[0].log_ns <= log_ns:  # the recorded messages, in log order
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
-                recorder.write(run.state_topic, stamp_ns, drive_state_cdr(outputs, stamp_ns))
+                recorder.write(run.state_topic, log_ns, drive_state_cdr(outputs, stamp_ns))
                 if recorder.error is not None:  # the disk failed: stop here, nothing is kept
                     break
         if recorder.error is not None or not getattr(recorder, "finished", True):

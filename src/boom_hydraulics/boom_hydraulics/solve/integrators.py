@@ -67,6 +67,8 @@ def _component_sums(combine: Callable[..., Any], arity: int) -> Any:
         return [context.cast(builder, builder.extract_value(value, i), of[i], types.float64) for i in range(len(of))]
 
     def typed(y: Any, h: Any, ks: tuple) -> Any:
+        if any(len(k) != len(y) for k in ks):
+            return None  # no such sum: numba says so where it is called
         out = types.UniTuple(types.float64, len(y))
 
         def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
