@@ -34,7 +34,7 @@ COMMANDS = (
 )
 
 
-def _record_lagging_node(folder: Path) -> dict[int, float]:
+def _record_lagging_node(folder: Path, commands=COMMANDS, stall_s=STALL_S, end_s: float = 4.0) -> dict[int, float]:
     """A bag as a boom_sim node on the system clock records it when its ticks stall: one
     DriveState at the end of each tick, stamped with the simulated instant and logged when
     published (a little after it), and the commands logged when received, taken between ticks
@@ -43,8 +43,9 @@ def _record_lagging_node(folder: Path) -> dict[int, float]:
     sim = Simulator(params)
     drive = CommandedDrive(sim, TIMEOUT_S)
     dt = params.time_step_s
-    ticks = [round(k * TICK_S, 9) for k in range(1, 400) if not STALL_S[0] < k * TICK_S < STALL_S[1]]
-    commands = list(COMMANDS)
+    n = round(end_s / TICK_S)
+    ticks = [round(k * TICK_S, 9) for k in range(1, n) if not stall_s[0] < k * TICK_S < stall_s[1]]
+    commands = list(commands)
     rods = {}
     topics = [Topic("/drive_state", DRIVE_STATE), Topic("/valve_command", "boom_hydraulics_msgs/msg/ValveCommand")]
     custom = run_description(params, EPOCH_NS, 1 / TICK_S, TIMEOUT_S, node="/boom_sim")
@@ -81,3 +82,17 @@ def test_a_run_whose_node_fell_behind_resimulates_as_it_ran(tmp_path):
     result = run_tool("boom-resim", tmp_path / "again", "--out", tmp_path / "once_more")
     assert result.returncode == 0, result.stderr
     assert np.max(np.abs(read_drive_states(tmp_path / "once_more")["q1"] - again["q1"])) < 1e-12
+
+
+def test_a_what_if_with_a_longer_step_acts_a_command_where_the_node_took_it(tmp_path):
+    """States every 10 ms re-simulated with 15 ms steps: the instant 20 ms rounds onto 15 ms.
+    A command the node took at 20 ms acts from the step that starts at 15 ms, as a command
+    taken at 15 ms would, not one step later."""
+    bag = tmp_path / "node"
+    _record_lagging_node(bag, commands=((0.025, None, 0.7),), stall_s=(0.0, 0.0), end_s=0.1)
+    result = run_tool("boom-resim", bag, "--set", "time_step_s=0.015", "--out", tmp_path / "coarse")
+    assert result.returncode == 0, result.stderr
+    again = read_drive_states(tmp_path / "coarse")
+    at_30_ms = int(np.argmin(np.abs(again["t"] - 0.03)))
+    assert abs(again["t"][at_30_ms] - 0.03) < 1e-9 and again["u"][at_30_ms] == 0.7
+    assert np.all(again["u"][again["t"] < 0.02] == 0.0)
