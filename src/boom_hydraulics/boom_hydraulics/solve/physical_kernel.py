@@ -137,37 +137,27 @@ def outputs_of(t: float, y0: Any, crow: Any, u: float) -> tuple:
     return model.outputs(t, state_of(y0), constants_of(crow), u)
 
 
+@jitable
+def batch_set(step: Any, k: int, arguments: tuple) -> None:
+    """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
+    the position controller."""
+    f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.controller_value)
+    run.batch_set(*f, constants_of, state_of, k, *arguments)
+
+
 @kernel(SOURCES, parallel=True)
 def batch_euler(*arguments: Any) -> None:
-    """kernel.batch_set with explicit Euler over every set of a batch, in parallel
-    (``arguments``: see batch.run_sets); the position controller."""
+    """:func:`batch_set` with explicit Euler over every set of a batch, in parallel
+    (``arguments``: see batch.run_sets)."""
     for k in prange(arguments[0].shape[0]):
-        f = (
-            euler_step,
-            model.derivative,
-            model.stiffness_rate,
-            model.energy,
-            model.outputs,
-            model.samples,
-            run.controller_value,
-        )
-        run.batch_set(*f, constants_of, state_of, k, *arguments)
+        batch_set(euler_step, k, arguments)
 
 
 @kernel(SOURCES, parallel=True)
 def batch_rk4(*arguments: Any) -> None:
-    """kernel.batch_set with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
+    """:func:`batch_set` with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
     for k in prange(arguments[0].shape[0]):
-        f = (
-            rk4_step,
-            model.derivative,
-            model.stiffness_rate,
-            model.energy,
-            model.outputs,
-            model.samples,
-            run.controller_value,
-        )
-        run.batch_set(*f, constants_of, state_of, k, *arguments)
+        batch_set(rk4_step, k, arguments)
 
 
 #: The entry points by method: stepping, and the batch run (explicit methods only).
