@@ -297,9 +297,21 @@ def test_recording_holds_every_published_and_received_message(nodes, client, tmp
         client.command(opening)
         client.spin_for(0.05)
     assert client.spin_until(lambda: client.last().valve_command == sent[-1])
-    client.diagnostics.clear()  # the node's count of the commands it received, made after the last one
-    assert client.spin_until(lambda: "received" in client.status_values("commands"))
-    received = int(client.status_values("commands")["received"])
+    # the node had taken every command by now (it published a state that shows the last one):
+    # its count of them is in a diagnostics array stamped (system clock) after now; one made
+    # earlier can still arrive after that state on a loaded machine
+    seen_ns = time.time_ns()
+
+    def counted_after() -> dict[str, str]:
+        for array in client.diagnostics:
+            if array.header.stamp.sec * 10**9 + array.header.stamp.nanosec >= seen_ns:
+                for status in array.status:
+                    if status.name.endswith("commands"):
+                        return {kv.key: kv.value for kv in status.values}
+        return {}
+
+    assert client.spin_until(lambda: "received" in counted_after())
+    received = int(counted_after()["received"])
     ticks = len(client.states)
     assert client.spin_until(lambda: len(client.states) > ticks + 100)  # a second of ticks more
     proc.send_signal(sig)  # either signal finishes the bag
