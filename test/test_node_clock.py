@@ -98,8 +98,12 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
         (_stamp_s(d), _sim_time(d)) for d in client.diagnostics if any(s.name == "boom_sim: drive" for s in d.status)
     ]
     assert len(pairs) >= 4
-    offsets = [stamp - sim for stamp, sim in pairs]
-    assert max(offsets) - min(offsets) < 0.25, offsets
+    # (stamp - simulated time) is the time origin plus how far the ticks trail the clock when the
+    # array is made: a loaded machine makes some arrays trail by a few ticks' backlog (0.28 s
+    # seen), while a pace other than the clock's would drift it by seconds over the phases
+    offsets = sorted(stamp - sim for stamp, sim in pairs)
+    assert offsets[len(offsets) // 2] - offsets[0] < 0.1, offsets
+    assert offsets[-1] - offsets[0] < 1.0, offsets
     assert "following the ROS clock" in log
 
 
