@@ -107,6 +107,10 @@ def test_the_model_description_validates_and_names_units(fmu: Path, report: dict
     assert (base["Pa"].kg, base["Pa"].m, base["Pa"].s) == (1, -1, -2)  # what a tool converts by
     leakage = base[variables["valve_leakage_m3_s_pa"].unit]  # m^3/(s Pa)
     assert (leakage.kg, leakage.m, leakage.s) == (-1, 4, 1)
+    capacity = base[variables["battery_capacity_kwh"].unit]  # the battery's: 1 kWh is 3.6 MJ
+    assert (capacity.kg, capacity.m, capacity.s, capacity.factor) == (1, 2, -2, 3.6e6)
+    volt = base[variables["battery_voltage_v"].unit]
+    assert (volt.kg, volt.m, volt.s, volt.A) == (1, 2, -3, -1)
     assert variables["bulk_modulus_pa"].variability == "tunable"
     assert variables["initial_length_m"].variability == "fixed"
     assert float(variables["supply_pressure_pa"].start) == 16.0e6  # the config's value

@@ -66,6 +66,25 @@ def test_batched_metrics_equal_those_of_single_runs(scenario):
         assert (table["target_overshoot_deg"] < 0.5).all()
 
 
+def test_a_sweep_across_drives_equals_single_runs_and_counts_cycles_per_charge():
+    axes = [parse_axis("drive=pressure_compensated,fixed_pump,load_sensing"), parse_axis("piston_diameter=0.05")]
+    scenario = "steps:0=1,1=0,1.4=-1,1.8=0"
+    plan = _plan([("default", Parameters())], axes, scenario=scenario, duration_s=2.0, lift_angle_deg=8.0)
+    table = _table(plan)
+    for batch in plan.batches:
+        for point, params in zip(batch.points, batch.params):
+            single = simulate(params, 2.0, commands.from_parameters(params), jit=False)
+            expected = analysis.metrics(single.columns, lift_angle_deg=8.0)
+            for name, _, _ in sweep.STREAMED_METRICS:
+                assert _same(table[name][point], expected[name]), (point, params.drive, name)
+            energy = single["battery_drawn"][-1] - single["battery_returned"][-1]
+            capacity_j = params.battery_capacity_kwh * 3.6e6
+            assert table["cycles_per_charge"][point] == pytest.approx(capacity_j / energy, rel=1e-9)
+    drawn = dict(zip(table["drive"], table["battery_energy_j"]))
+    assert drawn["load_sensing"] < drawn["pressure_compensated"] < drawn["fixed_pump"], drawn
+    assert (table["peak_battery_power_w"] > 0.0).all() and (table["efficiency"] < 1.0).all()
+
+
 def test_the_paper_configs_keep_their_order_40mm_fastest_80mm_slower():
     configs = [(f"fig{i}", config.load(CONFIG / f"paper_fig{i}.yaml")) for i in (8, 9, 10)]
     plan = _plan(configs, [], scenario="lift:1.5", duration_s=3.0, lift_angle_deg=10.0)

@@ -16,6 +16,9 @@ import numpy as np
 from ..solve import streaming
 from ..solve.streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
+#: The battery's signals among the samples (the physical model's ledger).
+BATTERY = ("battery_drawn", "battery_returned", "lift_work", "battery_power")
+
 
 def streamed(
     signals: Mapping[str, np.ndarray],
@@ -24,10 +27,14 @@ def streamed(
     ripple: float = streaming.RIPPLE_PA,
 ) -> dict[str, float]:
     """The metrics of :mod:`streaming` over stored ``signals`` (names of streaming.SAMPLE_SIGNALS; a
-    missing one counts as 0), with the closed-loop ``move`` (see :func:`move_window`) and the
-    ringing's turning points counted beyond ``ripple``."""
+    missing one counts as 0, a missing battery signal as NaN: its metrics are unknown), with the
+    closed-loop ``move`` (see :func:`move_window`) and the ringing's turning points counted beyond
+    ``ripple``."""
     n = len(signals["t"])
-    columns = [np.asarray(signals[k], dtype=float) if k in signals else np.zeros(n) for k in streaming.SAMPLE_SIGNALS]
+    columns = [
+        np.asarray(signals[k], dtype=float) if k in signals else np.full(n, math.nan if k in BATTERY else 0.0)
+        for k in streaming.SAMPLE_SIGNALS
+    ]
     s = streaming.settings(lift_angle_deg, *move)
     s[streaming.RIPPLE] = ripple
     m = streaming.accumulator()

@@ -50,7 +50,7 @@ from .interface import (
     Variable,
     unsupported,
 )
-from .units import base_exponents, unit_name
+from .units import base_exponents, base_factor, unit_name
 
 #: How far, as a fraction of the time step, a step size may be off a whole number of time
 #: steps (a host that takes differences of its communication points rounds them).
@@ -182,11 +182,15 @@ class BoomDrive(Fmi2Slave):
         (the outputs, computed at initialization) that FMI 2.0 asks for."""
         root = super().to_xml(model_options or {})
         units = Element("UnitDefinitions")
-        defined = {unit_name(v.unit): base_exponents(v.unit) for v in VARIABLES if v.kind == "float"}
-        for name, exponents in sorted(defined.items()):
+        defined = {unit_name(v.unit): v.unit for v in VARIABLES if v.kind == "float"}
+        for name, unit in sorted(defined.items()):
             node = SubElement(units, "Unit", name=name)
+            exponents, factor = base_exponents(unit), base_factor(unit)
             if exponents:
-                SubElement(node, "BaseUnit", {base: str(n) for base, n in exponents.items()})
+                attributes = {base: str(n) for base, n in exponents.items()}
+                if factor != 1.0:
+                    attributes["factor"] = repr(factor)
+                SubElement(node, "BaseUnit", attributes)
         cosimulation = root.find("CoSimulation")
         assert cosimulation is not None
         root.insert(list(root).index(cosimulation) + 1, units)

@@ -24,7 +24,13 @@ SYMBOLS: dict[str, dict[str, int]] = {
     "Pa": {"kg": 1, "m": -1, "s": -2},
     "J": {"kg": 1, "m": 2, "s": -2},
     "W": {"kg": 1, "m": 2, "s": -3},
+    "A": {"A": 1},
+    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
+    "ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
+    "kWh": {"kg": 1, "m": 2, "s": -2},
 }
+#: Symbols that are a multiple of their base units: the factor (FMI's BaseUnit ``factor``).
+FACTORS: dict[str, float] = {"kWh": 3.6e6}
 
 
 def base_exponents(unit: str) -> dict[str, int]:
@@ -45,3 +51,14 @@ def base_exponents(unit: str) -> dict[str, int]:
 def unit_name(unit: str) -> str:
     """A model unit in Modelica's syntax: ``'N s/m^2'`` -> ``'N.s/m2'``; dimensionless ``''`` -> ``'1'``."""
     return unit.strip().replace("^", "").replace(" ", ".") or "1"
+
+
+def base_factor(unit: str) -> float:
+    """How many of its base units one ``unit`` is: ``'kWh'`` -> 3.6e6 (1 for most)."""
+    numerator, _, denominator = unit.partition("/")
+    factor = 1.0
+    for part, sign in ((numerator, 1), (denominator.strip().removeprefix("(").removesuffix(")"), -1)):
+        for item in part.split():
+            symbol, _, power = item.partition("^")
+            factor *= FACTORS.get(symbol, 1.0) ** (sign * int(power or 1))
+    return factor

@@ -36,6 +36,7 @@ from ..jit import jitable
 from .battery import battery_current_a, battery_loss_w, chemical_power_w, overloaded, state_of_charge_rate_1_s
 from .drives.constants import DriveConstants, Supply
 from .electric_motor import electrical_power_w, motor_loss_w
+from .hydraulics import pos
 from .pump import mechanical_loss_w, shaft_torque_n_m, volumetric_loss_w
 
 Num = Any  # float or numpy.ndarray
@@ -271,6 +272,41 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.oil_work
         - ledger.kinetic_power
         - ledger.potential_power
+    )
+
+
+#: The ledger over a run, J, each the integral of a term (a state of the physical model, see
+#: :func:`integral_rates`): the battery's chemical energy split into what it gave
+#: (``battery_drawn``) and what it took back (``battery_returned``), both >= 0, every other
+#: term's integral under the term's name, and ``lift_work``: the potential energy raised, the
+#: integral of the positive part of ``potential_power`` (the useful work of a cycle that ends
+#: where it began).
+INTEGRALS = ("battery_drawn", "battery_returned", *TERM_NAMES[1:], "lift_work")
+
+
+@jitable
+def integral_rates(ledger: Ledger) -> tuple:
+    """The rates of :data:`INTEGRALS` at one instant, W, in its order."""
+    return (
+        pos(ledger.battery_power),
+        pos(-ledger.battery_power),
+        ledger.reservoir_power,
+        ledger.battery_loss,
+        ledger.motor_loss,
+        ledger.pump_volumetric_loss,
+        ledger.pump_mechanical_loss,
+        ledger.main_relief_loss,
+        ledger.valve_loss,
+        ledger.leakage_loss,
+        ledger.port_relief_loss,
+        ledger.friction_work,
+        ledger.end_stop_work,
+        ledger.ambient_work,
+        ledger.external_work,
+        ledger.oil_work,
+        ledger.kinetic_power,
+        ledger.potential_power,
+        pos(ledger.potential_power),
     )
 
 

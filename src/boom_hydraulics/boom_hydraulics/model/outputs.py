@@ -30,6 +30,10 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("power", "W", "hydraulic power drawn from the supply at the valve's P port"),
     ("supply_energy", "J", "energy drawn from the supply at the valve's P port"),
     ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),
+    ("battery_power", "W", "chemical power the battery gives (negative: takes back; NaN in paper mode)"),
+    ("battery_drawn", "J", "energy the battery gave since the start"),
+    ("battery_returned", "J", "energy the battery took back since the start (a generating motor)"),
+    ("lift_work", "J", "potential energy raised since the start: the useful work of the lifts"),
     ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
     ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
     ("at_end_stop", "bool", "rod against an end stop"),
@@ -38,10 +42,13 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("pump_saturated", "bool", "pump at its maximum flow"),
 )
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
+#: The battery's outputs (the physical model's energy ledger): NaN in paper mode, which has none.
+BATTERY_OUTPUTS = ("battery_power", "battery_drawn", "battery_returned", "lift_work")
 #: The outputs the run metrics take (solve.streaming), in their order: each model's ``samples``
 #: gives these alone, so that a run that keeps no table computes nothing else per sample.
 SAMPLE_NAMES = (
     "t", "q1", "v", "alpha", "p1", "p2", "u", "cavitation", "relief_open", "supply_energy", "valve_loss_energy",
+    "battery_drawn", "battery_returned", "lift_work", "battery_power",
 )  # fmt: skip
 #: Outputs that are flags (0.0 or 1.0 in a table of floats).
 BOOLEAN_OUTPUTS = tuple(name for name, unit, _ in OUTPUTS if unit == "bool")

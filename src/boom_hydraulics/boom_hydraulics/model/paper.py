@@ -185,6 +185,10 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         terms.power,  # power
         y[3],  # supply_energy
         y[4],  # valve_loss_energy
+        zero + math.nan,  # battery_power: paper mode has no battery
+        zero + math.nan,  # battery_drawn
+        zero + math.nan,  # battery_returned
+        zero + math.nan,  # lift_work
         zero,  # void1
         zero,  # void2
         1.0 * (zero != zero),  # at_end_stop
@@ -212,6 +216,10 @@ def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * (zero != zero),  # relief_open
         y[3],  # supply_energy
         y[4],  # valve_loss_energy
+        zero + math.nan,  # battery_drawn: paper mode has no battery
+        zero + math.nan,  # battery_returned
+        zero + math.nan,  # lift_work
+        zero + math.nan,  # battery_power
     )
 
 

@@ -102,14 +102,15 @@ def _plant(default: Any, unit: str, description: str, **limits: Any) -> Any:
     return _param("plant", default, unit, description, **limits)
 
 
-def _drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
+def _unsolved(default: Any, unit: str, description: str, **limits: Any) -> Any:
     """A plant parameter of the drives and their electric supply that no solver reads yet
     (docs/model.md, "Drives")."""
     return _param("plant", default, unit, description, solved=False, **limits)
 
 
-def _valve_drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
-    """A plant parameter of the valve drives the solvers run (docs/model.md, "Drives")."""
+def _drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
+    """A plant parameter of the drives, their electric supply or the battery that the solvers
+    read (docs/model.md, "Drives")."""
     return _param("plant", default, unit, description, **limits)
 
 
@@ -346,7 +347,7 @@ class Parameters:
     relief_rated_flow_m3_s: float = _plant(5.0e-4, "m^3/s", "Flow of a fully open relief valve", low=0.0, high=0.1)
 
     # --- drives, pump, electric motor and battery (docs/model.md, "Drives"; eq. D1-D25) ----
-    drive: str = _valve_drive(
+    drive: str = _drive(
         "pressure_compensated",
         "",
         "Drive that feeds the cylinder: pressure_compensated (the reference), fixed_pump (the paper's "
@@ -354,7 +355,7 @@ class Parameters:
         choices=DRIVES,
         start_only=True,
     )
-    pump_speed_rad_s: float = _valve_drive(
+    pump_speed_rad_s: float = _drive(
         157.08,
         "rad/s",
         "Pump shaft speed of the constant-speed drives (157.08: 1500 rpm), and the top speed (command +-1) "
@@ -362,7 +363,7 @@ class Parameters:
         low=0.0,
         high=1000.0,
     )
-    pump_volumetric_efficiency: float = _valve_drive(
+    pump_volumetric_efficiency: float = _drive(
         0.95,
         "",
         "Pump's delivered over geometric flow at supply_pressure_pa and pump_speed_rad_s: sets its leakage (eq. D1)",
@@ -396,7 +397,7 @@ class Parameters:
         low_inclusive=True,
         high=1.0,
     )
-    motor_time_constant_s: float = _drive(
+    motor_time_constant_s: float = _unsolved(
         0.05,
         "s",
         "First-order lag of the pump_controlled motor's speed behind its command (0: none) (eq. D21)",
@@ -413,13 +414,13 @@ class Parameters:
     battery_resistance_ohm: float = _drive(
         0.01, "ohm", "Battery's internal resistance, cables included (eq. D8)", low=0.0, low_inclusive=True, high=100.0
     )
-    battery_initial_soc: float = _drive(
+    battery_initial_soc: float = _unsolved(
         1.0, "", "Battery's state of charge at the start, 1 full (eq. D10)", low=0.0, low_inclusive=True, high=1.0
     )
-    supply_line_volume_m3: float = _valve_drive(
+    supply_line_volume_m3: float = _drive(
         2.0e-4, "m^3", "fixed_pump: oil volume between pump and valve, hoses included (eq. D13)", low=0.0, high=0.1
     )
-    main_relief_range_pa: float = _valve_drive(
+    main_relief_range_pa: float = _drive(
         1.0e6,
         "Pa",
         "fixed_pump: pressure rise over supply_pressure_pa at which the main relief passes pump_max_flow_m3_s "
@@ -427,21 +428,21 @@ class Parameters:
         low=0.0,
         high=1.0e8,
     )
-    load_sensing_margin_pa: float = _valve_drive(
+    load_sensing_margin_pa: float = _drive(
         2.0e6,
         "Pa",
         "load_sensing: pump pressure above the fed port's pressure (typically 1.5-2.5 MPa) (eq. D17)",
         low=0.0,
         high=1.0e7,
     )
-    load_sensing_time_constant_s: float = _valve_drive(
+    load_sensing_time_constant_s: float = _drive(
         0.05,
         "s",
         "load_sensing: first-order lag of the pump's pressure behind its target (eq. D18)",
         low=0.0,
         high=10.0,
     )
-    reservoir_pressure_pa: float = _drive(
+    reservoir_pressure_pa: float = _unsolved(
         5.0e5,
         "Pa",
         "pump_controlled: pressure of the low-pressure reservoir (accumulator) the checks connect to, absolute "
@@ -449,10 +450,10 @@ class Parameters:
         low=0.0,
         high=1.0e7,
     )
-    pilot_check_diameter_m: float = _drive(
+    pilot_check_diameter_m: float = _unsolved(
         0.006, "m", "pump_controlled: flow diameter of each pilot-operated check valve (eq. D23)", low=0.0, high=0.1
     )
-    pilot_check_opening_pa: float = _drive(
+    pilot_check_opening_pa: float = _unsolved(
         1.0e6,
         "Pa",
         "pump_controlled: pressure of the other line above the reservoir's at which a pilot-operated check is "

@@ -1,7 +1,9 @@
 """Physical mode: the corrected boom drive with both chambers, a 4/3 valve and end stops.
 
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
-s (seal bristle deflection / presliding displacement), W (J), |W| (J), z_d (the drive's state)].
+s (seal bristle deflection / presliding displacement), W (J), |W| (J), z_d (the drive's state),
+then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
+loss, work and stored term, and the lift's work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
 floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
 change of the stored energy :func:`energy` (|W| its absolute value): the energy balance the
@@ -53,7 +55,7 @@ from .hydraulics import (
     valve_flows,
     void_volume_m3,
 )
-from .ledger import Ledger, assemble, cylinder_side, electric_chain, valve_losses
+from .ledger import INTEGRALS, Ledger, assemble, cylinder_side, electric_chain, integral_rates, valve_losses
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
 from .parameters import Parameters
@@ -72,15 +74,21 @@ STATE_NAMES = (
     "energy_change",
     "energy_change_abs",
     "drive_state",
+    *INTEGRALS,
 )
 STATE_SCALES = (
     *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
     "pressure",
+    *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
 ENERGY_STATES = (8, 9)
 #: Index of the drive's state z_d.
 DRIVE_STATE = 10
+#: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
+LEDGER_STATES = 11
+BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
+LIFT_WORK = LEDGER_STATES + len(INTEGRALS) - 1
 #: The stepping takes the substeps that :func:`stiffness_rate` asks for.
 STABILITY_BOUND = True
 
@@ -252,7 +260,7 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     if q1 <= p.cylinder_min_length_m:
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom
     z_d = DRIVES[p.drive].initial_state(drive_constants(p))
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d]
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d, *(0.0 for _ in INTEGRALS)]
 
 
 class Terms(NamedTuple):
@@ -288,7 +296,7 @@ class Terms(NamedTuple):
     acc: Num  # rod acceleration, m/s^2 (eq. 11)
     power: Num  # power drawn from the supply, W
     loss: Num  # power dissipated in the valve, the load-holding valve and the reliefs, W
-    drive_rate: Num  # dz_d/dt, the drive's state rate (model/drives)
+    supply: Supply  # the drive's supply side: its state's rate dz_d/dt, the pump (model/drives)
 
 
 @jitable
@@ -350,12 +358,13 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     power = (ps - c.p_tank) * q_valve_in
     loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
-    # the drive's state: fixed_pump's line (eq. D13), load_sensing's lag (eq. D18); p_n stands still
-    drive_rate = 0.0 * z_d
+    # the drive's supply side and its state's rate: fixed_pump's line (eq. D13), load_sensing's
+    # lag (eq. D18); p_n stands still
+    supply = pressure_compensated.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp)
     if in_use(c.fixed):
-        drive_rate = drive_rate + c.fixed * fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
+        supply = _blend(supply, fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.fixed)
     if in_use(c.sensing):
-        drive_rate = drive_rate + c.sensing * load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp).rate
+        supply = _blend(supply, load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.sensing)
     return Terms(
         x,
         p1,
@@ -387,7 +396,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         acc,
         power,
         loss,
-        drive_rate,
+        supply,
     )
 
 
@@ -429,7 +438,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     dp2 = t.dz2 * (y[3] > c.p_cav)
     line = 0.0 * q1  # fixed_pump's supply line
     if in_use(c.fixed):
-        dps = t.drive_rate * (y[10] > c.p_cav)
+        dps = t.supply.rate * (y[10] > c.p_cav)
         line = c.fixed * c.line_volume * (t.p_supply - c.p_tank) * dps / c.bulk_modulus
     return (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
@@ -459,7 +468,8 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.bristle_rate,
         rate,
         abs(rate),
-        terms.drive_rate,
+        terms.supply.rate,
+        *integral_rates(_ledger_of(y, c, terms, xp)),
     )
 
 
@@ -521,6 +531,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
     terms = _terms(y, c, u, xp)
     q1, v, acc = y[0], y[1], terms.acc
     k = lever_rad_per_m(q1, c.a, c.b, xp)
+    terms_ledger = _ledger_of(y, c, terms, xp)
     void1 = void_volume_m3(c.bulk_modulus, terms.vol1, y[2], c.p_cav)
     void2 = void_volume_m3(c.bulk_modulus, terms.vol2, y[3], c.p_cav)
     return (
@@ -543,6 +554,10 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         terms.power,  # power
         y[5],  # supply_energy
         y[6],  # valve_loss_energy
+        terms_ledger.battery_power,  # battery_power
+        y[BATTERY_DRAWN],  # battery_drawn
+        y[BATTERY_RETURNED],  # battery_returned
+        y[LIFT_WORK],  # lift_work
         void1,  # void1
         void2,  # void2
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
@@ -572,33 +587,26 @@ def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * relieving,  # relief_open
         y[5],  # supply_energy
         y[6],  # valve_loss_energy
+        y[BATTERY_DRAWN],  # battery_drawn
+        y[BATTERY_RETURNED],  # battery_returned
+        y[LIFT_WORK],  # lift_work
+        ledger(t, y, c, u, xp).battery_power,  # battery_power
     )
 
 
 @jitable
-def _either(pc: Num, fixed: Num, sensing: Num, c: Constants) -> Num:
-    """The value of the drive in use, of the values each valve drive gives."""
-    return pc + c.fixed * (fixed - pc) + c.sensing * (sensing - pc)
-
-
-@jitable
-def drive_supply(y: list, c: Constants, t: Terms, xp: ModuleType = math) -> Supply:
-    """The supply side of the drive in use at state ``y`` with the model's terms ``t``: the
-    pump's operating point and the supply-side terms of the ledger (model/drives)."""
-    z, ps, x, q = y[DRIVE_STATE], t.p_supply, t.spool, t.q_valve_in
-    pc = pressure_compensated.supply(z, ps, x, t.p1, t.p2, q, c, xp)
-    fp = fixed_pump.supply(z, ps, x, t.p1, t.p2, q, c, xp)
-    ls = load_sensing.supply(z, ps, x, t.p1, t.p2, q, c, xp)
+def _blend(a: Supply, b: Supply, w: Num) -> Supply:
+    """The supply side ``a``, or ``b`` where the drive's flag ``w`` is 1."""
     return Supply(
-        _either(pc.rate, fp.rate, ls.rate, c),
-        _either(pc.displacement, fp.displacement, ls.displacement, c),
-        _either(pc.speed, fp.speed, ls.speed, c),
-        _either(pc.dp, fp.dp, ls.dp, c),
-        _either(pc.q_pump, fp.q_pump, ls.q_pump, c),
-        _either(pc.main_relief_loss, fp.main_relief_loss, ls.main_relief_loss, c),
-        _either(pc.line_oil_work, fp.line_oil_work, ls.line_oil_work, c),
-        _either(pc.check_loss, fp.check_loss, ls.check_loss, c),
-        _either(pc.reservoir_power, fp.reservoir_power, ls.reservoir_power, c),
+        a.rate + w * (b.rate - a.rate),
+        a.displacement + w * (b.displacement - a.displacement),
+        a.speed + w * (b.speed - a.speed),
+        a.dp + w * (b.dp - a.dp),
+        a.q_pump + w * (b.q_pump - a.q_pump),
+        a.main_relief_loss + w * (b.main_relief_loss - a.main_relief_loss),
+        a.line_oil_work + w * (b.line_oil_work - a.line_oil_work),
+        a.check_loss + w * (b.check_loss - a.check_loss),
+        a.reservoir_power + w * (b.reservoir_power - a.reservoir_power),
     )
 
 
@@ -608,8 +616,13 @@ def ledger(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> Le
     eq. D26-D29): the drive's pump through motor and inverter to the battery, the valve's and
     load-holding valve's throttling and leakage, and the cylinder to the hook, all from the
     model's own terms, so that its terms balance at every state (ledger.residual_w)."""
-    terms = _terms(y, c, u, xp)
-    supply = drive_supply(y, c, terms, xp)
+    return _ledger_of(y, c, _terms(y, c, u, xp), xp)
+
+
+@jitable(inline="always")
+def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
+    """:func:`ledger` from the terms of the evaluation at ``y``."""
+    supply = terms.supply
     throttling, leakage = valve_losses(
         terms.q_pa,
         terms.q_at,

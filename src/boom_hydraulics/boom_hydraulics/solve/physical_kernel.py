@@ -97,7 +97,11 @@ def constants_of(row: Any) -> model.Constants:
 @jitable
 def state_of(row: Any) -> tuple:
     """The state as a tuple (the euler and rk4 steps keep it so)."""
-    return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10])
+    return (
+        *(row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10]),
+        *(row[11], row[12], row[13], row[14], row[15], row[16], row[17], row[18], row[19], row[20]),
+        *(row[21], row[22], row[23], row[24], row[25], row[26], row[27], row[28], row[29]),
+    )
 
 
 @jitable

@@ -34,6 +34,11 @@ Definitions (SI):
   ``target_overshoot_deg``, how far it passed the target; ``target_error_deg``, target
   minus elevation at the window's last sample. NaN without a move.
 - ``supply_energy_j``, ``valve_loss_energy_j``: at the last sample.
+- The battery (docs/model.md, "Energy ledger"): ``battery_energy_j``, what it gave less what it
+  took back over the run; ``battery_drawn_j``, ``battery_returned_j``, those two apart;
+  ``lift_work_j``, the potential energy raised; ``efficiency``, that work over the battery's
+  energy (NaN where the battery gave none); ``peak_battery_power_w``, the most it gave at a
+  sample. NaN in paper mode and for signals without the battery (a bag).
 """
 
 from __future__ import annotations
@@ -68,6 +73,12 @@ NAMES = (
     "target_error_deg",
     "supply_energy_j",
     "valve_loss_energy_j",
+    "battery_energy_j",
+    "battery_drawn_j",
+    "battery_returned_j",
+    "lift_work_j",
+    "efficiency",
+    "peak_battery_power_w",
 )
 
 #: The signals add_sample takes, in its order (names of simulation outputs; a model's ``samples``).
@@ -94,7 +105,9 @@ N_SETTINGS = 5
 (LAST_TURN, MAXIMA, FIRST_MAX_T, LAST_MAX_T, UP_N, UP_FIRST, UP_LAST, DOWN_N, DOWN_FIRST, DOWN_LAST) = range(38, 48)
 # the closed-loop move
 (MOVE_N, MOVE_T0, MOVE_STEP, OUTSIDE, EVER_OUTSIDE, SETTLED_T, PAST, MOVE_LAST) = range(48, 56)
-SIZE = 56
+# the battery
+(DRAWN, RETURNED, LIFT_WORK, BATTERY_PEAK) = range(56, 60)
+SIZE = 60
 
 # PHASE: before the first opening, opened, in the hold, after it
 WAITING, OPEN, HOLDING, HELD = 0.0, 1.0, 2.0, 3.0
@@ -229,6 +242,10 @@ def add_sample(
     relief: float,
     supply_j: float,
     loss_j: float,
+    drawn_j: float,
+    returned_j: float,
+    lift_work_j: float,
+    battery_w: float,
 ) -> None:
     """Take the sample at ``t`` into the accumulator ``m`` (settings ``s``); flags are 0.0 or 1.0."""
     first = m[COUNT] == 0.0
@@ -272,6 +289,9 @@ def add_sample(
     m[T_PREV], m[RISE_PREV], m[SUPPLY_PREV], m[LOSS_PREV] = t, rise, supply_j, loss_j
     m[CAV_PREV], m[RELIEF_PREV] = cavitation, relief
     m[SUPPLY], m[LOSS] = supply_j, loss_j
+    m[DRAWN], m[RETURNED], m[LIFT_WORK] = drawn_j, returned_j, lift_work_j
+    if first or battery_w > m[BATTERY_PEAK]:  # NaN (no battery) stays NaN
+        m[BATTERY_PEAK] = battery_w
 
 
 @jitable
@@ -315,3 +335,8 @@ def finish(m: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
         out[16] = math.degrees(m[PAST]) if m[MOVE_STEP] != 0.0 else 0.0
         out[17] = math.degrees(s[TARGET] - m[MOVE_LAST])
     out[18], out[19] = m[SUPPLY], m[LOSS]
+    battery = m[DRAWN] - m[RETURNED]
+    out[20], out[21], out[22], out[23] = battery, m[DRAWN], m[RETURNED], m[LIFT_WORK]
+    if battery > 0.0:
+        out[24] = m[LIFT_WORK] / battery
+    out[25] = m[BATTERY_PEAK]

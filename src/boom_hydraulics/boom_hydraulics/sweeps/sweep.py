@@ -21,6 +21,7 @@ import numpy as np
 from ..analysis import metrics as analysis
 from ..analysis.linear_model import mid_stroke_modes
 from ..errors import BoomHydraulicsError, ConfigError
+from ..model.battery import J_PER_KWH
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
 from ..solve import commands, streaming
 from ..solve.batch import SHARED, run_sets
@@ -49,6 +50,12 @@ STREAMED_METRICS: tuple[tuple[str, str, str], ...] = (
     ("target_error_deg", "deg", "closed loop: target minus boom angle when the first move's hold ends"),
     ("supply_energy_j", "J", "energy drawn from the supply over the whole run"),
     ("valve_loss_energy_j", "J", "energy dissipated in the valve over the whole run"),
+    ("battery_energy_j", "J", "energy the battery gave less what it took back, over the whole run"),
+    ("battery_drawn_j", "J", "energy the battery gave over the whole run"),
+    ("battery_returned_j", "J", "energy the battery took back over the whole run (recovered)"),
+    ("lift_work_j", "J", "potential energy raised over the whole run: the useful work"),
+    ("efficiency", "1", "lift work over battery energy"),
+    ("peak_battery_power_w", "W", "most power the battery gave at a sample"),
 )
 assert tuple(m[0] for m in STREAMED_METRICS) == streaming.NAMES, "the streamed metrics are streaming's, in its order"
 #: Metric columns from each point's linear model at mid-stroke, valve centred (analysis.linear_model).
@@ -56,8 +63,12 @@ LINEAR_METRICS: tuple[tuple[str, str, str], ...] = (
     ("natural_frequency_hz", "Hz", "linear model at mid-stroke, valve centred: the hydraulic mode's natural frequency"),
     ("linear_damping_ratio", "1", "linear model at mid-stroke, valve centred: the hydraulic mode's damping ratio"),
 )
+#: Metric columns of each point's battery (model/battery.py).
+BATTERY_METRICS: tuple[tuple[str, str, str], ...] = (
+    ("cycles_per_charge", "1", "the battery's usable energy over battery_energy_j: runs (work cycles) per charge"),
+)
 #: Metric columns of a sweep table: name, unit, meaning.
-METRICS = STREAMED_METRICS + LINEAR_METRICS
+METRICS = STREAMED_METRICS + LINEAR_METRICS + BATTERY_METRICS
 METRIC_NAMES = tuple(name for name, _, _ in METRICS)
 
 #: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
@@ -364,7 +375,12 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     params = batch.params
     command = commands.for_batch(params)
     runs = run_sets(params, batch.duration_s, command, every=batch.every, lift_angle_deg=batch.lift_angle_deg)
-    values = np.column_stack([*(runs.metrics[name] for name in streaming.NAMES), *mid_stroke_modes(params)])
+    battery_j = runs.metrics["battery_energy_j"]
+    capacity_j = np.array([p.battery_capacity_kwh * J_PER_KWH for p in params])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a run that drew nothing: infinitely many
+        cycles = np.where(battery_j > 0.0, capacity_j / battery_j, math.inf)
+    cycles[np.isnan(battery_j)] = math.nan
+    values = np.column_stack([*(runs.metrics[name] for name in streaming.NAMES), *mid_stroke_modes(params), cycles])
     rows: dict[str, list] = {"status": [], "reason": []}
     completed = METRIC_NAMES.index("lift_completed")
     rise = METRIC_NAMES.index("rise_deg")
