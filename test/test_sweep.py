@@ -67,7 +67,10 @@ def test_batched_metrics_equal_those_of_single_runs(scenario):
 
 
 def test_a_sweep_across_drives_equals_single_runs_and_counts_cycles_per_charge():
-    axes = [parse_axis("drive=pressure_compensated,fixed_pump,load_sensing"), parse_axis("piston_diameter=0.05")]
+    axes = [
+        parse_axis("drive=pressure_compensated,fixed_pump,load_sensing,pump_controlled"),
+        parse_axis("piston_diameter=0.05"),
+    ]
     scenario = "steps:0=1,1=0,1.4=-1,1.8=0"
     plan = _plan([("default", Parameters())], axes, scenario=scenario, duration_s=2.0, lift_angle_deg=8.0)
     table = _table(plan)
@@ -81,7 +84,10 @@ def test_a_sweep_across_drives_equals_single_runs_and_counts_cycles_per_charge()
             capacity_j = params.battery_capacity_kwh * 3.6e6
             assert table["cycles_per_charge"][point] == pytest.approx(capacity_j / energy, rel=1e-9)
     drawn = dict(zip(table["drive"], table["battery_energy_j"]))
-    assert drawn["load_sensing"] < drawn["pressure_compensated"] < drawn["fixed_pump"], drawn
+    assert drawn["load_sensing"] < drawn["pressure_compensated"] < drawn["fixed_pump"], drawn  # the EHA: test_eha
+    returned = dict(zip(table["drive"], table["battery_returned_j"]))
+    assert returned["pump_controlled"] > 0.0 and returned["load_sensing"] == 0.0  # the EHA generates lowering
+    assert np.isnan(table["natural_frequency_hz"][table["drive"] == "pump_controlled"]).all()
     assert (table["peak_battery_power_w"] > 0.0).all() and (table["efficiency"] < 1.0).all()
 
 

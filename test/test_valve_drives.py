@@ -88,7 +88,7 @@ def test_load_sensing_holds_its_margin_over_the_lifted_load_and_idles_at_the_mar
 
 
 @pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
-@pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing"])
+@pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing", "pump_controlled"])
 def test_each_drive_runs_the_same_compiled_and_interpreted(drive):
     compiled, interpreted = _run({"drive": drive}, True), _run({"drive": drive}, False)
     for name in ("q1", "p1", "p2", "p_supply", "supply_energy"):

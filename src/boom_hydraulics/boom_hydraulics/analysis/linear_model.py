@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.linalg
 
+from ..model.drives import DRIVES
 from ..model.geometry import lever_rad_per_m
 from ..model.mechanics import effective_mass_kg
 from ..model.parameters import Parameters
@@ -190,9 +191,10 @@ def linearize(point: OperatingPoint) -> LinearModel:
 def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarray]:
     """Natural frequency (Hz) and damping ratio of the hydraulic mode of each physical-mode
     parameter set at mid-stroke with the valve centred, all sets at once (numpy); nan for a
-    paper-mode set, one without an oscillating mode or one whose operating point was not found."""
+    paper-mode set, a drive without the valve (pump_controlled, whose rod side sits at the
+    reservoir's pressure), one without an oscillating mode or one whose operating point was not found."""
     frequency, damping = np.full(len(params), np.nan), np.full(len(params), np.nan)
-    chosen = [k for k, p in enumerate(params) if p.mode == "physical"]
+    chosen = [k for k, p in enumerate(params) if p.mode == "physical" and DRIVES[p.drive].VALVE]
     if not chosen:
         return frequency, damping
     sets = [params[k] for k in chosen]

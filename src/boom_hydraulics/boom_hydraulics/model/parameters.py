@@ -50,7 +50,6 @@ DRIVE_NAMES: dict[str, str] = {
 DRIVES = tuple(DRIVE_NAMES)
 #: The drives the solvers run. The others are model elements (model/drives/) that the run
 #: kernels do not call yet: a run that asks for one is refused.
-SOLVED_DRIVES = ("pressure_compensated", "fixed_pump", "load_sensing")
 COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
 
 #: Clearance the stroke ends keep from the degenerate triangle (q1 = b - a or a + b), m.
@@ -397,7 +396,7 @@ class Parameters:
         low_inclusive=True,
         high=1.0,
     )
-    motor_time_constant_s: float = _unsolved(
+    motor_time_constant_s: float = _drive(
         0.05,
         "s",
         "First-order lag of the pump_controlled motor's speed behind its command (0: none) (eq. D21)",
@@ -442,7 +441,7 @@ class Parameters:
         low=0.0,
         high=10.0,
     )
-    reservoir_pressure_pa: float = _unsolved(
+    reservoir_pressure_pa: float = _drive(
         5.0e5,
         "Pa",
         "pump_controlled: pressure of the low-pressure reservoir (accumulator) the checks connect to, absolute "
@@ -450,10 +449,10 @@ class Parameters:
         low=0.0,
         high=1.0e7,
     )
-    pilot_check_diameter_m: float = _unsolved(
+    pilot_check_diameter_m: float = _drive(
         0.006, "m", "pump_controlled: flow diameter of each pilot-operated check valve (eq. D23)", low=0.0, high=0.1
     )
-    pilot_check_opening_pa: float = _unsolved(
+    pilot_check_opening_pa: float = _drive(
         1.0e6,
         "Pa",
         "pump_controlled: pressure of the other line above the reservoir's at which a pilot-operated check is "
@@ -665,11 +664,6 @@ def _check_plant(p: Parameters) -> None:
         raise ConfigError(
             f"drive '{p.drive}' needs physical mode: the paper's model has its ideal source only; "
             f"set mode: physical, or drive: {DRIVES[0]}"
-        )
-    if p.drive not in SOLVED_DRIVES:
-        raise ConfigError(
-            f"drive '{p.drive}' is not solved yet: its elements are in model/drives (docs/model.md, Drives), "
-            f"but the run kernels call only {', '.join(SOLVED_DRIVES)}; set drive: {SOLVED_DRIVES[0]}"
         )
     if p.static_friction_n < p.coulomb_friction_n:
         raise ConfigError(

@@ -29,7 +29,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..jit import compiled_as, jitable
-from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated
+from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from .drives import constants as drive_constants
 from .drives.constants import DriveConstants, Supply
 from .end_stops import end_stop_energy_j, end_stop_force_n
@@ -175,6 +175,12 @@ class Constants(NamedTuple):
     battery_voltage: Num  # U, V
     battery_resistance: Num  # R, ohm
     battery_capacity: Num  # E_usable, J
+    eha: Num  # 1.0 for drive pump_controlled (no valve: the pump on the chambers), else 0.0
+    motor_lag: Num  # 1.0 with a motor speed lag, 0.0 without (pump_controlled, eq. D21)
+    motor_inv_tau: Num  # 1 / motor time constant, 1/s
+    p_reservoir: Num  # p_r, the EHA's low-pressure reservoir, Pa
+    k_check: Num  # K_c of a pilot-operated check, m^3/(s Pa^0.5) (eq. D23)
+    pilot_full: Num  # pilot pressure above p_r that opens a check fully, Pa (eq. D22)
 
 
 #: The fields of Constants that are DriveConstants' too (the same values under the same names).
@@ -240,6 +246,12 @@ def constants(p: Parameters) -> Constants:
         battery_voltage=d.battery_voltage,
         battery_resistance=d.battery_resistance,
         battery_capacity=d.battery_capacity,
+        eha=1.0 if p.drive == "pump_controlled" else 0.0,
+        motor_lag=d.motor_lag,
+        motor_inv_tau=d.motor_inv_tau,
+        p_reservoir=d.p_reservoir,
+        k_check=d.k_check,
+        pilot_full=d.pilot_full,
     )
 
 
@@ -342,6 +354,24 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
     q_in1 = q_a - q_r1  # Q_1 into the piston chamber
     q_in2 = q_pb - q_bt - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    # the drive's supply side and its state's rate: fixed_pump's line (eq. D13), load_sensing's
+    # lag (eq. D18); p_n stands still
+    supply = pressure_compensated.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp)
+    if in_use(c.fixed):
+        supply = _blend(supply, fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.fixed)
+    if in_use(c.sensing):
+        supply = _blend(supply, load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.sensing)
+    line_power = 0.0 * q1
+    if in_use(c.eha):
+        # pump_controlled: no valve; the command sets the motor's speed, the pump and the checks feed
+        # the chambers' lines (eq. D20-D24), and the valve's paths carry nothing
+        flows = pump_controlled.ports(z_d, u, p1, p2, c, xp)
+        supply = _blend(supply, pump_controlled.supply(z_d, u, p1, p2, flows, c, xp), c.eha)
+        valve = 1.0 - c.eha
+        q_pa, q_at, q_pb, q_bt, q_valve_in = valve * q_pa, valve * q_at, valve * q_pb, valve * q_bt, valve * q_valve_in
+        q_in1 = q_in1 + c.eha * (flows.q_a - q_r1 - q_in1)
+        q_in2 = q_in2 + c.eha * (flows.q_b - q_r2 - q_in2)
+        line_power = (p1 - c.p_tank) * flows.q_a + (p2 - c.p_tank) * flows.q_b  # what the EHA gives the lines
     vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
     dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
     dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
@@ -357,14 +387,9 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     power = (ps - c.p_tank) * q_valve_in
+    if in_use(c.eha):
+        power = power + c.eha * line_power  # the EHA's: into the lines, above tank pressure
     loss = power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
-    # the drive's supply side and its state's rate: fixed_pump's line (eq. D13), load_sensing's
-    # lag (eq. D18); p_n stands still
-    supply = pressure_compensated.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp)
-    if in_use(c.fixed):
-        supply = _blend(supply, fixed_pump.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.fixed)
-    if in_use(c.sensing):
-        supply = _blend(supply, load_sensing.supply(z_d, ps, x, p1, p2, q_valve_in, c, xp), c.sensing)
     return Terms(
         x,
         p1,
@@ -481,7 +506,8 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     (E / V dQ/dp), the oil springs, seals, end stop and spring against the boom's effective
     mass (sqrt(k / m)), the seal and end-stop damping (c / m), the seals' relaxation when
     sliding (|v| / (z_ba r)), the spool lag (1 / tau), fixed_pump's supply line against its
-    relief, pump leakage and valve (E / V_s dQ/dp), and load_sensing's lag. An explicit method is stable
+    relief, pump leakage and valve (E / V_s dQ/dp), load_sensing's lag, and pump_controlled's
+    chambers against their checks and the pump's leakage, and its motor's lag. An explicit method is stable
     when dt times this stays inside its stability region (see integrators.Method).
     """
     q1, v = y[0], y[1]
@@ -521,6 +547,12 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
         line = line_stiffness * (c.g_main * relief_near + c.pump_leak + slope) + slope * larger(stiff1, stiff2)
         rate = larger(rate, c.fixed * line)
     rate = larger(rate, c.sensing * c.ls_inv_tau)
+    if in_use(c.eha):
+        # pump_controlled: a chamber against its check (its laminar slope K_c / sqrt(p_tr)) and the
+        # pump's cross-port leakage, and the motor's lag
+        check = c.k_check * c.k_laminar / c.k_valve + c.pump_leak
+        rate = larger(rate, c.eha * larger(stiff1, stiff2) * check)
+        rate = larger(rate, c.eha * c.motor_inv_tau)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -636,6 +668,7 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         terms.a_side,
         c.holding * c.seat_leak,
     )  # eq. D27
+    throttling, leakage = throttling * (1.0 - c.eha), leakage * (1.0 - c.eha)  # pump_controlled: no valve
     cylinder = cylinder_side(
         y[1],
         terms.acc,

@@ -11,6 +11,7 @@ kernels is keyed on a hash of :data:`SOURCES`, every file they compile.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +19,23 @@ import numpy as np
 
 from .. import jit
 from ..jit import jitable, kernel, prange
-from ..model import control, end_stops, friction, geometry, hydraulics, mechanics, outputs, pump, setpoints
+from ..model import (
+    battery,
+    control,
+    electric_motor,
+    end_stops,
+    friction,
+    geometry,
+    hydraulics,
+    ledger,
+    mechanics,
+    outputs,
+    pump,
+    setpoints,
+)
 from ..model import physical as model
-from ..model.drives import fixed_pump, load_sensing, pressure_compensated
+from ..model.drives import fixed_pump, load_sensing, pressure_compensated, pump_controlled
+from ..model.drives.constants import Supply
 from . import integrators, profiles, stepping, streaming
 from . import kernel as run
 from .integrators import euler_step, rk4_step, ros2_step
@@ -28,7 +43,8 @@ from .integrators import euler_step, rk4_step, ros2_step
 #: Every source the kernels compile: a change to any of them gives a fresh cache.
 SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
-    *jit.module_sources(pump, pressure_compensated, fixed_pump, load_sensing),
+    *jit.module_sources(pump, electric_motor, battery, ledger, sys.modules[Supply.__module__]),
+    *jit.module_sources(pressure_compensated, fixed_pump, load_sensing, pump_controlled),
     *jit.module_sources(model, integrators, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
@@ -91,6 +107,12 @@ def constants_of(row: Any) -> model.Constants:
         row[50],
         row[51],
         row[52],
+        row[53],
+        row[54],
+        row[55],
+        row[56],
+        row[57],
+        row[58],
     )
 
 
