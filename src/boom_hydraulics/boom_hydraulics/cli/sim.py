@@ -32,7 +32,7 @@ from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
-from ..solve import commands
+from ..solve import commands, duty_cycles
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
 from . import fmu, linearize, live
 
@@ -43,8 +43,10 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
     if getattr(args, "profile", None) and getattr(args, "target_angle_deg", None) is not None:
         raise ConfigError("give either --profile or --target-angle-deg, not both")
-    if getattr(args, "profile", None):
-        overrides.update(commands.parse_profile(args.profile))
+    profile = getattr(args, "profile", None)
+    cycle = profile is not None and profile.partition(":")[0] in duty_cycles.CYCLES
+    if profile and not cycle:
+        overrides.update(commands.parse_profile(profile))
     if getattr(args, "target_angle_deg", None) is not None:
         if not math.isfinite(args.target_angle_deg):
             raise ConfigError(f"--target-angle-deg must be a finite angle in degrees, got {args.target_angle_deg}")
@@ -53,9 +55,10 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
         overrides["method"] = args.method
     if getattr(args, "dt", None) is not None:
         overrides["time_step_s"] = args.dt
-    if args.config:
-        return config.load(args.config, overrides)
-    return from_mapping(overrides)
+    params = config.load(args.config, overrides) if args.config else from_mapping(overrides)
+    if cycle:  # a work cycle starts from the boom the parameters give
+        params = from_mapping(commands.scenario(profile, 0.0, params), base=params)
+    return params
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -186,7 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--profile",
         help="valve command: constant:U | steps:T=U,... | ramp:T=U,... | sine:OFFSET,AMPLITUDE,FREQ_HZ, or "
-        "closed loop: angle:T=DEG,... (at time T, move the boom to DEG degrees)",
+        "closed loop: angle:T=DEG,... (at time T, move the boom to DEG degrees), or a work cycle: loader "
+        "(18.5 s; loader:SEED as an operator varies it)",
     )
     run.add_argument(
         "--target-angle-deg",

@@ -42,6 +42,7 @@ from pathlib import Path
 from ..errors import ConfigError
 from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main
 from ..sweeps import sweep
+from ..sweeps.recommend import RANKINGS
 from ..sweeps.runner import BATCH_SIZE, Reached, SweepOptions, run_sweep
 from ..sweeps.sampling import SAMPLES
 
@@ -75,8 +76,18 @@ def build_parser() -> argparse.ArgumentParser:
     how.add_argument(
         "--scenario",
         default="lift",
-        help="lift (open for half the run, then hold), lift:T, cycle, config, a profile such as steps:0=1,2=0, "
-        "or a closed-loop move such as angle:0=30 (lift to 30 degrees under position control and hold)",
+        help="lift (open for half the run, then hold), lift:T, cycle, loader (a loader crane's work cycle: "
+        "lift the payload, lower it, release it, lift and lower empty; 18.5 s), config, a profile such as "
+        "steps:0=1,2=0, or a closed-loop move such as angle:0=30 (lift to 30 degrees under position control and hold)",
+    )
+    how.add_argument(
+        "--operators",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run each design through N cycles of the loader scenario as operators vary it (seeds 1 to N: "
+        "phase lengths within 20 %%, lift heights within 10 %%); the table gains the column operator, and "
+        "operators.csv each design's 10th-90th percentile band",
     )
     how.add_argument("--duration", type=float, default=5.0, help="simulated seconds per point")
     how.add_argument("--lift-angle-deg", type=float, default=20.0, help="boom rise that completes a lift")
@@ -121,6 +132,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="a varied parameter that is a condition, not a design choice (e.g. payload): a design must "
         "meet the constraints at all its values and is ranked by its worst case",
+    )
+    pick.add_argument(
+        "--rank-by",
+        choices=tuple(RANKINGS),
+        help="rank the designs that meet the constraints by this (cycles_per_charge: most first, the others "
+        "least; default lift_energy_j)",
     )
     pick.add_argument("--top", type=int, default=10, help="designs shown in the recommendation")
     return parser

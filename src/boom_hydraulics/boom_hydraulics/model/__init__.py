@@ -50,6 +50,10 @@ class Model(Protocol):
         """The outputs of outputs.SAMPLE_NAMES alone (what the run metrics take), as outputs gives them."""
         ...
 
+    def with_payload(self, c: Any, share: Any) -> Any:
+        """The constants ``c`` with ``share`` of payload_mass_kg on the hook (the payload schedule)."""
+        ...
+
     def observe(self, t: float, y: list, c: Any, u: Any, xp: ModuleType = math) -> dict[str, Any]:
         """Every output (solve.simulation.OUTPUTS) at this state and command."""
         ...

@@ -98,6 +98,12 @@ def initial_pressure_pa(p: Parameters, q1_m: float) -> float:
     ) - p.external_rod_force_n / s1
 
 
+@jitable
+def with_payload(c: Constants, share: Num) -> Constants:
+    """``c``: paper mode takes no payload schedule (the parameters refuse one)."""
+    return c
+
+
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     """q0, v0 and the listing's static pressure p0."""
     q1 = p.initial_length_m if q1_m is None else q1_m

@@ -517,6 +517,22 @@ class Parameters:
         low_inclusive=True,
         high=1.6,
     )
+    command_payload_times_s: list = _scenario(  # noqa: RUF009
+        [0.0],
+        "s",
+        "Times at which the payload on the hook changes (increasing); physical mode for a share other than 1",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e6,
+    )
+    command_payload_fractions: list = _scenario(  # noqa: RUF009
+        [1.0],
+        "",
+        "From each of command_payload_times_s on, the share of payload_mass_kg on the hook (0: released, 1: all)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
     command_offset: float = _scenario(0.0, "", "Sine profile: mean opening", low=-1.0, low_inclusive=True, high=1.0)
     command_amplitude: float = _scenario(0.5, "", "Sine profile: amplitude", low=-1.0, low_inclusive=True, high=1.0)
     command_frequency_hz: float = _scenario(0.5, "Hz", "Sine profile: frequency", low=0.0, high=1000.0)
@@ -673,7 +689,18 @@ def _check_plant(p: Parameters) -> None:
 
 
 def _check_scenario(p: Parameters) -> None:
-    """The headless scenario's valve command fits the plant: its mode, its stroke."""
+    """The headless scenario's valve command fits the plant: its mode, its stroke; its payload
+    schedule is one share per time, at increasing times, in physical mode."""
+    changes, shares = p.command_payload_times_s, p.command_payload_fractions
+    if len(changes) != len(shares):
+        raise ConfigError(
+            f"command_payload_times_s ({len(changes)} values) and command_payload_fractions ({len(shares)} "
+            "values) must be of equal length"
+        )
+    if any(t1 <= t0 for t0, t1 in itertools.pairwise(changes)):
+        raise ConfigError(f"command_payload_times_s must be strictly increasing, got {changes}")
+    if any(share != 1.0 for share in shares) and p.mode != "physical":
+        raise ConfigError("a payload that changes within the run (command_payload_fractions) needs mode: physical")
     times, values = p.command_times_s, p.command_values
     if p.command_profile == "angle":
         _check_angle_profile(p)

@@ -181,6 +181,8 @@ class Constants(NamedTuple):
     p_reservoir: Num  # p_r, the EHA's low-pressure reservoir, Pa
     k_check: Num  # K_c of a pilot-operated check, m^3/(s Pa^0.5) (eq. D23)
     pilot_full: Num  # pilot pressure above p_r that opens a check fully, Pa (eq. D22)
+    payload_inertia: Num  # the payload's share of inertia, mb L1^2, kg m^2 (eq. 8; with_payload)
+    payload_weight: Num  # the payload's share of weight_coeff, mb L1 g, N m
 
 
 #: The fields of Constants that are DriveConstants' too (the same values under the same names).
@@ -252,7 +254,17 @@ def constants(p: Parameters) -> Constants:
         p_reservoir=d.p_reservoir,
         k_check=d.k_check,
         pilot_full=d.pilot_full,
+        payload_inertia=boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
+        payload_weight=p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
     )
+
+
+@jitable
+def with_payload(c: Constants, share: Num) -> Constants:
+    """The constants ``c`` (of the whole payload_mass_kg) with ``share`` of the payload on the
+    hook (0: released): its inertia and weight scaled (eq. 8, 9), the rest unchanged."""
+    off = 1.0 - share
+    return Constants(*c[:3], c.inertia - off * c.payload_inertia, c.weight_coeff - off * c.payload_weight, *c[5:])
 
 
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:

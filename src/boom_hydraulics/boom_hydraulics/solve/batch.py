@@ -67,6 +67,14 @@ EVALUATION_ERRORS = (SimulationError, *MODEL_ERRORS)
 CALLED = Command(ANGLE, (), (), 0.0, 0.0, 0.0, (), (), (), 0, ())
 
 
+def payload_schedule(p: Parameters) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(times s, shares) of the payload schedule the run loop takes: none where the whole
+    payload hangs on the hook throughout (the loop then checks nothing per step)."""
+    if all(share == 1.0 for share in p.command_payload_fractions):
+        return (), ()
+    return tuple(p.command_payload_times_s), tuple(p.command_payload_fractions)
+
+
 def stability_limit(p: Parameters) -> float:
     """The limit on dt x rate of the parameters' method where their model asks for stability
     substeps (see stepping.advance), else 0 (no automatic substeps)."""
@@ -199,7 +207,7 @@ def python_sets(
         step_once = advance if stepper is None else compiled_stepping(stepper, np.array(c, dtype=float))
         controller = kernel.controller_value if encoded else guard.command(command, k)
         functions = (guard.stepping(step_once), step, model.derivative, model.stiffness_rate, model.energy,
-                     model.outputs, model.samples, controller)  # fmt: skip
+                     model.outputs, model.samples, controller, model.with_payload)  # fmt: skip
         sets.append((guard, functions, c))
     return sets
 
@@ -291,18 +299,21 @@ class SetRun:
         compiled = accelerate.available() if jit is None else jit and accelerate.available()
         adaptive = integrators.METHODS[p0.method].step is None  # rk45: one advance per step
         settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
+        schedule = payload_schedule(p0)
         spec = RunSpec(
             np.array(constants, dtype=float), encoding or CALLED, float(p0.time_step_s),
             1 if adaptive else int(p0.substeps), float(stability_limit(p0)), MAX_SUBSTEPS, int(self.n_steps),
             int(every), energy_index, np.array(bases, dtype=float), settings, bool(measure), float(t0_s), int(k0),
+            *(np.array(v, dtype=float) for v in schedule),
         )  # fmt: skip
         self._runner = accelerate.batch_runner(p0.mode, p0.method) if compiled and encoding is not None else None
         if self._runner is not None:
             self._spec, self._flat = spec, kernel.flat(spec)
         else:  # the loop in Python: each set with its own functions
             self._spec = spec._replace(
-                command=CALLED if encoding is None else interpreted(encoding), energy_base=[float(b) for b in bases]
-            )
+                command=CALLED if encoding is None else interpreted(encoding), energy_base=[float(b) for b in bases],
+                payload_times_s=schedule[0], payload_shares=schedule[1],
+            )  # fmt: skip
             stepper = accelerate.stepper(p0.mode, p0.method) if compiled else None
             self._sets = python_sets(params, command, encoding is not None, stepper, start)
         width = len(OUTPUT_NAMES)

@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..model.parameters import Parameters
 from ..model.setpoints import LINEAR
+from . import duty_cycles
 from .closed_loop import PositionLoop
 from .kernel import Command
 from .profiles import CONSTANT, RAMP, SINE, STEPS, profile_value
@@ -123,15 +124,18 @@ def parse_profile(text: str, option: str = "--profile") -> dict[str, Any]:
 CYCLE = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
 
 #: Named valve scenarios of the design sweeps (see :func:`scenario`).
-SCENARIOS = ("lift", "cycle", "config")
+SCENARIOS = ("lift", "cycle", "loader", "config")
 
 
-def scenario(text: str, duration_s: float) -> dict[str, Any]:
+def scenario(text: str, duration_s: float, base: Parameters | None = None) -> dict[str, Any]:
     """The command_* parameters of a named scenario or a profile (see :func:`parse_profile`).
 
     - ``lift``: valve fully open for the first half of the run, then closed (the hold shows
       overshoot and oscillation); ``lift:T`` opens for T seconds.
     - ``cycle``: lift, hold, lower, hold (:data:`CYCLE`, 9 s).
+    - ``loader``: a loader crane's work cycle under position control, the payload released
+      within it (:mod:`duty_cycles`, 18.5 s), from the elevation of ``base`` (default
+      parameters if None); ``loader:SEED``: as an operator varies it (seed >= 1).
     - ``config``: the command_* parameters of the config file, unchanged ({}).
     - anything else: a profile such as ``steps:0=1,2=0``, or ``angle:0=30`` (closed loop:
       lift to 30 degrees and hold).
@@ -139,6 +143,12 @@ def scenario(text: str, duration_s: float) -> dict[str, Any]:
     name, _, arg = text.partition(":")
     if name == "config" and not arg:
         return {}
+    if name == "loader":
+        try:
+            seed = int(arg) if arg else 0
+        except ValueError:
+            raise ConfigError(f"scenario {text!r}: write loader or loader:SEED with SEED a whole number") from None
+        return duty_cycles.loader(base if base is not None else Parameters(), seed)
     if name == "cycle" and not arg:
         times, values = zip(*CYCLE)
         return {"command_profile": "steps", "command_times_s": list(times), "command_values": list(values)}
@@ -153,7 +163,7 @@ def scenario(text: str, duration_s: float) -> dict[str, Any]:
     if name in ("constant", "steps", "ramp", "sine", "angle"):
         return parse_profile(text, "--scenario")
     raise ConfigError(
-        f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, or a profile "
+        f"unknown scenario {text!r}; choose {', '.join(SCENARIOS)}, lift:T, loader:SEED, or a profile "
         "(constant:U, steps:T=U,..., ramp:T=U,..., sine:OFFSET,AMPLITUDE,FREQ_HZ, or angle:T=DEG,... "
         "for closed-loop moves)"
     )

@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 from ..jit import jitable
 from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
-from ..model.setpoints import setpoint_at
+from ..model.setpoints import last_at_or_before, setpoint_at
 from .outcomes import OK, OUT_OF_GEOMETRY, TOO_STIFF
 from .profiles import ANGLE, profile_value
 from .stepping import advance
@@ -71,6 +71,8 @@ class RunSpec(NamedTuple):
     measure: bool  # whether the samples go into the streaming metrics
     t0_s: float  # the time of step k0 of the run's time line, s: step i ends at t0_s + (k0 + i) dt
     k0: int
+    payload_times_s: Any  # when the payload on the hook changes, s (empty: it does not)
+    payload_shares: Any  # from each of those times on, the share of the sets' payload on the hook
 
 
 #: Where run_set keeps a run between calls (status[k] of a batch): the time it failed (NaN:
@@ -78,9 +80,11 @@ class RunSpec(NamedTuple):
 #: (on TOO_STIFF: the number the failing step would have needed), the command of the last
 #: step taken; then what a run carries from one slice of steps to the next: the controller's
 #: integral and holding flag, the command of the next step, the samples taken so far, and on
-#: a failure the index of the failed step (the steps taken before it).
+#: a failure the index of the failed step (the steps taken before it); the payload's share on
+#: the hook, and how far its changes moved the energy balance's H - W (J).
 FAILED_AT, OUTCOME, MOST, APPLIED_U, INTEGRAL, HOLDING, NEXT_U, TAKEN, FAILED_STEP = range(9)
-STATUS_SIZE = 9
+PAYLOAD, BASE_SHIFT = 9, 10
+STATUS_SIZE = 11
 
 
 @jitable
@@ -122,6 +126,14 @@ def no_controller(command: Command, k: int, control: Any, c: Any, y: Any, dt_s: 
 
 
 @jitable
+def payload_share(times_s: Any, shares: Any, t_s: float) -> float:
+    """The share of the payload on the hook at ``t_s``: ``shares[i]`` from ``times_s[i]`` on,
+    all of it (1) before the first time."""
+    i = last_at_or_before(times_s, t_s)
+    return shares[i] if i >= 0 else 1.0
+
+
+@jitable
 def run_set(
     step_once: Callable[..., Any],
     step: Callable[..., Any],
@@ -131,6 +143,7 @@ def run_set(
     outputs: Callable[..., tuple],
     samples: Callable[..., tuple],
     controller: Callable[..., float],
+    with_payload: Callable[..., Any],
     store: bool,
     c: Any,
     y: Any,
@@ -167,22 +180,32 @@ def run_set(
     half = 0.5 * dt
     control = status[INTEGRAL : HOLDING + 1]
     t = spec.t0_s + spec.k0 * dt
+    full = c  # the constants with the whole payload; c: with the share on the hook now
+    changes = len(spec.payload_times_s) > 0
     if first == 0:
         status[FAILED_AT], status[OUTCOME], status[MOST] = math.nan, OK, spec.min_substeps
         status[APPLIED_U], status[TAKEN], status[FAILED_STEP] = math.nan, 0.0, -1.0
         control[0], control[1] = 0.0, 0.0
+        status[PAYLOAD], status[BASE_SHIFT] = 1.0, 0.0
+        if changes:
+            _payload_change(with_payload, energy, full, c, y, spec, status, t)
+        c = with_payload(full, status[PAYLOAD]) if changes else full
         status[NEXT_U] = command_value(controller, spec.command, k, control, c, y, dt, t + half)
     elif status[OUTCOME] != OK:
         return 0
+    elif changes:
+        c = with_payload(full, status[PAYLOAD])
     u = float(status[NEXT_U])
     base = int(status[TAKEN])
     taken = base
     for i in range(first, last):
         if i > 0:
             t_start = spec.t0_s + (spec.k0 + i - 1) * dt
+            if changes and payload_share(spec.payload_times_s, spec.payload_shares, t_start) != status[PAYLOAD]:
+                c = _payload_change(with_payload, energy, full, c, y, spec, status, t_start)
             _, outcome, most, y_new = step_once(
                 step, derivative, stiffness_rate, energy, t_start, y, c, u, dt, spec.min_substeps, spec.limit,
-                spec.max_substeps, 1, spec.energy_index, spec.energy_base[k],
+                spec.max_substeps, 1, spec.energy_index, spec.energy_base[k] + status[BASE_SHIFT],
             )  # fmt: skip
             if outcome == OK and not within_triangle(y_new[0], c.a, c.b):
                 outcome = OUT_OF_GEOMETRY  # the model cannot go on
@@ -212,6 +235,21 @@ def run_set(
     return taken - base
 
 
+@jitable
+def _payload_change(
+    with_payload: Callable[..., Any], energy: Callable[..., float], full: Any, c: Any, y: Any, spec: RunSpec,
+    status: Any, t_s: float,
+) -> Any:  # fmt: skip
+    """The payload's share on the hook becomes the schedule's at ``t_s`` (status[PAYLOAD]); the
+    constants with it. The payload put down (or picked up) takes its potential and kinetic energy
+    with it: the energy balance's H - W moves by H's jump at the state ``y``."""
+    status[PAYLOAD] = payload_share(spec.payload_times_s, spec.payload_shares, t_s)
+    changed = with_payload(full, status[PAYLOAD])
+    if spec.energy_index >= 0:
+        status[BASE_SHIFT] += energy(y, changed) - energy(y, c)
+    return changed
+
+
 #: Where the command's fields end in a flat spec (:func:`flat`): after the constants.
 _COMMAND_END = 1 + len(Command._fields)
 
@@ -237,6 +275,7 @@ def batch_set(
     outputs: Callable[..., tuple],
     samples: Callable[..., tuple],
     controller: Callable[..., float],
+    with_payload: Callable[..., Any],
     constants_of: Callable[..., Any],
     state_of: Callable[..., Any],
     k: int,
@@ -258,7 +297,7 @@ def batch_set(
     spec = spec_of(spec_fields)
     c = constants_of(spec.constants[k])
     y = state_of(states[k])
-    f = (step, derivative, stiffness_rate, energy, outputs, samples, controller)
+    f = (step, derivative, stiffness_rate, energy, outputs, samples, controller, with_payload)
     if rows.shape[1] > 0:  # each call with its own constant store
         taken[k] = run_set(advance, *f, True, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)
     else:

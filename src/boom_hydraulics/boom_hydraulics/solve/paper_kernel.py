@@ -105,7 +105,7 @@ def batch_set(step: Any, k: int, arguments: tuple) -> None:
     """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
     no controller (the paper valve only lifts)."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.no_controller)
-    run.batch_set(*f, constants_of, state_of, k, *arguments)
+    run.batch_set(*f, model.with_payload, constants_of, state_of, k, *arguments)
 
 
 @kernel(SOURCES, parallel=True)

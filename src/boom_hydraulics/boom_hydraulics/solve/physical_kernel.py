@@ -113,6 +113,8 @@ def constants_of(row: Any) -> model.Constants:
         row[56],
         row[57],
         row[58],
+        row[59],
+        row[60],
     )
 
 
@@ -168,7 +170,7 @@ def batch_set(step: Any, k: int, arguments: tuple) -> None:
     """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
     the position controller."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.controller_value)
-    run.batch_set(*f, constants_of, state_of, k, *arguments)
+    run.batch_set(*f, model.with_payload, constants_of, state_of, k, *arguments)
 
 
 @kernel(SOURCES, parallel=True)

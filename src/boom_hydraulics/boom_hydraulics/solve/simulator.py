@@ -232,6 +232,10 @@ class Simulator:
         outcome = int(status[kernel.OUTCOME])
         steps = run.steps_taken(0)
         self._moved(run.state[0].tolist(), steps)
+        if status[kernel.PAYLOAD] != 1.0:  # the payload schedule left a share of the payload on the hook
+            self.constants = self.model.with_payload(self.constants, float(status[kernel.PAYLOAD]))
+            self._constants_row = np.array(self.constants, dtype=float)
+        self._energy_base += float(status[kernel.BASE_SHIFT])
         if outcome != OK:
             self.u = float(status[kernel.NEXT_U])  # the command of the step that failed
         elif steps > 0:

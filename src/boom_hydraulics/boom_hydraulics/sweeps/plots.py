@@ -1,4 +1,5 @@
-"""PNG plots of a sweep table: each metric against each varied parameter, and the trade-off front."""
+"""PNG plots of a sweep table: each metric against each varied parameter, the trade-off front,
+and the battery's energy per cycle and where it goes."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..files import atomic_path
+from .energy import BREAKDOWN, PERCENTILES, best_per_drive, design_columns, operator_bands
 from .recommend import TRADE_OFF, format_value, trade_off_front
 
 #: Metrics plotted against the varied parameters: (column, label, scale).
@@ -111,8 +113,73 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
     plt.close(fig)
 
 
+def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) -> None:
+    """Battery energy per cycle against ``parameter``, one line per drive (the median over the
+    operators' cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`."""
+    x = np.asarray(bands[parameter], dtype=float)
+    drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(x)
+    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
+    for drive in dict.fromkeys(drives):
+        rows = np.array([i for i, d in enumerate(drives) if d == drive])
+        rows = rows[np.argsort(x[rows], kind="stable")]
+        low, mid, high = (np.asarray(bands[f"battery_energy_j_p{q}"], float)[rows] * 1e-3 for q in PERCENTILES)
+        (line,) = ax.plot(x[rows], mid, marker="o", markersize=3, label=drive or "battery energy")
+        ax.fill_between(x[rows], low, high, color=line.get_color(), alpha=0.2)
+    ax.set_xlabel(parameter)
+    ax.set_ylabel("battery energy per cycle [kJ]")
+    ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    cycles = int(np.max(bands["cycles"])) if len(bands["cycles"]) else 0
+    ax.set_title(f"Battery energy per cycle: median and 10th-90th percentile over {cycles} cycle(s) per design")
+    _save(fig, path)
+    plt.close(fig)
+
+
+def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[str], path: Path) -> None:
+    """Where the battery's energy goes, a stacked bar for each drive at its best design (the
+    least median battery energy per cycle): the lift's work and every loss and work term of
+    the ledger, averaged over its cycles; the energy it took back is drawn beside, below zero."""
+    best = best_per_drive(bands)
+    terms = [name for name in BREAKDOWN if name != "battery_returned_j"]
+    fig, ax = plt.subplots(figsize=(10, 6), constrained_layout=True)
+    labels = []
+    palette = plt.get_cmap("tab20")
+    named: set[str] = set()  # each term in the legend once, where it is first drawn
+
+    def label(name: str) -> str | None:
+        first = name not in named
+        named.add(name)
+        return name if first else None
+
+    for column, (drive, row) in enumerate(best.items()):
+        bottom = 0.0
+        for k, name in enumerate(terms):
+            value = float(bands[name][row]) * 1e-3
+            if value > 0.0:  # stored terms net out over a cycle; what the surroundings give is not spent
+                ax.bar(column, value, bottom=bottom, color=palette(k % 20), label=label(name))
+                bottom += value
+        returned = float(bands["battery_returned_j"][row]) * 1e-3
+        if returned > 0.0:
+            ax.bar(column, -returned, color="0.4", label=label("battery_returned_j"))
+        net = float(bands["battery_energy_j_p50"][row]) * 1e-3
+        ax.annotate(f"{net:.3g} kJ", (column, bottom), ha="center", va="bottom", fontsize="small")
+        where = ", ".join(format_value(bands[c][row]) for c in design_columns if c != "drive")
+        labels.append(f"{drive}\n{where}" if where else drive or "best design")
+    ax.set_xticks(range(len(labels)), labels, fontsize="small")
+    ax.set_ylabel("energy per cycle [kJ]")
+    ax.axhline(0.0, color="black", linewidth=0.8)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="x-small")
+    ax.set_title("Where the battery's energy goes, each drive at its best design (mean over its cycles;\n"
+                 "above each bar the median battery energy per cycle)")  # fmt: skip
+    _save(fig, path)
+    plt.close(fig)
+
+
 def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
-    """Every sweep plot into ``folder``; returns the files written."""
+    """Every sweep plot into ``folder``; returns the files written: with the battery (physical
+    mode), also the battery energy per cycle and its breakdown."""
     written = []
     varied = [c for c in point_columns if _numeric(table[c]) and len(np.unique(table[c])) > 1]
     for parameter in varied:
@@ -123,4 +190,16 @@ def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], fold
     path = folder / "trade_off.png"
     trade_off(table, point_columns, path)
     written.append(path)
+    ok = np.asarray(table["status"]) == "ok"
+    if np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[ok]).any():
+        bands = operator_bands(table, point_columns)
+        designs = design_columns(point_columns)
+        axes = [c for c in designs if c in varied]
+        if axes:
+            path = folder / "battery_energy.png"
+            battery_energy(bands, "piston_diameter_m" if "piston_diameter_m" in axes else axes[0], path)
+            written.append(path)
+        path = folder / "energy_breakdown.png"
+        energy_breakdown(bands, designs, path)
+        written.append(path)
     return written

@@ -26,6 +26,14 @@ TRADE_OFF = ("lift_time_s", "lift_energy_j", "peak_pressure_pa")
 
 #: The ranking of recommended designs.
 RANK_BY = "lift_energy_j"
+#: What a recommendation can rank by (``--rank-by``): whether more of it is better, and its words.
+RANKINGS: dict[str, tuple[bool, str]] = {
+    "lift_energy_j": (False, "lift energy"),
+    "battery_energy_j": (False, "battery energy"),
+    "cycles_per_charge": (True, "cycles per charge"),
+    "lift_time_s": (False, "lift time"),
+    "peak_battery_power_w": (False, "peak battery power"),
+}
 
 _OPS: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {
     "<=": operator.le,
@@ -109,8 +117,21 @@ LOWER_IS_WORSE = frozenset(
         "min_pressure_pa",
         "natural_frequency_hz",
         "linear_damping_ratio",
+        "cycles_per_charge",
+        "efficiency",
+        "lift_work_j",
     }
 )
+
+
+def designs_of(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -> dict[tuple, list[int]]:
+    """The rows of each design (a distinct combination of ``design_columns``), in the order the
+    designs first appear."""
+    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(table["status"])
+    groups: dict[tuple, list[int]] = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
+    return groups
 
 
 def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -> dict[str, np.ndarray]:
@@ -120,10 +141,7 @@ def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -
     The other point columns (a payload, say) are the conditions a design has to cope with.
     A NaN (a lift that did not complete) is the worst value of all.
     """
-    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(table["point"])
-    groups: dict[tuple, list[int]] = {}
-    for i, key in enumerate(keys):
-        groups.setdefault(key, []).append(i)
+    groups = designs_of(table, design_columns)
     designs = list(groups)
     members = [np.array(rows) for rows in groups.values()]
     out: dict[str, np.ndarray] = {"design": np.arange(len(designs))}
@@ -154,9 +172,10 @@ class Recommendation:
 
     table: Mapping[str, np.ndarray]  # the rows ranked: points, or designs (worst case over conditions)
     columns: tuple[str, ...]  # the columns that name a row of ``table``
-    rows: np.ndarray  # row indices into ``table``, ranked by RANK_BY
+    rows: np.ndarray  # row indices into ``table``, ranked by ``rank_by``
     constraints: tuple[Constraint, ...]
     passing: dict[str, int]  # constraint text (and "status ok") -> rows of ``table`` meeting it
+    rank_by: str = RANK_BY
 
 
 def recommend(
@@ -164,16 +183,21 @@ def recommend(
     constraints: Sequence[Constraint],
     point_columns: Sequence[str] = (),
     across: Sequence[str] = (),
+    rank_by: str = RANK_BY,
 ) -> Recommendation:
-    """The ``ok`` rows with a finite :data:`RANK_BY` that meet every constraint, ranked by it (ascending).
+    """The ``ok`` rows with a finite ``rank_by`` (one of :data:`RANKINGS`) that meet every
+    constraint, ranked by it, best first.
 
-    With ``across`` (some of ``point_columns``, e.g. the payload), a row is a design: the
-    other point columns. A design qualifies only if every one of its points is ok and
-    meets every constraint, and it is ranked by its largest lift energy.
+    With ``across`` (some of ``point_columns``, e.g. the payload or the operator), a row is a
+    design: the other point columns. A design qualifies only if every one of its points is ok
+    and meets every constraint, and it is ranked by its worst case (see :func:`worst_case`).
     """
+    if rank_by not in RANKINGS:
+        raise ConfigError(f"--rank-by {rank_by}: choose {', '.join(RANKINGS)}")
+    sign = -1.0 if RANKINGS[rank_by][0] else 1.0  # argsort ascending of sign * value: best first
     status_ok = np.asarray(table["status"]) == "ok"
     holds = {str(c): c.holds(table) for c in constraints}
-    energy = np.asarray(table[RANK_BY], dtype=float)
+    energy = np.asarray(table[rank_by], dtype=float)
     meets = status_ok & np.isfinite(energy)
     for column in holds.values():
         meets &= column
@@ -181,8 +205,8 @@ def recommend(
     if not across:
         rows = np.nonzero(meets)[0]
         passing = {"status ok": int(status_ok.sum()), **{k: int(v.sum()) for k, v in holds.items()}}
-        ranked = rows[np.argsort(energy[rows], kind="stable")]
-        return Recommendation(table, ("point", *point_columns), ranked, tuple(constraints), passing)
+        ranked = rows[np.argsort(sign * energy[rows], kind="stable")]
+        return Recommendation(table, ("point", *point_columns), ranked, tuple(constraints), passing, rank_by)
     design_columns = [c for c in point_columns if c not in across]
     designs = worst_case(table, design_columns)
     keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(status_ok)
@@ -197,8 +221,8 @@ def recommend(
     qualifies = every(meets)
     passing = {"status ok": int(every(status_ok).sum()), **{k: int(every(v).sum()) for k, v in holds.items()}}
     rows = np.nonzero(qualifies)[0]
-    ranked = rows[np.argsort(designs[RANK_BY][rows], kind="stable")]
-    return Recommendation(designs, ("design", *design_columns), ranked, tuple(constraints), passing)
+    ranked = rows[np.argsort(sign * designs[rank_by][rows], kind="stable")]
+    return Recommendation(designs, ("design", *design_columns), ranked, tuple(constraints), passing, rank_by)
 
 
 #: Columns of the readable table: (column, heading, scale).
@@ -210,6 +234,8 @@ SUMMARY = (
     ("overshoot_m", "overshoot [mm]", 1e3),
     ("damping_ratio", "damping", 1.0),
     ("cavitation_s", "cavitation [s]", 1.0),
+    ("battery_energy_j", "battery [kJ]", 1e-3),
+    ("cycles_per_charge", "per charge", 1.0),
 )
 
 
@@ -224,10 +250,11 @@ def format_table(rec: Recommendation, top: int = 10) -> str:
         return "\n".join(lines) + "\n"
     front = trade_off_front(table)
     shown = rec.rows[:top]
+    more, words = RANKINGS[rec.rank_by]
     worst = " worst-case" if designs else ""
     lines.append(
         f"{len(rec.rows)} of {len(table[rec.columns[0]])} designs meet every constraint; "
-        f"the {len(shown)} with the least{worst} lift energy "
+        f"the {len(shown)} with the {'most' if more else 'least'}{worst} {words} "
         "(* = on the trade-off front of lift time, energy and peak pressure):"
     )
     headings = ["rank", *rec.columns, *(h for _, h, _ in SUMMARY), "front"]

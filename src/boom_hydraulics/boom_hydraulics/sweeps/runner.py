@@ -21,7 +21,7 @@ from ..errors import ConfigError
 from ..files import check_apart, csv_cell, write_bytes, write_csv, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
-from . import recommend, sweep
+from . import energy, recommend, sweep
 from .executors import DaskExecutor, LocalExecutor
 from .sampling import parse_axis, point_count, resolve_name
 from .store import OUTPUTS, SweepStore, plot_names
@@ -45,6 +45,7 @@ class SweepOptions:
     samples: int = 0
     seed: int = 0
     scenario: str = "lift"
+    operators: int = 0  # seeded operator variations of a loader scenario per design
     duration: float = 5.0  # s
     lift_angle_deg: float = 20.0
     every: int = 1
@@ -62,6 +63,7 @@ class SweepOptions:
     no_cavitation: bool = False
     require: Sequence[str] = ()
     across: Sequence[str] = ()
+    rank_by: str | None = None  # recommend.RANKINGS; None: recommend.RANK_BY
     top: int = 10
 
 
@@ -115,6 +117,7 @@ def _settings(options: SweepOptions) -> dict[str, Any]:
         "seed": options.seed,
         "lift_angle_deg": options.lift_angle_deg,
         "every": options.every,
+        "operators": options.operators,
     }
 
 
@@ -173,18 +176,20 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
     interruption ends with); 0 when done. Numbers are checked by the caller (cli.sweep)."""
     configs = load_configs(options.config, options.set)
     axes = [parse_axis(text) for text in options.vary]
-    across = [resolve_name(name) for name in options.across]
+    across = [name if name == "operator" else resolve_name(name) for name in options.across]
     out = options.out or Path("sweeps") / time.strftime("sweep-%Y%m%d-%H%M%S")
     check_apart(out, [Path(c) for c in options.config or []])
-    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
+    operator = ("operator",) if options.operators else ()
+    columns = (("config",) if len(configs) > 1 else ()) + operator + tuple(a.name for a in axes)
     recommend.check_across(across, columns)  # before the work, not after it
     constraints = constraints_of(options, [*columns, "status", "reason", "failed_at_s", *sweep.METRIC_NAMES])
     store = SweepStore(out, options.resume, [*OUTPUTS, *plot_names(columns)])
     reached.out, reached.store = out, store
-    points = len(configs) * point_count(axes, options.sample, options.samples)
+    variants = configs * max(1, options.operators)  # each config once per operator
+    points = len(variants) * point_count(axes, options.sample, options.samples)
     batch_size = _batch_size(options, store.stored, points)
     settings = _settings(options)
-    cost = sweep.estimate(configs, axes, duration_s=options.duration, sample=options.sample, count=options.samples,
+    cost = sweep.estimate(variants, axes, duration_s=options.duration, sample=options.sample, count=options.samples,
                           batch_size=batch_size)  # fmt: skip
     sweep.check_fits(cost)
     asked = sweep.request(configs, axes, batch_size=batch_size, **settings)
@@ -255,10 +260,16 @@ def _run_plan(
         written += [p.name for p in plot_all(table, plan.columns, out)]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
+    if "operator" in plan.columns:  # each design's band over its operators' cycles
+        bands = energy.operator_bands(table, plan.columns)
+        write_table(bands, out / "operators.csv")
+        written[2:2] = ["operators.csv", "operators.npz"]
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns))
-    if options.recommend or constraints or options.across:
-        rec = recommend.recommend(table, constraints, plan.columns, across)
+    if np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any():
+        print(energy.summary(energy.operator_bands(table, plan.columns), plan.columns))
+    if options.recommend or constraints or options.across or options.rank_by:
+        rec = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
         text = recommend.format_table(rec, options.top)
         write_bytes(out / "recommendation.txt", text.encode())
         write_table(rec.table, out / "recommendation.csv", rows=rec.rows)

@@ -21,6 +21,7 @@ import numpy as np
 from ..analysis import metrics as analysis
 from ..analysis.linear_model import mid_stroke_modes
 from ..errors import BoomHydraulicsError, ConfigError
+from ..model import ledger, physical
 from ..model.battery import J_PER_KWH
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
 from ..solve import commands, streaming
@@ -67,14 +68,23 @@ LINEAR_METRICS: tuple[tuple[str, str, str], ...] = (
 BATTERY_METRICS: tuple[tuple[str, str, str], ...] = (
     ("cycles_per_charge", "1", "the battery's usable energy over battery_energy_j: runs (work cycles) per charge"),
 )
+#: The ledger's integrals over the run beyond the battery's and the lift's (model.ledger.INTEGRALS:
+#: where the battery's energy went), from each point's last state; NaN in paper mode.
+LEDGER_TERMS = ledger.INTEGRALS[2:-1]
+LEDGER_METRICS: tuple[tuple[str, str, str], ...] = tuple(
+    (f"{name}_j", "J", f"over the whole run: {meaning}") for name, _, _, meaning in ledger.TERMS if name in LEDGER_TERMS
+)
 #: Metric columns of a sweep table: name, unit, meaning.
-METRICS = STREAMED_METRICS + LINEAR_METRICS + BATTERY_METRICS
+METRICS = STREAMED_METRICS + LINEAR_METRICS + BATTERY_METRICS + LEDGER_METRICS
 METRIC_NAMES = tuple(name for name, _, _ in METRICS)
 
 #: Status of a point: ok (lifted through the angle), incomplete (did not within the run),
 #: failed (the integration diverged or left the model's geometry), invalid (parameters
 #: rejected before running).
 STATUSES = ("ok", "incomplete", "failed", "invalid")
+
+#: The scenarios an operator varies (``--operators``; solve.duty_cycles).
+VARIED = ("loader",)
 
 #: Parameters that all points of one batch share: integration and the scenario (the valve command).
 BATCH_KEYS = (*SHARED, *names_in("scenario"))
@@ -236,15 +246,22 @@ class Plan:
         return len(self.points)
 
 
-def _bases(configs: Sequence[tuple[str, Parameters]], scenario: str, duration_s: float) -> list[tuple[str, Parameters]]:
-    """Each config with the scenario's valve command applied, checked to run in a batch."""
-    drive = commands.scenario(scenario, duration_s)
+def _bases(
+    configs: Sequence[tuple[str, Parameters]], scenario: str, duration_s: float, operators: int = 0
+) -> list[tuple[str, Parameters]]:
+    """Each config with the scenario's valve command applied, checked to run in a batch; with
+    ``operators``, one base per config and operator (the scenario ``NAME:SEED``, seeds 1 to N,
+    named CONFIG/SEED)."""
     bases = []
     for name, params in configs:
-        try:
-            bases.append((name, from_mapping(drive, base=params)))
-        except ConfigError as exc:
-            raise ConfigError(f"scenario {scenario!r} does not fit config {name!r}: {exc}") from None
+        variants = [(name, scenario)]
+        if operators:
+            variants = [(f"{name}/{seed}", f"{scenario}:{seed}") for seed in range(1, operators + 1)]
+        for variant, text in variants:
+            try:
+                bases.append((variant, from_mapping(commands.scenario(text, duration_s, params), base=params)))
+            except ConfigError as exc:
+                raise ConfigError(f"scenario {text!r} does not fit config {name!r}: {exc}") from None
     for base_name, base in bases:
         if base.method not in BATCHED:
             raise ConfigError(
@@ -268,6 +285,7 @@ class Request:
     lift_angle_deg: float
     every: int
     batch_size: int
+    operators: int = 0  # seeded operator variations of the scenario per design (0: the nominal only)
 
     def as_json(self) -> dict[str, Any]:
         """The request, JSON-able, as the sweep's folder keeps it (to match it when resuming)."""
@@ -282,6 +300,7 @@ class Request:
             "lift_angle_deg": self.lift_angle_deg,
             "every": self.every,
             "batch_size": self.batch_size,
+            "operators": self.operators,
         }
 
 
@@ -297,10 +316,13 @@ def request(
     lift_angle_deg: float = analysis.DEFAULT_LIFT_ANGLE_DEG,
     every: int = 1,
     batch_size: int = 1000,
+    operators: int = 0,
 ) -> Request:
     """What a sweep is asked, checked, and found without planning a point, so that a sweep
     folder can be matched against it before any planning. ``configs`` are (name, parameters)
-    pairs; with more than one, the config name is a column of the table."""
+    pairs; with more than one, the config name is a column of the table. With ``operators`` N,
+    every design runs the N seeded variations of the scenario (``loader:1`` ...), and the seed is
+    the table's column ``operator``."""
     if not configs:
         raise ConfigError("a sweep needs at least one config")
     check_duration(duration_s)
@@ -311,8 +333,16 @@ def request(
     names = [name for name, _ in configs]
     if len(set(names)) != len(names):
         raise ConfigError(f"two configs share the name {names}; give the files different names")
-    bases = tuple(_bases(configs, scenario, duration_s))
-    return Request(bases, tuple(axes), scenario, duration_s, sample, count, seed, lift_angle_deg, every, batch_size)
+    if operators < 0:
+        raise ConfigError(f"--operators must be >= 0, got {operators}")
+    if operators and scenario.partition(":")[0] not in VARIED:
+        raise ConfigError(f"--operators varies the scenarios {', '.join(VARIED)}; {scenario!r} has no operator")
+    if operators and ":" in scenario:
+        raise ConfigError(f"--operators seeds the scenario itself: give --scenario {scenario.partition(':')[0]}")
+    bases = tuple(_bases(configs, scenario, duration_s, operators))
+    return Request(
+        bases, tuple(axes), scenario, duration_s, sample, count, seed, lift_angle_deg, every, batch_size, operators
+    )
 
 
 def plan(asked: Request) -> Plan:
@@ -327,14 +357,18 @@ def plan(asked: Request) -> Plan:
     check_fits(estimate(configs, axes, duration_s=asked.duration_s, sample=asked.sample, count=asked.count,
                         batch_size=asked.batch_size))  # fmt: skip
     samples = sample_points(axes, asked.sample, asked.count, asked.seed)
-    columns = (("config",) if len(configs) > 1 else ()) + tuple(a.name for a in axes)
+    several = len(configs) > max(1, asked.operators)  # more than one config file
+    operator = ("operator",) if asked.operators else ()
+    columns = (("config",) if several else ()) + operator + tuple(a.name for a in axes)
     points: list[dict[str, Any]] = []
     invalid: dict[int, str] = {}
     groups: dict[tuple, list[tuple[int, Parameters]]] = {}
     for base_name, base in configs:
+        config, _, operator = base_name.rpartition("/") if asked.operators else (base_name, "", "")
+        described = ({"config": config} if several else {}) | ({"operator": int(operator)} if operator else {})
         for values in samples:
             index = len(points)
-            points.append({"config": base_name, **values} if len(configs) > 1 else dict(values))
+            points.append({**described, **values})
             try:
                 params = from_mapping(values, base=base)
             except ConfigError as exc:
@@ -380,7 +414,14 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     with np.errstate(divide="ignore", invalid="ignore"):  # a run that drew nothing: infinitely many
         cycles = np.where(battery_j > 0.0, capacity_j / battery_j, math.inf)
     cycles[np.isnan(battery_j)] = math.nan
-    values = np.column_stack([*(runs.metrics[name] for name in streaming.NAMES), *mid_stroke_modes(params), cycles])
+    if params[0].mode == "physical":  # a batch shares its mode
+        first = physical.LEDGER_STATES + ledger.INTEGRALS.index(LEDGER_TERMS[0])
+        spent = runs.states[:, first : first + len(LEDGER_TERMS)]
+    else:
+        spent = np.full((len(params), len(LEDGER_TERMS)), np.nan)
+    values = np.column_stack(
+        [*(runs.metrics[name] for name in streaming.NAMES), *mid_stroke_modes(params), cycles, spent]
+    )
     rows: dict[str, list] = {"status": [], "reason": []}
     completed = METRIC_NAMES.index("lift_completed")
     rise = METRIC_NAMES.index("rise_deg")

@@ -1,0 +1,86 @@
+"""The battery's side of a sweep: each design's energy per work cycle over the operators'
+cycles, and where that energy went.
+
+A sweep with ``--operators N`` runs every design (its point columns but ``operator``) through N
+cycles an operator varies (solve.duty_cycles). :func:`operator_bands` gives, per design, the
+10th, 50th and 90th percentiles of its battery energy per cycle and of its cycles per charge
+over its cycles that ran ok, and the mean of each of the ledger's terms; :func:`best_per_drive`
+picks each drive's design with the least median battery energy. Without operators each design
+has one cycle, and its band is that cycle's value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .recommend import designs_of, format_value
+from .sweep import LEDGER_METRICS
+
+#: The band's percentiles.
+PERCENTILES = (10, 50, 90)
+#: The figures a band is taken of: (column, label, scale).
+BANDED = (("battery_energy_j", "battery energy per cycle", 1e-3), ("cycles_per_charge", "cycles per charge", 1.0))
+#: The columns a design's breakdown averages over its cycles: the lift's work and the ledger's terms.
+BREAKDOWN = ("lift_work_j", "battery_returned_j", *(name for name, _, _ in LEDGER_METRICS))
+
+
+def design_columns(point_columns: Sequence[str]) -> list[str]:
+    """The point columns that name a design: all but the operator's seed."""
+    return [c for c in point_columns if c != "operator"]
+
+
+def operator_bands(table: Mapping[str, np.ndarray], point_columns: Sequence[str]) -> dict[str, np.ndarray]:
+    """One row per design (in the order designs first appear): its design columns, ``cycles``
+    (how many of its cycles ran ok), ``<figure>_p10`` / ``_p50`` / ``_p90`` of :data:`BANDED`
+    over those, and the mean of each :data:`BREAKDOWN` column (NaN where none ran ok)."""
+    columns = design_columns(point_columns)
+    ok = np.asarray(table["status"]) == "ok"
+    groups = designs_of(table, columns)
+    out: dict[str, np.ndarray] = {}
+    for j, column in enumerate(columns):
+        out[column] = np.array([key[j] for key in groups], dtype=np.asarray(table[column]).dtype)
+    members = [np.array([i for i in rows if ok[i]], dtype=np.int64) for rows in groups.values()]
+    out["cycles"] = np.array([len(m) for m in members], dtype=np.int64)
+    for name, _, _ in BANDED:
+        values = np.asarray(table[name], dtype=float)
+        for q in PERCENTILES:
+            out[f"{name}_p{q}"] = np.array([np.percentile(values[m], q) if len(m) else np.nan for m in members])
+    for name in BREAKDOWN:
+        values = np.asarray(table[name], dtype=float)
+        out[name] = np.array([values[m].mean() if len(m) else np.nan for m in members])
+    return out
+
+
+def best_per_drive(bands: Mapping[str, np.ndarray]) -> dict[str, int]:
+    """Each drive's row of ``bands`` with the least median battery energy per cycle, among its
+    designs whose every cycle ran ok (or, where none did, those with the most ok cycles); one
+    entry "" without a drive column."""
+    drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(bands["cycles"])
+    energy = np.asarray(bands["battery_energy_j_p50"], dtype=float)
+    cycles = np.asarray(bands["cycles"])
+    most = {d: max(cycles[i] for i, e in enumerate(drives) if e == d) for d in dict.fromkeys(drives)}
+    best: dict[str, int] = {}
+    for row, drive in enumerate(drives):
+        if cycles[row] < most[drive] or not np.isfinite(energy[row]):
+            continue
+        if drive not in best or energy[row] < energy[best[drive]]:
+            best[drive] = row
+    return best
+
+
+def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
+    """A line per drive: its best design, battery energy per cycle and cycles per charge with
+    their 10th-90th percentile band."""
+    lines = []
+    for drive, row in best_per_drive(bands).items():
+        where = ", ".join(f"{c}={format_value(bands[c][row])}" for c in design_columns(columns) if c != "drive")
+        energy = [float(bands[f"battery_energy_j_p{q}"][row]) * 1e-3 for q in PERCENTILES]
+        cycles = [float(bands[f"cycles_per_charge_p{q}"][row]) for q in PERCENTILES]
+        lines.append(
+            f"  least battery energy{' with ' + drive if drive else ''}: {energy[1]:.3g} kJ per cycle "
+            f"({energy[0]:.3g}-{energy[2]:.3g}), {cycles[1]:.0f} cycles per charge ({cycles[0]:.0f}-{cycles[2]:.0f}), "
+            f"over {int(bands['cycles'][row])} cycles" + (f" at {where}" if where else "")
+        )
+    return "\n".join(lines)

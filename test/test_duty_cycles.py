@@ -1,0 +1,137 @@
+"""Work cycles: the loader crane's cycle releases its payload within the cycle, ends where it
+began, varies with the operator's seed, and a sweep over operators gives each design a band."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from boom_hydraulics.errors import ConfigError
+from boom_hydraulics.model import ledger, physical
+from boom_hydraulics.model.geometry import static_rod_force_of
+from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.solve import accelerate, commands, duty_cycles
+from boom_hydraulics.solve.simulation import Simulator
+from boom_hydraulics.sweeps import energy, recommend, sweep
+from boom_hydraulics.sweeps.sampling import parse_axis
+
+JIT = [False, True] if accelerate.available() else [False]
+PAYLOAD_KG = 150.0
+
+
+def _loader(drive: str, jit: bool | None = None, seed: int = 0):
+    params = from_mapping(
+        {"drive": drive, "payload_mass_kg": PAYLOAD_KG, **commands.scenario(f"loader:{seed}", 0.0, Parameters())}
+    )
+    sim = Simulator(params, jit=jit)
+    out = sim.run(duty_cycles.loader_duration_s(seed) + 2.0, commands.from_parameters(params), every=10)
+    return params, sim, out
+
+
+@pytest.mark.parametrize("jit", JIT, ids=lambda j: "compiled" if j else "interpreted")
+def test_the_loader_puts_its_payload_down_and_holds_the_lighter_boom_with_less_pressure(jit):
+    params, sim, out = _loader("pressure_compensated", jit)
+    release = params.command_payload_times_s[0]
+    t, force, alpha = out["t"], out["f_hyd"], out["alpha"]
+    before = force[(t > release - 0.3) & (t < release)].mean()  # resting at the ground, loaded
+    after = force[(t > release + 0.2) & (t < release + 0.45)].mean()  # the same, empty (it rings a little)
+    q1 = out["q1"][t < release][-1]
+    # the oil holds the payload's weight no more: the static rod force of eq. 6 with and without it
+    lighter = static_rod_force_of(params, q1) - static_rod_force_of(with_updates(params, payload_mass_kg=0.0), q1)
+    assert before - after == pytest.approx(lighter, rel=0.05)
+    # the cycle ends where it began, and the lifts rose by the cycle's 25 degrees
+    assert math.degrees(alpha[-1] - alpha[0]) == pytest.approx(0.0, abs=0.5)
+    assert math.degrees(alpha.max() - alpha[0]) == pytest.approx(duty_cycles.LOADER_RISE_DEG, abs=1.0)
+    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    assert ledger.energies_of(integrals)["imbalance_ratio"] < 0.005
+    assert abs(sim.energy_residual()) < 1e-3 * integrals["battery_drawn"]  # the payload's energy left with it
+
+
+def test_the_eha_recovers_energy_on_the_loader_cycle_and_draws_less_than_load_sensing():
+    *_, eha = _loader("pump_controlled")
+    *_, sensing = _loader("load_sensing")
+    net = {name: o["battery_drawn"][-1] - o["battery_returned"][-1] for name, o in (("eha", eha), ("ls", sensing))}
+    assert eha["battery_returned"][-1] > 0.1 * eha["battery_drawn"][-1]
+    assert net["eha"] < 0.5 * net["ls"], net
+
+
+def test_operators_vary_the_cycle_within_their_bounds_and_a_seed_repeats_it():
+    nominal = duty_cycles.loader(Parameters())
+    varied = [duty_cycles.loader(Parameters(), seed) for seed in range(1, 21)]
+    assert duty_cycles.loader(Parameters(), 7) == varied[6]  # the same seed, the same cycle
+    assert len({tuple(v["command_times_s"]) for v in varied}) == 20
+    ground = duty_cycles.ground_rad(Parameters())
+    for cycle in varied:
+        rises = np.degrees(np.array(cycle["command_angles_rad"])[[0, 2]] - ground)
+        assert (np.abs(rises / duty_cycles.LOADER_RISE_DEG - 1.0) <= duty_cycles.RISE_VARIATION).all()
+        assert cycle["command_angles_rad"][1] == cycle["command_angles_rad"][3] == ground
+        length = np.diff(
+            [*cycle["command_times_s"][:2], *cycle["command_payload_times_s"], *cycle["command_times_s"][2:]]
+        )
+        nominal_length = np.diff(duty_cycles.LOADER_TIMES_S)
+        assert (np.abs(length / nominal_length - 1.0) <= duty_cycles.VARIATION + 1e-12).all()
+    assert nominal["command_payload_fractions"] == [0.0]
+    with pytest.raises(ConfigError, match="loader:SEED"):
+        commands.scenario("loader:x", 10.0)
+
+
+def test_a_payload_schedule_is_refused_where_it_cannot_act():
+    with pytest.raises(ConfigError, match="command_payload_times_s must be strictly increasing"):
+        from_mapping({"command_payload_times_s": [2.0, 1.0], "command_payload_fractions": [0.0, 1.0]})
+    with pytest.raises(ConfigError, match="equal length"):
+        from_mapping({"command_payload_times_s": [2.0], "command_payload_fractions": []})
+    with pytest.raises(ConfigError, match="needs mode: physical"):
+        from_mapping({"mode": "paper", "command_payload_times_s": [2.0], "command_payload_fractions": [0.0]})
+
+
+def test_a_sweep_over_operators_gives_each_design_a_band_and_ranks_by_cycles_per_charge():
+    axes = [parse_axis("drive=load_sensing,pump_controlled"), parse_axis("piston_diameter=0.045,0.055")]
+    base = with_updates(Parameters(), payload_mass_kg=PAYLOAD_KG)
+    asked = sweep.request([("default", base)], axes, scenario="loader", duration_s=22.0, operators=3)
+    plan = sweep.plan(asked)
+    assert plan.columns == ("operator", "drive", "piston_diameter_m") and plan.size == 12
+    table = sweep.assemble(plan, [sweep.run_batch(b) for b in plan.batches])
+    bands = energy.operator_bands(table, plan.columns)
+    assert len(bands["cycles"]) == 4 and (bands["cycles"] == 3).all()
+    for name, _, _ in energy.BANDED:
+        low, mid, high = (bands[f"{name}_p{q}"] for q in energy.PERCENTILES)
+        assert (low <= mid).all() and (mid <= high).all() and (low < high).any()  # the operators differ
+    capacity_j = base.battery_capacity_kwh * 3.6e6
+    assert bands["cycles_per_charge_p50"] == pytest.approx(capacity_j / bands["battery_energy_j_p50"], rel=1e-9)
+    best = energy.best_per_drive(bands)
+    assert set(best) == {"load_sensing", "pump_controlled"}
+    rec = recommend.recommend(table, [], plan.columns, ["operator"], "cycles_per_charge")
+    ranked = rec.table["cycles_per_charge"][rec.rows]
+    assert (np.diff(ranked) <= 0).all() and rec.table["drive"][rec.rows[0]] == "pump_controlled"
+    # the worst case over the operators is each design's fewest cycles per charge
+    top = rec.rows[0]
+    rows = (table["drive"] == rec.table["drive"][top]) & (
+        table["piston_diameter_m"] == rec.table["piston_diameter_m"][top]
+    )
+    assert ranked[0] == np.min(table["cycles_per_charge"][rows])
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
+def test_the_compiled_loop_changes_the_payload_as_the_interpreted_one_does():
+    *_, compiled = _loader("pump_controlled", True, seed=3)
+    *_, interpreted = _loader("pump_controlled", False, seed=3)
+    for name in ("q1", "p1", "p2", "battery_drawn", "battery_returned"):
+        scale = np.max(np.abs(interpreted[name]))
+        assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
+
+
+def test_boom_sim_runs_the_loader_cycle_and_writes_the_battery(tmp_path):
+    from conftest import run_tool
+
+    out = tmp_path / "loader.csv"
+    result = run_tool("boom-sim", "run", "--set", "drive=pump_controlled", "--profile", "loader:2", "--duration", "22",
+                      "--every", "100", "--out", str(out))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    header = out.read_text().splitlines()[0].split(",")
+    assert {"battery_power [W]", "battery_drawn [J]", "battery_returned [J]", "lift_work [J]"} <= set(header)
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    alpha = rows[:, header.index("alpha [rad]")]
+    assert math.degrees(alpha.max() - alpha[0]) > 20.0 and math.degrees(abs(alpha[-1] - alpha[0])) < 0.5
+    assert rows[-1, header.index("battery_returned [J]")] > 0.0
