@@ -19,10 +19,12 @@ from scipy.integrate import solve_ivp
 from tables import best_of, table
 
 from boom_hydraulics.model import config, physical
-from boom_hydraulics.model.parameters import Parameters, with_updates
-from boom_hydraulics.solve import accelerate
+from boom_hydraulics.model.drives import DRIVES
+from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.solve import accelerate, duty_cycles
 from boom_hydraulics.solve.batch import run_sets
 from boom_hydraulics.solve.commands import constant as constant_command
+from boom_hydraulics.solve.commands import from_parameters
 from boom_hydraulics.solve.commands import steps as steps_command
 from boom_hydraulics.solve.simulation import Simulator, simulate
 
@@ -207,9 +209,42 @@ def euler_vs_rk4() -> None:
     )
 
 
+def drive_cost() -> dict[tuple[str, bool], float]:
+    """Print and return us per 1 ms step of each drive on the loader cycle (duty_cycles), its
+    stability substeps included, by (drive, compiled): the compiled path over the whole cycle,
+    the interpreted one over its first 3 s (the lift)."""
+    rows, costs = [], {}
+    for drive in DRIVES:
+        params = from_mapping(duty_cycles.loader(PHYSICAL), base=with_updates(PHYSICAL, drive=drive))
+        for jit in (False, True):
+            if jit and not accelerate.available():
+                continue
+            duration = duty_cycles.LOADER_DURATION_S if jit else 3.0
+            sim = Simulator(params, jit=jit)
+            sim.run(0.01, from_parameters(params), every=10**9)  # compile / warm up
+
+            def run(sim=sim, duration=duration, params=params):
+                sim.reset()
+                sim.run(duration, from_parameters(params), every=10**9)
+
+            seconds = best_of(run, 3 if jit else 1)
+            us = seconds / round(duration / params.time_step_s) * 1e6
+            costs[(drive, jit)] = us
+            rows.append(
+                [drive, "compiled" if jit else "interpreted", f"{duration:g}", f"{us:.2f}", str(sim.most_substeps)]
+            )
+    table(
+        "Each drive on the loader cycle: us per 1 ms step, stability substeps included",
+        ["drive", "path", "simulated s", "us/step", "most substeps"],
+        rows,
+    )
+    return costs
+
+
 def main() -> int:
     print(f"numba: {'yes' if accelerate.available() else 'no'}; numpy {np.__version__}")
     step_cost()
+    drive_cost()
     scipy_comparison()
     batch_throughput()
     stiff_settings()

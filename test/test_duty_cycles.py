@@ -135,3 +135,17 @@ def test_boom_sim_runs_the_loader_cycle_and_writes_the_battery(tmp_path):
     alpha = rows[:, header.index("alpha [rad]")]
     assert math.degrees(alpha.max() - alpha[0]) > 20.0 and math.degrees(abs(alpha[-1] - alpha[0])) < 0.5
     assert rows[-1, header.index("battery_returned [J]")] > 0.0
+
+
+@pytest.mark.parametrize("jit", JIT, ids=lambda j: "compiled" if j else "interpreted")
+def test_a_loader_run_goes_on_after_the_release_and_starts_afresh_after_a_reset(jit):
+    params, sim, whole = _loader("pressure_compensated", jit)
+    duration = duty_cycles.loader_duration_s() + 2.0
+    sim.reset()
+    sim.run(10.0, commands.from_parameters(params), every=10)  # past the release at 9 s
+    rest = sim.run(duration - 10.0, commands.from_parameters(params), every=10)
+    # (the second run's controller starts afresh: the same cycle, not the same bits)
+    assert rest["q1"][-1] == pytest.approx(whole["q1"][-1], abs=1e-4)
+    assert rest["battery_drawn"][-1] == pytest.approx(whole["battery_drawn"][-1], rel=1e-3)
+    assert rest["f_hyd"][-1] == pytest.approx(whole["f_hyd"][-1], rel=1e-2)  # the boom still without its payload
+    assert abs(sim.energy_residual()) < 1e-3 * whole["battery_drawn"][-1]

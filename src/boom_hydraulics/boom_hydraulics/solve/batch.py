@@ -382,6 +382,10 @@ class SetRun:
             rows=rows,
         )
 
+    def energy_base(self, k: int) -> float:
+        """The value of H - W that set ``k``'s energy balance started from, J (see Start)."""
+        return float(self._spec.energy_base[k])
+
     def steps_taken(self, k: int) -> int:
         """The steps set ``k`` took (all of them, or those before the one that failed)."""
         status = self.status[k]

@@ -122,6 +122,8 @@ class Simulator:
                 raise SimulationError(
                     f"reset position {initial_length_m} m lies outside the stroke [{low:.4g}, {high:.4g}] m"
                 )
+        self.constants = self.model.constants(p)  # the whole payload again (a schedule may have changed it)
+        self._constants_row = np.array(self.constants, dtype=float)
         self.y = self.model.initial_state(p, initial_length_m)
         self.t = self.t if keep_time and hasattr(self, "t") else 0.0
         self.u = 0.0
@@ -221,7 +223,12 @@ class Simulator:
         closed-loop :class:`closed_loop.PositionLoop`, is asked ``command(t, y)`` with the
         state at the step's start) from the current state, as a run of the run loop to go
         through (:meth:`SetRun.slices`) and then hand to :meth:`take`; see SetRun for the rest."""
-        start = Start(list(self.y), self._t_base, self.step_count - self._n_base, self._energy_base, self.integrator)
+        # the run starts from the parameters' constants (the whole payload; its schedule puts the
+        # share of now back): H - W as those constants count H
+        base = self._energy_base
+        if self._energy_index >= 0:
+            base += self.model.energy(self.y, self.model.constants(self.params)) - self.model.energy(self.y, self.constants)
+        start = Start(list(self.y), self._t_base, self.step_count - self._n_base, base, self.integrator)
         return SetRun([self.params], duration_s, command, every, store=store, slice_rows=slice_rows,
                       measure=measure, jit=self.jit, start=start)  # fmt: skip
 
@@ -232,10 +239,10 @@ class Simulator:
         outcome = int(status[kernel.OUTCOME])
         steps = run.steps_taken(0)
         self._moved(run.state[0].tolist(), steps)
-        if status[kernel.PAYLOAD] != 1.0:  # the payload schedule left a share of the payload on the hook
-            self.constants = self.model.with_payload(self.constants, float(status[kernel.PAYLOAD]))
-            self._constants_row = np.array(self.constants, dtype=float)
-        self._energy_base += float(status[kernel.BASE_SHIFT])
+        # the payload schedule leaves its share of the payload on the hook, and H - W as it counts H
+        self.constants = self.model.with_payload(self.model.constants(self.params), float(status[kernel.PAYLOAD]))
+        self._constants_row = np.array(self.constants, dtype=float)
+        self._energy_base = run.energy_base(0) + float(status[kernel.BASE_SHIFT])
         if outcome != OK:
             self.u = float(status[kernel.NEXT_U])  # the command of the step that failed
         elif steps > 0:
