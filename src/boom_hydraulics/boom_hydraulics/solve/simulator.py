@@ -227,7 +227,8 @@ class Simulator:
         # share of now back): H - W as those constants count H
         base = self._energy_base
         if self._energy_index >= 0:
-            base += self.model.energy(self.y, self.model.constants(self.params)) - self.model.energy(self.y, self.constants)
+            full = self.model.constants(self.params)
+            base += self.model.energy(self.y, full) - self.model.energy(self.y, self.constants)
         start = Start(list(self.y), self._t_base, self.step_count - self._n_base, base, self.integrator)
         return SetRun([self.params], duration_s, command, every, store=store, slice_rows=slice_rows,
                       measure=measure, jit=self.jit, start=start)  # fmt: skip
