@@ -41,17 +41,27 @@ def test_a_drive_in_paper_mode_is_refused_in_one_line(drive):
         from_mapping({"drive": drive, "mode": "paper"})
 
 
-def test_the_unsolved_parameters_have_units_and_ranges_and_stay_out_of_the_node_and_default_file():
-    """The battery's initial charge: no solver reads it yet (the run loop reads every drive's
-    parameters, the pump's, the motor's and the battery's others)."""
-    assert UNSOLVED == ("battery_initial_soc",)
-    for name in UNSOLVED:
+#: The drives', motor's and battery's parameters (docs/model.md, "Drives", "Battery").
+DRIVE_PARAMETERS = (
+    "pump_speed_rad_s", "pump_volumetric_efficiency", "pump_hydromechanical_efficiency", "motor_rated_torque_n_m",
+    "motor_efficiency", "motor_copper_loss_fraction", "motor_time_constant_s", "battery_capacity_kwh",
+    "battery_voltage_v", "battery_resistance_ohm", "battery_initial_soc", "supply_line_volume_m3",
+    "main_relief_range_pa", "load_sensing_margin_pa", "load_sensing_time_constant_s", "reservoir_pressure_pa",
+    "pilot_check_diameter_m", "pilot_check_opening_pa",
+)  # fmt: skip
+
+
+def test_the_drive_parameters_have_units_and_ranges_and_the_shipped_file_lists_them():
+    """Every one is read by a solver now (UNSOLVED is empty), so the node declares it and
+    config/default.yaml lists it with its default: existing runs unchanged."""
+    assert UNSOLVED == ()
+    shipped = config.read_values(CONFIG / "default.yaml")
+    for name in DRIVE_PARAMETERS:
         meta = describe(name)
         assert meta["group"] == "plant" and meta["description"], name
-        assert meta["choices"] or (meta["unit"] is not None and meta["low"] is not None and meta["high"]), name
-    shipped = config.read_values(CONFIG / "default.yaml")
-    assert not set(UNSOLVED) & set(shipped)  # the node loads it: it must not promise a drive
-    assert config.load(CONFIG / "default.yaml") == Parameters()  # existing runs unchanged
+        assert meta["unit"] is not None and meta["low"] is not None and meta["high"], name
+        assert shipped[name] == getattr(Parameters(), name), name
+    assert config.load(CONFIG / "default.yaml") == Parameters()
     with pytest.raises(ConfigError, match=r"'battery_voltage_v'.*must be > 0"):
         from_mapping({"battery_voltage_v": 0.0})
 

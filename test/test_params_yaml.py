@@ -145,13 +145,13 @@ def test_a_p_value_rcl_does_not_use_is_refused(argv):
 
 def test_the_node_declares_every_group_but_the_scenario():
     """...with the drives' parameters and the battery's, and none of those no solver reads yet
-    (UNSOLVED: the battery's initial charge): declared, they would promise what the node does not run."""
+    (UNSOLVED): declared, they would promise what the node does not run."""
     from boom_hydraulics.model.parameters import UNSOLVED, names_in
 
     declared = node_parameters.all_names()
     assert set(node_parameters.SCENARIO) == set(names_in("scenario")) and not set(declared) & set(names_in("scenario"))
-    assert "battery_initial_soc" in UNSOLVED and not set(declared) & set(UNSOLVED)
-    assert {"drive", "supply_line_volume_m3", "battery_capacity_kwh", "reservoir_pressure_pa"} <= set(declared)
+    assert not set(declared) & set(UNSOLVED)
+    assert {"drive", "supply_line_volume_m3", "battery_capacity_kwh", "battery_initial_soc"} <= set(declared)
     assert set(declared) == set(NAMES) - set(names_in("scenario")) - set(UNSOLVED) | set(
         node_parameters.NODE_PARAMETERS
     )

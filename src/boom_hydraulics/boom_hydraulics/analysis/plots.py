@@ -1,4 +1,5 @@
-"""PNG plots of runs: the panels of the paper's Figs. 8-10 and the drive's other signals."""
+"""PNG plots of runs: the panels of the paper's Figs. 8-10, the drive's other signals, and where
+the battery's energy went."""
 
 from __future__ import annotations
 
@@ -58,3 +59,47 @@ def drive(runs: Sequence[Run], path: Path) -> None:
         "Rod-chamber pressure, rod force and valve",
         path,
     )
+
+
+#: The energies a breakdown stacks, in order: the lift's work, then every loss and work term of
+#: the ledger (model.ledger.INTEGRALS' names); the battery's returned energy goes below zero.
+BREAKDOWN_TERMS = (
+    "lift_work", "battery_loss", "motor_loss", "pump_volumetric_loss", "pump_mechanical_loss", "main_relief_loss",
+    "valve_loss", "leakage_loss", "port_relief_loss", "friction_work", "end_stop_work", "ambient_work",
+    "external_work", "oil_work", "kinetic_power", "potential_power",
+)  # fmt: skip
+
+
+def energy_breakdown(bars: Sequence[tuple[str, Mapping[str, float], float]], title: str, path: Path) -> None:
+    """A stacked bar per (label, energies J by the ledger's names, battery energy J) of ``bars``:
+    the positive ones of :data:`BREAKDOWN_TERMS` (stored terms net out over a cycle; what the
+    surroundings give is not spent), the battery's returned energy below zero, and the battery
+    energy written above the bar."""
+    fig, ax = plt.subplots(figsize=(max(6.0, 2.0 + 2.0 * len(bars)), 6), constrained_layout=True)
+    palette = plt.get_cmap("tab20")
+    named: set[str] = set()  # each term in the legend once, where it is first drawn
+
+    def label(name: str) -> str | None:
+        first = name not in named
+        named.add(name)
+        return name if first else None
+
+    for column, (_, energies, battery_j) in enumerate(bars):
+        bottom = 0.0
+        for k, name in enumerate(BREAKDOWN_TERMS):
+            value = float(energies.get(name, 0.0)) * 1e-3
+            if value > 0.0:
+                ax.bar(column, value, bottom=bottom, color=palette(k % 20), label=label(name))
+                bottom += value
+        returned = float(energies.get("battery_returned", 0.0)) * 1e-3
+        if returned > 0.0:
+            ax.bar(column, -returned, color="0.4", label=label("battery_returned"))
+        ax.annotate(f"{battery_j * 1e-3:.3g} kJ", (column, bottom), ha="center", va="bottom", fontsize="small")
+    ax.set_xticks(range(len(bars)), [text for text, _, _ in bars], fontsize="small")
+    ax.set_ylabel("energy [kJ]")
+    ax.axhline(0.0, color="black", linewidth=0.8)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="x-small")
+    ax.set_title(title)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

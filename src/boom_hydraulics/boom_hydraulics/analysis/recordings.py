@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bags.reading import read_drive_states
+from ..bags.reading import read_drive_states, read_energy_ledger
 from ..errors import ConfigError
 from ..files import check_apart, csv_cell, json_text, results_folder, write_csv, write_npz
 from ..solve.outputs import OUTPUTS
@@ -48,14 +48,28 @@ def analyze(bags: Sequence[Path], out: Path, align: str = "origin") -> dict[str,
     if len(set(labels)) < len(labels):
         raise ConfigError(f"two bags share the name {max(labels, key=labels.count)!r}; their results would collide")
     runs = [(label, read_drive_states(bag, align)) for label, bag in zip(labels, bags)]  # fails before writing
+    ledgers = {label: read_energy_ledger(bag) for label, bag in zip(labels, bags)}
     results = {}
     with results_folder(out) as tmp:
         for label, signals in runs:
             write_signals(tmp, label, signals)
             results[label] = analysis.metrics(signals)
+            energies = ledgers[label]
+            if energies is not None:  # the battery's figures, from the bag's last energy ledger
+                results[label].update(
+                    battery_energy_j=energies["battery_drawn"] - energies["battery_returned"],
+                    battery_drawn_j=energies["battery_drawn"],
+                    battery_returned_j=energies["battery_returned"],
+                    lift_work_j=energies["lift_work"],
+                    state_of_charge=energies["state_of_charge"],
+                )
             (tmp / f"{label}.metrics.json").write_text(json_text(results[label]))
         plots.dynamics(runs, tmp / "dynamics.png")
         plots.drive(runs, tmp / "drive.png")
+        bars = [(label, e, e["battery_drawn"] - e["battery_returned"]) for label, e in ledgers.items() if e]
+        if bars:
+            title = "Where the battery's energy went over each run (above each bar: drawn less returned)"
+            plots.energy_breakdown(bars, title, tmp / "energy.png")
     return results
 
 
@@ -68,6 +82,7 @@ def report(results: Mapping[str, Mapping[str, float]], out: Path) -> str:
             f"{label}: lift {m['lift_m']:.3f} m, 90 % in {m['time_to_target_s']:.2f} s, "
             f"peak speed {m['peak_speed_m_s']:.3f} m/s, pressures {low:.2f}..{high:.2f} MPa, "
             f"energy {m['supply_energy_j'] / 1e3:.2f} kJ"
+            + (f", battery {m['battery_energy_j'] / 1e3:.2f} kJ" if "battery_energy_j" in m else "")
         )
     lines.append(f"boom-analyze: results in {out}")
     return "\n".join(lines)

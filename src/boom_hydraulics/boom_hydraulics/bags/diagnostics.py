@@ -1,9 +1,10 @@
 """The node's /diagnostics (CDR), once a second and after each service call that changes the run.
 
-Four statuses (five while recording): the drive (or the failure that stopped it), real time
-(lag, clock error, dropped backlogs), the commands (received and not applied), the run
-(resets, pauses, ~/step calls and the shift of the time origin: what boom-resim must know of
-a bag) and the recording. Packed to CDR without rclpy: the node and ``boom-sim live``
+Four statuses (five while recording, one more in physical mode): the drive (or the failure
+that stopped it), the battery (its state of charge, warned below LOW_CHARGE), real time (lag,
+clock error, dropped backlogs), the commands (received and not applied), the run (resets,
+pauses, ~/step calls and the shift of the time origin: what boom-resim must know of a bag)
+and the recording. Packed to CDR without rclpy: the node and ``boom-sim live``
 publish and record the same array.
 """
 
@@ -13,9 +14,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from .encoding import message, stamp, to_cdr
+from .energy import finite, ledger_now
 
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 OK, WARN, ERROR = 0, 1, 2  # DiagnosticStatus levels
+#: The battery's status warns below this state of charge.
+LOW_CHARGE = 0.1
 
 
 @dataclass
@@ -83,6 +87,20 @@ def diagnostics(
                 energy_residual_j=f"{sim.energy_residual():.4g}",
             )
         )
+        now = ledger_now(sim.params, sim.t, sim.y, sim.constants, sim.u)
+        if now is not None and finite(now):  # physical mode: the battery's charge
+            soc = now.state_of_charge
+            level = ERROR if soc <= 0.0 else (WARN if soc < LOW_CHARGE else OK)
+            status.append(
+                _status(
+                    "battery",
+                    level,
+                    "empty" if soc <= 0.0 else ("low" if soc < LOW_CHARGE else "ok"),
+                    state_of_charge=f"{soc:.4f}",
+                    battery_drawn_j=f"{now.energy_j['battery_drawn']:.6g}",
+                    battery_returned_j=f"{now.energy_j['battery_returned']:.6g}",
+                )
+            )
     behind = pacer.lag_s > 2.0 / rate_hz
     status.append(
         _status(

@@ -25,6 +25,7 @@ from .recording import interface_file
 
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
+ENERGY_LEDGER = "boom_hydraulics_msgs/msg/EnergyLedger"
 
 #: DriveState field -> model output name (simulation.OUTPUTS), in the message's order.
 DRIVE_STATE_FIELDS: dict[str, str] = {
@@ -58,9 +59,10 @@ _PACK_DRIVE_STATE = cdr.drive_state_packer(BASE_FRAME, *_PACK_SHAPE)
 
 @functools.cache
 def typestore() -> Typestore:
-    """Jazzy's message types, DriveState and ValveCommand (from the workspace's installed .msg)."""
+    """Jazzy's message types, DriveState, ValveCommand and EnergyLedger (from the workspace's
+    installed .msg)."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    for msgtype in (DRIVE_STATE, VALVE_COMMAND):
+    for msgtype in (DRIVE_STATE, VALVE_COMMAND, ENERGY_LEDGER):
         store.register(get_types_from_msg(interface_file(msgtype, ".msg").read_text(), msgtype))
     return store
 

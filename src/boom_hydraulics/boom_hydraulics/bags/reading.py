@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -11,7 +12,8 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader, AnyReaderError
 
 from ..errors import BagError
-from .encoding import DRIVE_STATE, DRIVE_STATE_FIELDS, FLAGS
+from .encoding import DRIVE_STATE, DRIVE_STATE_FIELDS, ENERGY_LEDGER, FLAGS
+from .energy import ledger_of_message
 from .recording import CUSTOM_DATA_RECORD, MCAP_MAGIC, is_being_recorded
 from .run_description import RunDescription
 
@@ -191,6 +193,30 @@ def read_drive_states(bag: str | Path, align: str = "origin") -> dict[str, np.nd
     origin_ns = _origin_ns(path, align, stamp_ns, out["u"])
     out = {"t": (stamp_ns - origin_ns).astype(float) * 1e-9, **out}
     return out
+
+
+def read_energy_ledger(bag: str | Path) -> dict[str, float] | None:
+    """The energy ledger of ``bag`` at its end: its last EnergyLedger message (by stamp) as the
+    integrals of the ledger's terms, J (bags.energy.ledger_of_message); None for a bag without
+    one (paper mode, or recorded before the node published it)."""
+    path = Path(bag)
+    check_bag_path(path)
+    last: tuple[int, Any] | None = None
+    try:
+        with AnyReader([path]) as reader:
+            connections = [c for c in reader.connections if c.msgtype == ENERGY_LEDGER]
+            if not connections:  # (an empty list would read every topic)
+                return None
+            for connection, _, raw in reader.messages(connections=connections):
+                msg = reader.deserialize(raw, connection.msgtype)
+                stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                if last is None or stamp_ns >= last[0]:
+                    last = (stamp_ns, msg)
+    except AnyReaderError as exc:
+        raise BagError(f"{path}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
+    except (OSError, ValueError, KeyError) as exc:
+        raise BagError(f"{path}: cannot read the bag ({exc})") from None
+    return None if last is None else ledger_of_message(last[1])
 
 
 def _origin_ns(path: Path, align: str, stamp_ns: np.ndarray, u: np.ndarray) -> int:

@@ -6,8 +6,10 @@
 Per bag: <name>.csv (one column per signal, with units; time in s from the run's origin),
 <name>.npz and <name>.metrics.json (strict JSON: a metric without a value is null); for
 all bags together: dynamics.png (rod displacement, velocity, acceleration, piston-chamber
-pressure: the panels of the paper's Figs. 8-10) and drive.png (rod-chamber pressure, rod
-force, valve). Only these files are written into the results folder, each whole or not at
+pressure: the panels of the paper's Figs. 8-10), drive.png (rod-chamber pressure, rod
+force, valve) and, for bags that kept the node's energy ledger (~/energy, physical mode),
+energy.png (where the battery's energy went, a bar per bag; the battery's figures join the
+metrics). Only these files are written into the results folder, each whole or not at
 all; nothing else in it is touched, and a folder that is or holds one of the bags is refused.
 
 Runs are overlaid on a common time axis (--align): t = 0 at the recorded time origin, the

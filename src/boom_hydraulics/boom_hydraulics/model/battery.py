@@ -50,6 +50,13 @@ def state_of_charge_rate_1_s(current_a: Num, voltage_v: Num, capacity_j: Num) ->
     return -voltage_v * current_a / capacity_j  # eq. D10
 
 
+def state_of_charge(initial: float, drawn_j: float, returned_j: float, capacity_j: float) -> float:
+    """The state of charge after the battery gave ``drawn_j`` and took back ``returned_j``,
+    from ``initial`` (eq. D10 integrated: the energy the battery's chemistry gave over its
+    usable energy)."""
+    return initial - (drawn_j - returned_j) / capacity_j
+
+
 @jitable
 def overloaded(power_w: Num, voltage_v: Num, resistance_ohm: Num) -> Num:
     """1.0 where ``power_w`` is beyond U^2 / (4 R), the most the battery can give (eq. D11), else 0.0."""

@@ -101,12 +101,6 @@ def _plant(default: Any, unit: str, description: str, **limits: Any) -> Any:
     return _param("plant", default, unit, description, **limits)
 
 
-def _unsolved(default: Any, unit: str, description: str, **limits: Any) -> Any:
-    """A plant parameter of the drives and their electric supply that no solver reads yet
-    (docs/model.md, "Drives")."""
-    return _param("plant", default, unit, description, solved=False, **limits)
-
-
 def _drive(default: Any, unit: str, description: str, **limits: Any) -> Any:
     """A plant parameter of the drives, their electric supply or the battery that the solvers
     read (docs/model.md, "Drives")."""
@@ -413,7 +407,7 @@ class Parameters:
     battery_resistance_ohm: float = _drive(
         0.01, "ohm", "Battery's internal resistance, cables included (eq. D8)", low=0.0, low_inclusive=True, high=100.0
     )
-    battery_initial_soc: float = _unsolved(
+    battery_initial_soc: float = _drive(
         1.0, "", "Battery's state of charge at the start, 1 full (eq. D10)", low=0.0, low_inclusive=True, high=1.0
     )
     supply_line_volume_m3: float = _drive(

@@ -13,7 +13,7 @@ from typing import Any
 
 from rosbags.highlevel import AnyReader, AnyReaderError
 
-from ..bags.encoding import DRIVE_STATE
+from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER
 from ..bags.recording import Topic, offered_qos
 from ..bags.run_description import RunDescription
 from ..errors import BagError
@@ -73,6 +73,7 @@ class RecordedRun:
     run_counts: dict[str, float] = field(default_factory=dict)
     # the recorded drive states' q1, v, a and valve loss energy, in stamp order (reset detection)
     state_signals: tuple[list[float], ...] = ((), (), (), ())
+    energy_topic: str | None = None  # where the node published its energy ledger (None: it did not)
 
     @property
     def parameters(self) -> dict[str, Any]:
@@ -162,6 +163,7 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
     try:
         with AnyReader([bag]) as reader:
             states = [c for c in reader.connections if c.msgtype == DRIVE_STATE]
+            energy_topic = next((c.topic for c in reader.connections if c.msgtype == ENERGY_LEDGER), None)
             logged_states = [
                 (log_ns, _stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
                 for _, log_ns, _, msg in _messages(reader, states[:1])
@@ -233,4 +235,5 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
         setpoints=setpoints,
         run_counts=run_counts,
         state_signals=tuple(list(column) for column in zip(*recorded_states))[2:] or ((), (), (), ()),
+        energy_topic=energy_topic or (f"{node_name}/energy" if node_name else None),
     )

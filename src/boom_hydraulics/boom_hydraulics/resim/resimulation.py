@@ -37,7 +37,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from ..bags.encoding import DRIVE_STATE, drive_state_cdr
+from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, drive_state_cdr
+from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
 from ..bags.run_description import RunDescription
@@ -188,6 +189,11 @@ class Replay:
         self.instant_ns = run.clock_origin_ns  # the instant of the state just given
         self.done = 0
 
+    @property
+    def sim(self) -> Any:
+        """The simulation at the state just given (solve.simulation.Simulator)."""
+        return self._resim.sim
+
     def __iter__(self) -> Iterator[tuple[int, dict[str, Any]]]:
         run, resim = self.run, self._resim
         stretches = control_stretches(run.setpoints, self.instants)
@@ -231,7 +237,11 @@ def resimulate(
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
+        # the energy ledger at ENERGY_HZ, where the run has one (physical mode, a topic to put it on)
+        energy_topic = run.energy_topic if replay.params.mode == "physical" else None
+        energy_every = max(1, round(run.publish_rate_hz / ENERGY_HZ))
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
+        topics += [Topic(energy_topic, ENERGY_LEDGER)] if energy_topic else []
         with (
             BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
             _progress(len(replay.instants)) as progress,
@@ -245,6 +255,11 @@ def resimulate(
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
                 recorder.write(run.state_topic, log_ns, drive_state_cdr(outputs, stamp_ns))
+                if energy_topic and replay.done % energy_every == 0:
+                    sim = replay.sim
+                    now = ledger_now(sim.params, sim.t, sim.y, sim.constants, sim.u)
+                    if now is not None and finite(now):
+                        recorder.write(energy_topic, log_ns, energy_ledger_cdr(now, stamp_ns))
                 if recorder.error is not None:  # the disk failed: stop here, nothing is kept
                     break
         if recorder.error is not None or not getattr(recorder, "finished", True):

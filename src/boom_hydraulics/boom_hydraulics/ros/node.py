@@ -45,12 +45,13 @@ from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics_msgs.msg import DriveState, EnergyLedger, ValveCommand
 from boom_hydraulics_msgs.srv import Reset, Step
 
 from ..bags import cdr, messages
 from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
+from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
 from ..model.outputs import BATTERY_OUTPUTS, OUTPUT_NAMES
@@ -128,6 +129,7 @@ class BoomSimNode(Node):
         self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
         self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
+        self.energy_pub = self.create_publisher(EnergyLedger, "~/energy", state_qos)
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -137,6 +139,7 @@ class BoomSimNode(Node):
             else None
         )
         self._markers_every = max(1, round(self.clock.rate_hz / MARKERS_HZ))
+        self._energy_every = max(1, round(self.clock.rate_hz / ENERGY_HZ))
         self._ticks = 0
         self._messages = messages.TickMessages(self.sim.params)
         # in the order TickMessages.state packs them
@@ -229,7 +232,7 @@ class BoomSimNode(Node):
     def _begin_recording(self) -> None:
         """Open the bag, if asked for, at the time origin: every topic this node publishes."""
         pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        pubs += [self.markers_pub, self.setpoint_pub]
+        pubs += [self.markers_pub, self.setpoint_pub, self.energy_pub]
         pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
         if self.recording.pending:
             description = run_description(
@@ -360,6 +363,7 @@ class BoomSimNode(Node):
             self.drive.timeout_s = value["command_timeout_s"]  # the drive applies it
             clock.set_pace(value["publish_rate_hz"], value["real_time_factor"], value["max_catch_up_s"])
             self._markers_every = max(1, round(clock.rate_hz / MARKERS_HZ))
+            self._energy_every = max(1, round(clock.rate_hz / ENERGY_HZ))
         if "real_time_factor" in node_changes:
             self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
         elif new_params is not None or node_changes:
@@ -553,6 +557,11 @@ class BoomSimNode(Node):
         tick = list(zip(self._state_pubs, packed))  # (the markers' publisher is the last: only when packed)
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
+        if self._ticks % self._energy_every == 0:  # the energy ledger, at ENERGY_HZ (none in paper mode)
+            sim = self.sim
+            now = ledger_now(sim.params, sim.t, sim.y, sim.constants, sim.u)
+            if now is not None and finite(now):
+                tick.append((self.energy_pub, energy_ledger_cdr(now, stamp_ns)))
         self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:

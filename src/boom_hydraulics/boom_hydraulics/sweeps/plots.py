@@ -12,6 +12,7 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..analysis.plots import energy_breakdown as breakdown
 from ..files import atomic_path
 from .energy import BREAKDOWN, PERCENTILES, best_per_drive, design_columns, operator_bands
 from .recommend import TRADE_OFF, format_value, trade_off_front
@@ -139,42 +140,19 @@ def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) 
 def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[str], path: Path) -> None:
     """Where the battery's energy goes, a stacked bar for each drive at its best design (the
     least median battery energy per cycle): the lift's work and every loss and work term of
-    the ledger, averaged over its cycles; the energy it took back is drawn beside, below zero."""
-    best = best_per_drive(bands)
-    terms = [name for name in BREAKDOWN if name != "battery_returned_j"]
-    fig, ax = plt.subplots(figsize=(10, 6), constrained_layout=True)
-    labels = []
-    palette = plt.get_cmap("tab20")
-    named: set[str] = set()  # each term in the legend once, where it is first drawn
-
-    def label(name: str) -> str | None:
-        first = name not in named
-        named.add(name)
-        return name if first else None
-
-    for column, (drive, row) in enumerate(best.items()):
-        bottom = 0.0
-        for k, name in enumerate(terms):
-            value = float(bands[name][row]) * 1e-3
-            if value > 0.0:  # stored terms net out over a cycle; what the surroundings give is not spent
-                ax.bar(column, value, bottom=bottom, color=palette(k % 20), label=label(name))
-                bottom += value
-        returned = float(bands["battery_returned_j"][row]) * 1e-3
-        if returned > 0.0:
-            ax.bar(column, -returned, color="0.4", label=label("battery_returned_j"))
-        net = float(bands["battery_energy_j_p50"][row]) * 1e-3
-        ax.annotate(f"{net:.3g} kJ", (column, bottom), ha="center", va="bottom", fontsize="small")
+    the ledger, averaged over its cycles; the energy it took back is drawn below zero."""
+    bars = []
+    for drive, row in best_per_drive(bands).items():
+        energies = {name.removesuffix("_j"): float(bands[name][row]) for name in BREAKDOWN}
         where = ", ".join(format_value(bands[c][row]) for c in design_columns if c != "drive")
-        labels.append(f"{drive}\n{where}" if where else drive or "best design")
-    ax.set_xticks(range(len(labels)), labels, fontsize="small")
-    ax.set_ylabel("energy per cycle [kJ]")
-    ax.axhline(0.0, color="black", linewidth=0.8)
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="x-small")
-    ax.set_title("Where the battery's energy goes, each drive at its best design (mean over its cycles;\n"
-                 "above each bar the median battery energy per cycle)")  # fmt: skip
-    _save(fig, path)
-    plt.close(fig)
+        text = f"{drive}\n{where}" if where else drive or "best design"
+        bars.append((text, energies, float(bands["battery_energy_j_p50"][row])))
+    title = (
+        "Where the battery's energy goes, each drive at its best design (mean over its cycles;\n"
+        "above each bar the median battery energy per cycle)"
+    )
+    with atomic_path(path, suffix=".png") as tmp:
+        breakdown(bars, title, tmp)
 
 
 def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
