@@ -149,3 +149,26 @@ def test_a_loader_run_goes_on_after_the_release_and_starts_afresh_after_a_reset(
     assert rest["battery_drawn"][-1] == pytest.approx(whole["battery_drawn"][-1], rel=1e-3)
     assert rest["f_hyd"][-1] == pytest.approx(whole["f_hyd"][-1], rel=1e-2)  # the boom still without its payload
     assert abs(sim.energy_residual()) < 1e-3 * whole["battery_drawn"][-1]
+
+
+@pytest.mark.parametrize("jit", JIT, ids=lambda j: "compiled" if j else "interpreted")
+def test_a_python_command_steps_with_the_payload_the_schedule_leaves(jit):
+    """A command the run loop cannot take into its kernel (a Python function) goes through the
+    compiled step under the interpreted loop: it too steps with the released payload."""
+    params = from_mapping({"command_payload_times_s": [0.0, 1.0], "command_payload_fractions": [1.0, 0.0]})
+    sim = Simulator(params, jit=jit)
+    out = sim.run(2.0, lambda t: 0.0, every=10)  # the valve shut: the boom holds, lighter after 1 s
+    released = from_mapping({"payload_mass_kg": 0.0})
+    lighter = static_rod_force_of(params, out["q1"][-1]) - static_rod_force_of(released, out["q1"][-1])
+    t, force = out["t"], out["f_hyd"]
+    assert force[t < 1.0][-1] - force[-1] == pytest.approx(lighter, rel=0.05)
+    assert abs(sim.energy_residual()) < 1.0
+
+
+def test_a_sweep_of_work_cycles_refuses_a_run_shorter_than_the_cycle():
+    with pytest.raises(ConfigError, match=r"--duration 10 s is shorter than the loader cycle \(18\.5 s\)"):
+        sweep.request([("default", Parameters())], [], scenario="loader", duration_s=10.0)
+    longest = max(duty_cycles.loader_duration_s(seed) for seed in range(1, 6))
+    with pytest.raises(ConfigError, match=r"the longest of the 5 operators'"):
+        sweep.request([("default", Parameters())], [], scenario="loader", duration_s=longest - 0.1, operators=5)
+    sweep.request([("default", Parameters())], [], scenario="loader", duration_s=longest, operators=5)

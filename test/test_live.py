@@ -214,3 +214,17 @@ def test_the_parameters_offered_are_the_ones_the_node_declares():
     from boom_hydraulics.ros.node_parameters import MODEL_NAMES
 
     assert OFFERED == MODEL_NAMES
+
+
+def test_paper_mode_goes_live_too_without_a_battery():
+    """Paper mode has no battery (its battery outputs are NaN): its states still reach the client."""
+    live = LiveServer("--config", str(ROOT / "config" / "paper_fig8.yaml"))
+    try:
+        with FoxgloveClient(live.port) as client:
+            client.subscribe("/drive_state")
+            _, state = client.next_message("/drive_state")
+    finally:
+        live.interrupt()
+        status, _, err = live.wait()
+    assert math.isfinite(state.rod_position_m) and state.rod_pressure_pa == 0.0
+    assert status == 0, err

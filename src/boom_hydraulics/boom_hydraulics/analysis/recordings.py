@@ -7,6 +7,7 @@ else in it is touched, and a folder that is or holds one of the bags is refused.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -82,7 +83,7 @@ def report(results: Mapping[str, Mapping[str, float]], out: Path) -> str:
             f"{label}: lift {m['lift_m']:.3f} m, 90 % in {m['time_to_target_s']:.2f} s, "
             f"peak speed {m['peak_speed_m_s']:.3f} m/s, pressures {low:.2f}..{high:.2f} MPa, "
             f"energy {m['supply_energy_j'] / 1e3:.2f} kJ"
-            + (f", battery {m['battery_energy_j'] / 1e3:.2f} kJ" if "battery_energy_j" in m else "")
+            + (f", battery {m['battery_energy_j'] / 1e3:.2f} kJ" if math.isfinite(m["battery_energy_j"]) else "")
         )
     lines.append(f"boom-analyze: results in {out}")
     return "\n".join(lines)

@@ -7,6 +7,7 @@ them by name, flags as booleans (:func:`by_name`).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 #: Output names, units and descriptions, in the order of CSV columns.
@@ -44,6 +45,18 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
 #: The battery's outputs (the physical model's energy ledger): NaN in paper mode, which has none.
 BATTERY_OUTPUTS = ("battery_power", "battery_drawn", "battery_returned", "lift_work")
+#: The outputs that must be finite for a state to be published (all but the battery's).
+PUBLISHED_FINITE = tuple(name for name in OUTPUT_NAMES if name not in BATTERY_OUTPUTS)
+
+
+def finite_state(out: dict[str, Any]) -> bool:
+    """Whether the outputs ``out`` (by name) a state publishes are finite: one sum is finite
+    when every one is, so only a sum that is not looks at each."""
+    return math.isfinite(sum(out[k] for k in PUBLISHED_FINITE)) or all(
+        math.isfinite(float(out[k])) for k in PUBLISHED_FINITE
+    )
+
+
 #: The outputs the run metrics take (solve.streaming), in their order: each model's ``samples``
 #: gives these alone, so that a run that keeps no table computes nothing else per sample.
 SAMPLE_NAMES = (

@@ -24,7 +24,6 @@ markers. Topics, services, the action and parameters: docs/ros-api.md.
 from __future__ import annotations
 
 import functools
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -54,7 +53,7 @@ from ..bags.encoding import setpoint_cdr
 from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
-from ..model.outputs import BATTERY_OUTPUTS, OUTPUT_NAMES
+from ..model.outputs import finite_state
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve.command_queue import CommandedDrive
@@ -72,8 +71,6 @@ MARKERS_HZ = 20.0
 STEP_CALL_LIMIT_S = 10.0
 #: Parameters every rclpy node declares itself (rclpy's time source and type description service).
 _RCLPY_OWN = ("use_sim_time", "start_type_description_service")
-#: The outputs that must be finite for a state to be published (the battery's are NaN in paper mode).
-_CHECKED = tuple(name for name in OUTPUT_NAMES if name not in BATTERY_OUTPUTS)
 
 
 def _locked(method: Callable) -> Callable:
@@ -541,9 +538,7 @@ class BoomSimNode(Node):
         """The state messages of now (and the markers, every ``_markers_every`` call), as CDR
         bytes packed with layouts bound once per parameter set (:class:`messages.TickMessages`)."""
         out = self.sim.outputs()
-        # one sum is finite when every output is; only a sum that is not looks at each one
-        # (but the battery's, which paper mode does not have)
-        if not math.isfinite(sum(out[k] for k in _CHECKED)) and not all(math.isfinite(float(out[k])) for k in _CHECKED):
+        if not finite_state(out):  # (the battery's outputs are NaN in paper mode: not published)
             return  # a NaN never reaches a topic
         clock = self.clock
         stamp_ns = clock.state_stamp_ns()

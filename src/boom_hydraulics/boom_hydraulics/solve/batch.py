@@ -96,6 +96,8 @@ def check_batch(params: Sequence[Parameters]) -> None:
         values = {getattr(p, name) for p in params}
         if len(values) > 1:
             raise ConfigError(f"all parameter sets of a batch must share {name}; got {sorted(map(str, values))}")
+    if len({payload_schedule(p) for p in params}) > 1:
+        raise ConfigError("all parameter sets of a batch must share their payload schedule (command_payload_*)")
     if first.method not in BATCHED:
         raise ConfigError(
             f"batches integrate with an explicit fixed-step method ({' or '.join(BATCHED)}), not {first.method!r}"
@@ -159,14 +161,19 @@ class Guard:
         return controller
 
 
-def compiled_stepping(stepper: Callable[..., tuple], constants_row: np.ndarray) -> Callable[..., tuple]:
+def compiled_stepping(stepper: Callable[..., tuple]) -> Callable[..., tuple]:
     """stepping.advance through the model's compiled stepping ``stepper`` (accelerate.stepper)
-    with the set's constants as a row: the Simulator's compiled step, under an interpreted loop."""
+    with the constants the loop steps with as a row (one per payload share the schedule puts
+    on the hook): the Simulator's compiled step, under an interpreted loop."""
+    rows: dict[Any, np.ndarray] = {}
 
     def step_once(
         step: Any, derivative: Any, stiffness_rate: Any, energy: Any, t0: float, y: list, c: Any, *rest: Any
     ) -> tuple:
-        done, outcome, most, y_new = stepper(t0, np.array(y), constants_row, *rest)
+        row = rows.get(c)
+        if row is None:
+            row = rows[c] = np.array(c, dtype=float)
+        done, outcome, most, y_new = stepper(t0, np.array(y), row, *rest)
         return done, outcome, most, y_new.tolist()
 
     return step_once
@@ -204,7 +211,7 @@ def python_sets(
     for k, p in enumerate(params):
         guard = Guard()
         c = model.constants(p)
-        step_once = advance if stepper is None else compiled_stepping(stepper, np.array(c, dtype=float))
+        step_once = advance if stepper is None else compiled_stepping(stepper)
         controller = kernel.controller_value if encoded else guard.command(command, k)
         functions = (guard.stepping(step_once), step, model.derivative, model.stiffness_rate, model.energy,
                      model.outputs, model.samples, controller, model.with_payload)  # fmt: skip

@@ -119,6 +119,7 @@ LOWER_IS_WORSE = frozenset(
         "linear_damping_ratio",
         "cycles_per_charge",
         "efficiency",
+        "battery_returned_j",
         "lift_work_j",
     }
 )
@@ -154,7 +155,7 @@ def worst_case(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -
     for name in METRIC_NAMES:
         column = np.asarray(table[name], dtype=float)
         pick = np.min if name in LOWER_IS_WORSE else np.max
-        out[name] = np.array([pick(column[m]) if np.isfinite(column[m]).all() else np.nan for m in members])
+        out[name] = np.array([pick(column[m]) if not np.isnan(column[m]).any() else np.nan for m in members])
     return out
 
 
@@ -198,7 +199,7 @@ def recommend(
     status_ok = np.asarray(table["status"]) == "ok"
     holds = {str(c): c.holds(table) for c in constraints}
     energy = np.asarray(table[rank_by], dtype=float)
-    meets = status_ok & np.isfinite(energy)
+    meets = status_ok & ~np.isnan(energy)  # (a run that gave more back than it drew: infinitely many cycles)
     for column in holds.values():
         meets &= column
     check_across(across, point_columns)

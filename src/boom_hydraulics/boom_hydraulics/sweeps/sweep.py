@@ -24,7 +24,7 @@ from ..errors import BoomHydraulicsError, ConfigError
 from ..model import ledger, physical
 from ..model.battery import J_PER_KWH
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
-from ..solve import commands, streaming
+from ..solve import commands, duty_cycles, streaming
 from ..solve.batch import SHARED, run_sets
 from ..solve.integrators import BATCHED
 from .sampling import Axis, Spacing, point_count, sample_points
@@ -339,6 +339,15 @@ def request(
         raise ConfigError(f"--operators varies the scenarios {', '.join(VARIED)}; {scenario!r} has no operator")
     if operators and ":" in scenario:
         raise ConfigError(f"--operators seeds the scenario itself: give --scenario {scenario.partition(':')[0]}")
+    if scenario.partition(":")[0] in duty_cycles.CYCLES:  # a work cycle counts whole: per cycle, per charge
+        seeds = range(1, operators + 1) if operators else [int(scenario.partition(":")[2] or 0)]
+        cycle_s = max(duty_cycles.loader_duration_s(seed) for seed in seeds)
+        if duration_s < cycle_s:
+            raise ConfigError(
+                f"--duration {duration_s:g} s is shorter than the {scenario} cycle ({cycle_s:.1f} s"
+                + (f", the longest of the {operators} operators'" if operators else "")
+                + f"); give --duration {math.ceil(cycle_s)} or more"
+            )
     bases = tuple(_bases(configs, scenario, duration_s, operators))
     return Request(
         bases, tuple(axes), scenario, duration_s, sample, count, seed, lift_angle_deg, every, batch_size, operators
