@@ -21,18 +21,19 @@ JIT = [False, True] if accelerate.available() else [False]
 PAYLOAD_KG = 150.0
 
 
-def _loader(drive: str, jit: bool | None = None, seed: int = 0):
+def _loader(drive: str, jit: bool | None = None, seed: int = 0, duration_s: float | None = None):
+    """The loader cycle of ``seed`` with ``drive`` (default: the whole cycle and 2 s more)."""
     params = from_mapping(
         {"drive": drive, "payload_mass_kg": PAYLOAD_KG, **commands.scenario(f"loader:{seed}", 0.0, Parameters())}
     )
     sim = Simulator(params, jit=jit)
-    out = sim.run(duty_cycles.loader_duration_s(seed) + 2.0, commands.from_parameters(params), every=10)
+    duration = duty_cycles.loader_duration_s(seed) + 2.0 if duration_s is None else duration_s
+    out = sim.run(duration, commands.from_parameters(params), every=10)
     return params, sim, out
 
 
-@pytest.mark.parametrize("jit", JIT, ids=lambda j: "compiled" if j else "interpreted")
-def test_the_loader_puts_its_payload_down_and_holds_the_lighter_boom_with_less_pressure(jit):
-    params, sim, out = _loader("pressure_compensated", jit)
+def test_the_loader_puts_its_payload_down_and_holds_the_lighter_boom_with_less_pressure():
+    params, sim, out = _loader("pressure_compensated")  # compiled where it can be: the same loop as interpreted
     release = params.command_payload_times_s[0]
     t, force, alpha = out["t"], out["f_hyd"], out["alpha"]
     before = force[(t > release - 0.3) & (t < release)].mean()  # resting at the ground, loaded
@@ -115,8 +116,9 @@ def test_a_sweep_over_operators_gives_each_design_a_band_and_ranks_by_cycles_per
 
 @pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
 def test_the_compiled_loop_changes_the_payload_as_the_interpreted_one_does():
-    *_, compiled = _loader("pump_controlled", True, seed=3)
-    *_, interpreted = _loader("pump_controlled", False, seed=3)
+    release = duty_cycles.loader(Parameters(), 3)["command_payload_times_s"][0]
+    *_, compiled = _loader("pressure_compensated", True, seed=3, duration_s=release + 1.0)
+    *_, interpreted = _loader("pressure_compensated", False, seed=3, duration_s=release + 1.0)
     for name in ("q1", "p1", "p2", "battery_drawn", "battery_returned"):
         scale = np.max(np.abs(interpreted[name]))
         assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
@@ -137,9 +139,8 @@ def test_boom_sim_runs_the_loader_cycle_and_writes_the_battery(tmp_path):
     assert rows[-1, header.index("battery_returned [J]")] > 0.0
 
 
-@pytest.mark.parametrize("jit", JIT, ids=lambda j: "compiled" if j else "interpreted")
-def test_a_loader_run_goes_on_after_the_release_and_starts_afresh_after_a_reset(jit):
-    params, sim, whole = _loader("pressure_compensated", jit)
+def test_a_loader_run_goes_on_after_the_release_and_starts_afresh_after_a_reset():
+    params, sim, whole = _loader("pressure_compensated")
     duration = duty_cycles.loader_duration_s() + 2.0
     sim.reset()
     sim.run(10.0, commands.from_parameters(params), every=10)  # past the release at 9 s
