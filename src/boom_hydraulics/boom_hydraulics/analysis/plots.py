@@ -12,6 +12,8 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..model import ledger
+
 Run = tuple[str, Mapping[str, np.ndarray]]  # (label, signals)
 
 
@@ -63,11 +65,7 @@ def drive(runs: Sequence[Run], path: Path) -> None:
 
 #: The energies a breakdown stacks, in order: the lift's work, then every loss and work term of
 #: the ledger (model.ledger.INTEGRALS' names); the battery's returned energy goes below zero.
-BREAKDOWN_TERMS = (
-    "lift_work", "battery_loss", "motor_loss", "pump_volumetric_loss", "pump_mechanical_loss", "main_relief_loss",
-    "valve_loss", "leakage_loss", "port_relief_loss", "friction_work", "end_stop_work", "ambient_work",
-    "external_work", "oil_work", "kinetic_power", "potential_power",
-)  # fmt: skip
+BREAKDOWN_TERMS = ("lift_work", *(name for name in ledger.TERM_NAMES if name not in ledger.SOURCES))
 
 
 def energy_breakdown(bars: Sequence[tuple[str, Mapping[str, float], float]], title: str, path: Path) -> None:

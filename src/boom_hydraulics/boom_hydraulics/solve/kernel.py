@@ -187,9 +187,8 @@ def run_set(
         status[APPLIED_U], status[TAKEN], status[FAILED_STEP] = math.nan, 0.0, -1.0
         control[0], control[1] = 0.0, 0.0
         status[PAYLOAD], status[BASE_SHIFT] = 1.0, 0.0
-        if changes:
-            _payload_change(with_payload, energy, full, c, y, spec, status, t)
-        c = with_payload(full, status[PAYLOAD]) if changes else full
+        if changes:  # the share on the hook at the start
+            c = _payload_change(with_payload, energy, full, c, y, spec, status, t)
         status[NEXT_U] = command_value(controller, spec.command, k, control, c, y, dt, t + half)
     elif status[OUTCOME] != OK:
         return 0

@@ -15,6 +15,7 @@ import functools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -85,7 +86,7 @@ class Simulator:
     def _install(self, params: Parameters) -> None:
         self.params = params
         self.model = MODELS[params.mode]
-        self.constants = self.model.constants(params)
+        self._full = self.model.constants(params)  # with the whole payload_mass_kg on the hook
         self.integrator = make_integrator(params)
         self._limit = stability_limit(params)
         step = integrators.METHODS[params.method].step
@@ -101,7 +102,12 @@ class Simulator:
         )  # the compiled kernels' loop, interpreted
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
         self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
-        self._constants_row = np.array(self.constants, dtype=float)  # what the compiled calls take
+        self._hold(self._full)
+
+    def _hold(self, constants: Any) -> None:
+        """Step with ``constants`` from now on (a payload schedule may take a share off the hook)."""
+        self.constants = constants
+        self._constants_row = np.array(constants, dtype=float)  # what the compiled calls take
 
     def _adaptive_step(self, fun: Callable, t: float, y: list, h: float, args: tuple) -> list:
         """rk45's step: its integrator's adaptive advance over ``h`` (it keeps its step size)."""
@@ -122,8 +128,7 @@ class Simulator:
                 raise SimulationError(
                     f"reset position {initial_length_m} m lies outside the stroke [{low:.4g}, {high:.4g}] m"
                 )
-        self.constants = self.model.constants(p)  # the whole payload again (a schedule may have changed it)
-        self._constants_row = np.array(self.constants, dtype=float)
+        self._hold(self._full)  # the whole payload again (a schedule may have changed it)
         self.y = self.model.initial_state(p, initial_length_m)
         self.t = self.t if keep_time and hasattr(self, "t") else 0.0
         self.u = 0.0
@@ -227,8 +232,7 @@ class Simulator:
         # share of now back): H - W as those constants count H
         base = self._energy_base
         if self._energy_index >= 0:
-            full = self.model.constants(self.params)
-            base += self.model.energy(self.y, full) - self.model.energy(self.y, self.constants)
+            base += self.model.energy(self.y, self._full) - self.model.energy(self.y, self.constants)
         start = Start(list(self.y), self._t_base, self.step_count - self._n_base, base, self.integrator)
         return SetRun([self.params], duration_s, command, every, store=store, slice_rows=slice_rows,
                       measure=measure, jit=self.jit, start=start)  # fmt: skip
@@ -241,8 +245,7 @@ class Simulator:
         steps = run.steps_taken(0)
         self._moved(run.state[0].tolist(), steps)
         # the payload schedule leaves its share of the payload on the hook, and H - W as it counts H
-        self.constants = self.model.with_payload(self.model.constants(self.params), float(status[kernel.PAYLOAD]))
-        self._constants_row = np.array(self.constants, dtype=float)
+        self._hold(self.model.with_payload(self._full, float(status[kernel.PAYLOAD])))
         self._energy_base = run.energy_base(0) + float(status[kernel.BASE_SHIFT])
         if outcome != OK:
             self.u = float(status[kernel.NEXT_U])  # the command of the step that failed

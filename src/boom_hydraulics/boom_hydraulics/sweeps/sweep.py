@@ -83,9 +83,6 @@ METRIC_NAMES = tuple(name for name, _, _ in METRICS)
 #: rejected before running).
 STATUSES = ("ok", "incomplete", "failed", "invalid")
 
-#: The scenarios an operator varies (``--operators``; solve.duty_cycles).
-VARIED = ("loader",)
-
 #: Parameters that all points of one batch share: integration and the scenario (the valve command).
 BATCH_KEYS = (*SHARED, *names_in("scenario"))
 
@@ -335,8 +332,10 @@ def request(
         raise ConfigError(f"two configs share the name {names}; give the files different names")
     if operators < 0:
         raise ConfigError(f"--operators must be >= 0, got {operators}")
-    if operators and scenario.partition(":")[0] not in VARIED:
-        raise ConfigError(f"--operators varies the scenarios {', '.join(VARIED)}; {scenario!r} has no operator")
+    if operators and scenario.partition(":")[0] not in duty_cycles.CYCLES:
+        raise ConfigError(
+            f"--operators varies the scenarios {', '.join(duty_cycles.CYCLES)}; {scenario!r} has no operator"
+        )
     if operators and ":" in scenario:
         raise ConfigError(f"--operators seeds the scenario itself: give --scenario {scenario.partition(':')[0]}")
     if scenario.partition(":")[0] in duty_cycles.CYCLES:  # a work cycle counts whole: per cycle, per charge
