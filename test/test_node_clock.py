@@ -99,10 +99,12 @@ def test_the_physics_follows_an_external_clock_at_half_and_double_speed_and_stop
     ]
     assert len(pairs) >= 4
     # (stamp - simulated time) is the time origin plus how far the ticks trail the clock when the
-    # array is made: a loaded machine makes some arrays trail by a few ticks' backlog (0.28 s
-    # seen), while a pace other than the clock's would drift it by seconds over the phases
+    # array is made: that lag is up to a /clock period (0.12 s seen throughout a run, against
+    # 0 for the array made at the start) plus, on a loaded machine, a few ticks' backlog (0.28 s
+    # seen); a pace other than the clock's would drift it by seconds over the phases
     offsets = sorted(stamp - sim for stamp, sim in pairs)
-    assert offsets[len(offsets) // 2] - offsets[0] < 0.1, offsets
+    quarter = len(offsets) // 4
+    assert offsets[-1 - quarter] - offsets[quarter] < 0.1, offsets  # the middle half: one lag
     assert offsets[-1] - offsets[0] < 1.0, offsets
     assert "following the ROS clock" in log
 
