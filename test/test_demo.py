@@ -13,6 +13,7 @@ import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from bag_checks import check_bag
 from conftest import CONFIG
@@ -135,3 +136,60 @@ def test_bags_on_a_full_disk_end_in_one_line_and_exit_1(full_disk):
     assert result.returncode == 1, output
     errors = _errors(output)
     assert len(errors) == 1 and "No space left on device" in errors[0], output
+
+
+def _payload_changes(bag: Path) -> list[float]:
+    """The payload_mass_kg values the bag's /parameter_events announce, in order."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:
+        events = [c for c in reader.connections if c.topic == "/parameter_events"]
+        return [
+            p.value.double_value
+            for connection, _, raw in reader.messages(connections=events)
+            for p in reader.deserialize(raw, connection.msgtype).changed_parameters
+            if p.name == "payload_mass_kg"
+        ]
+
+
+def test_the_loader_cycle_moves_the_boom_by_goals_and_releases_the_payload(tmp_path):
+    """The loader work cycle through the node's own interfaces, up to just past the release:
+    lift 25 degrees, lower back to the ground, payload off (10.5 s of the 18.5)."""
+    from boom_hydraulics.bags.reading import read_drive_states
+
+    bags = tmp_path / "bags"
+    result = subprocess.run(
+        [DEMO, "--params-file", str(CONFIG / "default.yaml"), "--scenario", "loader", "--duration", "10.5",
+         "--bags", str(bags)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert _errors(result.stderr) == []
+    bag = _one_finished_bag(bags)
+    states = read_drive_states(bag)
+    alpha = np.degrees(states["alpha"])
+    ground = alpha[0]
+    assert np.max(alpha) == pytest.approx(ground + 25.0, abs=1.0)  # the lift's goal, held
+    after_lift = alpha[np.argmax(alpha) :]
+    assert np.min(after_lift) == pytest.approx(ground, abs=1.0)  # lowered to the ground ...
+    assert alpha[-1] > ground + 3.0  # ... and the empty lift has begun
+    assert _payload_changes(bag) == [0.0]  # released: the whole payload off
+    assert "battery" in result.stdout  # boom-analyze read the energy ledger the bag keeps
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--scenario", "unloader"], "unknown --scenario 'unloader'"),
+        (["--scenario", "loader:x"], "loader:SEED with SEED a whole number"),
+        (["--scenario", "loader", "--params-file", str(CONFIG / "paper_fig8.yaml")], "needs mode: physical"),
+    ],
+)
+def test_a_scenario_the_node_cannot_run_is_one_line_and_exit_2_before_it_starts(tmp_path, extra, says):
+    result = subprocess.run(
+        [DEMO, "--bags", str(tmp_path / "bags"), *extra], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 2, result.stderr
+    (error,) = _errors(result.stderr)
+    assert says in error
+    assert not (tmp_path / "bags").exists()  # the node never started

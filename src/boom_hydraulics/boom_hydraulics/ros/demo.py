@@ -1,9 +1,16 @@
-"""``boom-demo``: start the node, drive it through a lift-hold-lower cycle, report what it does.
+"""``boom-demo``: start the node, drive it through a work cycle, report what it does.
 
-The scenario is published as ValveCommand messages on the node's ``valve_command``
-topic, the same path a user's ``ros2 topic pub`` takes; the node runs as its own process
-through its real entry point and records the run to a bag under ``bags/``, which this
-command then analyses (boom-analyze: signals, metrics, plots).
+The node runs as its own process through its real entry point and records the run to a bag
+under ``bags/``, which this command then analyses (boom-analyze: signals, metrics, plots).
+The scenario (``--scenario``) reaches the node the way a user's would:
+
+- ``cycle`` (the default): lift, hold, lower, hold (9 s), as ValveCommand openings on the
+  node's ``valve_command`` topic, the path of a user's ``ros2 topic pub``;
+- ``loader`` or ``loader:SEED``: the loader crane's work cycle of ``boom-sim --profile`` and
+  ``boom-sweep --scenario`` (18.5 s; SEED an operator's variation): MoveBoom goals to the
+  cycle's angles on ``/boom_sim/move_boom`` at its times, and the payload released by
+  setting the node's ``payload_mass_kg`` (to that share of the params file's) at the
+  release. It needs ``mode: physical``.
 
 Stopping: Ctrl-C or SIGTERM ends the scenario; each is passed on to the node as one SIGINT
 (the node runs in its own process group, so a terminal's Ctrl-C reaches it once, through
@@ -25,36 +32,102 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
 import rclpy
+from rclpy.action import ActionClient
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 
+from boom_hydraulics_msgs.action import MoveBoom
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
 from ..analysis.recordings import analyze, default_results_folder, report
 from ..errors import ConfigError
+from ..model import config
+from ..model.parameters import Parameters
 from ..programs import RaisingParser, run_main, summary
+from ..solve import commands, duty_cycles
 from ..solve.commands import CYCLE
+
+#: The scenarios by name (``--scenario``; ``loader:SEED`` too).
+SCENARIOS = ("cycle", *duty_cycles.CYCLES)
+#: The node whose action and parameters a work cycle uses (boom_sim's default name).
+NODE = "boom_sim"
+
+
+@dataclass(frozen=True)
+class WorkCycle:
+    """A work cycle as the node takes it: at each of ``goal_times_s`` a MoveBoom goal to the
+    matching angle (rad), and at each of ``payload_times_s`` ``payload_mass_kg`` set to the
+    matching mass (kg); times from the scenario's start."""
+
+    goal_times_s: tuple[float, ...]
+    goal_angles_rad: tuple[float, ...]
+    payload_times_s: tuple[float, ...]
+    payload_masses_kg: tuple[float, ...]
+    duration_s: float
+
+
+def plan(text: str, params: Parameters) -> tuple[tuple[tuple[float, float], ...] | WorkCycle, float]:
+    """The scenario ``text`` for the node of ``params``: the openings of ``cycle`` (time s,
+    opening) or a :class:`WorkCycle`; and its length, s."""
+    name, _, arg = text.partition(":")
+    if text == "cycle":
+        return CYCLE, 9.0
+    if name not in duty_cycles.CYCLES:
+        raise ConfigError(f"unknown --scenario {text!r}; choose {', '.join(SCENARIOS)} or loader:SEED")
+    if params.mode != "physical":
+        raise ConfigError(
+            f"--scenario {text} changes the payload within the cycle, which needs mode: physical (the params file "
+            f"sets mode: {params.mode})"
+        )
+    given = commands.scenario(text, 0.0, params)
+    seed = int(arg) if arg else 0
+    cycle = WorkCycle(
+        tuple(given["command_times_s"]),
+        tuple(given["command_angles_rad"]),
+        tuple(given["command_payload_times_s"]),
+        tuple(share * params.payload_mass_kg for share in given["command_payload_fractions"]),
+        duty_cycles.loader_duration_s(seed),
+    )
+    return cycle, cycle.duration_s
 
 
 class ScenarioDriver(Node):
-    """Publishes the scenario's openings at 50 Hz and keeps the latest DriveState."""
+    """Drives the node through the scenario and keeps the latest DriveState: a cycle's
+    openings at 50 Hz, or a work cycle's goals and payload changes, each once at its time."""
 
-    def __init__(self, scenario: tuple[tuple[float, float], ...]) -> None:
+    def __init__(self, scenario: tuple[tuple[float, float], ...] | WorkCycle) -> None:
         super().__init__("boom_demo")
         self.scenario = scenario
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self.pub = self.create_publisher(ValveCommand, "valve_command", qos)
         self.create_subscription(DriveState, "drive_state", self.on_state, qos)
         self.state: DriveState | None = None
-        self.start: float | None = None
+        self.refused: list[str] = []  # what the node refused, one line each
+        if isinstance(scenario, WorkCycle):
+            self.moves = ActionClient(self, MoveBoom, f"{NODE}/move_boom")
+            self.payload = AsyncParameterClient(self, NODE)
+            self._goals_sent = self._payloads_set = 0
+        else:
+            self.pub = self.create_publisher(ValveCommand, "valve_command", qos)
 
     def on_state(self, msg: DriveState) -> None:
         self.state = msg
+
+    def ready(self) -> bool:
+        """Whether the node has published its state (and serves its goals and parameters)."""
+        if self.state is None:
+            return False
+        if isinstance(self.scenario, WorkCycle):
+            return self.moves.server_is_ready() and self.payload.services_are_ready()
+        return True
 
     def opening_at(self, t: float) -> float:
         u = 0.0
@@ -63,12 +136,34 @@ class ScenarioDriver(Node):
                 u = value
         return u
 
-    def send(self, t: float) -> float:
-        msg = ValveCommand()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.opening = self.opening_at(t)
-        self.pub.publish(msg)
-        return msg.opening
+    def act(self, t: float) -> float:
+        """What the scenario does at ``t`` s from its start; the opening sent, or the node's
+        valve command where its controller drives the valve."""
+        if not isinstance(self.scenario, WorkCycle):
+            msg = ValveCommand()
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.opening = self.opening_at(t)
+            self.pub.publish(msg)
+            return msg.opening
+        cycle = self.scenario
+        while self._goals_sent < len(cycle.goal_times_s) and t >= cycle.goal_times_s[self._goals_sent]:
+            goal = MoveBoom.Goal(target_angle_rad=cycle.goal_angles_rad[self._goals_sent])  # node's speed
+            self.moves.send_goal_async(goal).add_done_callback(self._on_goal_answer)
+            self._goals_sent += 1
+        while self._payloads_set < len(cycle.payload_times_s) and t >= cycle.payload_times_s[self._payloads_set]:
+            mass = Parameter("payload_mass_kg", value=float(cycle.payload_masses_kg[self._payloads_set]))
+            self.payload.set_parameters([mass]).add_done_callback(self._on_parameters_answer)
+            self._payloads_set += 1
+        return float(self.state.valve_command) if self.state is not None else 0.0
+
+    def _on_goal_answer(self, future: Future) -> None:
+        if not future.result().accepted:
+            self.refused.append("boom_sim rejected a move of the work cycle (its log says why)")
+
+    def _on_parameters_answer(self, future: Future) -> None:
+        for result in future.result().results:
+            if not result.successful:
+                self.refused.append(f"boom_sim refused the payload change: {result.reason}")
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -140,11 +235,17 @@ def _node_failed(status: int, when: str) -> int:
 def demo(argv: list[str] | None) -> int:
     parser = RaisingParser(prog="boom-demo", description=summary(__doc__))
     parser.add_argument("--params-file", default=None, help="params YAML for the node")
-    parser.add_argument("--duration", type=float, default=9.0, help="scenario length in s (default 9)")
+    parser.add_argument(
+        "--scenario", default="cycle", help=f"{', '.join(SCENARIOS)} or loader:SEED (default cycle; see above)"
+    )
+    parser.add_argument("--duration", type=float, help="how long to drive the node, s (default: the scenario's length)")
     parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into (default bags)")
     args = parser.parse_args(argv)
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ConfigError(f"--duration must be a positive number of seconds, got {args.duration:g}")
+    params = config.load(Path(args.params_file)) if args.params_file else Parameters()
+    scenario, length_s = plan(args.scenario, params)
+    duration_s = length_s if args.duration is None else args.duration
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s:g}")
     before = set(args.bags.glob("*_boom_sim")) if args.bags.is_dir() else set()
 
     node_exe = shutil.which("boom_sim")
@@ -157,7 +258,7 @@ def demo(argv: list[str] | None) -> int:
     node_proc = subprocess.Popen(cmd, env=os.environ.copy(), process_group=0, preexec_fn=_die_with_parent())
     stopper = Stopper(node_proc)
     try:
-        status = _drive(node_proc, stopper, args.duration)
+        status = _drive(node_proc, stopper, scenario, duration_s)
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
@@ -185,18 +286,22 @@ def _analyze(bag: Path) -> int:
     return 0
 
 
-def _drive(node_proc: subprocess.Popen, stopper: Stopper, duration_s: float) -> int | None:
-    """Wait for the node's first state, then publish the scenario for ``duration_s``, printing
-    the state twice a second. None when done or stopped; an exit status when the node ended."""
+def _drive(
+    node_proc: subprocess.Popen, stopper: Stopper, scenario: tuple[tuple[float, float], ...] | WorkCycle,
+    duration_s: float,
+) -> int | None:  # fmt: skip
+    """Wait for the node's first state, then drive it through ``scenario`` for ``duration_s``,
+    printing the state twice a second. None when done or stopped; an exit status when the
+    node ended or refused a step of the scenario."""
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Stopper handles the signals
-    driver = ScenarioDriver(CYCLE)
+    driver = ScenarioDriver(scenario)
     try:
         print(
             "boom-demo: starting boom_sim (a start without the compiled model in the cache compiles it: a minute "
             "on a busy machine)",
             file=sys.stderr,
         )
-        while driver.state is None and not stopper.stopped:  # as long as the node runs: no deadline
+        while not driver.ready() and not stopper.stopped:  # as long as the node runs: no deadline
             rclpy.spin_once(driver, timeout_sec=0.1)
             if (status := node_proc.poll()) is not None:
                 return _node_failed(status, "before it started")
@@ -208,8 +313,11 @@ def _drive(node_proc: subprocess.Popen, stopper: Stopper, duration_s: float) -> 
         while (t := time.monotonic() - start) < duration_s and not stopper.stopped:
             if (status := node_proc.poll()) is not None:
                 return _node_failed(status, "during the scenario")
-            u = driver.send(t)
+            u = driver.act(t)
             rclpy.spin_once(driver, timeout_sec=0.02)
+            if driver.refused:
+                print(f"boom-demo: error: {driver.refused[0]}", file=sys.stderr)
+                return 1
             if t >= next_print and driver.state is not None:
                 s = driver.state
                 print(

@@ -223,7 +223,13 @@ class Motion:
                     if self.goal is goal:
                         self._finish(ABORTED, "the node is shutting down")
         outcome, result = goal.outcome
-        {SUCCEEDED: handle.succeed, ABORTED: handle.abort, CANCELED: handle.canceled}[outcome]()
+        try:
+            {SUCCEEDED: handle.succeed, ABORTED: handle.abort, CANCELED: handle.canceled}[outcome]()
+        except Exception:
+            # a signal shut the context down under a running goal: the goal's state is set, but
+            # its status can no longer be published (rclpy raises), and no client can be told
+            if not self.plant.stopping.is_set():
+                raise
         return result
 
     def _finish(self, outcome: str, message: str) -> None:
