@@ -233,3 +233,28 @@ def test_every_drive_and_the_ledger_compile_to_the_values_they_give_interpreted(
     assert list(compiled_flows) == pytest.approx(list(flows), rel=1e-12)
     assert list(compiled) == pytest.approx(list(eha_ledger(y, -60.0, -0.5, d)), rel=1e-12, abs=1e-12)
     assert compiled.battery_power < 0.0 and _closes(compiled)  # lowering: it returns power
+
+
+def test_boom_sim_runs_csv_has_every_term_of_the_ledger_and_its_last_row_balances(tmp_path):
+    """A user closes the ledger from boom-sim run's CSV alone: a column per integral, in J."""
+    import csv
+
+    from conftest import CONFIG, run_tool
+
+    out = tmp_path / "eha.csv"
+    result = run_tool(
+        "boom-sim", "run", "--config", CONFIG / "default.yaml", "--set", "drive=pump_controlled",
+        "--profile", "angle:0=25,2.5=8.5", "--duration", "5", "--every", "50", "--out", out,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with out.open() as handle:
+        rows = list(csv.reader(handle))
+    header = [name.split(" [")[0] for name in rows[0]]
+    last = dict(zip(header, map(float, rows[-1])))
+    spent = [f"{name}_j" for name in ledger.INTEGRALS[2:-1]]
+    assert set(spent) <= set(header) and all(f"{name} [J]" in rows[0] for name in spent)
+    drawn = last["battery_drawn"] - last["battery_returned"] + last["reservoir_power_j"]
+    taken = sum(last[name] for name in spent if name != "reservoir_power_j")
+    assert last["battery_returned"] > 0.0 and last["lift_work"] > 0.0
+    assert taken == pytest.approx(drawn, rel=5e-3)  # the issue's 0.5 % over a cycle
+    assert last["potential_power_j"] == pytest.approx(0.0, abs=0.05 * last["lift_work"])  # down where it began

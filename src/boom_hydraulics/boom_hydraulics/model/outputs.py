@@ -10,6 +10,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .ledger import INTEGRALS, TERMS
+
+#: The integrals of the energy ledger's terms beside the battery's and the lift's
+#: (model.ledger.INTEGRALS), J since the start: where the battery's energy went.
+LEDGER_OUTPUTS: tuple[tuple[str, str, str], ...] = tuple(
+    (f"{name}_j", "J", f"since the start: {meaning}") for name, _, _, meaning in TERMS if name in INTEGRALS[2:-1]
+)
+
 #: Output names, units and descriptions, in the order of CSV columns.
 OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("t", "s", "simulated time"),
@@ -35,6 +43,7 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("battery_drawn", "J", "energy the battery gave since the start"),
     ("battery_returned", "J", "energy the battery took back since the start (a generating motor)"),
     ("lift_work", "J", "potential energy raised since the start: the useful work of the lifts"),
+    *LEDGER_OUTPUTS,
     ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
     ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
     ("at_end_stop", "bool", "rod against an end stop"),
@@ -44,7 +53,9 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
 )
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
 #: The battery's outputs (the physical model's energy ledger): NaN in paper mode, which has none.
-BATTERY_OUTPUTS = ("battery_power", "battery_drawn", "battery_returned", "lift_work")
+BATTERY_OUTPUTS = (
+    "battery_power", "battery_drawn", "battery_returned", "lift_work", *(name for name, _, _ in LEDGER_OUTPUTS)
+)  # fmt: skip
 #: The outputs that must be finite for a state to be published (all but the battery's).
 PUBLISHED_FINITE = tuple(name for name in OUTPUT_NAMES if name not in BATTERY_OUTPUTS)
 

@@ -195,6 +195,22 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # battery_drawn
         zero + math.nan,  # battery_returned
         zero + math.nan,  # lift_work
+        zero + math.nan,  # reservoir_power_j
+        zero + math.nan,  # battery_loss_j
+        zero + math.nan,  # motor_loss_j
+        zero + math.nan,  # pump_volumetric_loss_j
+        zero + math.nan,  # pump_mechanical_loss_j
+        zero + math.nan,  # main_relief_loss_j
+        zero + math.nan,  # valve_loss_j
+        zero + math.nan,  # leakage_loss_j
+        zero + math.nan,  # port_relief_loss_j
+        zero + math.nan,  # friction_work_j
+        zero + math.nan,  # end_stop_work_j
+        zero + math.nan,  # ambient_work_j
+        zero + math.nan,  # external_work_j
+        zero + math.nan,  # oil_work_j
+        zero + math.nan,  # kinetic_power_j
+        zero + math.nan,  # potential_power_j
         zero,  # void1
         zero,  # void2
         1.0 * (zero != zero),  # at_end_stop

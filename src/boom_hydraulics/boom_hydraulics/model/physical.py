@@ -602,6 +602,22 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_DRAWN],  # battery_drawn
         y[BATTERY_RETURNED],  # battery_returned
         y[LIFT_WORK],  # lift_work
+        y[BATTERY_RETURNED + 1],  # reservoir_power_j
+        y[BATTERY_RETURNED + 2],  # battery_loss_j
+        y[BATTERY_RETURNED + 3],  # motor_loss_j
+        y[BATTERY_RETURNED + 4],  # pump_volumetric_loss_j
+        y[BATTERY_RETURNED + 5],  # pump_mechanical_loss_j
+        y[BATTERY_RETURNED + 6],  # main_relief_loss_j
+        y[BATTERY_RETURNED + 7],  # valve_loss_j
+        y[BATTERY_RETURNED + 8],  # leakage_loss_j
+        y[BATTERY_RETURNED + 9],  # port_relief_loss_j
+        y[BATTERY_RETURNED + 10],  # friction_work_j
+        y[BATTERY_RETURNED + 11],  # end_stop_work_j
+        y[BATTERY_RETURNED + 12],  # ambient_work_j
+        y[BATTERY_RETURNED + 13],  # external_work_j
+        y[BATTERY_RETURNED + 14],  # oil_work_j
+        y[BATTERY_RETURNED + 15],  # kinetic_power_j
+        y[BATTERY_RETURNED + 16],  # potential_power_j
         void1,  # void1
         void2,  # void2
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
