@@ -1,7 +1,7 @@
 """Design-sweep benchmarks: points per second of a 5 s lift at dt = 1 ms, metrics included.
 
     tools/with-env python bench/bench_sweep.py            # about three minutes
-    tools/with-env python bench/bench_sweep.py --full     # plus boom-sweep over 10 000 points
+    tools/with-env python bench/bench_sweep.py --full     # plus boom-sweep over 10 000 points and the answer's sweep
 
 Compares the batch paths (the compiled run kernel that boom-sweep runs, and the same run
 loop interpreted that it falls back to without numba) with one simulation per point
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from tables import table
+from tables import ROOT, table
 
 from boom_hydraulics.analysis import metrics as analysis
 from boom_hydraulics.model import physical
@@ -116,6 +116,27 @@ def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
     return seconds, usage.ru_maxrss / 1024
 
 
+#: The answer's sweep at the issue's size: 3 drives x 30 cylinders x 20 operators' loader cycles.
+ANSWER_DRIVES = "fixed_pump,load_sensing,pump_controlled"
+ANSWER_DURATION_S = 24.0
+
+
+def answer_sweep(cylinders: int = 30, operators: int = 20) -> tuple[int, float, float]:
+    """boom-sweep across drives, cylinders and operators' loader cycles (docs/drives.md's
+    command, three drives), start to finish: (points, seconds, M steps of dt per second)."""
+    out = Path(tempfile.mkdtemp(prefix="bench-answer-"))
+    args = [shutil.which("boom-sweep"), "--config", str(ROOT / "config" / "default.yaml"), "--scenario", "loader"]
+    args += ["--operators", str(operators), "--duration", f"{ANSWER_DURATION_S:g}", "--vary", f"drive={ANSWER_DRIVES}"]
+    args += ["--vary", f"piston_diameter=0.032:0.1:{cylinders}", "--across", "operator", "--max-pressure-pa", "18e6"]
+    args += ["--rank-by", "cycles_per_charge", "--out", str(out / "s"), "--no-plots", "--no-progress"]
+    t0 = time.perf_counter()
+    subprocess.run(args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    seconds = time.perf_counter() - t0
+    shutil.rmtree(out)
+    points = 3 * cylinders * operators
+    return points, seconds, points * ANSWER_DURATION_S / 1e-3 / seconds / 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--full", action="store_true", help="also time boom-sweep over 10 000 points")
@@ -154,6 +175,9 @@ def main() -> None:
         ):
             seconds, peak_mb = full_sweep(workers, side)
             full.append([label, f"{side * side}", f"{seconds:.1f}", f"{peak_mb:.0f}"])
+        points, seconds, rate = answer_sweep()
+        full.append([f"boom-sweep of the answer ({ANSWER_DRIVES}, loader)", f"{points}", f"{seconds:.1f}", "-"])
+        print(f"the answer's sweep: {points / seconds:.1f} points/s, {rate:.2f} M steps of dt per second")
         table(
             "boom-sweep over a grid of points, 5 s lift, start to finish",
             ["run", "points", "seconds", "peak MB (boom-sweep process)"],

@@ -173,3 +173,25 @@ def test_a_sweep_of_work_cycles_refuses_a_run_shorter_than_the_cycle():
     with pytest.raises(ConfigError, match=r"the longest of the 5 operators'"):
         sweep.request([("default", Parameters())], [], scenario="loader", duration_s=longest - 0.1, operators=5)
     sweep.request([("default", Parameters())], [], scenario="loader", duration_s=longest, operators=5)
+
+
+def test_the_operators_bands_are_numpys_percentiles_of_each_designs_cycles_inf_and_nan_included():
+    """The bands of a sweep are taken per design in whole arrays; each is what numpy.percentile
+    gives for that design's cycles (an infinite cycles per charge, a NaN, an empty design)."""
+    import warnings
+
+    from boom_hydraulics.sweeps.energy import grouped_percentile
+
+    rng = np.random.default_rng(26)
+    for trial in range(200):
+        n_groups = int(rng.integers(1, 8))
+        group = rng.integers(0, n_groups, int(rng.integers(0, 40)))
+        values = rng.normal(size=len(group)) * 10.0
+        if len(values):
+            values[rng.integers(0, len(values), 2)] = (np.inf, -np.inf, np.nan)[trial % 3] if trial % 2 else 1.0
+        sizes = np.bincount(group, minlength=n_groups)
+        for q in (10, 50, 90):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                want = [np.percentile(values[group == g], q) if sizes[g] else np.nan for g in range(n_groups)]
+            np.testing.assert_array_equal(grouped_percentile(values, group, sizes, q), want)

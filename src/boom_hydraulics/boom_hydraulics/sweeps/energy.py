@@ -34,22 +34,51 @@ def design_columns(point_columns: Sequence[str]) -> list[str]:
 def operator_bands(table: Mapping[str, np.ndarray], point_columns: Sequence[str]) -> dict[str, np.ndarray]:
     """One row per design (in the order designs first appear): its design columns, ``cycles``
     (how many of its cycles ran ok), ``<figure>_p10`` / ``_p50`` / ``_p90`` of :data:`BANDED`
-    over those, and the mean of each :data:`BREAKDOWN` column (NaN where none ran ok)."""
+    over those (as numpy.percentile takes them), and the mean of each :data:`BREAKDOWN` column
+    (NaN where none ran ok). Grouped in whole arrays: a sweep of 10 000 designs takes
+    milliseconds, not a percentile call per design."""
     columns = design_columns(point_columns)
     ok = np.asarray(table["status"]) == "ok"
     groups = designs_of(table, columns)
     out: dict[str, np.ndarray] = {}
     for j, column in enumerate(columns):
         out[column] = np.array([key[j] for key in groups], dtype=np.asarray(table[column]).dtype)
-    members = [np.array([i for i in rows if ok[i]], dtype=np.int64) for rows in groups.values()]
-    out["cycles"] = np.array([len(m) for m in members], dtype=np.int64)
+    design = np.empty(len(ok), dtype=np.int64)  # each row's design, in the order designs first appear
+    for g, rows in enumerate(groups.values()):
+        design[rows] = g
+    design, n = design[ok], len(groups)
+    cycles = np.bincount(design, minlength=n)
+    out["cycles"] = cycles
     for name, _, _ in BANDED:
-        values = np.asarray(table[name], dtype=float)
+        values = np.asarray(table[name], dtype=float)[ok]
         for q in PERCENTILES:
-            out[f"{name}_p{q}"] = np.array([np.percentile(values[m], q) if len(m) else np.nan for m in members])
+            out[f"{name}_p{q}"] = grouped_percentile(values, design, cycles, q)
     for name in BREAKDOWN:
-        values = np.asarray(table[name], dtype=float)
-        out[name] = np.array([values[m].mean() if len(m) else np.nan for m in members])
+        values = np.asarray(table[name], dtype=float)[ok]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[name] = np.bincount(design, weights=values, minlength=n) / cycles
+    return out
+
+
+def grouped_percentile(values: np.ndarray, group: np.ndarray, sizes: np.ndarray, q: float) -> np.ndarray:
+    """The ``q``-th percentile of ``values`` within each group (``group``: each value's group,
+    ``sizes``: each group's count), linear between the order statistics as numpy.percentile
+    takes it; NaN for a group that is empty or holds a NaN."""
+    order = np.lexsort((values, group))  # by group, then by value (a NaN last in its group)
+    ranked = values[order]
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    position = (np.maximum(sizes, 1) - 1) * (q / 100.0)
+    low = np.floor(position).astype(np.int64)
+    high = np.minimum(low + 1, np.maximum(sizes - 1, 0))
+    frac = position - low
+    out = np.full(len(sizes), np.nan)
+    has = sizes > 0
+    a, b = ranked[(starts + low)[has]], ranked[(starts + high)[has]]
+    with np.errstate(invalid="ignore"):  # inf - inf: NaN, as numpy's is
+        span = b - a
+        out[has] = np.where(frac[has] >= 0.5, b - span * (1.0 - frac[has]), a + span * frac[has])
+    nans = np.bincount(group, weights=np.isnan(values), minlength=len(sizes)) > 0
+    out[nans] = np.nan
     return out
 
 

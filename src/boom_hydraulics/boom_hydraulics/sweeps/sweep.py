@@ -92,8 +92,9 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 BYTES_PER_POINT = 4096
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
-#: sweep's run time (2.7-3.3 M on 2 cores for batches of 1000 sets, measured by bench/bench_speed.py).
-STEPS_PER_CORE_S = 1.5e6
+#: sweep's run time (1.1 M on 2 cores for batches of 10 000 sets of the 30-state physical model,
+#: measured by bench/bench_speed.py on 2026-12-03).
+STEPS_PER_CORE_S = 0.55e6
 
 #: Wall time planning takes per point (its Parameters checked and grouped into batches): 0.13 ms
 #: measured for 10 000 points on a loaded 2-core machine, rounded up.
