@@ -37,6 +37,11 @@ def _position(robot, frame: str) -> np.ndarray:
 
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
+def _of_tick(states: list, joints: object) -> list:
+    """The DriveStates stamped as ``joints`` (published in the same tick)."""
+    return [s for s in states if s.header.stamp == joints.header.stamp]
+
+
 @pytest.mark.usefixtures("ros_context")
 def test_forward_kinematics_with_the_published_joints_closes_the_chain(nodes, client):
     """robot_description and joint_states from the running node, at three rod lengths: rod_eye
@@ -62,7 +67,9 @@ def test_forward_kinematics_with_the_published_joints_closes_the_chain(nodes, cl
             seen = len(client.joints)
             assert client.spin_until(lambda seen=seen: len(client.joints) > seen + 3)
             joints = client.joints[-1]
-            state = client.states[-1]
+            # the DriveState of the same tick (the latest of each may be a tick apart: the boom sags after a reset)
+            assert client.spin_until(lambda joints=joints: _of_tick(client.states, joints))
+            state = _of_tick(client.states, joints)[-1]
             values = dict(zip(joints.name, joints.position))
             assert set(values) == {"boom_joint", "cylinder_barrel_joint", "cylinder_joint"}
             robot.update_cfg(values)
