@@ -9,7 +9,11 @@ numbers, rerun when in doubt).
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 from pathlib import Path
@@ -18,7 +22,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from tables import best_of, table
 
-from boom_hydraulics.model import config, physical
+from boom_hydraulics.model import config, paper, physical
 from boom_hydraulics.model.drives import DRIVES
 from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
 from boom_hydraulics.solve import accelerate, duty_cycles
@@ -62,6 +66,51 @@ def step_cost() -> dict[tuple[str, bool], float]:
         rows,
     )
     return costs
+
+
+ANCHOR = Path(__file__).resolve().parent / "anchor" / "paper_rk4.c"
+#: The anchor's run: fig. 8's parameters, this many RK4 steps of its dt with the valve half open
+#: (paper mode reaches the degenerate geometry after about 2 s), best of this many runs.
+ANCHOR_STEPS, ANCHOR_REPEATS, ANCHOR_U = 1500, 400, 0.5
+
+
+def c_anchor() -> dict[str, float] | None:
+    """The paper model's RK4 step in plain C (bench/anchor/paper_rk4.c, compiled here with
+    ``$CC`` or cc at -O3 for this machine) beside the compiled Python step on the same
+    constants and steps: us per step of each, and the largest relative difference of their
+    final states (they must compute the same model). None without a C compiler."""
+    compiler = shutil.which(os.environ.get("CC", "cc"))
+    if compiler is None:
+        print("no C compiler (cc or $CC): the C anchor is not measured")
+        return None
+    with tempfile.TemporaryDirectory(prefix="bench-anchor-") as folder:
+        exe = Path(folder) / "paper_rk4"
+        subprocess.run([compiler, "-O3", "-march=native", "-o", str(exe), str(ANCHOR), "-lm"], check=True)
+        c = paper.constants(FIG8)
+        y0 = paper.initial_state(FIG8)
+        fields = (c.a, c.b, c.h, c.inertia, c.weight_coeff, c.s1, c.v1, c.bulk_modulus, c.k_orifice, c.p_n)
+        fields += (c.coulomb, c.viscous, c.spring, c.f_external)
+        args = [ANCHOR_U, FIG8.time_step_s, ANCHOR_STEPS, ANCHOR_REPEATS, *y0[:3], *fields]
+        out = subprocess.run([str(exe), *(repr(float(a)) if isinstance(a, float) else str(a) for a in args)],
+                             capture_output=True, text=True, check=True).stdout.split("\n")  # fmt: skip
+    c_state = np.array(out[0].split(), dtype=float)
+    c_us = float(out[1]) * 1e-3
+    sim = Simulator(FIG8, jit=True)
+    sim.step(ANCHOR_U, ANCHOR_STEPS)
+    differs = float(np.max(np.abs(np.array(sim.y) - c_state) / np.maximum(np.abs(c_state), 1e-300)))
+
+    def run() -> None:
+        sim.reset()
+        sim.step(ANCHOR_U, ANCHOR_STEPS)
+
+    py_us = best_of(run, 20) / ANCHOR_STEPS * 1e6
+    table(
+        f"Paper RK4 step against plain C, fig. 8, {ANCHOR_STEPS} steps of {FIG8.time_step_s:g} s (best of each)",
+        ["path", "us/step", "vs C", "final state, largest relative difference"],
+        [["plain C (-O3, this machine)", f"{c_us:.3f}", "1.00", ""],
+         ["compiled (numba), Simulator.step", f"{py_us:.3f}", f"{py_us / c_us:.2f}", f"{differs:.1e}"]],
+    )  # fmt: skip
+    return {"c_us": c_us, "compiled_us": py_us, "differs": differs}
 
 
 def physical_scales() -> list[float]:
@@ -244,6 +293,8 @@ def drive_cost() -> dict[tuple[str, bool], float]:
 def main() -> int:
     print(f"numba: {'yes' if accelerate.available() else 'no'}; numpy {np.__version__}")
     step_cost()
+    if accelerate.available():
+        c_anchor()
     drive_cost()
     scipy_comparison()
     batch_throughput()

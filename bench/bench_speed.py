@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 import rclpy
-from bench_model import batch_throughput, scipy_comparison, step_cost
+from bench_model import batch_throughput, c_anchor, scipy_comparison, step_cost
 from bench_node import BAGS, checkout_path, in_process_rates, print_real_time, real_time_run, with_env
 from bench_sweep import answer_sweep, full_sweep
 from tables import ROOT, commit, table, write_results
@@ -134,6 +134,15 @@ def main() -> int:
         rows.append([what, now, target, "yes" if met else "NO"])
 
     costs = step_cost()
+    anchor = c_anchor()
+    if anchor is not None:
+        ratio = anchor["compiled_us"] / anchor["c_us"]
+        row(
+            "paper RK4 step, compiled vs plain C on the same steps: us / us (ratio; final states' difference)",
+            f"{anchor['compiled_us']:.3f} us / {anchor['c_us']:.3f} us ({ratio:.2f}x; {anchor['differs']:.0e})",
+            "<= 1.5x C",
+            ratio <= 1.5 and anchor["differs"] < 1e-9,
+        )
     row(
         "physical RK4 step, compiled / interpreted",
         f"{costs[('physical', True)]:.2f} us / {costs[('physical', False)]:.1f} us",
