@@ -116,6 +116,20 @@ def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
     return seconds, usage.ru_maxrss / 1024
 
 
+def plan_kernel_s(side: int = 100) -> float:
+    """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone (the
+    run kernel and the batch's metrics, nothing else of boom-sweep): what the sweep would take
+    at the kernel's own speed."""
+    axes = [parse_axis(f"piston_diameter=0.032:0.1:{side}"), parse_axis(f"payload=0:200:{side}")]
+    plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=DURATION_S))
+    sweep.run_batch(plan.batches[0])  # load the compiled kernel outside the timing
+    t0 = time.perf_counter()
+    with LocalExecutor() as executor:
+        done = sum(len(b.points) for b, _ in executor.map(sweep.run_batch, plan.batches))
+    assert done == side * side
+    return time.perf_counter() - t0
+
+
 #: The answer's sweep at the issue's size: 3 drives x 30 cylinders x 20 operators' loader cycles.
 ANSWER_DRIVES = "fixed_pump,load_sensing,pump_controlled"
 ANSWER_DURATION_S = 24.0

@@ -241,6 +241,24 @@ def test_the_front_is_exactly_the_non_dominated_designs():
     ]
 
 
+def test_the_front_keeps_ties_and_drops_nan_rows_as_the_pairwise_definition_does():
+    """Designs with equal figures (a coarse grid) are all on the front or all off it."""
+    rng = np.random.default_rng(26)
+    for trial in range(100):
+        objectives = rng.integers(0, 4, (int(rng.integers(1, 40)), 3)).astype(float)
+        objectives[rng.integers(0, len(objectives))] = (np.nan, np.inf, 1.0)[trial % 3]
+        finite = np.isfinite(objectives).all(axis=1)
+        expected = [
+            bool(finite[i])
+            and not any(
+                finite[j] and (objectives[j] <= objectives[i]).all() and (objectives[j] < objectives[i]).any()
+                for j in range(len(objectives))
+            )
+            for i in range(len(objectives))
+        ]
+        assert non_dominated(objectives).tolist() == expected, trial
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [("peak_pressure<=1", "unknown metric"), ("lift_time_s<=fast", "not a number"), ("lift_time_s 2", "METRIC OP")],

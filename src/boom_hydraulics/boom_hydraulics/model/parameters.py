@@ -595,27 +595,38 @@ def _coerce(name: str, value: Any) -> Any:
     return float(value)
 
 
+#: What each field's check reads, once: name, choices, low, high, low_inclusive (a sweep
+#: checks every field of every point: the metadata's lookups per value were most of its planning).
+_CHECKS = tuple(
+    (name, meta["choices"], meta["low"], meta["high"], meta["low_inclusive"])
+    for name, meta in ((name, _FIELDS[name].metadata) for name in NAMES)
+)
+
+
 def _check_fields(p: Parameters) -> None:
-    for name in NAMES:
-        meta = _FIELDS[name].metadata
+    for name, choices, low, high, low_inclusive in _CHECKS:
         value = getattr(p, name)
-        if meta["choices"] is not None:
-            if value not in meta["choices"]:
-                raise ConfigError(f"parameter '{name}' is {value!r}; choose one of {', '.join(meta['choices'])}")
+        if choices is not None:
+            if value not in choices:
+                raise ConfigError(f"parameter '{name}' is {value!r}; choose one of {', '.join(choices)}")
             continue
-        values = value if isinstance(value, list) else [value]
-        for v in values:
-            if not math.isfinite(v):
-                raise ConfigError(f"parameter '{name}' must be finite, got {v!r}")
-            low, high = meta["low"], meta["high"]
-            unit = f" {meta['unit']}" if meta["unit"] else ""
-            if low is not None and (v < low if meta["low_inclusive"] else v <= low):
-                relation = ">=" if meta["low_inclusive"] else ">"
-                raise ConfigError(
-                    f"parameter '{name}' ({meta['description']}) is {v!r}{unit}; it must be {relation} {low!r}"
-                )
-            if high is not None and v > high:
-                raise ConfigError(f"parameter '{name}' is {v!r}{unit}; it must be <= {high!r}")
+        for v in value if isinstance(value, list) else (value,):
+            inside = (low is None or (v >= low if low_inclusive else v > low)) and (high is None or v <= high)
+            if not (inside and math.isfinite(v)):
+                _refuse_value(name, v)
+
+
+def _refuse_value(name: str, v: float) -> None:
+    """The ConfigError of a value of field ``name`` outside its range or not finite."""
+    meta = _FIELDS[name].metadata
+    if not math.isfinite(v):
+        raise ConfigError(f"parameter '{name}' must be finite, got {v!r}")
+    low, high = meta["low"], meta["high"]
+    unit = f" {meta['unit']}" if meta["unit"] else ""
+    if low is not None and (v < low if meta["low_inclusive"] else v <= low):
+        relation = ">=" if meta["low_inclusive"] else ">"
+        raise ConfigError(f"parameter '{name}' ({meta['description']}) is {v!r}{unit}; it must be {relation} {low!r}")
+    raise ConfigError(f"parameter '{name}' is {v!r}{unit}; it must be <= {high!r}")
 
 
 def _check_cross_fields(p: Parameters) -> None:

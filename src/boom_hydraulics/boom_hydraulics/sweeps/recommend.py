@@ -85,17 +85,23 @@ def non_dominated(objectives: np.ndarray) -> np.ndarray:
 
     Row j dominates row i when it is no worse in every objective and better in one.
     Rows with a NaN are never on the front.
+
+    A cull, O(n x front size) rather than O(n^2): of the rows left, the lexicographically
+    smallest is on the front (a row that dominated it would sort before it); it and its equals
+    join the front, and every row it dominates leaves. A row dominated by one that left
+    earlier is dominated by that one's culler too, so only the front is ever compared.
     """
     objectives = np.asarray(objectives, dtype=float)
     finite = np.isfinite(objectives).all(axis=1)
-    front = finite.copy()
-    candidates = objectives[finite]
+    front = np.zeros(len(objectives), dtype=bool)
     index = np.nonzero(finite)[0]
-    for start in range(0, len(candidates), 512):  # chunks keep the n x n comparison small
-        block = candidates[start : start + 512, None, :]
-        no_worse = (candidates[None, :, :] <= block).all(axis=2)
-        better = (candidates[None, :, :] < block).any(axis=2)
-        front[index[start : start + 512]] = ~(no_worse & better).any(axis=1)
+    left = index[np.lexsort(objectives[index].T[::-1])] if len(index) else index
+    while len(left):
+        best = objectives[left[0]]
+        rows = objectives[left]
+        equal = (rows == best).all(axis=1)
+        front[left[equal]] = True
+        left = left[~(rows >= best).all(axis=1)]  # dominated by best, or equal to it (now on the front)
     return front
 
 

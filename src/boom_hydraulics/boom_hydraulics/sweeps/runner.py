@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, write_bytes, write_csv, write_npz
+from ..files import check_apart, csv_column, write_bytes, write_csv, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from . import energy, recommend, sweep
@@ -90,7 +90,7 @@ def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[
     """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
     names = list(table)
     index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
-    write_csv(path_csv, names, ([csv_cell(table[n][i]) for n in names] for i in index))
+    write_csv(path_csv, names, zip(*(csv_column(np.asarray(table[n])[index]) for n in names)))  # column by column
     write_npz(path_csv.with_suffix(".npz"), {n: np.asarray(table[n])[index] for n in names})
 
 
