@@ -17,7 +17,7 @@ from ..solve import streaming
 from ..solve.streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
 #: The battery's signals among the samples (the physical model's ledger).
-BATTERY = ("battery_drawn", "battery_returned", "lift_work", "battery_power")
+BATTERY = ("battery_drawn", "battery_returned", "lift_work")
 
 
 def streamed(

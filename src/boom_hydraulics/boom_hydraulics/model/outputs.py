@@ -72,7 +72,7 @@ def finite_state(out: dict[str, Any]) -> bool:
 #: gives these alone, so that a run that keeps no table computes nothing else per sample.
 SAMPLE_NAMES = (
     "t", "q1", "v", "alpha", "p1", "p2", "u", "cavitation", "relief_open", "supply_energy", "valve_loss_energy",
-    "battery_drawn", "battery_returned", "lift_work", "battery_power",
+    "battery_drawn", "battery_returned", "lift_work",
 )  # fmt: skip
 #: Outputs that are flags (0.0 or 1.0 in a table of floats).
 BOOLEAN_OUTPUTS = tuple(name for name, unit, _ in OUTPUTS if unit == "bool")

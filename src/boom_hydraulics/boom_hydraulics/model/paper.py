@@ -241,7 +241,6 @@ def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # battery_drawn: paper mode has no battery
         zero + math.nan,  # battery_returned
         zero + math.nan,  # lift_work
-        zero + math.nan,  # battery_power
     )
 
 

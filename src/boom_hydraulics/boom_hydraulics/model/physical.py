@@ -650,7 +650,6 @@ def samples(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_DRAWN],  # battery_drawn
         y[BATTERY_RETURNED],  # battery_returned
         y[LIFT_WORK],  # lift_work
-        ledger(t, y, c, u, xp).battery_power,  # battery_power
     )
 
 

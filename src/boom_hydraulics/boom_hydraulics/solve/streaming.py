@@ -37,8 +37,10 @@ Definitions (SI):
 - The battery (docs/model.md, "Energy ledger"): ``battery_energy_j``, what it gave less what it
   took back over the run; ``battery_drawn_j``, ``battery_returned_j``, those two apart;
   ``lift_work_j``, the potential energy raised; ``efficiency``, that work over the battery's
-  energy (NaN where the battery gave none); ``peak_battery_power_w``, the most it gave at a
-  sample. NaN in paper mode and for signals without the battery (a bag).
+  energy (NaN where the battery gave none); ``peak_battery_power_w``, the most it gave over
+  an interval between samples (the change of what it gave less what it took back, over the
+  interval: every step's mean power where a sample is taken every step). NaN in paper mode,
+  for signals without the battery (a bag) and for a single sample.
 """
 
 from __future__ import annotations
@@ -245,7 +247,6 @@ def add_sample(
     drawn_j: float,
     returned_j: float,
     lift_work_j: float,
-    battery_w: float,
 ) -> None:
     """Take the sample at ``t`` into the accumulator ``m`` (settings ``s``); flags are 0.0 or 1.0."""
     first = m[COUNT] == 0.0
@@ -286,12 +287,18 @@ def add_sample(
         _ringing(m, t, p1, s[RIPPLE])
     if not math.isnan(s[MOVE_START]) and s[MOVE_START] <= t < s[MOVE_END]:
         _move(m, s, t, alpha)
+    # the battery's mean power since the last sample (the battery's energy is a state: no
+    # evaluation of the ledger per sample); NaN (no battery) stays NaN
+    if first:
+        m[BATTERY_PEAK] = 0.0 * drawn_j - math.inf
+    elif t > m[T_PREV]:
+        power = ((drawn_j - returned_j) - (m[DRAWN] - m[RETURNED])) / (t - m[T_PREV])
+        if power > m[BATTERY_PEAK]:
+            m[BATTERY_PEAK] = power
     m[T_PREV], m[RISE_PREV], m[SUPPLY_PREV], m[LOSS_PREV] = t, rise, supply_j, loss_j
     m[CAV_PREV], m[RELIEF_PREV] = cavitation, relief
     m[SUPPLY], m[LOSS] = supply_j, loss_j
     m[DRAWN], m[RETURNED], m[LIFT_WORK] = drawn_j, returned_j, lift_work_j
-    if first or battery_w > m[BATTERY_PEAK]:  # NaN (no battery) stays NaN
-        m[BATTERY_PEAK] = battery_w
 
 
 @jitable
@@ -339,4 +346,5 @@ def finish(m: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
     out[20], out[21], out[22], out[23] = battery, m[DRAWN], m[RETURNED], m[LIFT_WORK]
     if battery > 0.0:
         out[24] = m[LIFT_WORK] / battery
-    out[25] = m[BATTERY_PEAK]
+    if m[BATTERY_PEAK] > -math.inf:  # (NaN without a battery, as every battery figure)
+        out[25] = m[BATTERY_PEAK]
