@@ -88,21 +88,19 @@ def with_solve_ivp(points: int, method: str) -> float:
     return time.perf_counter() - t0
 
 
+def grid_axes(side: int) -> list[str]:
+    """The axes of :func:`full_sweep`'s side x side grid, as --vary takes them."""
+    return [f"piston_diameter=0.032:0.1:{side}", f"payload=0:200:{side}"]
+
+
 def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
     """boom-sweep over side x side points of a 5 s lift, start to finish: (seconds, peak
     resident memory of the boom-sweep process in MB; with workers, of the parent alone)."""
     out = Path(tempfile.mkdtemp(prefix="bench-sweep-"))
-    args = [shutil.which("boom-sweep"), "--vary", f"piston_diameter=0.032:0.1:{side}"]
-    args += [
-        "--vary",
-        f"payload=0:200:{side}",
-        "--duration",
-        "5",
-        "--out",
-        str(out / "s"),
-        "--no-plots",
-        "--no-progress",
-    ]
+    args = [shutil.which("boom-sweep")]
+    for axis in grid_axes(side):
+        args += ["--vary", axis]
+    args += ["--duration", f"{DURATION_S:g}", "--out", str(out / "s"), "--no-plots", "--no-progress"]
     if workers:
         args += ["--workers", str(workers)]
     t0 = time.perf_counter()
@@ -120,7 +118,7 @@ def plan_kernel_s(side: int = 100) -> float:
     """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone (the
     run kernel and the batch's metrics, nothing else of boom-sweep): what the sweep would take
     at the kernel's own speed."""
-    axes = [parse_axis(f"piston_diameter=0.032:0.1:{side}"), parse_axis(f"payload=0:200:{side}")]
+    axes = [parse_axis(axis) for axis in grid_axes(side)]
     plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=DURATION_S))
     sweep.run_batch(plan.batches[0])  # load the compiled kernel outside the timing
     t0 = time.perf_counter()
@@ -153,7 +151,9 @@ def answer_sweep(cylinders: int = 30, operators: int = 20) -> tuple[int, float, 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--full", action="store_true", help="also time boom-sweep over 10 000 points")
+    parser.add_argument(
+        "--full", action="store_true", help="also time boom-sweep over 10 000 points and the answer's sweep"
+    )
     args = parser.parse_args()
     rows: list[list[str]] = []
 

@@ -276,3 +276,18 @@ def test_a_runs_peak_battery_power_is_its_largest_step_mean_and_the_instantaneou
     mean = np.diff(run["battery_drawn"] - run["battery_returned"]) / np.diff(run["t"])
     assert peak == pytest.approx(mean.max(), rel=1e-9)
     assert peak == pytest.approx(run["battery_power"].max(), rel=1e-3)
+
+
+def test_each_ledger_output_is_the_state_of_its_own_name():
+    """battery_drawn, battery_returned, lift_work and every <term>_j read the state that
+    ledger.INTEGRALS names (marked states: a swap of two columns fails)."""
+    from boom_hydraulics.model.outputs import OUTPUT_NAMES
+
+    y = list(physical.initial_state(P))
+    marks = {name: 1000.0 + k for k, name in enumerate(ledger.INTEGRALS)}
+    for name, value in marks.items():
+        y[physical.LEDGER_STATES + ledger.INTEGRALS.index(name)] = value
+    out = dict(zip(OUTPUT_NAMES, physical.outputs(0.0, y, C, 0.0)))
+    for name, value in marks.items():
+        column = name if name in ("battery_drawn", "battery_returned", "lift_work") else f"{name}_j"
+        assert out[column] == value, column

@@ -36,12 +36,12 @@ def _position(robot, frame: str) -> np.ndarray:
     return robot.get_transform(frame, "base_link")[:3, 3]
 
 
-@pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
 def _of_tick(states: list, joints: object) -> list:
     """The DriveStates stamped as ``joints`` (published in the same tick)."""
     return [s for s in states if s.header.stamp == joints.header.stamp]
 
 
+@pytest.mark.skipif(BOOM_SIM is None, reason="boom_sim not on PATH (run through tools/with-env)")
 @pytest.mark.usefixtures("ros_context")
 def test_forward_kinematics_with_the_published_joints_closes_the_chain(nodes, client):
     """robot_description and joint_states from the running node, at three rod lengths: rod_eye

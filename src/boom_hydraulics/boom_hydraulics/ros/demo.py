@@ -75,14 +75,16 @@ class WorkCycle:
     duration_s: float
 
 
-def plan(text: str, params: Parameters) -> tuple[tuple[tuple[float, float], ...] | WorkCycle, float]:
-    """The scenario ``text`` for the node of ``params``: the openings of ``cycle`` (time s,
-    opening) or a :class:`WorkCycle`; and its length, s."""
+def plan(text: str, params_file: str | None) -> tuple[tuple[tuple[float, float], ...] | WorkCycle, float]:
+    """The scenario ``text`` for the node of ``params_file`` (read only for a work cycle, whose
+    angles and payload are the boom's): the openings of ``cycle`` (time s, opening) or a
+    :class:`WorkCycle`; and its length, s."""
     name, _, arg = text.partition(":")
     if text == "cycle":
         return CYCLE, 9.0
     if name not in duty_cycles.CYCLES:
         raise ConfigError(f"unknown --scenario {text!r}; choose {', '.join(SCENARIOS)} or loader:SEED")
+    params = config.load(Path(params_file)) if params_file else Parameters()
     if params.mode != "physical":
         raise ConfigError(
             f"--scenario {text} changes the payload within the cycle, which needs mode: physical (the params file "
@@ -241,8 +243,7 @@ def demo(argv: list[str] | None) -> int:
     parser.add_argument("--duration", type=float, help="how long to drive the node, s (default: the scenario's length)")
     parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into (default bags)")
     args = parser.parse_args(argv)
-    params = config.load(Path(args.params_file)) if args.params_file else Parameters()
-    scenario, length_s = plan(args.scenario, params)
+    scenario, length_s = plan(args.scenario, args.params_file)
     duration_s = length_s if args.duration is None else args.duration
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s:g}")

@@ -56,7 +56,7 @@ STREAMED_METRICS: tuple[tuple[str, str, str], ...] = (
     ("battery_returned_j", "J", "energy the battery took back over the whole run (recovered)"),
     ("lift_work_j", "J", "potential energy raised over the whole run: the useful work"),
     ("efficiency", "1", "lift work over battery energy"),
-    ("peak_battery_power_w", "W", "most power the battery gave, the mean over a sample interval (1 ms)"),
+    ("peak_battery_power_w", "W", "most power the battery gave, the mean over a sample interval (--every steps)"),
 )
 assert tuple(m[0] for m in STREAMED_METRICS) == streaming.NAMES, "the streamed metrics are streaming's, in its order"
 #: Metric columns from each point's linear model at mid-stroke, valve centred (analysis.linear_model).
