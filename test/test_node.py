@@ -354,3 +354,34 @@ def test_recording_holds_every_published_and_received_message(nodes, client, tmp
             assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
             assert "reliability:" in channel.metadata["offered_qos_profiles"]
         assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
+
+
+@pytest.mark.parametrize("presses", [1, 2], ids=["ctrl-c", "ctrl-c-twice"])
+def test_ctrl_c_while_the_node_compiles_ends_it_in_one_line_with_nothing_recorded(client, tmp_path, presses):
+    """A first start (an empty compile cache) stopped from the terminal while it compiles: exit
+    status 0, the one line that says so, no traceback, no bag folder."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "BOOM_HYDRAULICS_CACHE": str(tmp_path / "cache")}  # nothing compiled: it compiles
+    bags = tmp_path / "bags"
+    proc = subprocess.Popen(
+        [BOOM_SIM, "--ros-args", "--params-file", str(CONFIG / "default.yaml"), "-p", f"record_folder:={bags}"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+    )  # fmt: skip
+    try:
+        # the node is on the graph once its parameters are declared, and compiles after that
+        # (tens of seconds with an empty cache; its first log line comes after it)
+        assert client.spin_until(lambda: "boom_sim" in client.node.get_node_names() or proc.poll() is not None, 60)
+        for _ in range(presses):
+            proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out and "recording to" not in out, out
+    assert "physical mode" not in out, out  # (its first log line, once compiled: it was stopped before)
+    assert out.strip().splitlines() == ["boom_sim: stopped while starting; nothing was recorded"], out
+    assert not bags.exists()
