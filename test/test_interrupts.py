@@ -177,3 +177,34 @@ def test_strict_json_has_null_for_metrics_without_a_value():
         "lift_m": 0.25,
         "ok": True,
     }
+
+
+@pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning")  # no "Exception ignored" either
+def test_a_ctrl_c_that_a_finalizer_swallowed_still_stops_a_run_at_its_next_slice(capsys):
+    """Python drops an exception raised in ``__del__`` (as when Ctrl-C lands while the compiled
+    kernel's LLVM objects are disposed of); the run loop raises the recorded signal again, and
+    the user sees the one line of an interrupted tool, no traceback."""
+    from boom_hydraulics.model.parameters import Parameters
+    from boom_hydraulics.programs import run_main
+    from boom_hydraulics.solve.batch import run_sets
+    from boom_hydraulics.solve.commands import constant
+
+    class Finalized:
+        def __del__(self) -> None:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # the handler runs here, inside the finalizer: its exception is dropped
+                pass
+
+    ran = []
+
+    def body() -> int:
+        Finalized()
+        ran.append("went on after the signal")
+        run_sets([Parameters()], 0.5, constant(1.0), jit=False)
+        ran.append("the run ended")
+        return 0
+
+    assert run_main("test", body) == 130
+    assert ran == ["went on after the signal"]
+    said = capsys.readouterr().err
+    assert said == "test: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept\n"

@@ -45,8 +45,38 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised like Ctrl-C so that the same clean-up runs (temporary files removed)."""
 
 
+#: The stop signals received while run_main's body runs. Python drops an exception raised in a
+#: finalizer (``__del__``, a weakref callback: "Exception ignored in ..."), and a signal handler
+#: runs inside whatever code is running, a finalizer too: loading the compiled kernel disposes
+#: of many LLVM objects. :func:`raise_pending` raises such a lost signal again.
+_PENDING: list[int] = []
+
+
 def _terminate(signum: int, frame: object) -> None:
+    _PENDING.append(signum)
     raise Terminated()
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    _PENDING.append(signum)
+    raise KeyboardInterrupt
+
+
+def _unraisable(unraisable: object, hook: Callable[[object], None]) -> None:
+    """sys.unraisablehook while run_main's body runs: a stop signal's exception that a finalizer
+    dropped is no traceback for the user (raise_pending raises it again); anything else is
+    ``hook``'s."""
+    if isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt) and _PENDING:
+        return
+    hook(unraisable)
+
+
+def raise_pending() -> None:
+    """Raise again the Ctrl-C or SIGTERM that run_main's body received, if one came: a long loop
+    calls it between its slices, so that a signal whose exception a finalizer swallowed still
+    stops the run (a sweep once ran its day-long batch to the end after Ctrl-C)."""
+    if _PENDING:
+        raise Terminated() if _PENDING[-1] == signal.SIGTERM else KeyboardInterrupt
 
 
 #: What to do about the OSErrors a user meets writing results.
@@ -72,8 +102,13 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
     """``body()``, with this package's errors printed as ``PROG: error: ...`` and turned into exit codes.
 
     SIGTERM is turned into an exception like Ctrl-C while ``body`` runs, so that a terminated
-    tool cleans up as an interrupted one does (and exits 143, 130 for Ctrl-C)."""
+    tool cleans up as an interrupted one does (and exits 143, 130 for Ctrl-C). Both are also
+    recorded for :func:`raise_pending`."""
     previous = _install_terminate()
+    interrupt = _install_interrupt()
+    _PENDING.clear()
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
     try:
         return body()
     except BoomHydraulicsError as exc:
@@ -92,8 +127,24 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
         print(f"{prog}: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept", file=sys.stderr)
         return 130
     finally:
+        sys.unraisablehook = hook
+        _PENDING.clear()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+        if interrupt is not None and signal.getsignal(signal.SIGINT) is _interrupt:
+            signal.signal(signal.SIGINT, interrupt)
+
+
+def _install_interrupt() -> object | None:
+    """Route SIGINT to :func:`_interrupt` (KeyboardInterrupt, as Python's own handler, and
+    recorded) where Python's own handler is in place (a ROS tool's rclpy installs its own
+    later, in front of it); return the handler it replaced, or None where it installed nothing."""
+    try:
+        if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+            return None
+        return signal.signal(signal.SIGINT, _interrupt)
+    except ValueError:  # not the main thread
+        return None
 
 
 def _install_terminate() -> object | None:

@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationError
 from ..model import MODELS
 from ..model.parameters import Parameters
+from ..programs import raise_pending
 from . import accelerate, integrators, kernel, streaming
 from .integrators import BATCHED
 from .kernel import Command, RunSpec
@@ -364,6 +365,7 @@ class SetRun:
             last = min(self.passes, self.done + min(size, self.most_passes))
             started = time.perf_counter()
             self._slice(self.done, last)
+            raise_pending()  # a Ctrl-C whose KeyboardInterrupt a finalizer swallowed stops it here
             seconds = time.perf_counter() - started
             passes, self.done = last - self.done, last
             yield self.taken
