@@ -21,6 +21,7 @@ from ..errors import ConfigError
 from ..files import check_apart, csv_column, write_bytes, write_csv, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
+from ..programs import raise_pending
 from . import energy, recommend, sweep
 from .executors import DaskExecutor, LocalExecutor
 from .sampling import parse_axis, point_count, resolve_name
@@ -249,6 +250,7 @@ def _run_plan(
             store.save(batch.index, rows)
             parts.append(rows)
             progress.update(len(batch.points))
+            raise_pending()  # a Ctrl-C a finalizer swallowed here (batches on workers): stop after this one
     seconds = time.perf_counter() - started
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
