@@ -238,7 +238,10 @@ def demo(argv: list[str] | None) -> int:
     parser = RaisingParser(prog="boom-demo", description=summary(__doc__))
     parser.add_argument("--params-file", default=None, help="params YAML for the node")
     parser.add_argument(
-        "--scenario", default="cycle", help=f"{', '.join(SCENARIOS)} or loader:SEED (default cycle; see above)"
+        "--scenario",
+        default="cycle",
+        help="cycle (default): lift, hold, lower, hold by valve openings; loader: a loader crane's work cycle by "
+        "MoveBoom goals and a payload change (physical mode); loader:SEED: an operator's variation of it",
     )
     parser.add_argument("--duration", type=float, help="how long to drive the node, s (default: the scenario's length)")
     parser.add_argument("--bags", type=Path, default=Path("bags"), help="folder the node records into (default bags)")
