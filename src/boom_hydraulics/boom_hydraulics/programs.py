@@ -106,7 +106,6 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
     recorded for :func:`raise_pending`."""
     previous = _install_terminate()
     interrupt = _install_interrupt()
-    _PENDING.clear()
     hook = sys.unraisablehook
     sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
     try:

@@ -79,10 +79,9 @@ def plan(text: str, params_file: str | None) -> tuple[tuple[tuple[float, float],
     """The scenario ``text`` for the node of ``params_file`` (read only for a work cycle, whose
     angles and payload are the boom's): the openings of ``cycle`` (time s, opening) or a
     :class:`WorkCycle`; and its length, s."""
-    name, _, arg = text.partition(":")
     if text == "cycle":
         return CYCLE, 9.0
-    if name not in duty_cycles.CYCLES:
+    if text.partition(":")[0] not in duty_cycles.CYCLES:
         raise ConfigError(f"unknown --scenario {text!r}; choose {', '.join(SCENARIOS)} or loader:SEED")
     params = config.load(Path(params_file)) if params_file else Parameters()
     if params.mode != "physical":
@@ -90,8 +89,8 @@ def plan(text: str, params_file: str | None) -> tuple[tuple[tuple[float, float],
             f"--scenario {text} changes the payload within the cycle, which needs mode: physical (the params file "
             f"sets mode: {params.mode})"
         )
-    given = commands.scenario(text, 0.0, params)
-    seed = int(arg) if arg else 0
+    seed = commands.loader_seed(text)
+    given = duty_cycles.loader(params, seed)
     cycle = WorkCycle(
         tuple(given["command_times_s"]),
         tuple(given["command_angles_rad"]),

@@ -127,6 +127,15 @@ CYCLE = ((0.0, 1.0), (3.0, 0.0), (5.0, -1.0), (8.0, 0.0))
 SCENARIOS = ("lift", "cycle", "loader", "config")
 
 
+def loader_seed(text: str) -> int:
+    """The operator's seed of the scenario ``loader`` (0: the nominal cycle) or ``loader:SEED``."""
+    _, _, arg = text.partition(":")
+    try:
+        return int(arg) if arg else 0
+    except ValueError:
+        raise ConfigError(f"scenario {text!r}: write loader or loader:SEED with SEED a whole number") from None
+
+
 def scenario(text: str, duration_s: float, base: Parameters | None = None) -> dict[str, Any]:
     """The command_* parameters of a named scenario or a profile (see :func:`parse_profile`).
 
@@ -144,11 +153,7 @@ def scenario(text: str, duration_s: float, base: Parameters | None = None) -> di
     if name == "config" and not arg:
         return {}
     if name == "loader":
-        try:
-            seed = int(arg) if arg else 0
-        except ValueError:
-            raise ConfigError(f"scenario {text!r}: write loader or loader:SEED with SEED a whole number") from None
-        return duty_cycles.loader(base if base is not None else Parameters(), seed)
+        return duty_cycles.loader(base if base is not None else Parameters(), loader_seed(text))
     if name == "cycle" and not arg:
         times, values = zip(*CYCLE)
         return {"command_profile": "steps", "command_times_s": list(times), "command_values": list(values)}

@@ -91,8 +91,9 @@ def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[
     """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
     names = list(table)
     index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
-    write_csv(path_csv, names, zip(*(csv_column(np.asarray(table[n])[index]) for n in names)))  # column by column
-    write_npz(path_csv.with_suffix(".npz"), {n: np.asarray(table[n])[index] for n in names})
+    columns = {n: np.asarray(table[n])[index] for n in names}
+    write_csv(path_csv, names, zip(*(csv_column(columns[n]) for n in names)))  # column by column
+    write_npz(path_csv.with_suffix(".npz"), columns)
 
 
 def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
