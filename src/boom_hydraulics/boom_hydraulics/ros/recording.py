@@ -71,6 +71,7 @@ class NodeRecording:
         self.error: str | None = None
         self._folder, self._chunk_kib, self._flush_s = folder, chunk_kib, flush_s
         self._early_commands: list[tuple[str, bytes, dict]] = []
+        self._topic_names: dict[Any, str] = {}  # publisher -> its topic (rclpy asks rcl at each read)
 
     def begin(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> None:
         """Open the bag, if asked for, at the time origin, with the commands received before it."""
@@ -111,8 +112,12 @@ class NodeRecording:
         serialised = [
             (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
         ]
+        names = self._topic_names
         for publisher, data in serialised:
-            self.recorder.write(publisher.topic_name, log_ns, data)
+            name = names.get(publisher)
+            if name is None:
+                name = names[publisher] = publisher.topic_name
+            self.recorder.write(name, log_ns, data)
         for publisher, data in serialised:
             publisher.publish(data)
 
