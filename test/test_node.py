@@ -385,3 +385,42 @@ def test_ctrl_c_while_the_node_compiles_ends_it_in_one_line_with_nothing_recorde
     assert "physical mode" not in out, out  # (its first log line, once compiled: it was stopped before)
     assert out.strip().splitlines() == ["boom_sim: stopped while starting; nothing was recorded"], out
     assert not bags.exists()
+
+
+def test_a_ctrl_c_that_python_drops_while_the_node_starts_ends_it_in_one_line(tmp_path):
+    """Python drops a KeyboardInterrupt raised in a finalizer or a ctypes callback (a Ctrl-C
+    that lands in llvmlite's cache callback while the node compiles): no 'Exception ignored'
+    traceback, and the node still stops, in its one line, with nothing recorded."""
+    import subprocess
+    import sys
+
+    script = f"""
+import os, signal, sys, time
+import rclpy
+from boom_hydraulics.ros import node, process
+
+class Dropped:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # the handler runs here, inside the finalizer: its exception is dropped
+            pass
+
+start = node.BoomSimNode.__init__
+
+def starting(self):
+    Dropped()
+    deadline = time.monotonic() + 60
+    while rclpy.ok() and time.monotonic() < deadline:  # the signal shuts the context down, just after
+        time.sleep(0.01)
+    start(self)
+
+node.BoomSimNode.__init__ = starting
+process.main(["boom_sim", "--ros-args", "--params-file", {str(CONFIG / "default.yaml")!r},
+              "-p", "record_folder:={tmp_path / "bags"}"])
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    out = done.stdout + done.stderr
+    assert done.returncode == 0, out
+    assert "Exception ignored" not in out and "Traceback" not in out, out
+    assert out.strip().splitlines() == ["boom_sim: stopped while starting; nothing was recorded"], out
+    assert not (tmp_path / "bags").exists()

@@ -84,12 +84,25 @@ class _Start(threading.Thread):
             self.ended.wait()
 
 
+def _unraisable(unraisable: Any, hook: Any) -> None:
+    """sys.unraisablehook of the process: a Ctrl-C's KeyboardInterrupt that Python dropped is no
+    traceback for the user. Python drops an exception raised in a finalizer or a ctypes
+    callback: a Ctrl-C while numba compiles can land in llvmlite's object cache callback
+    (seen as "Exception ignored on calling ctypes callback function" after the one line).
+    The signal has shut the ROS context down all the same (rclpy's handler, just after), and
+    the start and the spin end on that. Anything else is ``hook``'s."""
+    if not isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt):
+        hook(unraisable)
+
+
 def _stopped_while_starting() -> None:
     print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
 
 
 def main(args: list[str] | None = None) -> None:
     argv = sys.argv if args is None else args
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
     if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
         print(ros_parameters.usage())
         return
