@@ -84,6 +84,25 @@ def test_chunks_reach_the_disk_at_once_and_then_within_the_flush_bound(tmp_path)
     assert not is_being_recorded(rec.file)
 
 
+def test_a_flowing_topic_is_written_in_chunks_of_many_messages_at_the_shortest_flush_bound(tmp_path):
+    """At record_flush_s's least value (0.05 s, the writer's own batching interval), messages
+    that come as a node's ticks (six at a time, 100 Hz) share chunks: a chunk per message
+    would bloat the bag and fsync at every message. Flushes come at most every flush_s, and
+    ticks at least 10 ms apart: far fewer chunks than ticks, whatever the machine's load."""
+    import time
+
+    ticks = 40
+    with BagRecorder(tmp_path / "bag", [STATE], flush_s=0.05) as rec:
+        for tick in range(ticks):
+            for k in range(6):
+                rec.write("/drive_state", 6 * tick + k, _state(6 * tick + k))
+            time.sleep(0.01)
+    with (tmp_path / "bag" / "bag_0.mcap").open("rb") as handle:
+        summary = make_reader(handle).get_summary()
+    assert summary.statistics.message_count == 6 * ticks
+    assert 1 < len(summary.chunk_indexes) < ticks, len(summary.chunk_indexes)
+
+
 def _messages_on_disk(file) -> int:
     count = 0
     with file.open("rb") as handle:

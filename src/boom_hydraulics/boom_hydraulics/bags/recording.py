@@ -340,7 +340,7 @@ _FINISH = object()  # close() asks the writer thread to finish the file and meta
 CLOSE_TIMEOUT_S = 60.0  # how long close() waits for the writer (a stalled disk) before it gives up
 #: While messages flow, the writer thread wakes this often (s) and takes all that came,
 #: instead of once per message: at 100 Hz and six topics, the node's writer thread took
-#: 2.2-2.4 % of a core waking per message, 1.0-1.1 % in batches (bench/bench_node.py).
+#: 2.1-2.8 % of a core waking per message, 1.0-1.1 % in batches (bench/bench_node.py).
 BATCH_S = 0.05
 
 
@@ -548,14 +548,20 @@ class BagRecorder:
                 elif item is not _FLUSH_NOW:
                     self._add(*item)
                     pending += 1
-                # the first messages at once, then every flush_s: a batch's wait may make it BATCH_S late
-                if pending and (item is _FLUSH_NOW or time.monotonic() - last_flush >= self.flush_s - BATCH_S):
+                drained = self._queue.empty()
+                since = time.monotonic() - last_flush
+                # the first messages at once, then every flush_s once the batch taken is in; where
+                # messages come faster than they are written (never drained), BATCH_S later
+                if pending and (item is _FLUSH_NOW or since >= self.flush_s + (0.0 if drained else BATCH_S)):
                     self._flush_chunk()
                     pending, last_flush = 0, time.monotonic()
             except Exception as exc:  # the disk failed (OSError), or a bug: keep what is on the disk
                 self._fail(exc)
-            if pending and self._queue.empty():
-                self._closing.wait(BATCH_S)  # let the next messages gather (close() ends the wait)
+                pending = 0  # nothing more reaches the disk: no flush to wait for
+                continue
+            if pending and drained:
+                # let the next messages gather, until the chunk is due at the latest (close() ends the wait)
+                self._closing.wait(min(BATCH_S, max(0.0, last_flush + self.flush_s - time.monotonic())))
 
     def _finish(self) -> None:
         """Finish the MCAP file and write metadata.yaml, unless recording failed; then release

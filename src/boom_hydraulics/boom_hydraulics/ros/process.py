@@ -101,8 +101,6 @@ def _stopped_while_starting() -> None:
 
 def main(args: list[str] | None = None) -> None:
     argv = sys.argv if args is None else args
-    hook = sys.unraisablehook
-    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
     if any(a in ("-h", "--help") for a in ros_parameters.user_args(argv)[1:]):
         print(ros_parameters.usage())
         return
@@ -118,6 +116,16 @@ def main(args: list[str] | None = None) -> None:
         rclpy.init(args=args)
     except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
         _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
+    try:
+        _run()
+    finally:
+        sys.unraisablehook = hook
+
+
+def _run() -> None:
+    """Start the node, spin until a signal or a failure, then finish (rclpy initialised)."""
     try:
         node = BoomSimNode()
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
