@@ -55,6 +55,21 @@ def test_analyze_keeps_what_the_user_kept_in_its_folder(tmp_path):
     )
 
 
+def test_analyze_of_a_run_that_never_lifted_says_so_in_words(tmp_path):
+    """A bag of the boom at rest (the node started and stopped, no command): its line says the
+    boom never reached 90 % of a lift, where it printed 'nan s'."""
+    with BagRecorder(tmp_path / "rest", [Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState")]) as rec:
+        for i in range(20):
+            msg = DriveState(rod_position_m=1.3, piston_pressure_pa=1e5, rod_pressure_pa=1e5)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(EPOCH_NS + i * 10_000_000, 10**9)
+            rec.write("/drive_state", EPOCH_NS + i * 10_000_000, serialize_message(msg))
+    result = _run("boom-analyze", tmp_path / "rest")
+    assert result.returncode == 0, result.stderr
+    line = result.stdout.splitlines()[0]
+    assert "lift 0.000 m, 90 % never reached, peak speed 0.000 m/s" in line, line
+    assert "nan" not in line.lower(), line
+
+
 def test_analyze_into_the_current_folder_touches_nothing_else(tmp_path):
     _bag(tmp_path / "bags" / "run1")
     work = tmp_path / "work"

@@ -79,8 +79,10 @@ def report(results: Mapping[str, Mapping[str, float]], out: Path) -> str:
     lines = []
     for label, m in results.items():
         low, high = m["min_pressure_pa"] / 1e6, m["peak_pressure_pa"] / 1e6
+        to_target = m["time_to_target_s"]  # NaN: q1 never reached 90 % of its rise (none: no lift)
+        timing = f"90 % in {to_target:.2f} s" if math.isfinite(to_target) else "90 % never reached"
         lines.append(
-            f"{label}: lift {m['lift_m']:.3f} m, 90 % in {m['time_to_target_s']:.2f} s, "
+            f"{label}: lift {m['lift_m']:.3f} m, {timing}, "
             f"peak speed {m['peak_speed_m_s']:.3f} m/s, pressures {low:.2f}..{high:.2f} MPa, "
             f"energy {m['supply_energy_j'] / 1e3:.2f} kJ"
             + (f", battery {m['battery_energy_j'] / 1e3:.2f} kJ" if math.isfinite(m["battery_energy_j"]) else "")
