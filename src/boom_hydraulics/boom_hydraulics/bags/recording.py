@@ -340,7 +340,8 @@ _FINISH = object()  # close() asks the writer thread to finish the file and meta
 CLOSE_TIMEOUT_S = 60.0  # how long close() waits for the writer (a stalled disk) before it gives up
 #: While messages flow, the writer thread wakes this often (s) and takes all that came,
 #: instead of once per message: at 100 Hz and six topics, the node's writer thread took
-#: 2.1-2.8 % of a core waking per message, 1.0-1.1 % in batches (bench/bench_node.py).
+#: 2.1-2.8 % of a core waking per message, 1.0-1.1 % in batches (bench/bench_node.py's
+#: real-time run, read per thread).
 BATCH_S = 0.05
 
 

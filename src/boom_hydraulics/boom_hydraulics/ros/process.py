@@ -88,7 +88,7 @@ def _unraisable(unraisable: Any, hook: Any) -> None:
     """sys.unraisablehook of the process: a Ctrl-C's KeyboardInterrupt that Python dropped is no
     traceback for the user. Python drops an exception raised in a finalizer or a ctypes
     callback: a Ctrl-C while numba compiles can land in llvmlite's object cache callback
-    (seen as "Exception ignored on calling ctypes callback function" after the one line).
+    (seen as "Exception ignored on calling ctypes callback function", before the one line).
     The signal has shut the ROS context down all the same (rclpy's handler, just after), and
     the start and the spin end on that. Anything else is ``hook``'s."""
     if not isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt):
