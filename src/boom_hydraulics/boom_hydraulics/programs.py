@@ -13,7 +13,9 @@ import argparse
 import errno
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
 
 from .errors import BoomHydraulicsError, ConfigError
 
@@ -62,13 +64,25 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
-def _unraisable(unraisable: object, hook: Callable[[object], None]) -> None:
-    """sys.unraisablehook while run_main's body runs: a stop signal's exception that a finalizer
-    dropped is no traceback for the user (raise_pending raises it again); anything else is
-    ``hook``'s."""
-    if isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt) and _PENDING:
-        return
-    hook(unraisable)
+@contextmanager
+def dropped_interrupts_unreported(when: Callable[[], bool]) -> Iterator[None]:
+    """While it runs, a stop signal's exception (KeyboardInterrupt, or Terminated) that Python
+    dropped is no traceback for the user, where ``when()`` says the stop goes on all the same;
+    anything else reaches the hook in place. Python drops an exception raised in a finalizer or
+    a ctypes callback ("Exception ignored in ..."), and a signal handler runs inside whatever
+    code is running: loading or compiling the kernels disposes of many LLVM objects and calls
+    llvmlite's cache callback."""
+    hook = sys.unraisablehook
+
+    def unraisable(dropped: Any) -> None:
+        if not (isinstance(getattr(dropped, "exc_value", None), KeyboardInterrupt) and when()):
+            hook(dropped)
+
+    sys.unraisablehook = unraisable
+    try:
+        yield
+    finally:
+        sys.unraisablehook = hook
 
 
 def raise_pending() -> None:
@@ -106,10 +120,10 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
     recorded for :func:`raise_pending`."""
     previous = _install_terminate()
     interrupt = _install_interrupt()
-    hook = sys.unraisablehook
-    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
     try:
-        return body()
+        # (the body's stop signals are recorded: raise_pending raises a dropped one again)
+        with dropped_interrupts_unreported(lambda: bool(_PENDING)):
+            return body()
     except BoomHydraulicsError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, ConfigError) else 1
@@ -126,7 +140,6 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
         print(f"{prog}: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept", file=sys.stderr)
         return 130
     finally:
-        sys.unraisablehook = hook
         _PENDING.clear()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)

@@ -17,6 +17,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
 from ..errors import BoomHydraulicsError, ConfigError
+from ..programs import dropped_interrupts_unreported
 from . import node_parameters as ros_parameters
 from .node import BoomSimNode
 
@@ -84,17 +85,6 @@ class _Start(threading.Thread):
             self.ended.wait()
 
 
-def _unraisable(unraisable: Any, hook: Any) -> None:
-    """sys.unraisablehook of the process: a Ctrl-C's KeyboardInterrupt that Python dropped is no
-    traceback for the user. Python drops an exception raised in a finalizer or a ctypes
-    callback: a Ctrl-C while numba compiles can land in llvmlite's object cache callback
-    (seen as "Exception ignored on calling ctypes callback function", before the one line).
-    The signal has shut the ROS context down all the same (rclpy's handler, just after), and
-    the start and the spin end on that. Anything else is ``hook``'s."""
-    if not isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt):
-        hook(unraisable)
-
-
 def _stopped_while_starting() -> None:
     print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
 
@@ -116,12 +106,12 @@ def main(args: list[str] | None = None) -> None:
         rclpy.init(args=args)
     except Exception as exc:  # rcl's argument parser: a malformed -p or --ros-args rule
         _fail(f"cannot read the ROS arguments: {str(exc).splitlines()[0]}")
-    hook = sys.unraisablehook
-    sys.unraisablehook = lambda unraisable: _unraisable(unraisable, hook)
-    try:
+    # A Ctrl-C whose KeyboardInterrupt Python dropped is no traceback: one landing in llvmlite's
+    # cache callback while the node compiles showed "Exception ignored on calling ctypes callback
+    # function" before the one line. The signal has shut the ROS context down all the same
+    # (rclpy's handler, just after), and the start and the spin end on that.
+    with dropped_interrupts_unreported(lambda: True):
         _run()
-    finally:
-        sys.unraisablehook = hook
 
 
 def _run() -> None:
