@@ -208,3 +208,40 @@ def test_a_ctrl_c_that_a_finalizer_swallowed_still_stops_a_run_at_its_next_slice
     assert ran == ["went on after the signal"]
     said = capsys.readouterr().err
     assert said == "test: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept\n"
+
+
+def test_llvmlite_objects_a_stop_left_half_closed_are_no_traceback_and_nothing_else_is_hidden(monkeypatch):
+    """A Ctrl-C (twice, in CI) that cut an llvmlite object's close() between its two steps left
+    it without its pointer; its finalizer then printed "Exception ignored ... AttributeError:
+    _as_parameter_" after the node's one line. Once a stop has come that is hidden; before a
+    stop, and any other finalizer's error, still reach the user."""
+    import sys
+
+    from llvmlite import binding as llvm
+
+    from boom_hydraulics.programs import dropped_interrupts_unreported
+
+    seen: list = []
+    monkeypatch.setattr(sys, "unraisablehook", seen.append)
+
+    def half_closed_then_collected() -> None:
+        ref = llvm.get_global_context()
+        del ref._as_parameter_  # where a signal's exception cut ObjectRef.detach short
+        del ref  # its __del__ runs close() again
+
+    class Failing:
+        def __del__(self) -> None:
+            raise AttributeError("'Failing' object has no attribute '_as_parameter_'")
+
+    stopped = False
+    with dropped_interrupts_unreported(lambda: stopped):
+        half_closed_then_collected()  # no stop yet: shown
+        stopped = True
+        half_closed_then_collected()  # after a stop: hidden
+        Failing()  # the same error from our own code: shown
+    half_closed_then_collected()  # outside: shown
+    assert [(d.object.__qualname__.split(".")[-2:], d.exc_type) for d in seen] == [
+        (["ObjectRef", "__del__"], AttributeError),
+        (["Failing", "__del__"], AttributeError),
+        (["ObjectRef", "__del__"], AttributeError),
+    ]

@@ -71,11 +71,13 @@ def dropped_interrupts_unreported(when: Callable[[], bool]) -> Iterator[None]:
     anything else reaches the hook in place. Python drops an exception raised in a finalizer or
     a ctypes callback ("Exception ignored in ..."), and a signal handler runs inside whatever
     code is running: loading or compiling the kernels disposes of many LLVM objects and calls
-    llvmlite's cache callback."""
+    llvmlite's cache callback. The same goes for llvmlite's finalizer failing on an object whose
+    closing such an exception cut in two (see :func:`_left_half_closed`)."""
     hook = sys.unraisablehook
 
     def unraisable(dropped: Any) -> None:
-        if not (isinstance(getattr(dropped, "exc_value", None), KeyboardInterrupt) and when()):
+        exc = getattr(dropped, "exc_value", None)
+        if not ((isinstance(exc, KeyboardInterrupt) or _left_half_closed(dropped)) and when()):
             hook(dropped)
 
     sys.unraisablehook = unraisable
@@ -83,6 +85,21 @@ def dropped_interrupts_unreported(when: Callable[[], bool]) -> Iterator[None]:
         yield
     finally:
         sys.unraisablehook = hook
+
+
+def _left_half_closed(dropped: Any) -> bool:
+    """Whether ``dropped`` is llvmlite's ``ObjectRef.__del__`` meeting an object whose earlier
+    ``close()`` an exception cut between ``del self._as_parameter_`` and ``self._closed = True``
+    (llvmlite 0.50): it deletes the attribute again and fails. Only an exception raised between
+    two statements, a signal's, does that; it showed as "Exception ignored in ObjectRef.__del__
+    ... AttributeError: _as_parameter_" after a node's start stopped by Ctrl-C twice."""
+    exc = getattr(dropped, "exc_value", None)
+    where = getattr(getattr(dropped, "object", None), "__module__", None) or ""
+    return (
+        isinstance(exc, AttributeError)
+        and str(exc).endswith("attribute '_as_parameter_'")
+        and where.startswith("llvmlite.")
+    )
 
 
 def raise_pending() -> None:
