@@ -63,15 +63,13 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 
 #: What the node compiles at its start (ros/node.py warms a new model or method the same way):
-#: the Simulator's stepping kernel and its outputs, through a step of none and the outputs.
+#: Simulator.warm, its stepping, its outputs and the run loop of its position controller.
 STEPPING = (
     "import sys\n"
     "from boom_hydraulics.model import config\n"
     "from boom_hydraulics.model.parameters import with_updates\n"
     "from boom_hydraulics.solve.simulation import Simulator\n"
-    "sim = Simulator(with_updates(config.load(sys.argv[1]), method=sys.argv[2]), jit=True)\n"
-    "sim.step(0.0, 0)\n"
-    "sim.outputs()\n"
+    "Simulator(with_updates(config.load(sys.argv[1]), method=sys.argv[2]), jit=True).warm()\n"
 )
 
 #: What builds every compiled kernel the suite uses, two lanes run side by side, each kernel

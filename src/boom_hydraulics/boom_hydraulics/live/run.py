@@ -72,9 +72,7 @@ class LiveRun:
         jit: bool | None = None,
     ) -> None:
         self.sim = Simulator(params, jit=jit)
-        if self.sim.jit:  # compile (or load from the cache) the steps and the outputs before the clock starts
-            self.sim.step(0.0, 0)
-            self.sim.outputs()
+        self.sim.warm()  # compile (or load from the cache) what it steps with, before the clock starts
         self.drive = CommandedDrive(self.sim, command_timeout_s)
         self.clock = LiveClock(self.sim, rate_hz, real_time_factor, max_catch_up_s)
         self.sink, self._notify = sink, notify
@@ -285,9 +283,7 @@ class LiveRun:
                 before = self.sim.params
                 new = live_parameters.checked(before, requested)
             if self.sim.jit and (new.mode, new.method) != (before.mode, before.method):
-                warm = Simulator(new, jit=True)  # compile (or load) the new kernels while the run goes on
-                warm.step(0.0, 0)
-                warm.outputs()
+                Simulator(new, jit=True).warm()  # compile (or load) the new kernels while the run goes on
             with self.lock:
                 new = live_parameters.checked(self.sim.params, requested)  # against the parameters now
                 self._apply(new, names)

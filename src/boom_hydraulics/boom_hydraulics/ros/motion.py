@@ -333,7 +333,7 @@ class Motion:
         loop = plant.drive.loop
         if loop is None:  # (the override already finished it)
             return
-        if t >= goal.end_s and float(loop.state.holding) == 1.0:
+        if t >= goal.end_s and plant.drive.holding:
             self._finish(SUCCEEDED, "settled: the boom holds the target")
             return
         if t > goal.deadline_s:
@@ -343,6 +343,6 @@ class Motion:
         if goal.ticks % FEEDBACK_EVERY_TICKS == 0:
             alpha = float(plant.sim.outputs()["alpha"])
             feedback = MoveBoom.Feedback(
-                angle_rad=alpha, setpoint_rad=loop.setpoint[0], error_rad=goal.target_rad - alpha
+                angle_rad=alpha, setpoint_rad=plant.drive.setpoint()[0], error_rad=goal.target_rad - alpha
             )
             goal.handle.publish_feedback(feedback)

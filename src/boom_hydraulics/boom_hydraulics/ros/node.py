@@ -101,9 +101,7 @@ class BoomSimNode(Node):
             bool(self.get_parameter("publish_clock").value), bool(self.get_parameter("use_sim_time").value)
         )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
-        if self.sim.jit:  # compile (or load from the cache) the steps and the outputs before the clock starts
-            self.sim.step(0.0, 0)
-            self.sim.outputs()
+        self.sim.warm()  # compile (or load from the cache) what it steps with, before the clock starts
         self.drive = CommandedDrive(self.sim, float(self.get_parameter("command_timeout_s").value))
         self.lock = threading.RLock()
         self.stopping = threading.Event()
@@ -310,9 +308,7 @@ class BoomSimNode(Node):
                 current.method,
             )
         ):
-            warm = Simulator(new_params, jit=True)
-            warm.step(0.0, 0)
-            warm.outputs()
+            Simulator(new_params, jit=True).warm()
         self._checked = new_params
         return SetParametersResult(successful=True)
 

@@ -55,3 +55,11 @@ def batch_runner(mode: str, method: str) -> Callable[..., None] | None:
     if not available():
         return None
     return KERNELS[mode].BATCHES.get(method)
+
+
+def set_runner(mode: str, method: str) -> Callable[..., None] | None:
+    """The compiled run kernel of one set (kernel.batch_set of set 0, in the calling thread) of
+    one model and method, or None: called as :func:`batch_runner`'s kernel with one set."""
+    if not available():
+        return None
+    return KERNELS[mode].SETS.get(method)

@@ -20,6 +20,7 @@ diameter, payload, bulk modulus, ...) may differ.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -270,13 +271,17 @@ class SetRun:
     run from rest unless ``start`` says where one set goes on from. With ``store``, a slice
     takes at most ``slice_rows`` samples per set (default: the whole run's, at most SLICE_FLOATS
     in all); ``measure``: whether the streaming metrics are taken (over ``lift_angle_deg``);
-    ``jit``: as for the Simulator (None: compiled where numba is available).
+    ``jit``: as for the Simulator (None: compiled where numba is available). Compiled, the sets
+    run on every core (the parallel kernel) unless ``serial`` asks for the one set's kernel in
+    the calling thread: a run gone on a few steps at a time (:meth:`go_on`), where the parallel
+    runtime's threads would spin between calls (OpenMP's took three quarters of a core from a
+    node that followed a path).
     """
 
     def __init__(
         self, params: Sequence[Parameters], duration_s: float, command: Callable, every: int = 1, *,
         lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG, store: bool = False, slice_rows: int | None = None,
-        measure: bool = True, jit: bool | None = None, start: Start | None = None,
+        measure: bool = True, jit: bool | None = None, start: Start | None = None, serial: bool = False,
     ) -> None:  # fmt: skip
         p0 = params[0]
         model = MODELS[p0.mode]
@@ -314,7 +319,11 @@ class SetRun:
             int(every), energy_index, np.array(bases, dtype=float), settings, bool(measure), float(t0_s), int(k0),
             *(np.array(v, dtype=float) for v in schedule),
         )  # fmt: skip
-        self._runner = accelerate.batch_runner(p0.mode, p0.method) if compiled and encoding is not None else None
+        if serial and self.n_sets != 1:
+            raise ValueError("a serial run has one parameter set")
+        runner = accelerate.set_runner if serial else accelerate.batch_runner
+        self._runner = runner(p0.mode, p0.method) if compiled and encoding is not None else None
+        self._parallel = self._runner is not None and not serial
         if self._runner is not None:
             self._spec, self._flat = spec, kernel.flat(spec)
         else:  # the loop in Python: each set with its own functions
@@ -344,7 +353,7 @@ class SetRun:
 
     def _slice(self, first: int, last: int) -> None:
         if self._runner is not None:
-            with _KERNEL_LOCK:
+            with _KERNEL_LOCK if self._parallel else contextlib.nullcontext():
                 self._runner(self.state, self.status, self.metrics, self.rows, self.taken, first, last, *self._flat)
             return
         store = self.rows.shape[1] > 0
@@ -374,6 +383,13 @@ class SetRun:
                 return
             size = next_slice(passes, seconds, self.most_passes)
 
+    def go_on(self, steps: int) -> None:
+        """``steps`` more steps in one slice (the first call takes the start, pass 0, too): a run
+        that its caller paces, as the node's ticks pace the position controller's."""
+        last = min(self.passes, self.done + steps + (1 if self.done == 0 else 0))
+        self._slice(self.done, last)
+        self.done = last
+
     def result(self, rows: np.ndarray | None = None) -> SetRuns:
         """What the run gave (after :meth:`slices`), with ``rows`` the table of every sample, if kept."""
         values = np.empty((self.n_sets, len(streaming.NAMES)))
@@ -396,9 +412,18 @@ class SetRun:
         return float(self._spec.energy_base[k])
 
     def steps_taken(self, k: int) -> int:
-        """The steps set ``k`` took (all of them, or those before the one that failed)."""
+        """The steps set ``k`` took so far (all of them at the end, or those before the one that failed)."""
         status = self.status[k]
-        return self.n_steps if status[kernel.OUTCOME] == OK else int(status[kernel.FAILED_STEP])
+        return max(0, self.done - 1) if status[kernel.OUTCOME] == OK else int(status[kernel.FAILED_STEP])
+
+    def holding(self, k: int) -> bool:
+        """Whether set ``k``'s position controller holds its target within its dead-band now."""
+        return bool(self.status[k, kernel.HOLDING] == 1.0)
+
+    @property
+    def k0(self) -> int:
+        """The step of the run's time line that the run starts from (see Start)."""
+        return self._spec.k0
 
     def time_after(self, steps: int) -> float:
         """The time on the run's time line after ``steps`` of its steps, s (as the Simulator keeps it)."""

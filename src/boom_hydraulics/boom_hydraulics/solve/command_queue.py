@@ -23,10 +23,12 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from ..errors import SimulationError
 from .closed_loop import PositionLoop
 
 if TYPE_CHECKING:
     from ..model.setpoints import SetpointPath
+    from .batch import SetRun
     from .simulation import Simulator
 
 
@@ -87,10 +89,11 @@ class CommandedDrive:
     (see the module docstring), and the valve returns to 0 when no command arrived for
     ``timeout_s`` of simulated time (0: never). The node and ``boom-resim`` both use it.
 
-    :meth:`follow` hands the valve to the position controller (closed loop, one step at a
-    time); it holds the path's last angle after its end. A valve command that applies while
-    the controller drives takes over (operator override): the controller lets go and
-    ``on_override`` is called.
+    :meth:`follow` hands the valve to the position controller (closed loop: its opening at
+    every step, from the state at the step's start); it holds the path's last angle after its
+    end. The controller runs in the run loop, compiled (:meth:`Simulator.following`), as
+    ``boom-sim``'s angle scenario runs it. A valve command that applies while the controller
+    drives takes over (operator override): the controller lets go and ``on_override`` is called.
     """
 
     def __init__(self, sim: Simulator, timeout_s: float = 0.0, max_pending: int = 10_000):
@@ -102,6 +105,9 @@ class CommandedDrive:
         self.loop: PositionLoop | None = None  # the controller, while it drives the valve
         self.on_override: Callable[[], None] = lambda: None
         self.followed: SetpointPath | None = None  # the path the controller followed in the last advance()
+        self._run: SetRun | None = None  # the controller's run, while it drives ...
+        self._run_of: tuple = ()  # ... for this controller, path and parameters ...
+        self._run_left: list[float] | None = None  # ... and the state it left (see _following)
 
     def push(self, at_s: float, opening: float) -> bool:
         """Queue ``opening`` for simulated time ``at_s`` (now or earlier: the next step)."""
@@ -150,6 +156,34 @@ class CommandedDrive:
             path = self.loop.path
             self.loop = PositionLoop([self.sim.params], path, self.sim.constants)
 
+    def _current_run(self) -> SetRun | None:
+        """The controller's run, if it is still the one to go on with: None when the controller,
+        its path, the parameters or the state are no longer those it went on with (a new goal,
+        new parameters, a reset), or when it ran its FOLLOW_HORIZON_S."""
+        loop, sim = self.loop, self.sim
+        if self._run is None or loop is None or sim.y is not self._run_left or self._run.done >= self._run.passes:
+            return None
+        return self._run if all(a is b for a, b in zip((loop, loop.path, sim.params), self._run_of)) else None
+
+    def _following(self) -> SetRun:
+        """The run of the controller that drives now, begun afresh from the current state where
+        :meth:`_current_run` has none."""
+        run = self._current_run()
+        if run is None:
+            loop = self.loop
+            assert loop is not None
+            run = self._run = self.sim.following(loop)
+            self._run_of = (loop, loop.path, self.sim.params)
+        return run
+
+    @property
+    def holding(self) -> bool:
+        """Whether the controller holds its path's end within its dead-band as it gives the
+        next step's opening: the move settled (model.control.position_command). False when it
+        does not drive."""
+        run = self._current_run()
+        return run is not None and run.holding(0)
+
     def advance(self, steps: int) -> None:
         """Take ``steps`` physics steps; raises SimulationError as Simulator.step does."""
         dt = self.sim.params.time_step_s
@@ -157,13 +191,20 @@ class CommandedDrive:
         while steps > 0:
             t = self.sim.t
             self.queue.apply_due(t, dt, self._apply)
-            if self.loop is not None:  # closed loop: a new opening every step
-                self.followed = self.loop.path
-                self.current = self.loop(t + 0.5 * dt, self.sim.y)
-                self.sim.step(self.current, 1)
-                steps -= 1
-                continue
             chunk = self.queue.steps_until_next(t, dt, steps)
+            if self.loop is not None:  # closed loop: the controller's opening at every step, up to the next command
+                self.followed = self.loop.path
+                run = self._following()
+                try:
+                    self.sim.go_on(run, chunk)
+                except SimulationError:
+                    self._run = None  # a failed run goes no further
+                    raise
+                finally:
+                    self.current = self.sim.u  # the opening of the last step taken (or of the one that failed)
+                self._run_left = self.sim.y  # the state is the run's own
+                steps -= chunk
+                continue
             if self.timeout_s > 0 and self.current != 0.0 and self.last_command_s is not None:
                 deadline = self.last_command_s + self.timeout_s
                 if t + 0.5 * dt >= deadline:

@@ -123,6 +123,9 @@ def batch_rk4(*arguments: Any) -> None:
         batch_set(rk4_step, k, arguments)
 
 
-#: The entry points by method: stepping, and the batch run (explicit methods only).
+#: The entry points by method: stepping, and the batch run (explicit methods only); no run of
+#: one set in the calling thread (physical_kernel's SETS, for the position controller that a
+#: node's ticks pace: paper mode has none).
 STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
 BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
+SETS: dict = {}

@@ -188,6 +188,20 @@ def batch_rk4(*arguments: Any) -> None:
         batch_set(rk4_step, k, arguments)
 
 
-#: The entry points by method: stepping, and the batch run (explicit methods only).
+@kernel(SOURCES)
+def set_euler(*arguments: Any) -> None:
+    """:func:`batch_set` with explicit Euler over the one set of a run, in the calling thread
+    (a serial batch.SetRun: see there)."""
+    batch_set(euler_step, 0, arguments)
+
+
+@kernel(SOURCES)
+def set_rk4(*arguments: Any) -> None:
+    """:func:`batch_set` with classical RK4 over the one set of a run (as :func:`set_euler`)."""
+    batch_set(rk4_step, 0, arguments)
+
+
+#: The entry points by method: stepping, and the run of a batch or of one set (explicit methods only).
 STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
 BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
+SETS = {"euler": set_euler, "rk4": set_rk4}

@@ -25,6 +25,7 @@ from ..model.geometry import triangle_bounds_m, within_triangle
 from ..model.parameters import Parameters, with_updates
 from . import accelerate, integrators, kernel, stepping
 from .batch import MODEL_ERRORS, SetRun, Start, columns_of, stability_limit
+from .closed_loop import PositionLoop
 from .outcomes import MAX_SUBSTEPS, OK, OUT_OF_GEOMETRY, TOO_STIFF, evaluation_message, message
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 
@@ -32,6 +33,9 @@ _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
 #: Rows of one chunk of a streamed run (RunStream, Simulator.samples): a few MB as CSV text.
 CHUNK_ROWS = 8192
+
+#: How long the position controller may follow in one run of Simulator.following, s (32 years).
+FOLLOW_HORIZON_S = 1.0e9
 
 
 def absolute_tolerances(p: Parameters) -> list[float]:
@@ -174,6 +178,18 @@ class Simulator:
         self.step_count += steps
         self.t = self._t_base + (self.step_count - self._n_base) * self.params.time_step_s
 
+    def warm(self) -> None:
+        """Compile (or load from the cache) what this simulator steps with, so that its first
+        steps do not stall: its stepping and its outputs and, where the position controller can
+        drive the valve (physical mode), the run loop of :meth:`following`. Nothing where it
+        steps interpreted; its state does not change."""
+        if not self.compiled:
+            return
+        self.step(0.0, 0)
+        self.outputs()
+        if self.params.mode == "physical":
+            self.following(PositionLoop.of_parameters([self.params])).go_on(0)  # its start, taken by no one
+
     # --- stepping -------------------------------------------------------------------------
     def step(self, u: float, steps: int = 1) -> None:
         """Advance ``steps`` time steps with the valve command ``u`` held constant. A step that
@@ -222,7 +238,7 @@ class Simulator:
     # --- whole runs -----------------------------------------------------------------------
     def whole_run(
         self, duration_s: float, command: Callable, every: int = 1, *, store: bool = True,
-        slice_rows: int | None = None, measure: bool = False,
+        slice_rows: int | None = None, measure: bool = False, serial: bool = False,
     ) -> SetRun:  # fmt: skip
         """``duration_s`` of valve command ``command(t)`` (a feedback command, such as the
         closed-loop :class:`closed_loop.PositionLoop`, is asked ``command(t, y)`` with the
@@ -235,7 +251,7 @@ class Simulator:
             base += self.model.energy(self.y, self._full) - self.model.energy(self.y, self.constants)
         start = Start(list(self.y), self._t_base, self.step_count - self._n_base, base, self.integrator)
         return SetRun([self.params], duration_s, command, every, store=store, slice_rows=slice_rows,
-                      measure=measure, jit=self.jit, start=start)  # fmt: skip
+                      measure=measure, jit=self.jit, start=start, serial=serial)  # fmt: skip
 
     def take(self, run: SetRun) -> str | None:
         """The drive as ``run`` (of :meth:`whole_run`, gone through) left it: its state, time and
@@ -243,7 +259,8 @@ class Simulator:
         status = run.status[0]
         outcome = int(status[kernel.OUTCOME])
         steps = run.steps_taken(0)
-        self._moved(run.state[0].tolist(), steps)
+        # (a run gone on with a few steps at a time, go_on, was taken after each: the steps since)
+        self._moved(run.state[0].tolist(), run.k0 + steps - (self.step_count - self._n_base))
         # the payload schedule leaves its share of the payload on the hook, and H - W as it counts H
         self._hold(self.model.with_payload(self._full, float(status[kernel.PAYLOAD])))
         self._energy_base = run.energy_base(0) + float(status[kernel.BASE_SHIFT])
@@ -254,6 +271,21 @@ class Simulator:
         if outcome != TOO_STIFF:
             self.most_substeps = max(self.most_substeps, int(status[kernel.MOST]))
         return run.reason(0)
+
+    def following(self, loop: PositionLoop) -> SetRun:
+        """The position controller ``loop`` (fresh: one that has not run) driving the valve from
+        the current state on, as a run of the run loop with the compiled controller, that
+        :meth:`go_on` takes on a few steps at a time; it keeps no samples and ends after
+        FOLLOW_HORIZON_S."""
+        return self.whole_run(FOLLOW_HORIZON_S, loop, store=False, serial=True)
+
+    def go_on(self, run: SetRun, steps: int) -> None:
+        """``steps`` more steps of ``run`` (of :meth:`following`), as :meth:`step` takes them: a
+        step that fails is not taken, and SimulationError says why."""
+        run.go_on(steps)
+        why = self.take(run)
+        if why is not None:
+            raise SimulationError(why)
 
     def _last_sample(self) -> np.ndarray:
         """The outputs at the current state and command, as one row (OUTPUT_NAMES order)."""
