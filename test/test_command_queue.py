@@ -66,65 +66,109 @@ def test_switching_to_paper_mode_lets_the_controller_go():
     assert drive.loop is None and drive.current == 0.0
 
 
-def _stepped_one_at_a_time(sim: Simulator, loop, steps: int) -> None:
-    """The closed loop by its definition: the controller's opening at the middle of each step,
-    from the state at its start, held over that step."""
-    for _ in range(steps):
-        sim.step(loop(sim.t + 0.5 * sim.params.time_step_s, sim.y), 1)
+class SteppedDrive(CommandedDrive):
+    """The drive's rule taken one step at a time, as it was written before the controller ran
+    in the run loop: each step, the commands due, then the controller's opening at the step's
+    middle from the state at its start (or the manual opening), held over the step."""
+
+    def advance(self, steps: int) -> None:
+        dt = self.sim.params.time_step_s
+        for _ in range(steps):
+            t = self.sim.t
+            self.queue.apply_due(t, dt, self._apply)
+            if self.loop is not None:
+                self.current = self.loop(t + 0.5 * dt, self.sim.y)
+            self.sim.step(self.current, 1)
+
+    @property
+    def holding(self) -> bool:
+        """The controller's dead-band state as it gives the next step's opening (asked again for
+        the same step, it gives the same opening: it moves on once per step)."""
+        if self.loop is None:
+            return False
+        self.loop(self.sim.t + 0.5 * self.sim.params.time_step_s, self.sim.y)
+        return bool(self.loop.state.holding)
 
 
-def test_the_closed_loop_in_ticks_of_any_size_is_the_controller_stepped_one_step_at_a_time():
-    """The drive runs the controller in the compiled run loop a tick at a time; a new path, a
-    new payload and ticks of 7 or 10 steps give what stepping the controller step by step gives
-    (the node, boom-resim and bags recorded before this all agree on it)."""
+@pytest.mark.parametrize("jit", [True, False], ids=["compiled", "interpreted"])
+def test_the_closed_loop_in_ticks_of_any_size_is_the_drive_stepped_one_step_at_a_time(jit):
+    """The drive runs the controller in the run loop a tick at a time (compiled: one call per
+    tick). A new path, an operator's command stamped inside a tick, a new payload and ticks of
+    7 or 10 steps give what the drive's rule taken one step at a time gives (the node,
+    boom-resim and the bags recorded before all agree on it); the parameters' payload
+    schedule, which is for whole runs, is not applied, as a manual command's steps do not."""
+    from boom_hydraulics.model.parameters import with_updates
     from boom_hydraulics.model.setpoints import move
-    from boom_hydraulics.solve.closed_loop import PositionLoop
 
-    sim, reference = Simulator(Parameters()), Simulator(Parameters())
-    drive = CommandedDrive(sim)
+    p = with_updates(Parameters(), command_payload_times_s=[0.3], command_payload_fractions=[0.0])
+    sim, reference = Simulator(p, jit=jit), Simulator(p, jit=jit)
+    drive, stepped = CommandedDrive(sim), SteppedDrive(reference)
     angle = float(sim.outputs()["alpha"])
     first, second = move(0.0, angle, 0.0, angle + 0.25, 0.3), move(0.6, angle + 0.1, 0.0, angle + 0.05, 0.3)
-    drive.follow(first)
-    loop = PositionLoop([reference.params], first, reference.constants)
-    states = []
-    for tick, steps in enumerate([7, 10] * 200):
-        if tick == 60:  # a new goal while moving: the controller starts afresh on the new path
-            drive.follow(second)
-            loop = PositionLoop([reference.params], second, reference.constants)
-        if tick == 120:  # a new payload: the controller takes the new constants, afresh
-            for s in (sim, reference):
-                s.set_payload_mass(150.0)
-            drive.parameters_changed()
-            loop = PositionLoop([reference.params], second, reference.constants)
-        drive.advance(steps)
-        _stepped_one_at_a_time(reference, loop, steps)
+    ticks = 400 if jit else 60
+    held = []
+    for tick, steps in enumerate([7, 10] * (ticks // 2)):
+        for d in (drive, stepped):
+            if tick == 20:  # the operator takes over at a time inside the next tick (7 steps)
+                d.push(d.sim.t + 3.4 * p.time_step_s, 0.2)
+            if tick == 30:  # a new goal: the controller starts afresh on the new path
+                d.follow(second if jit else first)
+            if tick == 120:  # a new payload: the controller takes the new constants, afresh
+                d.sim.set_payload_mass(150.0)
+                d.parameters_changed()
+            if tick == 0:
+                d.follow(first)
+            d.advance(steps)
         assert (sim.step_count, sim.t) == (reference.step_count, reference.t)
         assert sim.y == pytest.approx(reference.y, rel=1e-12, abs=1e-15), f"tick {tick}"
-        assert drive.current == pytest.approx(reference.u, rel=1e-12, abs=1e-15)
-        # holding: the controller's state as it gives the next step's opening (asked again, the
-        # reference gives the same opening: the controller moves on once per step)
-        loop(reference.t + 0.5 * reference.params.time_step_s, reference.y)
-        assert drive.holding == bool(loop.state.holding), f"tick {tick}"  # the move settled, or not yet
-        states.append(drive.holding)
-    assert not states[0] and drive.holding and states.count(True) > 100  # settled at the second path's end
-    assert sim.outputs()["alpha"] == pytest.approx(angle + 0.05, abs=0.004)
+        assert drive.current == pytest.approx(stepped.current, rel=1e-12, abs=1e-15)
+        assert (drive.loop is None) == (stepped.loop is None)
+        assert drive.holding == stepped.holding, f"tick {tick}"  # the move settled, or not yet
+        assert sim.constants == reference.constants  # the whole payload on the hook throughout
+        held.append(drive.holding)
+    assert held[21:30] == [False] * 9 and drive.loop is not None  # the override, then the new goal
+    if jit:
+        assert drive.holding and held.count(True) > 100  # settled at the second path's end
+        assert sim.outputs()["alpha"] == pytest.approx(angle + 0.05, abs=0.004)
     drive.follow(first)
     assert not drive.holding  # a new path: not settled until the controller says so
     drive.let_go()
     assert not drive.holding
 
 
+def test_the_controller_keeps_the_payload_a_whole_run_left_on_the_hook():
+    """After a whole run whose payload schedule put the payload down, the controller steps
+    with what is on the hook now, as manual commands do."""
+    from boom_hydraulics.model.parameters import with_updates
+    from boom_hydraulics.model.setpoints import SetpointPath
+
+    p = with_updates(Parameters(), payload_mass_kg=200.0, command_payload_times_s=[0.005],
+                     command_payload_fractions=[0.0])  # fmt: skip
+    sim, reference = Simulator(p), Simulator(p)
+    for s in (sim, reference):
+        s.run(0.01, lambda t: 0.0)
+    assert sim.constants != Simulator(p).constants  # the payload is down
+    drive, stepped = CommandedDrive(sim), SteppedDrive(reference)
+    for d in (drive, stepped):
+        d.follow(SetpointPath.of([d.sim.t], [float(d.sim.outputs()["alpha"]) + 0.1]))
+        d.advance(200)
+    assert sim.constants == reference.constants
+    assert sim.y == pytest.approx(reference.y, rel=1e-12, abs=1e-15)
+    assert sim.energy_residual() == pytest.approx(reference.energy_residual(), abs=1e-9)
+
+
 def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch):
     """The controller's run is FOLLOW_HORIZON_S long (years); past its end the drive begins
-    another and time goes on, rather than standing still."""
+    another and takes every step asked for, rather than standing still or losing steps."""
     from boom_hydraulics.model.setpoints import SetpointPath
     from boom_hydraulics.solve import simulator
 
-    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", 0.05)  # 50 steps
+    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", 0.055)  # 55 steps: not a whole number of ticks
     sim = Simulator(Parameters())
     drive = CommandedDrive(sim)
-    drive.follow(SetpointPath.of([0.0], [float(sim.outputs()["alpha"]) + 0.1]))
-    for _ in range(12):
+    start = float(sim.outputs()["alpha"])
+    drive.follow(SetpointPath.of([0.0], [start + 0.1]))
+    for _ in range(100):
         drive.advance(10)
-    assert sim.step_count == 120 and sim.t == pytest.approx(0.12)
-    assert sim.outputs()["alpha_rate"] > 0.0  # still lifting towards the setpoint
+    assert sim.step_count == 1000 and sim.t == pytest.approx(1.0)
+    assert sim.outputs()["alpha"] > start + 0.08  # lifted towards the target, run after run

@@ -227,9 +227,9 @@ class TestMovesOnOneNode:
 
 
 def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_path):
-    """A recorded MoveBoom run (one goal held, one canceled midway) fed through boom-resim: the
-    controller follows the recorded setpoints, unchanged within 0.02 degrees; with 200 kg it
-    still reaches the first target, as a closed loop does."""
+    """A recorded MoveBoom run (one goal held, one given a new payload and gain, then canceled) fed
+    through boom-resim: the controller follows the recorded setpoints, unchanged within 0.02
+    degrees; with 200 kg it still reaches the first target, as a closed loop does."""
     from boom_hydraulics.bags.reading import read_drive_states
 
     proc = nodes.start(
@@ -240,7 +240,10 @@ def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_pa
         assert mover.result(mover.send(math.radians(30.0))).status == GoalStatus.STATUS_SUCCEEDED
         client.spin_sim(1.0)  # (simulated s: at real-time factor 2, what half a second of wall time was)
         second = mover.send(math.radians(45.0))
-        client.spin_sim(0.8)  # midway through the second move
+        client.spin_sim(0.5)
+        client.set_parameter("payload_mass_kg", 150.0)  # the controller takes them, afresh
+        client.set_parameter("control_position_gain_1_rad", 2.0)
+        client.spin_sim(0.3)  # midway through the second move
         cancel = second.cancel_goal_async()
         assert client.spin_until(cancel.done, 10)
         assert mover.result(second).status == GoalStatus.STATUS_CANCELED

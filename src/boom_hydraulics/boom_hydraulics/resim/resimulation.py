@@ -121,6 +121,7 @@ class _Resimulation:
                     self.sim.set_parameters(from_mapping(model, base=self.sim.params))
                 except ConfigError as exc:
                     raise ConfigError(f"a recorded parameter change does not fit the new parameters: {exc}") from None
+                self.drive.parameters_changed()  # as the node: the controller takes the new gains and constants
             if "command_timeout_s" in changes:
                 self.drive.timeout_s = float(changes["command_timeout_s"])
 

@@ -6,8 +6,9 @@ with the metrics taken while it runs and, if asked, every output stored. What is
 the loop depends on what can be compiled; the steps, commands and samples are the same:
 
 - compiled: the model's parallel run kernel (:func:`kernel.batch_set` over the sets, in
-  ``prange``) where numba is available, the method is explicit (euler, rk4) and the command
-  describes itself to the kernel (``command.kernel_command(n_sets)``: a profile, a position loop);
+  ``prange``; with ``serial``, one set's in the calling thread) where numba is available, the
+  method is explicit (euler, rk4) and the command describes itself to the kernel
+  (``command.kernel_command(n_sets)``: a profile, a position loop);
 - stepped: the loop interpreted, each step through the model's compiled stepping (the
   Simulator's compiled step), for any other command (a Python function of time) or ros2;
 - interpreted: the loop and every function uncompiled (no numba, ``jit=False``, rk45).
@@ -275,13 +276,15 @@ class SetRun:
     run on every core (the parallel kernel) unless ``serial`` asks for the one set's kernel in
     the calling thread: a run gone on a few steps at a time (:meth:`go_on`), where the parallel
     runtime's threads would spin between calls (OpenMP's took three quarters of a core from a
-    node that followed a path).
+    node that followed a path). ``payload``: the payload schedule (times s, shares on the
+    hook; see kernel.payload_share), None: the parameters' (:func:`payload_schedule`).
     """
 
     def __init__(
         self, params: Sequence[Parameters], duration_s: float, command: Callable, every: int = 1, *,
         lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG, store: bool = False, slice_rows: int | None = None,
         measure: bool = True, jit: bool | None = None, start: Start | None = None, serial: bool = False,
+        payload: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
     ) -> None:  # fmt: skip
         p0 = params[0]
         model = MODELS[p0.mode]
@@ -312,7 +315,7 @@ class SetRun:
         compiled = accelerate.available() if jit is None else jit and accelerate.available()
         adaptive = integrators.METHODS[p0.method].step is None  # rk45: one advance per step
         settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
-        schedule = payload_schedule(p0)
+        schedule = payload_schedule(p0) if payload is None else payload
         spec = RunSpec(
             np.array(constants, dtype=float), encoding or CALLED, float(p0.time_step_s),
             1 if adaptive else int(p0.substeps), float(stability_limit(p0)), MAX_SUBSTEPS, int(self.n_steps),
@@ -384,8 +387,9 @@ class SetRun:
             size = next_slice(passes, seconds, self.most_passes)
 
     def go_on(self, steps: int) -> None:
-        """``steps`` more steps in one slice (the first call takes the start, pass 0, too): a run
-        that its caller paces, as the node's ticks pace the position controller's."""
+        """``steps`` more steps in one slice, fewer where the run ends (the first call takes the
+        start, pass 0, too): a run that its caller paces, as the node's ticks pace the position
+        controller's."""
         last = min(self.passes, self.done + steps + (1 if self.done == 0 else 0))
         self._slice(self.done, last)
         self.done = last
@@ -419,11 +423,6 @@ class SetRun:
     def holding(self, k: int) -> bool:
         """Whether set ``k``'s position controller holds its target within its dead-band now."""
         return bool(self.status[k, kernel.HOLDING] == 1.0)
-
-    @property
-    def k0(self) -> int:
-        """The step of the run's time line that the run starts from (see Start)."""
-        return self._spec.k0
 
     def time_after(self, steps: int) -> float:
         """The time on the run's time line after ``steps`` of its steps, s (as the Simulator keeps it)."""

@@ -195,6 +195,7 @@ class CommandedDrive:
             if self.loop is not None:  # closed loop: the controller's opening at every step, up to the next command
                 self.followed = self.loop.path
                 run = self._following()
+                before = self.sim.step_count
                 try:
                     self.sim.go_on(run, chunk)
                 except SimulationError:
@@ -203,7 +204,7 @@ class CommandedDrive:
                 finally:
                     self.current = self.sim.u  # the opening of the last step taken (or of the one that failed)
                 self._run_left = self.sim.y  # the state is the run's own
-                steps -= chunk
+                steps -= self.sim.step_count - before  # (fewer than chunk where the run reached its end)
                 continue
             if self.timeout_s > 0 and self.current != 0.0 and self.last_command_s is not None:
                 deadline = self.last_command_s + self.timeout_s

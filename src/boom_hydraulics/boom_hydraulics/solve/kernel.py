@@ -14,8 +14,9 @@ into the streaming metrics (:mod:`streaming`) and, when asked, into a table of e
 
 It is written in the subset of Python that numba compiles and takes the model's and the
 method's functions as arguments. Compiled, each model's kernel module (:mod:`physical_kernel`,
-:mod:`paper_kernel`) runs :func:`batch_set` over the sets of a batch in parallel (``prange``)
-with those functions by name, so that a run costs its steps and no Python per step.
+:mod:`paper_kernel`) runs :func:`batch_set` over the sets of a batch in parallel (``prange``),
+or over one set in the calling thread (physical_kernel.set_rk4: the node's position
+controller, a tick at a time), with those functions by name, so that a run costs its steps and no Python per step.
 Interpreted, :mod:`batch` calls the same :func:`run_set` with the same functions uncompiled
 (or with the compiled stepping under a Python command): whole runs of the Simulator,
 :func:`simulation.simulate`, the batch and the sweep all run through it.

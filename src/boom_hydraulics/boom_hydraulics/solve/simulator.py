@@ -5,7 +5,9 @@ valve command held constant over each step (zero-order hold). :meth:`Simulator.s
 steps with one command (the node's ticks, :class:`command_queue.CommandedDrive`) through the
 stepping loop :func:`stepping.advance`; :meth:`Simulator.run` and :meth:`Simulator.samples`
 run a whole command from the current state through the run loop (:class:`batch.SetRun`,
-:func:`kernel.run_set`), whose step is that same stepping loop. Physics lives in the model
+:func:`kernel.run_set`), whose step is that same stepping loop, and :meth:`Simulator.following`
+and :meth:`Simulator.go_on` a tick's steps of the position controller through it (the node's
+ticks while the controller drives). Physics lives in the model
 modules (:mod:`physical`, :mod:`paper`); this module only drives them.
 """
 
@@ -108,9 +110,11 @@ class Simulator:
         self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
         self._hold(self._full)
 
-    def _hold(self, constants: Any) -> None:
-        """Step with ``constants`` from now on (a payload schedule may take a share off the hook)."""
+    def _hold(self, constants: Any, payload_share: float = 1.0) -> None:
+        """Step with ``constants`` from now on, with ``payload_share`` of the payload on the hook
+        (a payload schedule may take a share off it)."""
         self.constants = constants
+        self._payload_share = payload_share
         self._constants_row = np.array(constants, dtype=float)  # what the compiled calls take
 
     def _adaptive_step(self, fun: Callable, t: float, y: list, h: float, args: tuple) -> list:
@@ -182,7 +186,7 @@ class Simulator:
         """Compile (or load from the cache) what this simulator steps with, so that its first
         steps do not stall: its stepping and its outputs and, where the position controller can
         drive the valve (physical mode), the run loop of :meth:`following`. Nothing where it
-        steps interpreted; its state does not change."""
+        steps interpreted; where it is, its state and time stay as they are."""
         if not self.compiled:
             return
         self.step(0.0, 0)
@@ -239,6 +243,7 @@ class Simulator:
     def whole_run(
         self, duration_s: float, command: Callable, every: int = 1, *, store: bool = True,
         slice_rows: int | None = None, measure: bool = False, serial: bool = False,
+        payload: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
     ) -> SetRun:  # fmt: skip
         """``duration_s`` of valve command ``command(t)`` (a feedback command, such as the
         closed-loop :class:`closed_loop.PositionLoop`, is asked ``command(t, y)`` with the
@@ -251,18 +256,19 @@ class Simulator:
             base += self.model.energy(self.y, self._full) - self.model.energy(self.y, self.constants)
         start = Start(list(self.y), self._t_base, self.step_count - self._n_base, base, self.integrator)
         return SetRun([self.params], duration_s, command, every, store=store, slice_rows=slice_rows,
-                      measure=measure, jit=self.jit, start=start, serial=serial)  # fmt: skip
+                      measure=measure, jit=self.jit, start=start, serial=serial, payload=payload)  # fmt: skip
 
-    def take(self, run: SetRun) -> str | None:
-        """The drive as ``run`` (of :meth:`whole_run`, gone through) left it: its state, time and
-        command; the reason it stopped early (a failure, see :mod:`outcomes`), or None."""
+    def take(self, run: SetRun, since: int = 0) -> str | None:
+        """The drive as ``run`` (of :meth:`whole_run`, gone through, or of :meth:`following`, gone
+        on) left it, which was here after its first ``since`` steps: its state, time and command;
+        the reason it stopped early (a failure, see :mod:`outcomes`), or None."""
         status = run.status[0]
         outcome = int(status[kernel.OUTCOME])
         steps = run.steps_taken(0)
-        # (a run gone on with a few steps at a time, go_on, was taken after each: the steps since)
-        self._moved(run.state[0].tolist(), run.k0 + steps - (self.step_count - self._n_base))
+        self._moved(run.state[0].tolist(), steps - since)
         # the payload schedule leaves its share of the payload on the hook, and H - W as it counts H
-        self._hold(self.model.with_payload(self._full, float(status[kernel.PAYLOAD])))
+        share = float(status[kernel.PAYLOAD])
+        self._hold(self.model.with_payload(self._full, share), share)
         self._energy_base = run.energy_base(0) + float(status[kernel.BASE_SHIFT])
         if outcome != OK:
             self.u = float(status[kernel.NEXT_U])  # the command of the step that failed
@@ -276,14 +282,20 @@ class Simulator:
         """The position controller ``loop`` (fresh: one that has not run) driving the valve from
         the current state on, as a run of the run loop with the compiled controller, that
         :meth:`go_on` takes on a few steps at a time; it keeps no samples and ends after
-        FOLLOW_HORIZON_S."""
-        return self.whole_run(FOLLOW_HORIZON_S, loop, store=False, serial=True)
+        FOLLOW_HORIZON_S. The payload stays as it is now, as for :meth:`step`: the parameters'
+        payload schedule is for whole runs."""
+        if not loop.fresh:
+            raise ValueError("the controller has run already: follow with a fresh PositionLoop")
+        hold = ((-math.inf,), (self._payload_share,)) if self._payload_share != 1.0 else ((), ())
+        return self.whole_run(FOLLOW_HORIZON_S, loop, store=False, serial=True, payload=hold)
 
     def go_on(self, run: SetRun, steps: int) -> None:
-        """``steps`` more steps of ``run`` (of :meth:`following`), as :meth:`step` takes them: a
-        step that fails is not taken, and SimulationError says why."""
+        """Up to ``steps`` more steps of ``run`` (of :meth:`following`; fewer where it reaches
+        its end), as :meth:`step` takes them: a step that fails is not taken, and
+        SimulationError says why."""
+        since = run.steps_taken(0)
         run.go_on(steps)
-        why = self.take(run)
+        why = self.take(run, since)
         if why is not None:
             raise SimulationError(why)
 
