@@ -9,10 +9,12 @@ another commit; publish jitter and clock lock at real time; where a tick's time 
    not as a difference between the two:
    - the node as fast as possible (real_time_factor 0, 10 steps and a publish of every
      per-tick message per tick: publishing every 10 ms of simulated time), in a process of
-     its own without DDS subscribers, simulated s per wall s: without and with its bag;
+     its own without DDS subscribers, simulated s per wall s: without and with its bag, and
+     with its position controller following a path (no bag);
    - the node at real-time factor 1 in its own process (100 Hz publishing, 1 ms RK4,
      compiled, recording as by default), driven by this process (it subscribes and sends
-     valve commands at 20 Hz): its CPU share of one core (from /proc).
+     valve commands at 20 Hz, or at 100 Hz, or one joint trajectory that its position
+     controller follows): its CPU share of one core (from /proc).
    Each figure is the median over the rounds, with the smallest and the largest, and the
    ratio of this checkout's median to the other's. Without ``--against``, this checkout alone.
 2. Real time in detail, interpreted and compiled: the CPU share, the period between
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
 import signal
@@ -53,11 +56,15 @@ sys.path.insert(0, str(ROOT / "test"))
 import conftest  # noqa: E402, F401
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
+from builtin_interfaces.msg import Duration  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from tables import commit, table, write_results  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 from boom_hydraulics.bags import messages  # noqa: E402
+from boom_hydraulics.model import config  # noqa: E402
+from boom_hydraulics.model.geometry import boom_angle_rad  # noqa: E402
 from boom_hydraulics.ros import recording as recording_module  # noqa: E402
 from boom_hydraulics.ros.node import BoomSimNode  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
@@ -67,10 +74,12 @@ BAGS = Path(tempfile.mkdtemp(prefix="bench_node_bags."))  # removed at the end
 ARGS = ["--ros-args", "-p", f"record_folder:={BAGS}"]
 
 #: The fast run in a checkout's own environment: only what every commit since the node's
-#: thin redesign has (BoomSimNode, drive.current, on_tick, _begin_recording, recording.finish).
+#: thin redesign has (BoomSimNode, drive.current, on_tick, _begin_recording, recording.finish,
+#: drive.follow and drive.reset).
 FAST_RUN = """
 import json, sys, time
 import rclpy
+from boom_hydraulics.model.setpoints import SetpointPath
 from boom_hydraulics.ros.node import BoomSimNode
 rclpy.init(args=["--ros-args", "-p", "record_folder:=" + sys.argv[1], "-p", "real_time_factor:=0.0"])
 node = BoomSimNode()
@@ -86,12 +95,20 @@ def rate(ticks):
 for _ in range(100):  # warm: caches, the first markers
     node.on_tick()
 fast = rate(500)
+node.drive.reset()  # from rest, the position controller lifts the boom 0.3 rad in 10 s and lowers it
+node.sim.reset(keep_time=True)
+t, angle = node.sim.t, float(node.sim.outputs()["alpha"])
+node.drive.follow(SetpointPath.of([t, t + 10.0, t + 20.0], [angle, angle + 0.3, angle]))
+following = rate(500)
+node.drive.reset()
+node.sim.reset(keep_time=True)
+node.drive.current = 0.3
 node.clock.restart()
 node._begin_recording()  # as start() does, without the loop thread
 recorded = rate(500)
 node.recording.finish()
 node.destroy()
-print(json.dumps({"fast": fast, "recorded": recorded}))
+print(json.dumps({"fast": fast, "recorded": recorded, "following": following}))
 """
 
 
@@ -114,9 +131,12 @@ class RealTime:
     clock_errors_ms: np.ndarray
 
 
-def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT, command_hz: float = 20.0) -> RealTime:
+def real_time_run(
+    seconds: float, jit: bool, checkout: Path = ROOT, command_hz: float = 20.0, follow: bool = False
+) -> RealTime:
     """The node of ``checkout`` at real-time factor 1 for ``seconds``, driven from here with
-    valve commands at ``command_hz``."""
+    valve commands at ``command_hz``, or with ``follow`` by its position controller following
+    one joint trajectory (the same slow lift and lower, as ~/joint_trajectory)."""
     proc = subprocess.Popen(
         [
             *with_env(checkout),
@@ -138,8 +158,12 @@ def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT, command_hz: 
     stamps: list[float] = []
     clock_errors: list[float] = []
 
+    moved: list[float] = []  # the valve commands that the controller gave
+
     def on_state(msg: DriveState) -> None:
         stamps.append(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)  # node's clock at publish
+        if follow and msg.valve_command != 0.0:
+            moved.append(msg.valve_command)
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -151,19 +175,24 @@ def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT, command_hz: 
     node.create_subscription(DriveState, "drive_state", on_state, qos)
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, qos)
     pub = node.create_publisher(ValveCommand, "valve_command", qos)
+    trajectories = node.create_publisher(JointTrajectory, "boom_sim/joint_trajectory", qos)
     while len(stamps) < 100:  # up and running for a second
         if proc.poll() is not None:
             raise RuntimeError(f"boom_sim of {checkout} ended with status {proc.returncode} before it published")
         rclpy.spin_once(node, timeout_sec=0.01)
     stamps.clear()
     clock_errors.clear()
+    if follow:
+        trajectories.publish(lift_and_lower(seconds + 5.0))
     cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
-    next_command = wall0
+    next_command = wall0 if not follow else math.inf
     while time.monotonic() - wall0 < seconds:
         if time.monotonic() >= next_command:  # a slow lift-and-lower sine keeps the drive moving
             pub.publish(ValveCommand(opening=0.6 * np.sin(2 * np.pi * 0.1 * (time.monotonic() - wall0))))
             next_command += 1.0 / command_hz
         rclpy.spin_once(node, timeout_sec=min(0.005, max(0.0, next_command - time.monotonic())))
+    if follow and not moved:
+        raise RuntimeError(f"boom_sim of {checkout} did not follow the joint trajectory")
     cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
     node.destroy_node()
     proc.send_signal(signal.SIGINT)
@@ -174,6 +203,20 @@ def real_time_run(seconds: float, jit: bool, checkout: Path = ROOT, command_hz: 
         proc.wait()
         raise RuntimeError(f"boom_sim of {checkout} did not stop on SIGINT within 60 s: killed") from None
     return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3)
+
+
+def lift_and_lower(seconds: float) -> JointTrajectory:
+    """A joint trajectory of boom_joint over ``seconds`` from now: up by 0.3 rad and down again,
+    as a cosine of period 10 s, a point every 0.5 s from the default configuration's angle."""
+    p = config.load(ROOT / CONFIG)
+    start = boom_angle_rad(p.initial_length_m, p.a_m, p.b_m, p.support_height_m)
+    points = []
+    for k in range(1, int(seconds / 0.5) + 1):
+        t = 0.5 * k
+        angle = start + 0.15 * (1.0 - math.cos(0.2 * math.pi * t))
+        at = Duration(sec=int(t), nanosec=round((t - int(t)) * 1e9))
+        points.append(JointTrajectoryPoint(positions=[angle], time_from_start=at))
+    return JointTrajectory(joint_names=["boom_joint"], points=points)
 
 
 def print_real_time(run: RealTime, seconds: float, jit: bool) -> None:
@@ -213,12 +256,14 @@ def side_by_side(checkouts: list[Path], rounds: int, seconds: float) -> dict[Pat
             rates = fast_run(checkout)
             cpu = real_time_run(seconds, True, checkout).cpu
             cpu_100 = real_time_run(seconds, True, checkout, command_hz=100.0).cpu
-            for key, value in (*rates.items(), ("cpu", cpu), ("cpu_100", cpu_100)):
+            cpu_follow = real_time_run(seconds, True, checkout, follow=True).cpu
+            for key, value in (*rates.items(), ("cpu", cpu), ("cpu_100", cpu_100), ("cpu_follow", cpu_follow)):
                 figures[checkout][key].append(value)
             print(
                 f"round {n + 1}/{rounds}, {commit(checkout)}: as fast as possible {rates['fast']:.0f}x "
-                f"({rates['recorded']:.0f}x recording), CPU at real time {cpu * 100:.1f} % "
-                f"({cpu_100 * 100:.1f} % with commands at 100 Hz)",
+                f"({rates['recorded']:.0f}x recording, {rates['following']:.0f}x following a path), "
+                f"CPU at real time {cpu * 100:.1f} % "
+                f"({cpu_100 * 100:.1f} % with commands at 100 Hz, {cpu_follow * 100:.1f} % following a trajectory)",
                 flush=True,
             )
     return figures
@@ -233,8 +278,10 @@ def _spread(values: list[float], scale: float, unit: str) -> str:
 ROWS = (  # key, what, scale, unit, target, met
     ("fast", "as fast as possible, publishing every 10 ms", 1.0, "x", ">= 100x", lambda v: v >= 100),
     ("recorded", "the same, recording its bag", 1.0, "x", "", None),
+    ("following", "the same, following a path (position controller)", 1.0, "x", "", None),
     ("cpu", "CPU share of one core at real time (100 Hz)", 100.0, " %", "<= 8 %", lambda v: v <= 8.0),
     ("cpu_100", "the same, commands at 100 Hz (not 20)", 100.0, " %", "", None),
+    ("cpu_follow", "the same, following a joint trajectory", 100.0, " %", "", None),
 )
 
 
