@@ -51,7 +51,7 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, str, float | None, float | None]] = {
     "jit": (
         True,
         "",
-        "Step with the numba-compiled model where numba is available (about 25 s to compile the first time, "
+        "Step with the numba-compiled model where numba is available (about 20 s to compile the first time, "
         "then loaded from the disk cache); false: interpreted",
         None,
         None,
