@@ -291,6 +291,28 @@ def _reset_while_paused(client) -> DriveState:
     return next(s for s in reversed(client.states) if s.supply_energy_j == 0.0)
 
 
+def test_a_second_ctrl_c_while_the_finished_node_shuts_down_changes_nothing(nodes, client, tmp_path):
+    """Ctrl-C, then Ctrl-C again once the bag's line is out (a double press): exit status 0 and
+    nothing more printed. Python's shutdown, half a second after that line, had put back the
+    default action of SIGINT, and the second press killed the process (status 130)."""
+    proc = nodes.start(f"record_folder:={tmp_path}", record=True)
+    assert client.spin_until(lambda: len(client.states) > 10)  # it runs and records
+    proc.send_signal(signal.SIGINT)
+    assert proc.stdout is not None
+    said = []
+    for line in proc.stdout:  # (ends when the process does: then the test fails below)
+        said.append(line)
+        if line.startswith("boom_sim: bag "):
+            break
+    time.sleep(0.1)  # (not a wait: the press lands in the shutdown's half second, which follows the line)
+    proc.send_signal(signal.SIGINT)  # while the finished node shuts down
+    said.append(proc.stdout.read())
+    proc.wait(timeout=30)
+    out = "".join(said)
+    assert proc.returncode == 0, out
+    assert "boom_sim: bag " in out and "Traceback" not in out, out
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_recording_holds_every_published_and_received_message(nodes, client, tmp_path, sig):
     from mcap.reader import make_reader

@@ -110,8 +110,20 @@ def main(args: list[str] | None = None) -> None:
     # cache callback while the node compiles showed "Exception ignored on calling ctypes callback
     # function" before the one line. The signal has shut the ROS context down all the same
     # (rclpy's handler, just after), and the start and the spin end on that.
-    with dropped_interrupts_unreported(lambda: True):
-        _run()
+    try:
+        with dropped_interrupts_unreported(lambda: True):
+            _run()
+    finally:
+        _ignore_signals()
+
+
+def _ignore_signals() -> None:
+    """The node is done (its bag finished, its line printed): a signal from here on changes
+    nothing. Python's shutdown puts back the default action of a signal that has a Python
+    handler, and a second Ctrl-C in its half second then killed the process (status 130, not
+    0); an ignored signal stays ignored."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
 
 
 def _run() -> None:
