@@ -210,14 +210,15 @@ def test_a_ctrl_c_that_a_finalizer_swallowed_still_stops_a_run_at_its_next_slice
     assert said == "test: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept\n"
 
 
-def test_llvmlite_objects_a_stop_left_half_closed_are_no_traceback_and_nothing_else_is_hidden(monkeypatch):
-    """A Ctrl-C (twice, in CI) that cut an llvmlite object's close() between its two steps left
-    it without its pointer; its finalizer then printed "Exception ignored ... AttributeError:
-    _as_parameter_" after the node's one line. Once a stop has come that is hidden; before a
+def test_llvmlite_objects_a_stop_left_half_made_are_no_traceback_and_nothing_else_is_hidden(monkeypatch):
+    """A Ctrl-C (twice, in CI) that cut an llvmlite object's close() or __init__ between two
+    statements left it without an attribute; its finalizer then printed "Exception ignored ...
+    AttributeError" after the node's one line. Once a stop has come that is hidden; before a
     stop, and any other finalizer's error, still reach the user."""
     import sys
 
     from llvmlite import binding as llvm
+    from llvmlite.binding.ffi import OutputString
 
     from boom_hydraulics.programs import dropped_interrupts_unreported
 
@@ -229,6 +230,9 @@ def test_llvmlite_objects_a_stop_left_half_closed_are_no_traceback_and_nothing_e
         del ref._as_parameter_  # where a signal's exception cut ObjectRef.detach short
         del ref  # its __del__ runs close() again
 
+    def half_made_then_collected() -> None:
+        OutputString.__new__(OutputString)  # an __init__ cut before it set _ptr; __del__ reads it
+
     class Failing:
         def __del__(self) -> None:
             raise AttributeError("'Failing' object has no attribute '_as_parameter_'")
@@ -238,10 +242,11 @@ def test_llvmlite_objects_a_stop_left_half_closed_are_no_traceback_and_nothing_e
         half_closed_then_collected()  # no stop yet: shown
         stopped = True
         half_closed_then_collected()  # after a stop: hidden
+        half_made_then_collected()  # hidden too
         Failing()  # the same error from our own code: shown
-    half_closed_then_collected()  # outside: shown
+    half_made_then_collected()  # outside: shown
     assert [(d.object.__qualname__.split(".")[-2:], d.exc_type) for d in seen] == [
         (["ObjectRef", "__del__"], AttributeError),
         (["Failing", "__del__"], AttributeError),
-        (["ObjectRef", "__del__"], AttributeError),
+        (["OutputString", "__del__"], AttributeError),
     ]

@@ -72,12 +72,12 @@ def dropped_interrupts_unreported(when: Callable[[], bool]) -> Iterator[None]:
     a ctypes callback ("Exception ignored in ..."), and a signal handler runs inside whatever
     code is running: loading or compiling the kernels disposes of many LLVM objects and calls
     llvmlite's cache callback. The same goes for llvmlite's finalizer failing on an object whose
-    closing such an exception cut in two (see :func:`_left_half_closed`)."""
+    making or closing such an exception cut in two (see :func:`_left_half_made`)."""
     hook = sys.unraisablehook
 
     def unraisable(dropped: Any) -> None:
         exc = getattr(dropped, "exc_value", None)
-        if not ((isinstance(exc, KeyboardInterrupt) or _left_half_closed(dropped)) and when()):
+        if not ((isinstance(exc, KeyboardInterrupt) or _left_half_made(dropped)) and when()):
             hook(dropped)
 
     sys.unraisablehook = unraisable
@@ -87,17 +87,19 @@ def dropped_interrupts_unreported(when: Callable[[], bool]) -> Iterator[None]:
         sys.unraisablehook = hook
 
 
-def _left_half_closed(dropped: Any) -> bool:
-    """Whether ``dropped`` is llvmlite's ``ObjectRef.__del__`` meeting an object whose earlier
-    ``close()`` an exception cut between ``del self._as_parameter_`` and ``self._closed = True``
-    (llvmlite 0.50): it deletes the attribute again and fails. Only an exception raised between
-    two statements, a signal's, does that; it showed as "Exception ignored in ObjectRef.__del__
-    ... AttributeError: _as_parameter_" after a node's start stopped by Ctrl-C twice."""
+def _left_half_made(dropped: Any) -> bool:
+    """Whether ``dropped`` is an llvmlite finalizer (``__del__``) missing an attribute of its
+    object: one whose ``__init__`` or ``close()`` an exception cut between two statements, as
+    only a signal's does (llvmlite 0.50). After a node's start stopped by Ctrl-C twice they
+    showed as "Exception ignored in ObjectRef.__del__ ... AttributeError: _as_parameter_" (a
+    close cut after ``del self._as_parameter_``) and "in OutputString.__del__ ...
+    AttributeError: _ptr" (an ``__init__`` cut before ``self._ptr = ...``)."""
     exc = getattr(dropped, "exc_value", None)
-    where = getattr(getattr(dropped, "object", None), "__module__", None) or ""
+    finalizer = getattr(dropped, "object", None)
+    where = getattr(finalizer, "__module__", None) or ""
     return (
         isinstance(exc, AttributeError)
-        and str(exc).endswith("attribute '_as_parameter_'")
+        and getattr(finalizer, "__name__", None) == "__del__"
         and where.startswith("llvmlite.")
     )
 
