@@ -46,7 +46,6 @@ class PositionLoop:
         self.state: ControlState = initial_control_state(0.0 if self.single else np.zeros(len(params)))
         self._t: float | None = None
         self._u: Any = 0.0
-        self.setpoint: tuple[Any, Any] = (0.0, 0.0)  # the last (angle, rate) asked for
 
     @classmethod
     def of_parameters(cls, params: Sequence[Parameters]) -> PositionLoop:
@@ -82,7 +81,6 @@ class PositionLoop:
         if t_s == self._t:
             return self._u
         ref, rate = self.path.at(t_s) if self.single else self.path.evaluate(t_s)
-        self.setpoint = (ref, rate)
         self._u, self.state = position_command(
             self.gains, self.state, y[0], self.constants, ref, rate, self.dt_s, self.xp
         )

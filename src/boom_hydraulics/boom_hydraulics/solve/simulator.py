@@ -268,7 +268,8 @@ class Simulator:
         self._moved(run.state[0].tolist(), steps - since)
         # the payload schedule leaves its share of the payload on the hook, and H - W as it counts H
         share = float(status[kernel.PAYLOAD])
-        self._hold(self.model.with_payload(self._full, share), share)
+        if share != self._payload_share:  # (the controller's run, taken at every tick, keeps it)
+            self._hold(self.model.with_payload(self._full, share), share)
         self._energy_base = run.energy_base(0) + float(status[kernel.BASE_SHIFT])
         if outcome != OK:
             self.u = float(status[kernel.NEXT_U])  # the command of the step that failed
