@@ -175,27 +175,31 @@ def scipy_comparison() -> dict[str, float]:
 
 
 def batch_throughput() -> dict[str, float]:
-    """Print and return M state-steps/s of the batch paths at N = 10 000 (and smaller N; the
-    interpreted run loop, one set after the other, at N = 1 and 10)."""
+    """Print and return M state-steps/s of the batch paths at N = 10 000 (and smaller N): the
+    compiled kernel over blocks of sets in lock-step on the vector units (solve/lanes.py), the
+    same with one set per thread (the kernel before the blocks), each on all cores, and the
+    interpreted run loop, one set after the other, at N = 1 and 10."""
     rows, rates = [], {}
-    paths = [("interpreted", False)] + ([("compiled kernel", True)] if accelerate.available() else [])
-    for label, compiled in paths:
+    paths = [("interpreted", False, True)]
+    if accelerate.available():
+        paths += [("compiled kernel", True, True), ("compiled, one set per thread", True, False)]
+    for label, compiled, lock_step in paths:
         for n in (1, 100, 10_000) if compiled else (1, 10):
             params = [with_updates(PHYSICAL, piston_diameter_m=0.04 + 0.04 * i / n) for i in range(n)]
             steps = 1000 if compiled else 200
-            if compiled:
-                run_sets(params[:2], 0.01, OPEN)  # load the compiled kernel outside the timing
+            if compiled:  # load the compiled kernel outside the timing
+                run_sets(params[: max(2, min(n, 8))], 0.01, OPEN, lock_step=lock_step)
 
-            def run(p=params, s=steps, jit=compiled):
-                run_sets(p, s * 1e-3, OPEN, jit=jit)
+            def run(p=params, s=steps, jit=compiled, lock_step=lock_step):
+                run_sets(p, s * 1e-3, OPEN, jit=jit, lock_step=lock_step)
 
             seconds = best_of(run, 2)
             rate = n * steps / seconds / 1e6
             rows.append([label, str(n), str(steps), f"{seconds:.2f}", f"{rate:.3f}"])
             rates[label] = rate
     table(
-        "Batched physical RK4 over N parameter sets (the run loop interpreted; compiled kernel, all cores; "
-        "streaming metrics)",
+        "Batched physical RK4 over N parameter sets (the run loop interpreted; compiled kernel, all cores, "
+        "from 4 sets on in blocks of 4 in lock-step; streaming metrics)",
         ["path", "N", "steps", "wall s", "M state-steps/s"],
         rows,
     )

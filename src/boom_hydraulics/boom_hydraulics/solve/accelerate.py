@@ -16,7 +16,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import jit
-from . import paper_kernel, physical_kernel
+from . import lanes, paper_kernel, physical_kernel
 
 #: The kernel module of each model.
 KERNELS: dict[str, types.ModuleType] = {"physical": physical_kernel, "paper": paper_kernel}
@@ -48,12 +48,17 @@ def observer(mode: str, method: str) -> Callable[..., tuple] | None:
     return KERNELS[mode].outputs_of
 
 
-def batch_runner(mode: str, method: str) -> Callable[..., None] | None:
+def batch_runner(mode: str, method: str, sets: int = 1) -> Callable[..., None] | None:
     """The compiled parallel run kernel (kernel.batch_set over the sets of a batch) of one
-    model and method, or None: ``run(states, status, metrics, rows, taken, first, last,
-    *kernel.flat(spec))`` (see kernel.batch_set and batch.SetRun)."""
+    model and method for ``sets`` parameter sets, or None: ``run(states, status, metrics, rows,
+    taken, first, last, *kernel.flat(spec))`` (see kernel.batch_set and batch.SetRun). From
+    lanes.WIDTH sets on, the kernel that runs them in blocks in lock-step on the vector units,
+    where the model has one (the same results, to the bit); fewer sets, one per thread."""
     if not available():
         return None
+    blocks = getattr(KERNELS[mode], "BLOCKS", {})
+    if sets >= lanes.WIDTH and method in blocks:
+        return blocks[method]
     return KERNELS[mode].BATCHES.get(method)
 
 

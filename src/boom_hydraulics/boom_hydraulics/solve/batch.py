@@ -278,13 +278,16 @@ class SetRun:
     runtime's threads would spin between calls (OpenMP's took three quarters of a core from a
     node that followed a path). ``payload``: the payload schedule (times s, shares on the
     hook; see kernel.payload_share), None: the parameters' (:func:`payload_schedule`).
+    ``lock_step``: compiled, from lanes.WIDTH sets on, the sets run in blocks in lock-step on
+    the vector units (accelerate.batch_runner; the same results, to the bit); False: one set per
+    thread (the benchmark's reference).
     """
 
     def __init__(
         self, params: Sequence[Parameters], duration_s: float, command: Callable, every: int = 1, *,
         lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG, store: bool = False, slice_rows: int | None = None,
         measure: bool = True, jit: bool | None = None, start: Start | None = None, serial: bool = False,
-        payload: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
+        payload: tuple[tuple[float, ...], tuple[float, ...]] | None = None, lock_step: bool = True,
     ) -> None:  # fmt: skip
         p0 = params[0]
         model = MODELS[p0.mode]
@@ -324,8 +327,12 @@ class SetRun:
         )  # fmt: skip
         if serial and self.n_sets != 1:
             raise ValueError("a serial run has one parameter set")
-        runner = accelerate.set_runner if serial else accelerate.batch_runner
-        self._runner = runner(p0.mode, p0.method) if compiled and encoding is not None else None
+        if not compiled or encoding is None:
+            self._runner = None
+        elif serial:
+            self._runner = accelerate.set_runner(p0.mode, p0.method)
+        else:
+            self._runner = accelerate.batch_runner(p0.mode, p0.method, self.n_sets if lock_step else 1)
         self._parallel = self._runner is not None and not serial
         if self._runner is not None:
             self._spec, self._flat = spec, kernel.flat(spec)
@@ -362,9 +369,10 @@ class SetRun:
         store = self.rows.shape[1] > 0
         for k, (guard, functions, c) in enumerate(self._sets):
             y = self.state[k].tolist()
-            self.taken[k] = kernel.run_set(
-                *functions, store, c, y, self._spec, k, self.state[k], self.status[k], self.metrics[k], self.rows[k],
-                first, last,
+            one = slice(k, k + 1)
+            kernel.run_set(
+                *functions, store, c, y, self._spec, k, self.state[one], self.status[one], self.metrics[one],
+                self.rows[one], self.taken[one], first, last,
             )  # fmt: skip
             self.errors[k] = guard.error
 
@@ -463,6 +471,7 @@ def run_sets(
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     store: bool = False,
     jit: bool | None = None,
+    lock_step: bool = True,
 ) -> SetRuns:
     """Run every parameter set through the run loop (compiled in parallel where it can be, see
     the module): the metrics of :mod:`streaming` (over the samples at the start, every
@@ -470,9 +479,12 @@ def run_sets(
 
     Each set runs as its single run would (:meth:`simulation.Simulator.run`: the same steps and
     substeps, commands and samples); a set that fails stops where it failed. A run in the
-    compiled kernel goes in slices of about SLICE_S (:class:`SetRun`): Ctrl-C stops it within a second.
+    compiled kernel goes in slices of about SLICE_S (:class:`SetRun`): Ctrl-C stops it within a
+    second. ``lock_step``: see :class:`SetRun`.
     """
     check_batch(params)
     if every < 1:
         raise ConfigError(f"every must be >= 1, got {every}")
-    return SetRun(params, duration_s, command, every, lift_angle_deg=lift_angle_deg, store=store, jit=jit).table()
+    run = SetRun(params, duration_s, command, every, lift_angle_deg=lift_angle_deg, store=store, jit=jit,
+                 lock_step=lock_step)  # fmt: skip
+    return run.table()

@@ -28,6 +28,7 @@ import numpy as np
 from .. import jit
 from ..errors import SimulationError
 from ..jit import compiled_as, jitable
+from . import lanes
 
 Derivative = Callable[..., list]
 
@@ -54,27 +55,40 @@ def rk4_combination(y: Sequence, h6: float, k1: Sequence, k2: Sequence, k3: Sequ
 
 
 def _component_sums(combine: Callable[..., Any], arity: int) -> Any:
-    """A numba intrinsic ``f(y, h, k_1 .. k_arity)`` that builds a state tuple of floats whose
-    i-th component is ``combine(builder, y_i, h, k_1i, ...)``: straight-line code, one sum per
+    """A numba intrinsic ``f(y, h, k_1 .. k_arity)`` that builds a state tuple whose i-th
+    component is ``combine(builder, y_i, h, k_1i, ...)``: straight-line code, one sum per
     component, at any state size (a loop of tuple_setitem, which LLVM leaves rolled at 11
-    components, keeps the tuple in memory and ran 5 times slower). Without numba, None."""
+    components, keeps the tuple in memory and ran 5 times slower). The components are floats,
+    or :mod:`lanes` (a block of sets in lock-step) where any operand is: then each sum is one
+    vector sum. Without numba, None."""
     if jit.numba is None:
         return None
     from numba.core import types
     from numba.extending import intrinsic
 
-    def floats(context: Any, builder: Any, of: Any, value: Any) -> list:
-        return [context.cast(builder, builder.extract_value(value, i), of[i], types.float64) for i in range(len(of))]
+    def component(of: Any) -> Any:
+        """Lanes where ``of`` (the operands' types) holds any, else float64."""
+        return next((t for t in of if isinstance(t, lanes.Lanes)), types.float64)
+
+    def values(context: Any, builder: Any, of: Any, value: Any, out: Any) -> list:
+        elements = [builder.extract_value(value, i) for i in range(len(of))]
+        return [as_type(context, builder, e, t, out) for e, t in zip(elements, of)]
+
+    def as_type(context: Any, builder: Any, value: Any, of: Any, out: Any) -> Any:
+        if out == types.float64:
+            return context.cast(builder, value, of, types.float64)
+        return lanes.spread_value(context, builder, value, of, out.count)
 
     def typed(y: Any, h: Any, ks: tuple) -> Any:
         if any(len(k) != len(y) for k in ks):
             return None  # no such sum: numba says so where it is called
-        out = types.UniTuple(types.float64, len(y))
+        item = component([*y.types, h, *(t for k in ks for t in k.types)])
+        out = types.UniTuple(item, len(y))
 
         def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-            hv = context.cast(builder, args[1], h, types.float64)
-            ys = floats(context, builder, y, args[0])
-            columns = zip(ys, *(floats(context, builder, k, a) for k, a in zip(ks, args[2:])))
+            hv = as_type(context, builder, args[1], h, item)
+            ys = values(context, builder, y, args[0], item)
+            columns = zip(ys, *(values(context, builder, k, a, item) for k, a in zip(ks, args[2:])))
             value = context.get_constant_undef(out)
             for i, (yi, *ki) in enumerate(columns):
                 value = builder.insert_value(value, combine(builder, yi, hv, *ki), i)
@@ -87,13 +101,19 @@ def _component_sums(combine: Callable[..., Any], arity: int) -> Any:
     return intrinsic(lambda typingctx, y, h, k1, k2, k3, k4: typed(y, h, (k1, k2, k3, k4)))
 
 
+def _twice(builder: Any, x: Any) -> Any:
+    """2 x (a float or a vector of them)."""
+    from llvmlite import ir
+
+    kind = x.type
+    return builder.fmul(ir.Constant(kind, [2.0] * kind.count if isinstance(kind, ir.VectorType) else 2.0), x)
+
+
 #: y + h k, per component (:func:`stage`'s sums, in its order).
 _stage_sums = _component_sums(lambda b, y, h, k: b.fadd(y, b.fmul(h, k)), 1)
 #: y + h6 (k1 + 2 (k2 + k3) + k4), per component (:func:`rk4_combination`'s sums, in its order).
 _rk4_sums = _component_sums(
-    lambda b, y, h6, k1, k2, k3, k4: b.fadd(
-        y, b.fmul(h6, b.fadd(b.fadd(k1, b.fmul(k1.type(2.0), b.fadd(k2, k3))), k4))
-    ),
+    lambda b, y, h6, k1, k2, k3, k4: b.fadd(y, b.fmul(h6, b.fadd(b.fadd(k1, _twice(b, b.fadd(k2, k3))), k4))),
     4,
 )
 

@@ -17,6 +17,9 @@ method's functions as arguments. Compiled, each model's kernel module (:mod:`phy
 :mod:`paper_kernel`) runs :func:`batch_set` over the sets of a batch in parallel (``prange``),
 or over one set in the calling thread (physical_kernel.set_rk4: the node's position
 controller, a tick at a time), with those functions by name, so that a run costs its steps and no Python per step.
+The physical model's kernel also runs blocks of sets in lock-step on the vector units
+(physical_kernel.blocks_rk4): the same loop, with the block's state and constants in
+:mod:`lanes` and each set's bookkeeping apart, each set's results those of its run alone.
 Interpreted, :mod:`batch` calls the same :func:`run_set` with the same functions uncompiled
 (or with the compiled stepping under a Python command): whole runs of the Simulator,
 :func:`simulation.simulate`, the batch and the sweep all run through it.
@@ -32,9 +35,9 @@ from ..jit import jitable
 from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
 from ..model.setpoints import last_at_or_before, setpoint_at
+from . import lanes
 from .outcomes import OK, OUT_OF_GEOMETRY, TOO_STIFF
 from .profiles import ANGLE, profile_value
-from .stepping import advance
 from .streaming import add_sample
 
 
@@ -154,85 +157,175 @@ def run_set(
     status: Any,
     metrics: Any,
     rows: Any,
+    taken: Any,
     first: int,
     last: int,
-) -> int:
-    """Run set ``k`` of ``spec`` with ``step_once`` (:func:`stepping.advance`, or interpreted a
-    function of its arguments that steps otherwise) taking the method's ``step`` on the model's
-    ``derivative``, ``stiffness_rate`` and ``energy``; at each sample the model's ``samples``
-    (the outputs the metrics take) go into the metrics, and with ``store`` (a constant in each
-    call of :func:`batch_set`) all its ``outputs`` (a tuple of floats in the order of
-    OUTPUT_NAMES) into ``rows``: a run that keeps no table computes no other output (which the
-    compiler did not leave out by itself: the batch kernel was 20 % slower with all of them);
-    ``controller``: see command_value.
+) -> None:
+    """Run the sets ``k`` ... ``k`` + len(state) - 1 of ``spec`` (one set, or a block of sets in
+    lock-step, whose constants ``c`` and state ``y`` hold a value per set: :mod:`lanes`) with
+    ``step_once`` (:func:`stepping.advance`; for a block :func:`stepping.advance_lanes`;
+    interpreted, a function of its arguments that steps otherwise) taking the method's ``step``
+    on the model's ``derivative``, ``stiffness_rate`` and ``energy``; at each sample the
+    model's ``samples`` (the outputs the metrics take) go into the metrics, and with ``store``
+    (a constant in each call of :func:`batch_set`) all its ``outputs`` (a tuple of floats in the
+    order of OUTPUT_NAMES) into ``rows``: a run that keeps no table computes no other output
+    (which the compiler did not leave out by itself: the batch kernel was 20 % slower with all
+    of them); ``controller``: see command_value.
 
-    The set has constants ``c`` and runs for ``spec.n_steps`` steps from ``state`` (``y``: the
-    same as the kernel keeps it, a tuple or a list), taking a sample at the start, every
-    ``spec.every`` steps and at the end, until a failure. One call does the loop's passes
-    ``first`` to ``last`` - 1 of 0 ... n_steps (pass 0 the start, pass i the i-th step): a run
-    is one call over (0, n_steps + 1) or several over consecutive slices, with the same result
-    bit for bit, so that a caller can return to Python between slices (Ctrl-C, progress,
-    streaming the rows out). ``state`` holds the state after the last pass done (the last good
-    one), ``status`` the rest of what a run carries (the slots above). Each sample goes into the
-    streaming ``metrics`` (with ``spec.measure``) and, with ``store``, into ``rows`` from row 0
-    at each call. Returns the number of samples this call took.
+    Each set runs for ``spec.n_steps`` steps from its state (``y``: as the kernel keeps it, a
+    tuple or a list), taking a sample at the start, every ``spec.every`` steps and at the end,
+    until a failure, which ends that set's run (a block goes on with the others, each set's
+    results what it would be alone). One call does the loop's passes ``first`` to ``last`` - 1
+    of 0 ... n_steps (pass 0 the start, pass i the i-th step): a run is one call over
+    (0, n_steps + 1) or several over consecutive slices, with the same result bit for bit, so
+    that a caller can return to Python between slices (Ctrl-C, progress, streaming the rows
+    out). Per set, one row each: ``state`` holds the state after the last pass done (the last
+    good one), ``status`` the rest of what a run carries (the slots above); each sample goes
+    into the streaming ``metrics`` (with ``spec.measure``) and, with ``store``, into ``rows``
+    from row 0 at each call; ``taken`` gets the number of samples this call took.
     """
+    sets = len(state)
     dt = spec.dt_s
     half = 0.5 * dt
-    control = status[INTEGRAL : HOLDING + 1]
     t = spec.t0_s + spec.k0 * dt
     full = c  # the constants with the whole payload; c: with the share on the hook now
     changes = len(spec.payload_times_s) > 0
+    controls = [status[j, INTEGRAL : HOLDING + 1] for j in range(sets)]  # each set's controller state
+    u = lanes.spread(0.0, y[0])
     if first == 0:
-        status[FAILED_AT], status[OUTCOME], status[MOST] = math.nan, OK, spec.min_substeps
-        status[APPLIED_U], status[TAKEN], status[FAILED_STEP] = math.nan, 0.0, -1.0
-        control[0], control[1] = 0.0, 0.0
-        status[PAYLOAD], status[BASE_SHIFT] = 1.0, 0.0
+        for j in range(sets):
+            _begin(status[j], spec.min_substeps)
         if changes:  # the share on the hook at the start
             c = _payload_change(with_payload, energy, full, c, y, spec, status, t)
-        status[NEXT_U] = command_value(controller, spec.command, k, control, c, y, dt, t + half)
-    elif status[OUTCOME] != OK:
-        return 0
-    elif changes:
-        c = with_payload(full, status[PAYLOAD])
-    u = float(status[NEXT_U])
-    base = int(status[TAKEN])
-    taken = base
-    for i in range(first, last):
+        u = _commands(controller, spec.command, k, lanes.spread(1.0, y[0]), controls, c, y, u, dt, t + half)
+    else:
+        for j in range(sets):
+            u = lanes.with_lane(u, j, status[j, NEXT_U])
+        if changes:
+            c = with_payload(full, status[0, PAYLOAD])
+    running = _running(status, y)
+    for j in range(sets):
+        taken[j] = 0
+    energy_base = _energy_bases(spec, k, status, y[0])
+    triangles = [(lanes.lane(c.a, j), lanes.lane(c.b, j)) for j in range(sets)]  # eq. 1's bounds of each set
+    n = 0  # the samples each set that runs on took in this call
+    for i in range(first, last if lanes.most(running) != 0.0 else first):
         if i > 0:
             t_start = spec.t0_s + (spec.k0 + i - 1) * dt
-            if changes and payload_share(spec.payload_times_s, spec.payload_shares, t_start) != status[PAYLOAD]:
+            if changes and payload_share(spec.payload_times_s, spec.payload_shares, t_start) != status[0, PAYLOAD]:
                 c = _payload_change(with_payload, energy, full, c, y, spec, status, t_start)
+                energy_base = _energy_bases(spec, k, status, y[0])
             _, outcome, most, y_new = step_once(
                 step, derivative, stiffness_rate, energy, t_start, y, c, u, dt, spec.min_substeps, spec.limit,
-                spec.max_substeps, 1, spec.energy_index, spec.energy_base[k] + status[BASE_SHIFT],
+                spec.max_substeps, 1, spec.energy_index, energy_base,
             )  # fmt: skip
-            if outcome == OK and not within_triangle(y_new[0], c.a, c.b):
-                outcome = OUT_OF_GEOMETRY  # the model cannot go on
-            if outcome != OK:
-                status[FAILED_AT] = t_start if outcome == TOO_STIFF else t_start + dt
-                status[OUTCOME] = outcome
-                status[MOST] = most if outcome == TOO_STIFF else status[MOST]
-                status[FAILED_STEP] = i - 1
+            for j in range(sets):
+                if lanes.lane(running, j) != 0.0 and _stepped(
+                    status, j, int(lanes.lane(outcome, j)), lanes.lane(most, j), lanes.lane(u, j),
+                    lanes.lane(y_new[0], j), triangles[j], t_start, dt, i,
+                ):  # fmt: skip
+                    # its run ends: its state the last good one, its next command the failed step's
+                    running = lanes.with_lane(running, j, 0.0)
+                    _keep(state[j], lanes.lane(y, j))
+                    status[j, NEXT_U] = lanes.lane(u, j)
+                    status[j, TAKEN] += n
+                    taken[j] = n
+            if lanes.most(running) == 0.0:
                 break
-            status[MOST] = max(status[MOST], most)
-            status[APPLIED_U] = u
-            y = y_new
+            y = lanes.choose(running, y_new, y)
             t = spec.t0_s + (spec.k0 + i) * dt
-            u = command_value(controller, spec.command, k, control, c, y, dt, t + half)
+            u = _commands(controller, spec.command, k, running, controls, c, y, u, dt, t + half)
         if i % spec.every == 0 or i == spec.n_steps:
             if spec.measure:  # the model's samples alone: the outputs they take, not all of them
-                add_sample(metrics, spec.settings[k], *samples(t, y, c, u))
+                taken_samples = samples(t, y, c, u)
+                for j in range(sets):
+                    if lanes.lane(running, j) != 0.0:
+                        add_sample(metrics[j], spec.settings[k + j], *lanes.lane(taken_samples, j))
             if store:
                 o = outputs(t, y, c, u)
-                for j in range(len(o)):
-                    rows[taken - base, j] = o[j]
-            taken += 1
-    for j in range(len(state)):
-        state[j] = y[j]
-    status[NEXT_U] = u
-    status[TAKEN] = taken
-    return taken - base
+                for j in range(sets):
+                    if lanes.lane(running, j) != 0.0:
+                        _keep(rows[j, n], lanes.lane(o, j))
+            n += 1
+    for j in range(sets):
+        if lanes.lane(running, j) != 0.0:
+            _keep(state[j], lanes.lane(y, j))
+            status[j, NEXT_U] = lanes.lane(u, j)
+            status[j, TAKEN] += n
+            taken[j] = n
+
+
+@jitable
+def _begin(status: Any, min_substeps: int) -> None:
+    """A set's status at the start of its run."""
+    status[FAILED_AT], status[OUTCOME], status[MOST] = math.nan, OK, min_substeps
+    status[APPLIED_U], status[TAKEN], status[FAILED_STEP] = math.nan, 0.0, -1.0
+    status[INTEGRAL], status[HOLDING] = 0.0, 0.0
+    status[PAYLOAD], status[BASE_SHIFT] = 1.0, 0.0
+
+
+@jitable
+def _running(status: Any, y: Any) -> Any:
+    """1.0 for each set (lane of ``y``) that runs on, 0.0 for one whose run has ended."""
+    running = lanes.spread(0.0, y[0])
+    for j in range(len(status)):
+        running = lanes.with_lane(running, j, 1.0 * (status[j, OUTCOME] == OK))
+    return running
+
+
+@jitable
+def _stepped(
+    status: Any, j: int, outcome: int, most: float, u: float, q1: float, triangle: tuple, t_start: float,
+    dt: float, i: int,
+) -> bool:  # fmt: skip
+    """Set ``j``'s step from ``t_start`` with command ``u`` gave ``outcome`` (stepping's),
+    needing ``most`` substeps and ending at cylinder length ``q1``: note it in its row of
+    ``status``; True where it failed (the rod out of the geometry of eq. 1, the triangle of
+    its a and b, too: the model cannot go on), which ends the set's run with the state it had
+    before."""
+    if outcome == OK and not within_triangle(q1, *triangle):
+        outcome = OUT_OF_GEOMETRY
+    if outcome != OK:
+        status[j, FAILED_AT] = t_start if outcome == TOO_STIFF else t_start + dt
+        status[j, OUTCOME] = outcome
+        status[j, MOST] = most if outcome == TOO_STIFF else status[j, MOST]
+        status[j, FAILED_STEP] = i - 1
+        return True
+    status[j, MOST] = max(status[j, MOST], most)
+    status[j, APPLIED_U] = u
+    return False
+
+
+@jitable
+def _energy_bases(spec: RunSpec, k: int, status: Any, template: Any) -> Any:
+    """The value of H - W that the energy balance of each set (``k`` ...) keeps now: its
+    start's, moved by the payload's changes so far; in ``template``'s lanes."""
+    bases = lanes.spread(0.0, template)
+    for j in range(len(status)):
+        bases = lanes.with_lane(bases, j, spec.energy_base[k + j] + status[j, BASE_SHIFT])
+    return bases
+
+
+@jitable
+def _keep(row: Any, y: Any) -> None:
+    """A set's state ``y`` into its ``row``."""
+    for m in range(len(row)):
+        row[m] = y[m]
+
+
+@jitable
+def _commands(
+    controller: Callable[..., float], command: Command, k: int, running: Any, controls: Any, c: Any, y: Any,
+    u: Any, dt_s: float, t_s: float,
+) -> Any:  # fmt: skip
+    """The valve command of each set (sets ``k`` ...) that runs on (``running``), for the step
+    whose middle is ``t_s`` (:func:`command_value`, with the set's controller state in
+    ``controls``), in ``u``'s lanes (the others keep theirs)."""
+    for j in range(len(controls)):
+        if lanes.lane(running, j) != 0.0:
+            c_j, y_j = lanes.lane(c, j), lanes.lane(y, j)
+            u = lanes.with_lane(u, j, command_value(controller, command, k + j, controls[j], c_j, y_j, dt_s, t_s))
+    return u
 
 
 @jitable
@@ -240,13 +333,15 @@ def _payload_change(
     with_payload: Callable[..., Any], energy: Callable[..., float], full: Any, c: Any, y: Any, spec: RunSpec,
     status: Any, t_s: float,
 ) -> Any:  # fmt: skip
-    """The payload's share on the hook becomes the schedule's at ``t_s`` (status[PAYLOAD]); the
+    """The payload's share on the hook becomes the schedule's at ``t_s`` (status[:, PAYLOAD]); the
     constants with it. The payload put down (or picked up) takes its potential and kinetic energy
-    with it: the energy balance's H - W moves by H's jump at the state ``y``."""
-    status[PAYLOAD] = payload_share(spec.payload_times_s, spec.payload_shares, t_s)
-    changed = with_payload(full, status[PAYLOAD])
-    if spec.energy_index >= 0:
-        status[BASE_SHIFT] += energy(y, changed) - energy(y, c)
+    with it: the energy balance's H - W of each set moves by H's jump at its state ``y``."""
+    share = payload_share(spec.payload_times_s, spec.payload_shares, t_s)
+    changed = with_payload(full, share)
+    jump = energy(y, changed) - energy(y, c) if spec.energy_index >= 0 else lanes.spread(0.0, y[0])
+    for j in range(len(status)):
+        status[j, PAYLOAD] = share
+        status[j, BASE_SHIFT] += lanes.lane(jump, j)
     return changed
 
 
@@ -268,6 +363,7 @@ def spec_of(fields: tuple) -> RunSpec:
 
 @jitable
 def batch_set(
+    step_once: Callable[..., Any],
     step: Callable[..., Any],
     derivative: Callable[..., Any],
     stiffness_rate: Callable[..., float],
@@ -278,7 +374,8 @@ def batch_set(
     with_payload: Callable[..., Any],
     constants_of: Callable[..., Any],
     state_of: Callable[..., Any],
-    k: int,
+    template: Any,
+    block: int,
     states: Any,
     status: Any,
     metrics: Any,
@@ -288,17 +385,26 @@ def batch_set(
     last: int,
     *spec_fields: Any,
 ) -> None:
-    """:func:`run_set` of set ``k`` of a batch over its passes ``first`` ... ``last`` - 1, with
-    the stepping loop :func:`stepping.advance` and the run's spec from its flat fields
-    (:func:`flat`): the model's constants from the row ``spec.constants[k]`` (``constants_of``),
-    its state from ``states[k]`` (``state_of``, as the step keeps it); ``status``, ``metrics``,
-    ``rows`` (its rows of this slice; none: no rows kept) and ``taken`` (its samples in this
-    slice) hold one entry per set."""
+    """:func:`run_set` of block ``block`` of a batch: as many sets as ``template`` holds (a float:
+    one, set ``block``; Lanes: a block of lanes.WIDTH in lock-step, sets WIDTH x ``block`` ...)
+    over its passes ``first`` ... ``last`` - 1, with ``step_once`` (stepping.advance, or advance_lanes for
+    a block) and the run's spec from its flat fields (:func:`flat`): the model's constants from
+    the rows ``spec.constants[k]`` (``constants_of``), the state from ``states[k]``
+    (``state_of``, as the step keeps it). A block past the last set fills its lanes with the
+    first set's, which run along unseen. ``status``, ``metrics``, ``rows`` (its rows of this
+    slice; none: no rows kept) and ``taken`` (its samples in this slice) hold one entry per set."""
     spec = spec_of(spec_fields)
-    c = constants_of(spec.constants[k])
-    y = state_of(states[k])
-    f = (step, derivative, stiffness_rate, energy, outputs, samples, controller, with_payload)
+    count = lanes.width(template)
+    k = count * block
+    end = min(k + count, len(states))
+    c = lanes.spread(constants_of(spec.constants[k]), template)
+    y = lanes.spread(state_of(states[k]), template)
+    for j in range(1, end - k):
+        c = lanes.with_lane(c, j, constants_of(spec.constants[k + j]))
+        y = lanes.with_lane(y, j, state_of(states[k + j]))
+    f = (step_once, step, derivative, stiffness_rate, energy, outputs, samples, controller, with_payload)
+    sets = (states[k:end], status[k:end], metrics[k:end], rows[k:end], taken[k:end], first, last)
     if rows.shape[1] > 0:  # each call with its own constant store
-        taken[k] = run_set(advance, *f, True, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)
+        run_set(*f, True, c, y, spec, k, *sets)
     else:
-        taken[k] = run_set(advance, *f, False, c, y, spec, k, states[k], status[k], metrics[k], rows[k], first, last)
+        run_set(*f, False, c, y, spec, k, *sets)

@@ -20,14 +20,14 @@ from .. import jit
 from ..jit import jitable, kernel, prange
 from ..model import control, end_stops, friction, geometry, hydraulics, mechanics, outputs, setpoints
 from ..model import paper as model
-from . import integrators, profiles, stepping, streaming
+from . import integrators, lanes, profiles, stepping, streaming
 from . import kernel as run
 from .integrators import euler_step, rk4_step, ros2_step
 
 #: Every source the kernels compile: a change to any of them gives a fresh cache.
 SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
-    *jit.module_sources(model, integrators, stepping, profiles, streaming, run),
+    *jit.module_sources(model, integrators, lanes, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
 
@@ -105,7 +105,7 @@ def batch_set(step: Any, k: int, arguments: tuple) -> None:
     """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
     no controller (the paper valve only lifts)."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.no_controller)
-    run.batch_set(*f, model.with_payload, constants_of, state_of, k, *arguments)
+    run.batch_set(stepping.advance, *f, model.with_payload, constants_of, state_of, 0.0, k, *arguments)
 
 
 @kernel(SOURCES, parallel=True)

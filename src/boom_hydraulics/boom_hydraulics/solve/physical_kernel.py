@@ -36,7 +36,7 @@ from ..model import (
 from ..model import physical as model
 from ..model.drives import fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from ..model.drives.constants import Supply
-from . import integrators, profiles, stepping, streaming
+from . import integrators, lanes, profiles, stepping, streaming
 from . import kernel as run
 from .integrators import euler_step, rk4_step, ros2_step
 
@@ -45,7 +45,7 @@ SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
     *jit.module_sources(pump, electric_motor, battery, ledger, sys.modules[Supply.__module__]),
     *jit.module_sources(pressure_compensated, fixed_pump, load_sensing, pump_controlled),
-    *jit.module_sources(model, integrators, stepping, profiles, streaming, run),
+    *jit.module_sources(model, integrators, lanes, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
 
@@ -166,11 +166,12 @@ def outputs_of(t: float, y0: Any, crow: Any, u: float) -> tuple:
 
 
 @jitable
-def batch_set(step: Any, k: int, arguments: tuple) -> None:
-    """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
-    the position controller."""
+def batch_set(step_once: Any, step: Any, template: Any, block: int, arguments: tuple) -> None:
+    """kernel.batch_set of block ``block`` of as many sets as ``template`` holds (a float: one;
+    Lanes: a block in lock-step, with ``step_once`` stepping.advance_lanes) with ``step`` and
+    this model's functions by name; the position controller."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.controller_value)
-    run.batch_set(*f, model.with_payload, constants_of, state_of, k, *arguments)
+    run.batch_set(step_once, *f, model.with_payload, constants_of, state_of, template, block, *arguments)
 
 
 @kernel(SOURCES, parallel=True)
@@ -178,30 +179,48 @@ def batch_euler(*arguments: Any) -> None:
     """:func:`batch_set` with explicit Euler over every set of a batch, in parallel
     (``arguments``: see batch.run_sets)."""
     for k in prange(arguments[0].shape[0]):
-        batch_set(euler_step, k, arguments)
+        batch_set(stepping.advance, euler_step, 0.0, k, arguments)
 
 
 @kernel(SOURCES, parallel=True)
 def batch_rk4(*arguments: Any) -> None:
     """:func:`batch_set` with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
     for k in prange(arguments[0].shape[0]):
-        batch_set(rk4_step, k, arguments)
+        batch_set(stepping.advance, rk4_step, 0.0, k, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def blocks_euler(*arguments: Any) -> None:
+    """:func:`batch_set` with explicit Euler over the blocks of lanes.WIDTH sets of a batch, each
+    block in lock-step on the vector units (:mod:`lanes`), the blocks in parallel (as
+    :func:`batch_euler`: the same results, to the bit)."""
+    for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
+        batch_set(stepping.advance_lanes, euler_step, lanes.block(), block, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def blocks_rk4(*arguments: Any) -> None:
+    """:func:`blocks_euler` with classical RK4."""
+    for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
+        batch_set(stepping.advance_lanes, rk4_step, lanes.block(), block, arguments)
 
 
 @kernel(SOURCES)
 def set_euler(*arguments: Any) -> None:
     """:func:`batch_set` with explicit Euler over the one set of a run, in the calling thread
     (a serial batch.SetRun: see there)."""
-    batch_set(euler_step, 0, arguments)
+    batch_set(stepping.advance, euler_step, 0.0, 0, arguments)
 
 
 @kernel(SOURCES)
 def set_rk4(*arguments: Any) -> None:
     """:func:`batch_set` with classical RK4 over the one set of a run (as :func:`set_euler`)."""
-    batch_set(rk4_step, 0, arguments)
+    batch_set(stepping.advance, rk4_step, 0.0, 0, arguments)
 
 
-#: The entry points by method: stepping, and the run of a batch or of one set (explicit methods only).
+#: The entry points by method: stepping, and the run of a batch (one set per thread, or blocks in
+#: lock-step) or of one set in the calling thread (explicit methods only).
 STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
 BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
+BLOCKS = {"euler": blocks_euler, "rk4": blocks_rk4}
 SETS = {"euler": set_euler, "rk4": set_rk4}

@@ -9,7 +9,8 @@ flowed (the energy balance); a step that fails either is not taken.
 
 It is written in the subset of Python that numba compiles, so the interpreted and the
 compiled paths (the kernel modules, :mod:`physical_kernel` and :mod:`paper_kernel`) run this
-same code.
+same code. :func:`advance_lanes` takes the same step for a block of sets in lock-step
+(:mod:`lanes`), each set with its own substeps and outcome.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from collections.abc import Callable
 from typing import Any
 
 from ..jit import jitable
+from ..model.hydraulics import larger
+from . import lanes
 
 #: Outcomes of the stepping loop.
 OK, NONFINITE, ENERGY, TOO_STIFF = 0, 1, 2, 3
@@ -87,3 +90,39 @@ def advance(
             return i, ENERGY, most, y
         y = y_new
     return n, OK, most, y
+
+
+@jitable
+def advance_lanes(
+    step: Callable[..., Any], derivative: Callable[..., Any], stiffness_rate: Callable[..., Any],
+    energy: Callable[..., Any], t0: float, y: Any, c: Any, u: Any, dt: float, min_substeps: int, limit: float,
+    max_substeps: int, n: int, energy_index: int, energy_base: Any,
+) -> tuple[int, Any, Any, Any]:  # fmt: skip
+    """One step of :func:`advance` (``n`` is 1) for a block of sets in lock-step: ``y``, ``c``,
+    ``u`` and ``energy_base`` hold a value per set (:mod:`lanes`). Each set takes its own
+    substeps, as many as it would alone: the block runs the most any set needs, and a set's
+    state stops moving once it has taken its own (so each set's result equals, to the bit, its
+    own run). Returns (1, outcome per set, substeps per set (TOO_STIFF: as many as it would
+    need), state); a set whose step failed keeps its state at ``y``. A set too stiff to step
+    takes one substep meanwhile, so that it does not hold the others up."""
+    one = y[0]  # the block's lanes
+    substeps = lanes.spread(min_substeps, one)
+    too_stiff = lanes.spread(0.0, one)
+    if limit > 0.0:
+        needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
+        too_stiff = needed > max_substeps
+        substeps = lanes.choose(too_stiff, needed, larger(substeps, needed))
+    taken = lanes.choose(too_stiff, lanes.spread(1.0, one), substeps)
+    h = dt / taken
+    y_new = y
+    for j in range(int(lanes.most(taken))):
+        y_new = lanes.choose(j < taken, step(derivative, t0 + j * h, y_new, h, (c, u)), y_new)
+    finite = lanes.spread(1.0, one)
+    for value in y_new:
+        finite = finite * math.isfinite(value)
+    outcome = lanes.choose(finite, lanes.spread(float(OK), one), lanes.spread(float(NONFINITE), one))
+    if energy_index >= 0:
+        broken = balance_broken(energy(y_new, c), y_new[energy_index], y_new[energy_index + 1], energy_base)
+        outcome = lanes.choose(finite * broken, lanes.spread(float(ENERGY), one), outcome)
+    outcome = lanes.choose(too_stiff, lanes.spread(float(TOO_STIFF), one), outcome)
+    return 1, outcome, substeps, lanes.choose(outcome == OK, y_new, y)
