@@ -199,11 +199,15 @@ def run_set(
             c = _payload_change(with_payload, energy, full, c, y, spec, status, t)
         u = _commands(controller, spec.command, k, lanes.spread(1.0, y[0]), controls, c, y, u, dt, t + half)
     else:
-        for j in range(sets):
-            u = lanes.with_lane(u, j, status[j, NEXT_U])
+        for j in range(sets):  # floats: interpreted, a numpy scalar would spread through the state
+            u = lanes.with_lane(u, j, float(status[j, NEXT_U]))
         if changes:
-            c = with_payload(full, status[0, PAYLOAD])
+            c = with_payload(full, float(status[0, PAYLOAD]))
     running = _running(status, y)
+    leader = _leader(running)
+    if leader >= 0:  # lanes that do not run (failed sets, a part block's spares) follow a set that does
+        c, full = _follow(c, running, leader), _follow(full, running, leader)
+        y, u = _follow(y, running, leader), _follow(u, running, leader)
     for j in range(sets):
         taken[j] = 0
     energy_base = _energy_bases(spec, k, status, y[0])
@@ -230,11 +234,16 @@ def run_set(
                     status[j, NEXT_U] = lanes.lane(u, j)
                     status[j, TAKEN] += n
                     taken[j] = n
+                    leader = _leader(running)
+                    if leader >= 0:
+                        c, full = _follow(c, running, leader), _follow(full, running, leader)
             if lanes.most(running) == 0.0:
                 break
             y = lanes.choose(running, y_new, y)
             t = spec.t0_s + (spec.k0 + i) * dt
             u = _commands(controller, spec.command, k, running, controls, c, y, u, dt, t + half)
+            if leader >= 0:
+                y, u = _follow(y, running, leader), _follow(u, running, leader)
         if i % spec.every == 0 or i == spec.n_steps:
             if spec.measure:  # the model's samples alone: the outputs they take, not all of them
                 taken_samples = samples(t, y, c, u)
@@ -271,6 +280,30 @@ def _running(status: Any, y: Any) -> Any:
     for j in range(len(status)):
         running = lanes.with_lane(running, j, 1.0 * (status[j, OUTCOME] == OK))
     return running
+
+
+@jitable
+def _leader(running: Any) -> int:
+    """The first set of a block that runs on, where some of its lanes do not (a failed set, or a
+    part block's spare lanes); -1 where all run (one set: always)."""
+    leader, idle = -1, False
+    for j in range(lanes.width(running)):
+        if lanes.lane(running, j) == 0.0:
+            idle = True
+        elif leader < 0:
+            leader = j
+    return leader if idle else -1
+
+
+@jitable
+def _follow(x: Any, running: Any, leader: int) -> Any:
+    """``x`` (a value or a tuple of a block) with each lane that does not run holding the
+    ``leader``'s: such a lane then steps as the leader does, unseen, and holds no one up (a
+    failed set's state alone could ask for every substep there is at every step)."""
+    for j in range(lanes.width(running)):
+        if lanes.lane(running, j) == 0.0:
+            x = lanes.with_lane(x, j, lanes.lane(x, leader))
+    return x
 
 
 @jitable
@@ -387,12 +420,13 @@ def batch_set(
 ) -> None:
     """:func:`run_set` of block ``block`` of a batch: as many sets as ``template`` holds (a float:
     one, set ``block``; Lanes: a block of lanes.WIDTH in lock-step, sets WIDTH x ``block`` ...)
-    over its passes ``first`` ... ``last`` - 1, with ``step_once`` (stepping.advance, or advance_lanes for
-    a block) and the run's spec from its flat fields (:func:`flat`): the model's constants from
-    the rows ``spec.constants[k]`` (``constants_of``), the state from ``states[k]``
-    (``state_of``, as the step keeps it). A block past the last set fills its lanes with the
-    first set's, which run along unseen. ``status``, ``metrics``, ``rows`` (its rows of this
-    slice; none: no rows kept) and ``taken`` (its samples in this slice) hold one entry per set."""
+    over its passes ``first`` ... ``last`` - 1, with ``step_once`` (stepping.advance, or
+    advance_lanes for a block) and the run's spec from its flat fields (:func:`flat`): the
+    model's constants from the rows ``spec.constants[k]`` (``constants_of``), the state from
+    ``states[k]`` (``state_of``, as the step keeps it). A block past the last set fills its
+    spare lanes with the first set's (run_set has them follow a set that runs, unseen).
+    ``status``, ``metrics``, ``rows`` (its rows of this slice; none: no rows kept) and
+    ``taken`` (its samples in this slice) hold one entry per set."""
     spec = spec_of(spec_fields)
     count = lanes.width(template)
     k = count * block
