@@ -9,7 +9,7 @@ from conftest import CONFIG
 
 from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
-from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
+from boom_hydraulics.model.parameters import Parameters, as_dict, from_mapping, with_updates
 from boom_hydraulics.solve.simulation import Simulator
 
 
@@ -92,6 +92,21 @@ def test_unknown_key_names_the_closest_valid_ones():
 def test_invalid_values_are_refused_with_a_reason(values, pattern):
     with pytest.raises(ConfigError, match=pattern):
         from_mapping(values)
+    base = from_mapping({"payload_mass_kg": 120.0})
+    with pytest.raises(ConfigError, match=pattern):  # on a base, as a sweep makes its points
+        from_mapping(values, base=base)
+    assert base.payload_mass_kg == 120.0 and base == from_mapping({"payload_mass_kg": 120.0})
+
+
+def test_updates_on_a_base_give_what_the_whole_set_gives():
+    """A sweep's points are its base config with the point's values: checked field by field only
+    where they changed, the result is the parameter set made and checked whole."""
+    base = from_mapping({"drive": "load_sensing", "payload_mass_kg": 120.0, "command_profile": "steps"})
+    updates = {"piston_diameter_m": 0.07, "rod_diameter_m": 0.04, "command_values": [1.0, 0.0], "substeps": 2}
+    updates["command_times_s"] = [0.0, 1.0]
+    point = from_mapping(updates, base=base)
+    assert point == Parameters(**{**as_dict(base), **updates}) and point != base
+    assert base.piston_diameter_m != 0.07  # the base is left as it was
 
 
 def test_malformed_yaml_names_file_and_line(tmp_path):

@@ -18,11 +18,12 @@ leaves a set half-applied.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import difflib
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Container, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -603,8 +604,11 @@ _CHECKS = tuple(
 )
 
 
-def _check_fields(p: Parameters) -> None:
+def _check_fields(p: Parameters, names: Container[str] | None = None) -> None:
+    """Each field of ``p`` (of ``names`` only, if given) of its type's choices or range, finite."""
     for name, choices, low, high, low_inclusive in _CHECKS:
+        if names is not None and name not in names:
+            continue
         value = getattr(p, name)
         if choices is not None:
             if value not in choices:
@@ -765,7 +769,22 @@ def from_mapping(values: Mapping[str, Any], base: Parameters | None = None) -> P
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise ConfigError(f"unknown parameter '{key}'{hint} Valid parameters: {', '.join(NAMES)}")
         updates[key] = _coerce(key, value)
-    return dataclasses.replace(base or Parameters(), **updates)
+    if base is None:
+        return Parameters(**updates)
+    return _updated(base, updates)
+
+
+def _updated(base: Parameters, updates: dict[str, Any]) -> Parameters:
+    """``base`` with ``updates`` (coerced): as dataclasses.replace gives it, but checking only
+    the updated fields on their own (``base``'s were checked when it was made) and every check
+    across fields. A sweep makes a Parameters per point: 220 us a point by replace, most of it
+    checking again the fields no point changes."""
+    params = copy.copy(base)
+    for name, value in updates.items():
+        object.__setattr__(params, name, value)
+    _check_fields(params, updates)
+    _check_cross_fields(params)
+    return params
 
 
 def with_updates(params: Parameters, **updates: Any) -> Parameters:
