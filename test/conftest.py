@@ -85,8 +85,8 @@ WARM_UP_LANES = (
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "euler"),
         ("stepping", CONFIG / "default.yaml", "euler"),
     ),
-    (  # the paper model's run kernel and stepping, the physical model's ros2 stepping and the
-        # blocks of sets in lock-step that sweeps of 4 points and more run (setup compiled them for rk4)
+    (  # the paper model's run kernel and stepping, the physical model's ros2 stepping (make setup
+        # compiled the blocks of sets in lock-step that batches of 4 sets and more run, for rk4)
         ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
         ("stepping", CONFIG / "paper_fig8.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "ros2"),

@@ -10,7 +10,7 @@ from conftest import CONFIG
 
 from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
-from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
 from boom_hydraulics.solve import accelerate, commands, outcomes
 from boom_hydraulics.solve.batch import run_sets
 from boom_hydraulics.solve.simulation import OUTPUT_NAMES, simulate
@@ -85,19 +85,27 @@ def test_a_models_samples_are_its_outputs_that_the_run_metrics_take(config_file)
 
 
 def _lock_step_sets():
-    """Eleven sets (two blocks of four and a part block) that differ where lanes could part:
-    the drives (pump_controlled takes more substeps), cylinder, payload, oil, and one set too
-    stiff to step at all."""
+    """Thirteen sets (three blocks of four and a part block) that differ where lanes could part:
+    the drives (pump_controlled takes more substeps), cylinder, payload, oil, the controller's
+    gains, speed and start, a set too stiff to step at all, and a first set (the block's first
+    lane, which the spare and failed lanes follow) whose energy balance breaks mid-run."""
     base = with_updates(Parameters(), command_payload_times_s=[0.6], command_payload_fractions=[0.0])
-    params = [
+    params = [with_updates(base, end_stop_stiffness_n_m=1.0, external_rod_force_n=2e5, end_stop_damping_n_s_m2=0.0)]
+    params += [
         with_updates(base, piston_diameter_m=d, rod_diameter_m=0.55 * d, payload_mass_kg=m, bulk_modulus_pa=e)
         for d, m, e in [(0.04, 0.0, 1e9), (0.05, 100.0, 1.5e9), (0.07, 250.0, 0.8e9), (0.06, 50.0, 1.2e9)]
     ]
     params += [with_updates(base, drive=d) for d in ("load_sensing", "fixed_pump", "pump_controlled")]
     params.append(with_updates(base, bulk_modulus_pa=1e11, piston_dead_volume_m3=1e-9, initial_length_m=1.05))
-    params += [with_updates(params[1], external_rod_force_n=f) for f in (-3000.0, 2000.0)]
-    params.append(with_updates(base, drive="pump_controlled", payload_mass_kg=300.0))
-    return params
+    params += [with_updates(params[2], external_rod_force_n=f) for f in (-3000.0, 2000.0)]
+    params += [with_updates(base, drive="pump_controlled", payload_mass_kg=300.0)]
+    params += [with_updates(base, drive="fixed_pump")]
+    own = [  # each set's controller: gains, speed and start
+        {"control_position_gain_1_rad": 4.0 + 0.5 * k, "control_max_speed_rad_s": 0.2 + 0.02 * k}
+        | ({"initial_length_m": p.initial_length_m + 0.002 * k} if k != 8 else {})
+        for k, p in enumerate(params)
+    ]
+    return [from_mapping(values, base=p) for values, p in zip(own, params)]
 
 
 @pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
@@ -105,14 +113,13 @@ def _lock_step_sets():
 def test_sets_in_lock_step_on_the_vector_units_give_each_sets_own_run_to_the_bit(kind):
     """From lanes.WIDTH sets on, the compiled batch runs blocks of sets in lock-step (solve/lanes):
     every set's metrics, failure, substeps, last state and stored outputs equal its run alone,
-    through a payload put down, each set's own substeps, and a set that cannot step at all."""
+    through a payload put down, each set's own substeps and controller, a set that cannot step
+    at all and a block's first set failing mid-run, in slices of a few samples."""
     from boom_hydraulics.solve import lanes, physical_kernel
     from boom_hydraulics.solve.batch import SetRun
     from boom_hydraulics.solve.closed_loop import PositionLoop
 
     params = _lock_step_sets()
-    assert accelerate.batch_runner("physical", "rk4", len(params)) is physical_kernel.blocks_rk4
-    assert len(params) % lanes.WIDTH != 0  # a part block too
 
     def command(sets):
         if kind == "profile":
@@ -121,13 +128,16 @@ def test_sets_in_lock_step_on_the_vector_units_give_each_sets_own_run_to_the_bit
 
     params = [with_updates(p, command_times_s=[0.1], command_angles_rad=[0.9]) for p in params]
     together = SetRun(params, 1.2, command(params), every=7, store=True, slice_rows=40)
+    assert together._runner is physical_kernel.blocks_rk4 and len(params) % lanes.WIDTH != 0  # a part block too
     rows = [[] for _ in params]
     for taken in together.slices():  # slices of at most 40 samples: the kernel called again and again
         for k, n in enumerate(taken):
             rows[k].append(together.rows[k, :n].copy())
     runs = together.result()
-    assert runs.failed_why[7] == outcomes.TOO_STIFF and (runs.failed_why[:7] == outcomes.OK).all()
-    assert set(runs.most_substeps[:7]) != {1}  # the lanes took substeps of their own
+    assert runs.failed_why[0] in (outcomes.ENERGY, outcomes.NONFINITE) and 0.1 < runs.failed_at_s[0] < 1.0
+    assert runs.failed_why[8] == outcomes.TOO_STIFF and runs.failed_at_s[8] == 0.0
+    assert (np.delete(runs.failed_why, [0, 8]) == outcomes.OK).all()
+    assert set(runs.most_substeps[1:8]) != {1}  # the lanes took substeps of their own
     for k, p in enumerate(params):
         alone = run_sets([p], 1.2, command([p]), every=7, store=True)
         assert np.array_equal(runs.states[k], alone.states[0], equal_nan=True), k

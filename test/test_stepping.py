@@ -293,3 +293,67 @@ def test_the_energy_guard_follows_a_payload_change():
     assert sim.energy_residual() == pytest.approx(before, abs=1e-9)
     sim.step(1.0, 500)
     assert abs(sim.energy_residual()) < 1.0
+
+
+def _decay(t, y, c, u):
+    """A model for the stepping alone: y' = -c[0] y."""
+    return (-c[0] * y[0],)
+
+
+def _rate_of(y, c, u, dt):
+    """Its fastest rate: what the test says (c[1]), NaN or huge as it likes."""
+    return c[1]
+
+
+def _stored(y, c):
+    """Its stored energy (not checked: energy_index -1)."""
+    return 0.0 * y[0]
+
+
+@pytest.mark.parametrize("rate", [math.nan, math.inf, 1e30], ids=["nan", "inf", "huge"])
+def test_a_step_whose_stiffness_has_no_count_of_substeps_stops_as_too_stiff(rate):
+    """A rate of NaN, infinity or past any integer count of substeps: the step is not taken and
+    says it needs more than the most substeps (it was taken at the least substeps before)."""
+    args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), (2.0, rate), 0.0, 1e-3, 1, 2.8, 10_000, 3)
+    done, outcome, most, y = stepping.advance(*args, -1, 0.0)
+    assert (done, outcome, most, y) == (0, stepping.TOO_STIFF, 10_001, (1.0,))
+    steady = stepping.advance(*args[:6], (2.0, 100.0), *args[7:], -1, 0.0)
+    assert steady[:3] == (3, stepping.OK, 1) and steady[3][0] == pytest.approx(math.exp(-2.0 * 3e-3))
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
+def test_a_block_in_lock_step_stops_the_set_whose_stiffness_has_no_count_and_steps_the_others():
+    """The same in a block of sets in lock-step (solve/lanes): the set with a rate of NaN is too
+    stiff, its state kept; each other set steps with its own substeps, as it would alone."""
+    import numba
+
+    from boom_hydraulics.jit import jitable
+    from boom_hydraulics.solve import lanes
+
+    decay, rate_of, stored = jitable(_decay), jitable(_rate_of), jitable(_stored)
+
+    @numba.njit
+    def block_step(decays, rates):
+        template = lanes.block()
+        c = lanes.spread((0.0, 0.0), template)
+        for j in range(len(rates)):
+            c = lanes.with_lane(c, j, (decays[j], rates[j]))
+        y = lanes.spread((1.0,), template)
+        step = stepping.advance_lanes(
+            integrators.rk4_step, decay, rate_of, stored, 0.0, y, c, 0.0 * c[0], 1e-3, 1, 2.8, 10_000, 1, -1, 0.0 * c[0]
+        )
+        out = np.empty((3, len(rates)))
+        for j in range(len(rates)):
+            out[0, j], out[1, j], out[2, j] = lanes.lane(step[1], j), lanes.lane(step[2], j), lanes.lane(step[3][0], j)
+        return out
+
+    decays, rates = np.array([2.0, 2.0, 3.0, 2.0]), np.array([100.0, math.nan, 5000.0, 2e30])
+    out = block_step(decays, rates)  # rates: 1 substep, no count known, 2 substeps, too many
+    assert list(out[0]) == [stepping.OK, stepping.TOO_STIFF, stepping.OK, stepping.TOO_STIFF]
+    assert list(out[1]) == [1, 10_001, 2, 10_001]
+    assert out[2, 1] == out[2, 3] == 1.0  # kept
+    for j in (0, 2):  # each as advance takes it alone, to the bit
+        c = (float(decays[j]), float(rates[j]))
+        alone = stepping.advance(integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), c, 0.0, 1e-3, 1, 2.8,
+                                 10_000, 1, -1, 0.0)  # fmt: skip
+        assert alone[2] == out[1, j] and alone[3][0] == out[2, j]

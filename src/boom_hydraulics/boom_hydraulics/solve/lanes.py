@@ -9,7 +9,9 @@ constants are tuples of Lanes: this module gives Lanes the operators and math fu
 model uses. Each operation is the one a float gets, lane by lane (``+ - * /``, ``sqrt``,
 ``abs`` and ``copysign`` as vector instructions; ``exp``, ``sin``, ``cos``, ``acos`` through
 the float function, one lane after the other), so a lane's results equal, to the bit, those
-of its set run alone (a test holds them so). A comparison gives a mask: Lanes of 1.0 where
+of its set run alone (a test holds them so; a block whose sets use different drives runs each
+drive's equations for all of them, weighted by 0 where a set does not use it: the same values,
+where those are finite, with a zero's sign that can differ). A comparison gives a mask: Lanes of 1.0 where
 it holds, 0.0 elsewhere, as the model multiplies by a comparison's outcome.
 
 The run loop (:func:`kernel.run_set`) handles a block through the helpers below, which give

@@ -26,6 +26,10 @@ from . import lanes
 #: Outcomes of the stepping loop.
 OK, NONFINITE, ENERGY, TOO_STIFF = 0, 1, 2, 3
 
+#: A bound on dt x rate / limit past which a too stiff step reports MAX_SUBSTEPS + 1 substeps
+#: (an integer count of its own would overflow; NaN has none).
+BEYOND = 1e18
+
 #: The energy balance may be off by this fraction of the energy that changed hands ...
 ENERGY_TOLERANCE = 0.01
 #: ... plus this much, J (so that a run at rest never trips on rounding).
@@ -71,10 +75,10 @@ def advance(
     for i in range(n):
         substeps = min_substeps
         if limit > 0.0:
-            needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
-            if needed > max_substeps:
-                return i, TOO_STIFF, needed, y
-            substeps = max(substeps, needed)
+            bound = dt * stiffness_rate(y, c, u, dt) / limit
+            if not bound <= max_substeps:  # a rate of NaN too: no count of substeps is known stable
+                return i, TOO_STIFF, math.ceil(bound) if bound < BEYOND else max_substeps + 1, y
+            substeps = max(substeps, math.ceil(bound))
         most = max(most, substeps)
         h = dt / substeps
         t = t0 + i * dt
@@ -109,9 +113,11 @@ def advance_lanes(
     substeps = lanes.spread(min_substeps, one)
     too_stiff = lanes.spread(0.0, one)
     if limit > 0.0:
-        needed = math.ceil(dt * stiffness_rate(y, c, u, dt) / limit)
-        too_stiff = needed > max_substeps
-        substeps = lanes.choose(too_stiff, needed, larger(substeps, needed))
+        bound = dt * stiffness_rate(y, c, u, dt) / limit
+        needed = math.ceil(bound)
+        too_stiff = 1.0 - (bound <= max_substeps)  # a rate of NaN too, as in advance
+        beyond = lanes.spread(max_substeps + 1.0, one)
+        substeps = lanes.choose(too_stiff, lanes.choose(bound < BEYOND, needed, beyond), larger(substeps, needed))
     taken = lanes.choose(too_stiff, lanes.spread(1.0, one), substeps)
     h = dt / taken
     y_new = y
