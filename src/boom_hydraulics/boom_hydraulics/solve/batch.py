@@ -240,6 +240,20 @@ class SetRuns:
         """The cylinder length at the end, or at the last good state, m."""
         return self.states[:, 0]
 
+    def of_sets(self, order: Sequence[int] | np.ndarray) -> SetRuns:
+        """These runs of sets ``order`` (indices), in that order."""
+        order = np.asarray(order, dtype=np.int64)
+        return SetRuns(
+            metrics={name: values[order] for name, values in self.metrics.items()},
+            failed_at_s=self.failed_at_s[order],
+            failed_why=self.failed_why[order],
+            most_substeps=self.most_substeps[order],
+            states=self.states[order],
+            samples=self.samples[order],
+            reasons=[self.reasons[k] for k in order],
+            rows=None if self.rows is None else self.rows[order],
+        )
+
     def columns(self, k: int) -> dict[str, np.ndarray]:
         """The stored outputs of set ``k`` (run with store), as a trajectory's columns."""
         if self.rows is None:
