@@ -125,7 +125,8 @@ def test_replay_errors_are_one_line(tmp_path, args, message):
 
 
 def _sparse_bag(folder, clock: bool = False):
-    """Messages 20 s apart; a best-effort command topic; an empty topic; /clock if asked."""
+    """Messages 20 s apart, a command and then a drive state (stamped with its bag time); a
+    best-effort command topic; an empty topic; /clock if asked."""
     topics = [
         Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState"),
         Topic("/valve_command", "boom_hydraulics_msgs/msg/ValveCommand", (offered_qos(reliable=False),)),
@@ -135,8 +136,10 @@ def _sparse_bag(folder, clock: bool = False):
         topics.append(Topic("/clock", "rosgraph_msgs/msg/Clock"))
     with BagRecorder(folder, topics) as rec:
         for i in range(3):
-            rec.write("/drive_state", i * 20_000_000_000, serialize_message(DriveState()))
+            state = DriveState()
+            state.header.stamp.sec = i * 20
             rec.write("/valve_command", i * 20_000_000_000, serialize_message(ValveCommand()))
+            rec.write("/drive_state", i * 20_000_000_000 + 1, serialize_message(state))  # after it
             if clock:
                 rec.write("/clock", i * 20_000_000_000, serialize_message(Clock()))
 
@@ -148,19 +151,21 @@ def test_a_signal_stops_replay_between_widely_spaced_messages(tmp_path, listener
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     listener.create_subscription(DriveState, "/drive_state", got.append, qos)
     listener.create_subscription(ValveCommand, "/valve_command", got.append, qos)
-    # it waits for these subscribers (the guard far above any discovery), so the first messages
-    # (t = 0) arrive: by default it starts after 10 s without them, and on a loaded machine the
-    # listener then met the messages of t = 20 s first (it published 4 before the signal)
+    # it waits for these subscribers (the guard far above any discovery); on a loaded machine
+    # the listener may still miss the best-effort messages of t = 0 (the replay saw it before it
+    # had matched the replay) and meet those of t = 20 s first: the drive state's stamp says which
+    # (the last of its pair: the command went before it)
     proc = start_replay(tmp_path / "run", "--wait-for-subscribers", "--wait-timeout", GUARD_S)
-    _spin_until(listener, lambda: len(got) >= 2, "the first messages")
-    assert len(got) == 2
+    states = lambda: [m for m in got if isinstance(m, DriveState)]  # noqa: E731
+    _spin_until(listener, lambda: len(states()) > 0, "the first drive state")
     sent = time.monotonic()  # it is waiting 20 s for the next messages now
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=20)
     # it waits in 50 ms slices; a bound far below the 20 s gap, loose for a loaded machine
     assert time.monotonic() - sent < 5.0
     assert proc.returncode == 0 and "Traceback" not in err
-    assert "published 2 messages" in out
+    pairs = states()[0].header.stamp.sec // 20 + 1  # the drive state and command of each 20 s
+    assert f"published {2 * pairs} messages" in out
 
 
 def test_replay_waits_for_subscribers_by_default(tmp_path, start_replay):

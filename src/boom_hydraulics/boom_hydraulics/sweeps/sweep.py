@@ -92,13 +92,13 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 BYTES_PER_POINT = 4096
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
-#: sweep's run time (1.1 M on 2 cores for batches of 10 000 sets of the 30-state physical model,
-#: measured by bench/bench_speed.py on 2026-12-03).
-STEPS_PER_CORE_S = 0.55e6
+#: sweep's run time (2.7-3.0 M on 2 cores for batches of 10 000 sets of the 30-state physical
+#: model in blocks of 4 in lock-step, measured by bench/bench_speed.py on 2026-12-04; rounded down).
+STEPS_PER_CORE_S = 1.2e6
 
-#: Wall time planning takes per point (its Parameters checked and grouped into batches): 0.13 ms
-#: measured for 10 000 points on a loaded 2-core machine, rounded up.
-PLAN_S_PER_POINT = 2e-4
+#: Wall time planning takes per point (its Parameters checked and grouped into batches): 64 us
+#: measured for 10 000 points on a 2-core machine, rounded up for a loaded one.
+PLAN_S_PER_POINT = 1e-4
 
 #: Steps of one point beyond which float64 time no longer tells one step from the next.
 MAX_STEPS_PER_POINT = 2**53
