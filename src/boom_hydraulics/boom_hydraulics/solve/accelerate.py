@@ -53,12 +53,11 @@ def batch_runner(mode: str, method: str, sets: int = 1) -> Callable[..., None] |
     model and method for ``sets`` parameter sets, or None: ``run(states, status, metrics, rows,
     taken, first, last, *kernel.flat(spec))`` (see kernel.batch_set and batch.SetRun). From
     lanes.WIDTH sets on, the kernel that runs them in blocks in lock-step on the vector units,
-    where the model has one (the same results, to the bit); fewer sets, one per thread."""
+    where the model has one (the same results, see :mod:`lanes`); fewer sets, one per thread."""
     if not available():
         return None
-    blocks = getattr(KERNELS[mode], "BLOCKS", {})
-    if sets >= lanes.WIDTH and method in blocks:
-        return blocks[method]
+    if sets >= lanes.WIDTH and method in KERNELS[mode].BLOCKS:
+        return KERNELS[mode].BLOCKS[method]
     return KERNELS[mode].BATCHES.get(method)
 
 

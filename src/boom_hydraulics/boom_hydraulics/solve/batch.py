@@ -293,7 +293,7 @@ class SetRun:
     node that followed a path). ``payload``: the payload schedule (times s, shares on the
     hook; see kernel.payload_share), None: the parameters' (:func:`payload_schedule`).
     ``lock_step``: compiled, from lanes.WIDTH sets on, the sets run in blocks in lock-step on
-    the vector units (accelerate.batch_runner; the same results, to the bit); False: one set per
+    the vector units (accelerate.batch_runner; the same results, see :mod:`lanes`); False: one set per
     thread (the benchmark's reference).
     """
 

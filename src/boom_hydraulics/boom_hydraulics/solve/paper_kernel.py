@@ -125,7 +125,9 @@ def batch_rk4(*arguments: Any) -> None:
 
 #: The entry points by method: stepping, and the batch run (explicit methods only); no run of
 #: one set in the calling thread (physical_kernel's SETS, for the position controller that a
-#: node's ticks pace: paper mode has none).
+#: node's ticks pace: paper mode has none), and no blocks of sets in lock-step (physical_kernel's
+#: BLOCKS: the paper model runs one set per thread).
 STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
 BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
 SETS: dict = {}
+BLOCKS: dict = {}

@@ -193,7 +193,7 @@ def batch_rk4(*arguments: Any) -> None:
 def blocks_euler(*arguments: Any) -> None:
     """:func:`batch_set` with explicit Euler over the blocks of lanes.WIDTH sets of a batch, each
     block in lock-step on the vector units (:mod:`lanes`), the blocks in parallel (as
-    :func:`batch_euler`: the same results, to the bit)."""
+    :func:`batch_euler`: the same results, see :mod:`lanes`)."""
     for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
         batch_set(stepping.advance_lanes, euler_step, lanes.block(), block, arguments)
 
