@@ -150,7 +150,9 @@ class Guard:
         the loop's controller of set ``k`` (a batch's command may give one value per set)."""
         feedback = getattr(command, "feedback", False)
 
-        def controller(_: Command, __: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
+        def controller(
+            _: Command, __: int, running: Any, status: Any, c: Any, y: Any, last_u: float, dt_s: float, t_s: float
+        ) -> float:
             try:
                 value = command(t_s, y) if feedback else command(t_s)
                 u = float(value if np.ndim(value) == 0 else np.asarray(value)[k])

@@ -2,7 +2,7 @@
 
 :func:`run_set` is the one run loop of the package. It integrates one parameter set for
 ``n_steps`` time steps of ``dt`` from a given state and time, with its valve command
-evaluated inside (:func:`command_value`: an open-loop profile of :mod:`profiles`, or the
+evaluated inside (:func:`_commands`: an open-loop profile of :mod:`profiles`, or the
 closed-loop position controller following setpoint knots, or for an interpreted run any
 Python command), and takes a sample at the start, every ``every``-th step and at the end
 into the streaming metrics (:mod:`streaming`) and, when asked, into a table of every output:
@@ -43,7 +43,7 @@ from .streaming import add_sample
 
 class Command(NamedTuple):
     """A valve command as the run loop evaluates it for the sets of a run (see
-    :func:`command_value`); each command class gives its own (``kernel_command``)."""
+    :func:`_commands`); each command class gives its own (``kernel_command``)."""
 
     kind: int  # profiles.CONSTANT, STEPS, RAMP, SINE; ANGLE: the controller
     times_s: Any  # the profile's times and values (profiles.profile_value), shared by the sets
@@ -92,41 +92,44 @@ STATUS_SIZE = 11
 
 
 @jitable
-def command_value(
-    controller: Callable[..., float], command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float
-) -> float:
-    """The valve command of set ``k`` for the step whose middle is ``t_s``: the open-loop
-    profile of ``command``, or for kind ANGLE ``controller`` (:func:`controller_value`,
-    :func:`no_controller`, or interpreted any Python command) from the state ``y`` at the
-    step's start; the controller's state (integral, holding) moves on in ``control``."""
-    if command.kind != ANGLE:
-        return profile_value(
-            command.kind, command.times_s, command.values, command.offset, command.amplitude, command.frequency_hz,
-            t_s,
+def controller_value(
+    command: Command, k: int, running: Any, status: Any, c: Any, y: Any, u: Any, dt_s: float, t_s: float
+) -> Any:
+    """The position controller's commands for the step whose middle is ``t_s``, following each
+    set's knots of ``command`` (sets ``k`` ...) from its cylinder length y[0]
+    (model.control.position_command, for a block of sets at once: :mod:`lanes`), in ``u``'s
+    lanes where the set runs on (``running``); each set's controller state (integral, holding)
+    moves on in its row of ``status``. Physical mode only."""
+    ref, rate = lanes.spread(0.0, u), lanes.spread(0.0, u)
+    kp, ki, deadband, lower = ref, ref, ref, ref
+    integral, holding = ref, ref
+    for j in range(len(status)):
+        ref_j, rate_j = setpoint_at(
+            command.knot_times_s[k + j], command.knot_angles_rad[k + j], command.knot_rates_rad_s[k + j],
+            command.order, t_s,
         )  # fmt: skip
-    return controller(command, k, control, c, y, dt_s, t_s)
+        ref, rate = lanes.with_lane(ref, j, ref_j), lanes.with_lane(rate, j, rate_j)
+        g = command.gains[k + j]  # interpreted, floats: a numpy scalar would spread through the state
+        kp, ki = lanes.with_lane(kp, j, float(g[0])), lanes.with_lane(ki, j, float(g[1]))
+        deadband, lower = lanes.with_lane(deadband, j, float(g[2])), lanes.with_lane(lower, j, float(g[3]))
+        integral = lanes.with_lane(integral, j, float(status[j, INTEGRAL]))
+        holding = lanes.with_lane(holding, j, float(status[j, HOLDING]))
+    gains, state = Gains(kp, ki, deadband, lower), ControlState(integral, holding)
+    command_u, state = position_command(gains, state, y[0], c, ref, rate, dt_s)
+    for j in range(len(status)):
+        if lanes.lane(running, j) != 0.0:
+            status[j, INTEGRAL] = lanes.lane(state.integral, j)
+            status[j, HOLDING] = lanes.lane(state.holding, j)
+    return lanes.choose(running, command_u, u)
 
 
 @jitable
-def controller_value(command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
-    """The position controller's command following set ``k``'s knots of ``command`` from the
-    cylinder length y[0] (model.control.position_command). Physical mode only."""
-    ref, rate = setpoint_at(
-        command.knot_times_s[k], command.knot_angles_rad[k], command.knot_rates_rad_s[k], command.order, t_s
-    )
-    g = command.gains[k]
-    state = ControlState(float(control[0]), float(control[1]))
-    u, state = position_command(Gains(g[0], g[1], g[2], g[3]), state, y[0], c, ref, rate, dt_s)
-    control[0] = state.integral
-    control[1] = state.holding
-    return u
-
-
-@jitable
-def no_controller(command: Command, k: int, control: Any, c: Any, y: Any, dt_s: float, t_s: float) -> float:
+def no_controller(
+    command: Command, k: int, running: Any, status: Any, c: Any, y: Any, u: Any, dt_s: float, t_s: float
+) -> Any:
     """The paper model's controller: none (its Constants have none of what the controller
     reads, its valve only lifts, and closed_loop.PositionLoop refuses paper mode): 0."""
-    return 0.0
+    return lanes.choose(running, lanes.spread(0.0, u), u)
 
 
 @jitable
@@ -170,7 +173,7 @@ def run_set(
     (a constant in each call of :func:`batch_set`) all its ``outputs`` (a tuple of floats in the
     order of OUTPUT_NAMES) into ``rows``: a run that keeps no table computes no other output
     (which the compiler did not leave out by itself: the batch kernel was 20 % slower with all
-    of them); ``controller``: see command_value.
+    of them); ``controller``: see :func:`_commands`.
 
     Each set runs for ``spec.n_steps`` steps from its state (``y``: as the kernel keeps it, a
     tuple or a list), taking a sample at the start, every ``spec.every`` steps and at the end,
@@ -190,14 +193,13 @@ def run_set(
     t = spec.t0_s + spec.k0 * dt
     full = c  # the constants with the whole payload; c: with the share on the hook now
     changes = len(spec.payload_times_s) > 0
-    controls = [status[j, INTEGRAL : HOLDING + 1] for j in range(sets)]  # each set's controller state
     u = lanes.spread(0.0, y[0])
     if first == 0:
         for j in range(sets):
             _begin(status[j], spec.min_substeps)
         if changes:  # the share on the hook at the start
             c = _payload_change(with_payload, energy, full, c, y, spec, status, t)
-        u = _commands(controller, spec.command, k, lanes.spread(1.0, y[0]), controls, c, y, u, dt, t + half)
+        u = _commands(controller, spec.command, k, lanes.spread(1.0, y[0]), status, c, y, u, dt, t + half)
     else:
         for j in range(sets):  # floats: interpreted, a numpy scalar would spread through the state
             u = lanes.with_lane(u, j, float(status[j, NEXT_U]))
@@ -241,7 +243,7 @@ def run_set(
                 break
             y = lanes.choose(running, y_new, y)
             t = spec.t0_s + (spec.k0 + i) * dt
-            u = _commands(controller, spec.command, k, running, controls, c, y, u, dt, t + half)
+            u = _commands(controller, spec.command, k, running, status, c, y, u, dt, t + half)
             if leader >= 0:
                 y, u = _follow(y, running, leader), _follow(u, running, leader)
         if i % spec.every == 0 or i == spec.n_steps:
@@ -348,17 +350,21 @@ def _keep(row: Any, y: Any) -> None:
 
 @jitable
 def _commands(
-    controller: Callable[..., float], command: Command, k: int, running: Any, controls: Any, c: Any, y: Any,
+    controller: Callable[..., Any], command: Command, k: int, running: Any, status: Any, c: Any, y: Any,
     u: Any, dt_s: float, t_s: float,
 ) -> Any:  # fmt: skip
-    """The valve command of each set (sets ``k`` ...) that runs on (``running``), for the step
-    whose middle is ``t_s`` (:func:`command_value`, with the set's controller state in
-    ``controls``), in ``u``'s lanes (the others keep theirs)."""
-    for j in range(len(controls)):
-        if lanes.lane(running, j) != 0.0:
-            c_j, y_j = lanes.lane(c, j), lanes.lane(y, j)
-            u = lanes.with_lane(u, j, command_value(controller, command, k + j, controls[j], c_j, y_j, dt_s, t_s))
-    return u
+    """The valve command of each set (sets ``k`` ...) that runs on (``running``) for the step
+    whose middle is ``t_s``, from the state ``y`` at its start, in ``u``'s lanes (the others
+    keep theirs): the open-loop profile of ``command``, one value for every set; or for kind
+    ANGLE ``controller`` (:func:`controller_value`, :func:`no_controller`, or interpreted any
+    Python command), with each set's controller state in its row of ``status``."""
+    if command.kind != ANGLE:
+        value = profile_value(
+            command.kind, command.times_s, command.values, command.offset, command.amplitude, command.frequency_hz,
+            t_s,
+        )  # fmt: skip
+        return lanes.choose(running, lanes.spread(value, u), u)
+    return controller(command, k, running, status, c, y, u, dt_s, t_s)
 
 
 @jitable
