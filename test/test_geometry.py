@@ -26,6 +26,14 @@ def test_cos_boom_angle_without_arccos_equals_cos_of_eq_4():
     assert np.allclose(geometry.cos_boom_angle(Q, A, B, H, np), np.cos(alpha), rtol=0, atol=1e-14)
 
 
+def test_sin_boom_angle_without_arccos_equals_sin_of_eq_4():
+    """The stored energy's potential term takes sin(alpha) without arccos; the boom's angles
+    here run from below to above the horizontal, so both signs are checked."""
+    alpha = geometry.boom_angle_rad(Q, A, B, H, np)
+    assert alpha.min() < 0.0 < alpha.max()
+    assert np.allclose(geometry.sin_boom_angle(Q, A, B, H, np), np.sin(alpha), rtol=0, atol=1e-14)
+
+
 def test_lever_is_the_derivative_of_the_boom_angle_and_one_over_a_sin_phi():
     k = geometry.lever_rad_per_m(Q, A, B, np)
     dq = 1e-6

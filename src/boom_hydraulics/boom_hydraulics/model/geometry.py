@@ -57,6 +57,16 @@ def cos_boom_angle(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType
 
 
 @jitable
+def sin_boom_angle(q1_m: Num, a_m: float, b_m: float, h_m: float, xp: ModuleType = math) -> Num:
+    """sin(alpha) without arccos (eq. 4), as :func:`cos_boom_angle`:
+    sin(alpha) = sin(theta) sin(alpha2) - cos(theta) cos(alpha2) = sqrt(1 - xi^2) sqrt(1 - (h/b)^2) - xi h/b.
+    """
+    x = xi(q1_m, a_m, b_m)
+    hb = h_m / b_m
+    return xp.sqrt(1.0 - x * x) * xp.sqrt(1.0 - hb * hb) - x * hb
+
+
+@jitable
 def rod_boom_angle_rad(q1_m: Num, a_m: float, b_m: float, xp: ModuleType = math) -> Num:
     """phi: angle between the rod axis and the boom, rad (eq. 5)."""
     return xp.acos((a_m * a_m + q1_m * q1_m - b_m * b_m) / (2.0 * a_m * q1_m))  # eq. 5

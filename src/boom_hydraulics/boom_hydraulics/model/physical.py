@@ -41,6 +41,7 @@ from .geometry import (
     lever_derivative,
     lever_rad_per_m,
     piston_area_m2,
+    sin_boom_angle,
     static_rod_force_of,
 )
 from .hydraulics import (
@@ -454,7 +455,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         line = c.fixed * c.line_volume * (ps - c.p_tank) * (ps - c.p_tank) / (2.0 * c.bulk_modulus)
     return (
         0.5 * c.inertia * k * k * v * v  # T (eq. 8)
-        + c.weight_coeff * xp.sin(boom_angle_rad(q1, c.a, c.b, c.h, xp))
+        + c.weight_coeff * sin_boom_angle(q1, c.a, c.b, c.h, xp)  # V: the moment of eq. 6 integrated over alpha
         + 0.5 * c.spring * (q1 - c.spring_free) * (q1 - c.spring_free)
         + 0.5 * c.static * c.presliding * s * s
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
