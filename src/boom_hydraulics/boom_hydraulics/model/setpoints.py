@@ -73,7 +73,7 @@ class SetpointPath:
         inside = (t_s > times[0]) & (t_s < times[-1]) & (span > 0.0)
         span = np.where(span > 0.0, span, 1.0)
         w = np.clip((t_s - t0) / span, 0.0, 1.0)
-        angle, rate = _segment(self.order, w, span, a0, a1, r0, r1)
+        angle, rate = segment(self.order, w, span, a0, a1, r0, r1)
         last = np.where(t_s >= times[-1], angles[-1], angles[0])
         return np.where(inside, angle, last), np.where(inside, rate, 0.0)
 
@@ -110,19 +110,30 @@ def last_at_or_before(times_s: Any, t: float) -> int:
 def setpoint_at(times_s: Any, angles_rad: Any, rates_rad_s: Any, order: int, t_s: float) -> tuple[float, float]:
     """Angle and rate at ``t_s`` of one set's knots (sequences of floats): the scalar form of
     :meth:`SetpointPath.evaluate`, which the compiled run kernel also calls."""
-    last = len(times_s) - 1
-    if t_s <= times_s[0] or last == 0:
-        return angles_rad[0], 0.0
-    if t_s >= times_s[last]:
-        return angles_rad[last], 0.0
-    i = last_at_or_before(times_s, t_s)
-    span = times_s[i + 1] - times_s[i]
-    w = (t_s - times_s[i]) / span
-    return _segment(order, w, span, angles_rad[i], angles_rad[i + 1], rates_rad_s[i], rates_rad_s[i + 1])
+    at_rest, angle, w, span, a0, a1, r0, r1 = segment_at(times_s, angles_rad, rates_rad_s, t_s)
+    if at_rest:
+        return angle, 0.0
+    return segment(order, w, span, a0, a1, r0, r1)
 
 
 @jitable
-def _segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -> tuple[Any, Any]:
+def segment_at(times_s: Any, angles_rad: Any, rates_rad_s: Any, t_s: float) -> tuple:
+    """Where ``t_s`` falls on one set's knots: (True, the angle held, then zeros) before the
+    first knot or from the last on; else (False, 0.0, w, span, a0, a1, r0, r1), the arguments
+    of :func:`segment` for the segment it falls in."""
+    last = len(times_s) - 1
+    if t_s <= times_s[0] or last == 0:
+        return True, float(angles_rad[0]), 0.0, 1.0, 0.0, 0.0, 0.0, 0.0
+    if t_s >= times_s[last]:
+        return True, float(angles_rad[last]), 0.0, 1.0, 0.0, 0.0, 0.0, 0.0
+    i = last_at_or_before(times_s, t_s)
+    span = times_s[i + 1] - times_s[i]
+    w = (t_s - times_s[i]) / span
+    return False, 0.0, w, span, angles_rad[i], angles_rad[i + 1], rates_rad_s[i], rates_rad_s[i + 1]
+
+
+@jitable
+def segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -> tuple[Any, Any]:
     """Angle and rate at fraction ``w`` of a segment of duration ``span`` from (a0, r0) to
     (a1, r1): linear, cubic Hermite, or quintic Hermite with zero end accelerations."""
     if order == LINEAR:

@@ -32,9 +32,10 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from ..jit import jitable
+from ..model import setpoints
 from ..model.control import ControlState, Gains, position_command
 from ..model.geometry import within_triangle
-from ..model.setpoints import last_at_or_before, setpoint_at
+from ..model.setpoints import last_at_or_before
 from . import lanes
 from .outcomes import OK, OUT_OF_GEOMETRY, TOO_STIFF
 from .profiles import ANGLE, profile_value
@@ -100,20 +101,26 @@ def controller_value(
     (model.control.position_command, for a block of sets at once: :mod:`lanes`), in ``u``'s
     lanes where the set runs on (``running``); each set's controller state (integral, holding)
     moves on in its row of ``status``. Physical mode only."""
-    ref, rate = lanes.spread(0.0, u), lanes.spread(0.0, u)
-    kp, ki, deadband, lower = ref, ref, ref, ref
-    integral, holding = ref, ref
+    zero = lanes.spread(0.0, u)
+    kp, ki, deadband, lower, integral, holding = zero, zero, zero, zero, zero, zero
+    # each set's setpoint (model.setpoints.setpoint_at): where it is on its knots, set by set;
+    # the segments' polynomials on the block at once
+    at_rest, held, w, span, a0, a1, r0, r1 = zero, zero, zero, zero, zero, zero, zero, zero
     for j in range(len(status)):
-        ref_j, rate_j = setpoint_at(
-            command.knot_times_s[k + j], command.knot_angles_rad[k + j], command.knot_rates_rad_s[k + j],
-            command.order, t_s,
-        )  # fmt: skip
-        ref, rate = lanes.with_lane(ref, j, ref_j), lanes.with_lane(rate, j, rate_j)
+        knot = setpoints.segment_at(
+            command.knot_times_s[k + j], command.knot_angles_rad[k + j], command.knot_rates_rad_s[k + j], t_s
+        )
+        at_rest, held = lanes.with_lane(at_rest, j, 1.0 * knot[0]), lanes.with_lane(held, j, float(knot[1]))
+        w, span = lanes.with_lane(w, j, float(knot[2])), lanes.with_lane(span, j, float(knot[3]))
+        a0, a1 = lanes.with_lane(a0, j, float(knot[4])), lanes.with_lane(a1, j, float(knot[5]))
+        r0, r1 = lanes.with_lane(r0, j, float(knot[6])), lanes.with_lane(r1, j, float(knot[7]))
         g = command.gains[k + j]  # interpreted, floats: a numpy scalar would spread through the state
         kp, ki = lanes.with_lane(kp, j, float(g[0])), lanes.with_lane(ki, j, float(g[1]))
         deadband, lower = lanes.with_lane(deadband, j, float(g[2])), lanes.with_lane(lower, j, float(g[3]))
         integral = lanes.with_lane(integral, j, float(status[j, INTEGRAL]))
         holding = lanes.with_lane(holding, j, float(status[j, HOLDING]))
+    ref, rate = setpoints.segment(command.order, w, span, a0, a1, r0, r1)
+    ref, rate = lanes.choose(at_rest, held, ref), lanes.choose(at_rest, zero, rate)
     gains, state = Gains(kp, ki, deadband, lower), ControlState(integral, holding)
     command_u, state = position_command(gains, state, y[0], c, ref, rate, dt_s)
     for j in range(len(status)):
