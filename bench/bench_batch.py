@@ -1,0 +1,109 @@
+"""The batch kernel beside another commit's, in rounds taken in turn.
+
+    tools/with-env python bench/bench_batch.py --against CHECKOUT [--rounds 3]   # about a minute a round
+
+One run of bench_speed measures the other commit's rows minutes before its own, and on
+these shared machines the batch kernel's row has moved by 15 % between such runs with the
+same code. Here each round measures each checkout in turn (A B A B ...), each in its own
+environment, in a process of its own:
+
+- the 5 s lift's opening (a constant command) on N = 10 000 sets of piston diameters, 1 s
+  of it (10 M state-steps), best of 2;
+- the loader cycle (position controller following its knots, the payload put down) on
+  2000 sets, 5 s of it (10 M state-steps), best of 2.
+
+It prints M state-steps/s, the median (smallest-largest) of the rounds for each checkout,
+and this checkout's median over the other's; the table also goes to
+bench/results/batch-<UTC date-time>.md. The kernel is loaded (compiled on a cold cache)
+outside the timings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+from pathlib import Path
+
+from bench_node import checkout_path, with_env
+from tables import ROOT, commit, table, write_results
+
+#: One round of one checkout, run in its environment: prints {"lift": M/s, "loader": M/s}.
+MEASURE = """
+import json, time
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import commands, duty_cycles
+from boom_hydraulics.solve.batch import run_sets
+
+def rate(params, duration_s, command):
+    run_sets(params[:8], 0.01, commands.for_batch(params[:8]))  # load (or compile) the kernel
+    best = float("inf")
+    for _ in range(2):
+        started = time.perf_counter()
+        run_sets(params, duration_s, command)
+        best = min(best, time.perf_counter() - started)
+    return len(params) * round(duration_s / params[0].time_step_s) / best / 1e6
+
+n = 10_000
+lift = [with_updates(Parameters(), piston_diameter_m=0.04 + 0.04 * i / n, command_value=1.0) for i in range(n)]
+loader = [with_updates(p, **duty_cycles.loader(p, 3)) for p in lift[:2000]]
+print(json.dumps({
+    "lift": rate(lift, 1.0, commands.constant(1.0)),
+    "loader": rate(loader, 5.0, commands.for_batch(loader)),
+}))
+"""
+
+ROWS = (
+    ("lift", "blocks kernel, 10 000 sets of the 5 s lift's opening (constant command), M state-steps/s"),
+    ("loader", "blocks kernel, 2000 sets of the loader cycle (position controller, payload), M state-steps/s"),
+)
+
+
+def measured(checkout: Path) -> dict[str, float]:
+    """One round of ``checkout``: its rates, M state-steps/s."""
+    out = subprocess.run([*with_env(checkout), "python", "-c", MEASURE], cwd=checkout, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"the batch run of {checkout} failed: {out.stderr.strip().splitlines()[-1:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def spread(values: list[float]) -> str:
+    """The median, with the smallest and the largest: '4.52 (4.35-4.83)'."""
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", type=checkout_path, required=True, help="a built checkout to compare with")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds, each checkout once per round (3)")
+    args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error(f"--rounds must be at least 1, got {args.rounds}")
+    checkouts = [ROOT, args.against]
+    figures: dict[Path, dict[str, list[float]]] = {c: {key: [] for key, _ in ROWS} for c in checkouts}
+    for n in range(args.rounds):
+        for checkout in checkouts:
+            rates = measured(checkout)
+            for key, _ in ROWS:
+                figures[checkout][key].append(rates[key])
+            print(
+                f"round {n + 1}/{args.rounds}, {commit(checkout)}: "
+                + ", ".join(f"{key} {rates[key]:.2f} M state-steps/s" for key, _ in ROWS),
+                flush=True,
+            )
+    header = ["what", f"{commit()} (this)", f"{commit(args.against)} ({args.against.name})", "ratio of medians"]
+    rows = []
+    for key, what in ROWS:
+        this, other = figures[ROOT][key], figures[args.against][key]
+        rows.append([what, spread(this), spread(other), f"{statistics.median(this) / statistics.median(other):.2f}"])
+    title = f"Batch kernel, median (smallest-largest) of {args.rounds} rounds taken in turn ({os.cpu_count()} cores)"
+    text = table(title, header, rows)
+    path = write_results("batch", text, f"commits: {commit()} (this) against {commit(args.against)}")
+    print(f"written to {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
