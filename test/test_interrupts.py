@@ -250,3 +250,50 @@ def test_llvmlite_objects_a_stop_left_half_made_are_no_traceback_and_nothing_els
         (["Failing", "__del__"], AttributeError),
         (["OutputString", "__del__"], AttributeError),
     ]
+
+
+#: A program started with Ctrl-C pressed while its modules load: the finder below is asked for
+#: the program's first module of this package (after boom_hydraulics.entry_points, the console
+#: script's own) and sends SIGINT there; the handler's KeyboardInterrupt comes out of the import.
+_CTRL_C_WHILE_LOADING = """
+import os, signal, sys
+from importlib.metadata import entry_points
+
+class CtrlCWhileLoading:
+    def find_spec(self, name, path=None, target=None):
+        if name.startswith("boom_hydraulics.") and name != "boom_hydraulics.entry_points":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+            while True:  # Python runs the handler here
+                pass
+        return None
+
+signal.signal(signal.SIGINT, signal.default_int_handler)
+(entry,) = entry_points(group="console_scripts", name=sys.argv[1])
+main = entry.load()
+sys.meta_path.insert(0, CtrlCWhileLoading())
+sys.exit(main())
+"""
+
+
+def _console_scripts() -> list[str]:
+    from importlib.metadata import entry_points
+
+    return sorted(e.name for e in entry_points(group="console_scripts") if e.value.startswith("boom_hydraulics."))
+
+
+@pytest.mark.parametrize("tool", _console_scripts())
+def test_ctrl_c_while_a_program_loads_its_modules_ends_in_one_line(tool):
+    """numpy, numba and rclpy take a second or two to load (more on a busy machine): a Ctrl-C
+    then is one line and the documented status (130; the node: 0, as for any stop), not an
+    import's traceback."""
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", _CTRL_C_WHILE_LOADING, tool], capture_output=True, text=True,
+                          timeout=GUARD_S)  # fmt: skip
+    out = done.stdout + done.stderr
+    if tool == "boom_sim":
+        assert (done.returncode, out.strip()) == (0, "boom_sim: stopped while starting; nothing was recorded"), out
+    else:
+        line = f"{tool}: error: interrupted (Ctrl-C) while starting; nothing was written"
+        assert (done.returncode, out.strip()) == (130, line), out

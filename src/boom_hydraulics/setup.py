@@ -27,16 +27,17 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "boom_sim = boom_hydraulics.ros.boom_sim:main",
-            "boom-sim = boom_hydraulics.cli.sim:main",
-            "boom-demo = boom_hydraulics.ros.demo:main",
-            "boom-analyze = boom_hydraulics.cli.analyze:main",
-            "boom-study = boom_hydraulics.cli.study:main",
-            "boom-replay = boom_hydraulics.ros.replay:main",
-            "boom-resim = boom_hydraulics.cli.resim:main",
-            "boom-bag-recover = boom_hydraulics.cli.recover:main",
-            "boom-sweep = boom_hydraulics.cli.sweep:main",
-            "boom-calibrate = boom_hydraulics.cli.calibrate:main",
+            # (each behind a Ctrl-C guard while its modules load: boom_hydraulics/entry_points.py)
+            "boom_sim = boom_hydraulics.entry_points:boom_sim",
+            "boom-sim = boom_hydraulics.entry_points:sim",
+            "boom-demo = boom_hydraulics.entry_points:demo",
+            "boom-analyze = boom_hydraulics.entry_points:analyze",
+            "boom-study = boom_hydraulics.entry_points:study",
+            "boom-replay = boom_hydraulics.entry_points:replay",
+            "boom-resim = boom_hydraulics.entry_points:resim",
+            "boom-bag-recover = boom_hydraulics.entry_points:bag_recover",
+            "boom-sweep = boom_hydraulics.entry_points:sweep",
+            "boom-calibrate = boom_hydraulics.entry_points:calibrate",
         ],
     },
 )

@@ -14,9 +14,10 @@ this), so the node, the headless tools, tests and studies all drive the same cor
 - :mod:`.resim`: re-simulation of a recorded run with other parameters;
 - :mod:`.ros`: the node, its parameters and messages, replay and the demo;
 - :mod:`.cli`: the command-line tools' arguments, one module each;
-- :mod:`.programs`: what every command-line program shares (one-line errors, exit codes).
+- :mod:`.programs`: what every command-line program shares (one-line errors, exit codes);
+- :mod:`.entry_points`: the programs' console scripts, each behind a Ctrl-C guard while it loads.
 
-The floors (top to bottom: cli; ros; sweeps | resim; analysis; bags | solve; model;
+The floors (top to bottom: entry_points; cli; ros; sweeps | resim; analysis; bags | solve; model;
 files | programs; errors) are checked by import-linter (``.importlinter``, ``make lint``).
 """
 
