@@ -195,3 +195,23 @@ def test_the_operators_bands_are_numpys_percentiles_of_each_designs_cycles_inf_a
                 warnings.simplefilter("ignore", RuntimeWarning)
                 want = [np.percentile(values[group == g], q) if sizes[g] else np.nan for g in range(n_groups)]
             np.testing.assert_array_equal(grouped_percentile(values, group, sizes, q), want)
+
+
+def test_the_battery_summary_gives_a_band_only_where_a_design_ran_several_cycles():
+    def bands(cycles: int, low: float, high: float) -> dict[str, np.ndarray]:
+        row = {"drive": np.array(["pump_controlled"]), "piston_diameter_m": np.array([0.05]),
+               "cycles": np.array([cycles])}  # fmt: skip
+        for name, lo, hi in (("battery_energy_j", low, high), ("cycles_per_charge", 3.6e7 / high, 3.6e7 / low)):
+            for q, value in zip(energy.PERCENTILES, (lo, (lo + hi) / 2, hi), strict=True):
+                row[f"{name}_p{q}"] = np.array([value])
+        return row
+
+    columns = ("operator", "drive", "piston_diameter_m")
+    one = energy.summary(bands(1, 13_700.0, 13_700.0), columns)
+    assert one == (
+        "  least battery energy with pump_controlled: 13.7 kJ per cycle, 2628 cycles per charge, of its one cycle"
+        " at piston_diameter_m=0.05"
+    )
+    several = energy.summary(bands(5, 12_000.0, 15_000.0), columns)
+    assert "13.5 kJ per cycle (12-15)" in several and "(2400-3000)" in several, several
+    assert "median (10th-90th percentile) over its 5 cycles" in several, several

@@ -101,15 +101,21 @@ def best_per_drive(bands: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
     """A line per drive: its best design, battery energy per cycle and cycles per charge with
-    their 10th-90th percentile band."""
+    their 10th-90th percentile band over its cycles (a design of one cycle has no band)."""
     lines = []
     for drive, row in best_per_drive(bands).items():
         where = ", ".join(f"{c}={format_value(bands[c][row])}" for c in design_columns(columns) if c != "drive")
         energy = [float(bands[f"battery_energy_j_p{q}"][row]) * 1e-3 for q in PERCENTILES]
         cycles = [float(bands[f"cycles_per_charge_p{q}"][row]) for q in PERCENTILES]
+        count = int(bands["cycles"][row])
+        if count == 1:  # the one cycle's values
+            figures = f"{energy[1]:.3g} kJ per cycle, {cycles[1]:.0f} cycles per charge, of its one cycle"
+        else:
+            figures = (
+                f"{energy[1]:.3g} kJ per cycle ({energy[0]:.3g}-{energy[2]:.3g}), {cycles[1]:.0f} cycles per charge "
+                f"({cycles[0]:.0f}-{cycles[2]:.0f}), median (10th-90th percentile) over its {count} cycles"
+            )
         lines.append(
-            f"  least battery energy{' with ' + drive if drive else ''}: {energy[1]:.3g} kJ per cycle "
-            f"({energy[0]:.3g}-{energy[2]:.3g}), {cycles[1]:.0f} cycles per charge ({cycles[0]:.0f}-{cycles[2]:.0f}), "
-            f"over {int(bands['cycles'][row])} cycles" + (f" at {where}" if where else "")
+            f"  least battery energy{' with ' + drive if drive else ''}: {figures}" + (f" at {where}" if where else "")
         )
     return "\n".join(lines)
