@@ -104,3 +104,37 @@ def test_an_unwritable_cache_folder_falls_back_and_still_compiles(tmp_path):
     q1, hits, misses, path = _compiled_run({"BOOM_HYDRAULICS_CACHE": str(blocked / "cache")})
     assert float(q1) > 1.37 and hits + misses == 1
     assert not path.startswith(str(blocked))
+
+
+def test_in_cache_tells_a_kernel_its_first_call_compiles_from_one_it_loads(tmp_path):
+    """What boom-sweep's 'not compiled on this machine yet' line rests on: numba's cache holds a
+    kernel once a process compiled it, for that process and the next."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    (tmp_path / "tiny_kernel.py").write_text(
+        textwrap.dedent(
+            """
+            from boom_hydraulics import jit
+            from boom_hydraulics.model import geometry
+
+            @jit.kernel(jit.module_sources(geometry))
+            def twice(x):
+                return 2.0 * x
+            """
+        )
+    )
+    script = (
+        "import tiny_kernel as k; from boom_hydraulics import jit\n"
+        "before = jit.in_cache(k.twice); k.twice(1.0); print(before, jit.in_cache(k.twice))"
+    )
+    env = {
+        **os.environ,
+        "BOOM_HYDRAULICS_CACHE": str(tmp_path / "cache"),
+        "PYTHONPATH": os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]),
+    }
+    runs = [subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
+            for _ in range(2)]  # fmt: skip
+    assert [r.stdout.split() for r in runs] == [["False", "True"], ["True", "True"]], [r.stderr for r in runs]

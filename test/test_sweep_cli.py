@@ -77,6 +77,22 @@ def test_a_sweep_writes_its_table_plots_and_recommendation(tmp_path):
     assert designs["piston_diameter_m"].tolist() == [0.04] and designs["points"].tolist() == [2]
 
 
+def test_a_sweep_says_when_its_first_batch_compiles_the_run_kernel(tmp_path, monkeypatch):
+    """Without the kernel in numba's cache, the first batch compiles for a minute: the sweep
+    says so before it; with it there (as after this process ran one sweep), it says nothing."""
+    from boom_hydraulics import jit
+
+    args = ["--config", CONFIG / "default.yaml", *FOUR_POINTS]
+    assert _sweep(*args, "--out", tmp_path / "first").returncode == 0
+    line = "boom-sweep: the run kernel of the physical model's rk4 is not compiled on this machine yet"
+    cached = _sweep(*args, "--out", tmp_path / "cached")
+    assert cached.returncode == 0 and "not compiled" not in cached.stderr, cached.stderr
+    asked = []
+    monkeypatch.setattr(jit, "in_cache", lambda run: asked.append(run) or False)
+    cold = _sweep(*args, "--out", tmp_path / "cold")
+    assert cold.returncode == 0 and line in cold.stderr and len(asked) == 1, cold.stderr
+
+
 def test_a_local_dask_cluster_gives_the_same_table_as_this_process(tmp_path):
     local = _sweep(*FOUR_POINTS, "--batch-size", "3", "--out", tmp_path / "local")
     assert local.returncode == 0, local.stderr

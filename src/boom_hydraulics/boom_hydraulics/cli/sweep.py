@@ -25,7 +25,8 @@ a batch file that is not this sweep's exit 2; a damaged ``sweep.json``, a failin
 cluster or a disk error exit 1; Ctrl-C exits 130 and SIGTERM 143, keeping every finished batch
 and naming the command that finishes the sweep. The size (points, batches, steps and a time
 at a nominal rate) is said before planning a large sweep, and one that cannot fit in memory is
-refused before anything is planned.
+refused before anything is planned. Where the run kernel is not in numba's cache yet (``make
+setup`` puts the configuration's there), a line says that the first batch compiles it.
 """
 
 from __future__ import annotations

@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from .. import jit
 from ..errors import ConfigError
 from ..files import check_apart, csv_column, write_bytes, write_csv, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..programs import raise_pending
+from ..solve import accelerate
 from . import energy, recommend, sweep
 from .executors import DaskExecutor, LocalExecutor
 from .sampling import parse_axis, point_count, resolve_name
@@ -107,6 +109,23 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
             where = ", ".join(f"{c}={recommend.format_value(table[c][best])}" for c in columns) or "the one point"
             lines.append(f"  {label}: {float(table[metric][best]):.4g} {UNITS[metric]} at {where}")
     return "\n".join(lines)
+
+
+def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
+    """A line for each run kernel that ``batches`` (run on this machine) need and numba's cache
+    does not hold yet: the first batch compiles it, for about a minute, without a word else."""
+    needed = {}
+    for batch in batches:
+        for p in {(p.mode, p.method): p for p in batch.params}.values():
+            run = accelerate.batch_runner(p.mode, p.method, len(batch.params))
+            if run is not None:
+                needed.setdefault(run, f"the {p.mode} model's {p.method}")
+    return [
+        f"the run kernel of {what} is not compiled on this machine yet: the first batch compiles it "
+        "(about a minute, minutes on a busy machine; once: later sweeps load it)"
+        for run, what in needed.items()
+        if jit.in_cache(run) is False
+    ]
 
 
 def _settings(options: SweepOptions) -> dict[str, Any]:
@@ -236,6 +255,8 @@ def _run_plan(
         file=sys.stderr,
         flush=True,
     )
+    for notice in _compiling(todo if options.scheduler is None else []):
+        print(f"boom-sweep: {notice}", file=sys.stderr, flush=True)
     from tqdm import tqdm
 
     progress = tqdm(
