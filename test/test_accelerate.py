@@ -138,3 +138,22 @@ def test_in_cache_tells_a_kernel_its_first_call_compiles_from_one_it_loads(tmp_p
     runs = [subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
             for _ in range(2)]  # fmt: skip
     assert [r.stdout.split() for r in runs] == [["False", "True"], ["True", "True"]], [r.stderr for r in runs]
+
+
+def test_a_simulator_tells_whether_its_warm_up_compiles(monkeypatch):
+    """What the node's 'compiling ...' line rests on: after warm() the cache holds every kernel
+    it stepped with; where the cache lacks one, the start compiles; interpreted, nothing does."""
+    from boom_hydraulics import jit
+
+    sim = Simulator(Parameters(), jit=True)
+    sim.warm()
+    assert not sim.compiles_first()
+    asked = []
+
+    def first_held(entry: object) -> bool:
+        asked.append(entry)
+        return len(asked) == 1
+
+    monkeypatch.setattr(jit, "in_cache", first_held)
+    assert sim.compiles_first() and len(asked) >= 2  # the first kernel held, a later one not
+    assert not Simulator(Parameters(), jit=False).compiles_first()

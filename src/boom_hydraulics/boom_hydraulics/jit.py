@@ -132,14 +132,16 @@ def _folder(sources: tuple[Path, ...]) -> Path | None:
     return cache_folder(sources)
 
 
-def in_cache(entry: Callable[..., Any]) -> bool | None:
+def in_cache(entry: Callable[..., Any] | None) -> bool | None:
     """Whether numba's on-disk cache holds compiled code of the entry point ``entry`` (made by
     :func:`kernel`) for its sources as they are, so that its first call loads it instead of
     compiling: False where its first call will compile (for a tool to say so before it sits
-    silent for a minute); None where it cannot tell (no numba, no cache folder, a numba whose
-    cache is laid out otherwise). numba's index of compiled signatures (its FunctionCache) has no
-    public reader: this reads it as numba's own load does, and an index written for other
-    argument types than the call's still counts as held."""
+    silent for a minute); None where it cannot tell (no entry point: numba missing or switched
+    off; no cache folder; a numba whose cache is laid out otherwise). numba's index of compiled
+    signatures (its FunctionCache) has no public reader: this reads it as numba's own load
+    does, and an index written for other argument types than the call's still counts as held."""
+    if entry is None:
+        return None
     try:
         index = entry._cache._cache_file._load_index()  # type: ignore[attr-defined]
     except AttributeError:

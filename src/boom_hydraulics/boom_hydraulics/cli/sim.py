@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import jit
 from ..analysis import studies
 from ..analysis.metrics import move_window
 from ..errors import ConfigError
@@ -32,7 +33,7 @@ from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
-from ..solve import commands, duty_cycles
+from ..solve import accelerate, commands, duty_cycles
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
 from . import fmu, linearize, live
 
@@ -66,6 +67,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     step_count(params, args.duration, "--duration")  # a positive, finite duration a run can take
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
+    if jit.in_cache(accelerate.batch_runner(params.mode, params.method)) is False:  # (a whole run's kernel)
+        print(f"boom-sim: {accelerate.compiling_notice(params.mode, params.method, 'this run')}", file=sys.stderr)
     stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)
     first_q1, last_q1, rows, start = _stream_csv(Path(args.out), stream)
     print(

@@ -101,6 +101,11 @@ class BoomSimNode(Node):
             bool(self.get_parameter("publish_clock").value), bool(self.get_parameter("use_sim_time").value)
         )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
+        if self.sim.compiles_first():  # (before a minute without a word: the first log line comes after)
+            self.get_logger().info(
+                f"compiling the {params.mode} model's {params.method} (not in the cache yet: about a minute, "
+                "minutes on a busy machine; once: later starts load it)"
+            )
         self.sim.warm()  # compile (or load from the cache) what it steps with, before the clock starts
         self.drive = CommandedDrive(self.sim, float(self.get_parameter("command_timeout_s").value))
         self.lock = threading.RLock()

@@ -61,6 +61,15 @@ def batch_runner(mode: str, method: str, sets: int = 1) -> Callable[..., None] |
     return KERNELS[mode].BATCHES.get(method)
 
 
+def compiling_notice(mode: str, method: str, first: str) -> str:
+    """What a program says where ``first`` (the run, the first batch) compiles the run kernel of
+    ``mode`` and ``method``, which numba's cache does not hold yet (jit.in_cache)."""
+    return (
+        f"the run kernel of the {mode} model's {method} is not compiled on this machine yet: {first} compiles it "
+        "(about a minute, minutes on a busy machine; once: later runs load it)"
+    )
+
+
 def set_runner(mode: str, method: str) -> Callable[..., None] | None:
     """The compiled run kernel of one set (kernel.batch_set of set 0, in the calling thread) of
     one model and method, or None: called as :func:`batch_runner`'s kernel with one set."""

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import jit
 from ..errors import SimulationError
 from ..model import MODELS
 from ..model.geometry import triangle_bounds_m, within_triangle
@@ -193,6 +194,17 @@ class Simulator:
         self.outputs()
         if self.params.mode == "physical":
             self.following(PositionLoop.of_parameters([self.params])).go_on(0)  # its start, taken by no one
+
+    def compiles_first(self) -> bool:
+        """Whether :meth:`warm` compiles what this simulator steps with (numba's cache does not
+        hold it yet: about a minute), rather than loading it: for a start to say so first."""
+        if not self.compiled:
+            return False
+        p = self.params
+        kernels = [self._compiled, self._observe]
+        if p.mode == "physical":  # (warm: the controller's run too)
+            kernels.append(accelerate.set_runner(p.mode, p.method))
+        return any(jit.in_cache(k) is False for k in kernels if k is not None)
 
     # --- stepping -------------------------------------------------------------------------
     def step(self, u: float, steps: int = 1) -> None:

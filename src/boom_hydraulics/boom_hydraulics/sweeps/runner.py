@@ -119,11 +119,10 @@ def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
         for p in {(p.mode, p.method): p for p in batch.params}.values():
             run = accelerate.batch_runner(p.mode, p.method, len(batch.params))
             if run is not None:
-                needed.setdefault(run, f"the {p.mode} model's {p.method}")
+                needed.setdefault(run, (p.mode, p.method))
     return [
-        f"the run kernel of {what} is not compiled on this machine yet: the first batch compiles it "
-        "(about a minute, minutes on a busy machine; once: later sweeps load it)"
-        for run, what in needed.items()
+        accelerate.compiling_notice(*mode_method, "the first batch")
+        for run, mode_method in needed.items()
         if jit.in_cache(run) is False
     ]
 
