@@ -16,6 +16,16 @@ It prints M state-steps/s, the median (smallest-largest) of the rounds for each 
 and this checkout's median over the other's; the table also goes to
 bench/results/batch-<UTC date-time>.md. The kernel is loaded (compiled on a cold cache)
 outside the timings.
+
+    tools/with-env python bench/bench_batch.py --parts [--rounds 3]
+
+With ``--parts`` instead, this checkout alone: what a step pays beyond the model, found by
+leaving it out at run time (the same compiled kernel): the 5 s lift's opening on 4000 sets,
+1 s of it, with a sample for the metrics at every step (as sweeps take them by default), with
+one every 1000 steps, and with one every 1000 steps and no stability bound (its limit set to 0,
+which the kernel skips; the lift at 1 ms needs no substeps, so the states are the same). The
+cases run in turn in each round; each row is the best of the rounds and its share of the first's
+time per step (bench/results/batch-parts-<UTC date-time>.md).
 """
 
 from __future__ import annotations
@@ -55,6 +65,32 @@ print(json.dumps({
 }))
 """
 
+PARTS = """
+import json, time
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import batch, commands
+
+n, rounds = 4000, {rounds}
+lift = [with_updates(Parameters(), piston_diameter_m=0.04 + 0.04 * i / n, command_value=1.0) for i in range(n)]
+batch.run_sets(lift[:8], 0.01, commands.constant(1.0))  # load (or compile) the kernel
+bound = batch.stability_limit
+cases = {{"every": (1, bound), "sparse": (1000, bound), "unbound": (1000, lambda p: 0.0)}}
+best = {{key: 0.0 for key in cases}}
+for _ in range(rounds):
+    for key, (every, limit) in cases.items():
+        batch.stability_limit = limit  # (SetRun reads it by name)
+        started = time.perf_counter()
+        batch.run_sets(lift, 1.0, commands.constant(1.0), every=every)
+        best[key] = max(best[key], n * 1000 / (time.perf_counter() - started) / 1e6)
+print(json.dumps(best))
+"""
+
+PART_ROWS = (
+    ("every", "a sample for the metrics at every step (sweeps' default --every 1)"),
+    ("sparse", "a sample every 1000 steps"),
+    ("unbound", "a sample every 1000 steps, and no stability bound"),
+)
+
 ROWS = (
     ("lift", "blocks kernel, 10 000 sets of the 5 s lift's opening (constant command), M state-steps/s"),
     ("loader", "blocks kernel, 2000 sets of the loader cycle (position controller, payload), M state-steps/s"),
@@ -74,13 +110,33 @@ def spread(values: list[float]) -> str:
     return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
 
 
+def parts(rounds: int) -> int:
+    """--parts: what the metrics' samples and the stability bound cost a step, this checkout."""
+    out = subprocess.run(
+        [*with_env(ROOT), "python", "-c", PARTS.format(rounds=rounds)], cwd=ROOT, capture_output=True, text=True
+    )
+    if out.returncode != 0:
+        raise RuntimeError(f"the batch run failed: {out.stderr.strip().splitlines()[-1:]}")
+    rates = json.loads(out.stdout.strip().splitlines()[-1])
+    first = rates[PART_ROWS[0][0]]
+    rows = [[what, f"{rates[key]:.2f}", f"{first / rates[key] * 100:.0f} %"] for key, what in PART_ROWS]
+    title = f"Blocks kernel, 4000 sets of the lift's opening, best of {rounds} rounds ({os.cpu_count()} cores)"
+    text = table(title, ["what a step takes", "M state-steps/s", "time per step"], rows)
+    print(f"written to {write_results('batch-parts', text).relative_to(ROOT)}")
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--against", type=checkout_path, required=True, help="a built checkout to compare with")
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--against", type=checkout_path, help="a built checkout to compare with")
+    which.add_argument("--parts", action="store_true", help="what a step pays beyond the model, this checkout")
     parser.add_argument("--rounds", type=int, default=3, help="rounds, each checkout once per round (3)")
     args = parser.parse_args()
     if args.rounds < 1:
         parser.error(f"--rounds must be at least 1, got {args.rounds}")
+    if args.parts:
+        return parts(args.rounds)
     checkouts = [ROOT, args.against]
     figures: dict[Path, dict[str, list[float]]] = {c: {key: [] for key, _ in ROWS} for c in checkouts}
     for n in range(args.rounds):
