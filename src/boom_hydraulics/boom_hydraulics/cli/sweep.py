@@ -145,7 +145,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _resume_command(argv: Sequence[str], out: Path, args: argparse.Namespace) -> str:
+    """The command that finishes the sweep, as the user can type it where they are: through the
+    checkout's tools/with-env where it ran through it (its environment says so), relative to
+    the current folder where it is the checkout's."""
     words = ["boom-sweep", *argv]
+    launcher = os.environ.get("BOOM_HYDRAULICS_WITH_ENV")
+    if launcher:
+        here = Path("tools/with-env")
+        same = here.exists() and here.resolve() == Path(launcher).resolve()
+        words.insert(0, str(here) if same else launcher)
     if args.out is None:
         words += ["--out", str(out)]
     if not args.resume:
