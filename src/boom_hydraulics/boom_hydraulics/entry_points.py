@@ -1,8 +1,8 @@
 """The programs' entry points (setup.py's console_scripts): each imports its program's module
 behind a Ctrl-C guard, so that a Ctrl-C while the modules load (numpy, numba and rclpy: a
 second or two, longer on a busy machine) ends in one line, as a Ctrl-C later does, and not
-in a traceback. Once its module is loaded, the program handles its signals itself
-(:func:`programs.run_main`; the node: :mod:`ros.process`).
+in a traceback. Once its module is loaded, the program's own handling takes over: the tools'
+:func:`programs.run_main`, the node's :mod:`ros.process` (from its parameters file's check on).
 
 This module is the top floor: it names the programs' modules as text and imports one of
 them only when that program starts, so that starting one does not load the others.
@@ -14,22 +14,25 @@ import importlib
 import sys
 from collections.abc import Callable
 
+from .programs import NODE_STOPPED_WHILE_STARTING, ignore_stop_signals
+
 #: A Ctrl-C while a tool's modules load: its line and exit status (as programs.run_main's for
 #: a later Ctrl-C; nothing has been written yet).
 INTERRUPTED = ("error: interrupted (Ctrl-C) while starting; nothing was written", 130)
 #: The node's, as ros.process says it for a stop during its start (a node stopped by a signal exits 0).
-NODE_STOPPED = ("stopped while starting; nothing was recorded", 0)
+NODE_STOPPED = (NODE_STOPPED_WHILE_STARTING, 0)
 
 
 def guarded(module: str, prog: str, stopped: tuple[str, int] = INTERRUPTED) -> Callable[..., int | None]:
     """The entry point of ``prog``: ``module``'s ``main`` (given ``argv`` where a caller
     passes one, as the tests do), imported when called; a KeyboardInterrupt while it is
-    imported prints ``prog: <line>`` and returns the status."""
+    imported prints ``prog: <line>`` and returns the status, and later stop signals are ignored."""
 
     def main(argv: list[str] | None = None) -> int | None:
         try:
             program = importlib.import_module(module).main
         except KeyboardInterrupt:
+            ignore_stop_signals()  # (a second Ctrl-C, as a terminal and ros2 launch send together)
             line, status = stopped
             print(f"{prog}: {line}", file=sys.stderr, flush=True)
             return status

@@ -19,6 +19,20 @@ from typing import Any
 
 from .errors import BoomHydraulicsError, ConfigError
 
+#: What the node (boom_sim) says when a signal stops it before it runs (exit status 0, as for any
+#: stop of a node): ros.process once its modules are loaded, entry_points while they load.
+NODE_STOPPED_WHILE_STARTING = "stopped while starting; nothing was recorded"
+
+
+def ignore_stop_signals() -> None:
+    """From here on a SIGINT or SIGTERM changes nothing: a program that is done (its line said)
+    ends as it decided. A second Ctrl-C, or the one ``ros2 launch`` forwards with the terminal's,
+    would otherwise interrupt its last line with a traceback; and Python's shutdown puts back the
+    default action of a signal that has a Python handler, so that a second Ctrl-C in its half
+    second killed the process (status 130, not the one decided). An ignored signal stays ignored."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
+
 
 class RaisingParser(argparse.ArgumentParser):
     """argparse that raises ConfigError instead of exiting, so every error ends as one line."""

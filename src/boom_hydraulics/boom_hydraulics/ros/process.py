@@ -17,7 +17,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
 from ..errors import BoomHydraulicsError, ConfigError
-from ..programs import dropped_interrupts_unreported
+from ..programs import NODE_STOPPED_WHILE_STARTING, dropped_interrupts_unreported, ignore_stop_signals
 from . import node_parameters as ros_parameters
 from .node import BoomSimNode
 
@@ -86,7 +86,7 @@ class _Start(threading.Thread):
 
 
 def _stopped_while_starting() -> None:
-    print("boom_sim: stopped while starting; nothing was recorded", file=sys.stderr, flush=True)
+    print(f"boom_sim: {NODE_STOPPED_WHILE_STARTING}", file=sys.stderr, flush=True)
 
 
 def main(args: list[str] | None = None) -> None:
@@ -114,16 +114,7 @@ def main(args: list[str] | None = None) -> None:
         with dropped_interrupts_unreported(lambda: True):
             _run()
     finally:
-        _ignore_signals()
-
-
-def _ignore_signals() -> None:
-    """The node is done (its bag finished, its line printed): a signal from here on changes
-    nothing. Python's shutdown puts back the default action of a signal that has a Python
-    handler, and a second Ctrl-C in its half second then killed the process (status 130, not
-    0); an ignored signal stays ignored."""
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, signal.SIG_IGN)
+        ignore_stop_signals()
 
 
 def _run() -> None:
