@@ -147,6 +147,7 @@ def test_a_simulator_tells_whether_its_warm_up_compiles(monkeypatch):
 
     sim = Simulator(Parameters(), jit=True)
     sim.warm()
+    assert [jit.in_cache(k) for k in sim.warm_kernels()] == [True] * 3  # stepping, outputs, the controller's run
     assert not sim.compiles_first()
     asked = []
 
@@ -157,3 +158,19 @@ def test_a_simulator_tells_whether_its_warm_up_compiles(monkeypatch):
     monkeypatch.setattr(jit, "in_cache", first_held)
     assert sim.compiles_first() and len(asked) >= 2  # the first kernel held, a later one not
     assert not Simulator(Parameters(), jit=False).compiles_first()
+
+
+def test_a_run_asks_the_cache_for_what_it_calls_and_a_kernel_without_one_always_compiles():
+    """run_kernels: a method the run loop compiles, its run kernel (blocks from 4 sets on); ros2,
+    the compiled steps its interpreted loop calls. A kernel made without a cache folder compiles
+    in every process: in_cache says so (False), where numba missing says nothing (None)."""
+    import numba
+
+    from boom_hydraulics import jit
+
+    assert accelerate.run_kernels("physical", "rk4") == [accelerate.batch_runner("physical", "rk4")]
+    assert accelerate.run_kernels("physical", "rk4", 4) == [accelerate.batch_runner("physical", "rk4", 4)]
+    assert accelerate.batch_runner("physical", "ros2") is None
+    assert accelerate.run_kernels("physical", "ros2") == [accelerate.stepper("physical", "ros2")]
+    assert jit.in_cache(numba.njit(cache=False)(lambda x: 2.0 * x)) is False
+    assert jit.in_cache(None) is None and jit.in_cache(lambda x: x) is None

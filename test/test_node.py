@@ -404,7 +404,7 @@ def test_ctrl_c_while_the_node_compiles_ends_it_in_one_line_with_nothing_recorde
     try:
         # with an empty cache the node says it compiles (tens of seconds; its first log line
         # comes after), once its parameters are declared
-        said = client.spin_until(lambda: any("compiling the physical model's rk4" in line for line in lines), 60)
+        said = client.spin_until(lambda: any("model's rk4 is not compiled on this machine" in ln for ln in lines), 60)
         assert said, "".join(lines)
         for _ in range(presses):
             proc.send_signal(signal.SIGINT)
@@ -420,8 +420,9 @@ def test_ctrl_c_while_the_node_compiles_ends_it_in_one_line_with_nothing_recorde
     assert "physical mode," not in out, out  # (its first log line, once compiled: it was stopped before)
     said, stopped = out.strip().splitlines()
     assert said.endswith(
-        "(not in the cache yet: about a minute, minutes on a busy machine; once: later starts load it)"
-    )
+        "the physical model's rk4 is not compiled on this machine yet: compiling it for this start takes about a "
+        "minute, minutes on a busy machine (once: later runs load it)"
+    ), out
     assert stopped == "boom_sim: stopped while starting; nothing was recorded", out
     assert not bags.exists()
 

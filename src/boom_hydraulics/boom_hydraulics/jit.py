@@ -136,16 +136,20 @@ def in_cache(entry: Callable[..., Any] | None) -> bool | None:
     """Whether numba's on-disk cache holds compiled code of the entry point ``entry`` (made by
     :func:`kernel`) for its sources as they are, so that its first call loads it instead of
     compiling: False where its first call will compile (for a tool to say so before it sits
-    silent for a minute); None where it cannot tell (no entry point: numba missing or switched
-    off; no cache folder; a numba whose cache is laid out otherwise). numba's index of compiled
-    signatures (its FunctionCache) has no public reader: this reads it as numba's own load
-    does, and an index written for other argument types than the call's still counts as held."""
+    silent for a minute), as always where no cache folder could be written; None where it
+    cannot tell (no entry point: numba missing or switched off; a numba whose cache is laid out
+    otherwise; an index it cannot read, on which numba's own load fails as well). numba's index
+    of compiled signatures (its FunctionCache) has no public reader: this reads it as numba's
+    own load does, and an index written for other argument types than the call's still counts."""
     if entry is None:
         return None
+    cache = getattr(entry, "_cache", None)
+    if type(cache).__name__ == "NullCache":  # njit(cache=False): every process compiles
+        return False
     try:
-        index = entry._cache._cache_file._load_index()  # type: ignore[attr-defined]
+        index = cache._cache_file._load_index()  # type: ignore[union-attr]
     except AttributeError:
         return None
-    except Exception:  # an unreadable index: numba compiles afresh, as for none
-        return False
+    except Exception:  # (e.g. a truncated index: numba raises on it too, at the first call)
+        return None
     return bool(index)

@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from .. import jit
 from ..analysis import studies
 from ..analysis.metrics import move_window
 from ..errors import ConfigError
@@ -67,7 +66,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     step_count(params, args.duration, "--duration")  # a positive, finite duration a run can take
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
-    if jit.in_cache(accelerate.batch_runner(params.mode, params.method)) is False:  # (a whole run's kernel)
+    if accelerate.not_in_cache(accelerate.run_kernels(params.mode, params.method)):
         print(f"boom-sim: {accelerate.compiling_notice(params.mode, params.method, 'this run')}", file=sys.stderr)
     stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)
     first_q1, last_q1, rows, start = _stream_csv(Path(args.out), stream)

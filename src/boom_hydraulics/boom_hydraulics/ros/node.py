@@ -57,6 +57,7 @@ from ..errors import ConfigError, SimulationError
 from ..model.outputs import finite_state
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
+from ..solve import accelerate
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
 from . import node_parameters as ros_parameters
@@ -102,10 +103,7 @@ class BoomSimNode(Node):
         )
         self.sim = Simulator(params, jit=bool(self.get_parameter("jit").value))
         if self.sim.compiles_first():  # (before a minute without a word: the first log line comes after)
-            self.get_logger().info(
-                f"compiling the {params.mode} model's {params.method} (not in the cache yet: about a minute, "
-                "minutes on a busy machine; once: later starts load it)"
-            )
+            self.get_logger().info(accelerate.compiling_notice(params.mode, params.method, "this start"))
         self.sim.warm()  # compile (or load from the cache) what it steps with, before the clock starts
         self.drive = CommandedDrive(self.sim, float(self.get_parameter("command_timeout_s").value))
         self.lock = threading.RLock()
@@ -313,7 +311,10 @@ class BoomSimNode(Node):
                 current.method,
             )
         ):
-            Simulator(new_params, jit=True).warm()
+            warming = Simulator(new_params, jit=True)
+            if warming.compiles_first():
+                self.get_logger().info(accelerate.compiling_notice(new_params.mode, new_params.method, "this change"))
+            warming.warm()
         self._checked = new_params
         return SetParametersResult(successful=True)
 

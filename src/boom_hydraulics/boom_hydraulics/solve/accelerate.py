@@ -11,7 +11,8 @@ The first compile takes a few seconds; a later process loads from the cache (:fu
 from __future__ import annotations
 
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -61,12 +62,26 @@ def batch_runner(mode: str, method: str, sets: int = 1) -> Callable[..., None] |
     return KERNELS[mode].BATCHES.get(method)
 
 
-def compiling_notice(mode: str, method: str, first: str) -> str:
-    """What a program says where ``first`` (the run, the first batch) compiles the run kernel of
-    ``mode`` and ``method``, which numba's cache does not hold yet (jit.in_cache)."""
+def run_kernels(mode: str, method: str, sets: int = 1) -> list[Callable[..., Any]]:
+    """The compiled code a whole run of ``sets`` parameter sets of ``mode`` and ``method``
+    calls (batch.SetRun): its run kernel (:func:`batch_runner`) or, for a method the run loop
+    does not compile, the compiled steps its interpreted loop calls; none without numba."""
+    run = batch_runner(mode, method, sets)
+    steps = stepper(mode, method) if run is None else None
+    return [k for k in (run, steps) if k is not None]
+
+
+def not_in_cache(kernels: Sequence[Callable[..., Any] | None]) -> bool:
+    """Whether numba's cache lacks one of ``kernels`` (jit.in_cache): its first call compiles."""
+    return any(jit.in_cache(k) is False for k in kernels if k is not None)
+
+
+def compiling_notice(mode: str, method: str, work: str) -> str:
+    """What a program says where ``work`` (this run, its batches, this start) first compiles
+    the model, ``mode`` and ``method``, because numba's cache does not hold it yet."""
     return (
-        f"the run kernel of the {mode} model's {method} is not compiled on this machine yet: {first} compiles it "
-        "(about a minute, minutes on a busy machine; once: later runs load it)"
+        f"the {mode} model's {method} is not compiled on this machine yet: compiling it for {work} takes "
+        "about a minute, minutes on a busy machine (once: later runs load it)"
     )
 
 

@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from .. import jit
 from ..errors import SimulationError
 from ..model import MODELS
 from ..model.geometry import triangle_bounds_m, within_triangle
@@ -195,16 +194,20 @@ class Simulator:
         if self.params.mode == "physical":
             self.following(PositionLoop.of_parameters([self.params])).go_on(0)  # its start, taken by no one
 
+    def warm_kernels(self) -> list[Callable[..., Any]]:
+        """The compiled entry points :meth:`warm` loads (none interpreted)."""
+        if not self.compiled:
+            return []
+        p = self.params
+        kernels = [self._compiled, self._observe]
+        if p.mode == "physical":  # (the controller's run too)
+            kernels.append(accelerate.set_runner(p.mode, p.method))
+        return [k for k in kernels if k is not None]
+
     def compiles_first(self) -> bool:
         """Whether :meth:`warm` compiles what this simulator steps with (numba's cache does not
         hold it yet: about a minute), rather than loading it: for a start to say so first."""
-        if not self.compiled:
-            return False
-        p = self.params
-        kernels = [self._compiled, self._observe]
-        if p.mode == "physical":  # (warm: the controller's run too)
-            kernels.append(accelerate.set_runner(p.mode, p.method))
-        return any(jit.in_cache(k) is False for k in kernels if k is not None)
+        return accelerate.not_in_cache(self.warm_kernels())
 
     # --- stepping -------------------------------------------------------------------------
     def step(self, u: float, steps: int = 1) -> None:

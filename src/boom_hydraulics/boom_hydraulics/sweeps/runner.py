@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from .. import jit
 from ..errors import ConfigError
 from ..files import check_apart, csv_column, write_bytes, write_csv, write_npz
 from ..model import config
@@ -112,18 +111,17 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
 
 
 def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
-    """A line for each run kernel that ``batches`` (run on this machine) need and numba's cache
-    does not hold yet: the first batch compiles it, for about a minute, without a word else."""
-    needed = {}
+    """A line for each model and method whose compiled code ``batches`` (run on this machine)
+    call and numba's cache does not hold yet: its batches compile it, for about a minute,
+    without a word else. (A batch's sets share their mode and method: sweep.SHARED.)"""
+    kernels: dict[tuple[str, str], list] = {}
     for batch in batches:
-        for p in {(p.mode, p.method): p for p in batch.params}.values():
-            run = accelerate.batch_runner(p.mode, p.method, len(batch.params))
-            if run is not None:
-                needed.setdefault(run, (p.mode, p.method))
+        p = batch.params[0]
+        kernels.setdefault((p.mode, p.method), []).extend(accelerate.run_kernels(p.mode, p.method, len(batch.params)))
     return [
-        accelerate.compiling_notice(*mode_method, "the first batch")
-        for run, mode_method in needed.items()
-        if jit.in_cache(run) is False
+        accelerate.compiling_notice(mode, method, "its batches")
+        for (mode, method), needed in kernels.items()
+        if accelerate.not_in_cache(list(dict.fromkeys(needed)))
     ]
 
 
