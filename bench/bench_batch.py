@@ -23,9 +23,9 @@ With ``--parts`` instead, this checkout alone: what a step pays beyond the model
 leaving it out at run time (the same compiled kernel): the 5 s lift's opening on 4000 sets,
 1 s of it, with a sample for the metrics at every step (as sweeps take them by default), with
 one every 1000 steps, and with one every 1000 steps and no stability bound (its limit set to 0,
-which the kernel skips; the lift at 1 ms needs no substeps, so the states are the same). The
-cases run in turn in each round; each row is the best of the rounds and its share of the first's
-time per step (bench/results/batch-parts-<UTC date-time>.md).
+which the kernel skips; the lift at 1 ms needs no substeps, so the states are the same: the
+script checks it). The cases run in turn in each round; each row is the best of the rounds
+and its share of the first's time per step (bench/results/batch-parts-<UTC date-time>.md).
 """
 
 from __future__ import annotations
@@ -75,13 +75,15 @@ lift = [with_updates(Parameters(), piston_diameter_m=0.04 + 0.04 * i / n, comman
 batch.run_sets(lift[:8], 0.01, commands.constant(1.0))  # load (or compile) the kernel
 bound = batch.stability_limit
 cases = {{"every": (1, bound), "sparse": (1000, bound), "unbound": (1000, lambda p: 0.0)}}
-best = {{key: 0.0 for key in cases}}
+best, states = {{key: 0.0 for key in cases}}, {{}}
 for _ in range(rounds):
     for key, (every, limit) in cases.items():
         batch.stability_limit = limit  # (SetRun reads it by name)
         started = time.perf_counter()
-        batch.run_sets(lift, 1.0, commands.constant(1.0), every=every)
+        states[key] = batch.run_sets(lift, 1.0, commands.constant(1.0), every=every).states
         best[key] = max(best[key], n * 1000 / (time.perf_counter() - started) / 1e6)
+if not (states["every"] == states["sparse"]).all() or not (states["sparse"] == states["unbound"]).all():
+    raise SystemExit("the cases' states differ: they do not take the same steps, and their rates do not compare")
 print(json.dumps(best))
 """
 

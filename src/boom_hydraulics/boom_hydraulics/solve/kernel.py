@@ -105,7 +105,7 @@ def controller_value(
     kp, ki, deadband, lower, integral, holding = zero, zero, zero, zero, zero, zero
     # each set's setpoint (model.setpoints.setpoint_at): where it is on its knots, set by set;
     # the segments' polynomials on the block at once (a part block's spare lanes: a finite span)
-    at_rest, held, w, span, a0, a1, r0, r1 = zero, zero, zero, zero + 1.0, zero, zero, zero, zero
+    at_rest, held, w, span, a0, a1, r0, r1 = zero, zero, zero, lanes.spread(1.0, u), zero, zero, zero, zero
     for j in range(len(status)):
         knot = setpoints.segment_at(
             command.knot_times_s[k + j], command.knot_angles_rad[k + j], command.knot_rates_rad_s[k + j], t_s
