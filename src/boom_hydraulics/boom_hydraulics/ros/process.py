@@ -22,6 +22,17 @@ from . import node_parameters as ros_parameters
 from .node import BoomSimNode
 
 
+def _shut_down() -> None:
+    """rclpy.try_shutdown(), where a signal may be shutting the context down at the same moment
+    (rclpy's SIGINT and SIGTERM handling does): its 'rcl_shutdown already called' is then what
+    was asked for. A Ctrl-C just after the node's first log line gave that traceback once."""
+    try:
+        rclpy.try_shutdown()
+    except Exception:
+        if rclpy.ok():
+            raise
+
+
 def _fail(message: str) -> None:
     print(f"boom_sim: error: {message}", file=sys.stderr, flush=True)
     raise SystemExit(2)
@@ -122,11 +133,11 @@ def _run() -> None:
     try:
         node = BoomSimNode()
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
-        rclpy.try_shutdown()
+        _shut_down()
         _fail(str(exc))
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
         _shield_signals()
-        rclpy.try_shutdown()
+        _shut_down()
         _stopped_while_starting()
         return
     except Exception:
@@ -164,7 +175,7 @@ def _run() -> None:
         if start is not None:
             start.finish()  # a signal came during the start: let it end, then finish what it began
         recorded = _finish(node, started)
-        rclpy.try_shutdown()
+        _shut_down()
     if start_error is not None:
         print(f"boom_sim: error: {start_error}", file=sys.stderr, flush=True)
         raise SystemExit(1)
