@@ -301,3 +301,45 @@ def test_ctrl_c_while_a_program_loads_its_modules_ends_in_one_line(tool):
     else:
         line = f"{tool}: error: interrupted (Ctrl-C) while starting; nothing was written"
         assert (done.returncode, out.strip()) == (130, line), out
+
+
+#: A Ctrl-C that the code it lands in turns into another exception, as matplotlib's drawing
+#: once made a ValueError ('Invalid bounding box') of one while a sweep plotted.
+_CTRL_C_TURNED_INTO_AN_ERROR = """
+import os, signal, sys
+from pathlib import Path
+from boom_hydraulics.cli import sweep
+from boom_hydraulics.sweeps import plots
+
+def drawing(*args, **kwargs):
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(10**7):  # the handler raises here
+            pass
+    except KeyboardInterrupt:
+        raise ValueError("Invalid bounding box") from None
+    raise AssertionError("the signal did not come")
+
+plots.plot_all = drawing if sys.argv[2] == "signal" else lambda *a, **k: 1 / 0
+signal.signal(signal.SIGINT, signal.default_int_handler)
+sys.exit(sweep.main(["--config", sys.argv[1], "--vary", "payload=0,150", "--duration", "0.2", "--out", sys.argv[3]]))
+"""
+
+
+@pytest.mark.parametrize("cause", ["signal", "bug"])
+def test_an_error_a_ctrl_c_turned_into_is_the_stop_and_a_bug_stays_a_bug(tmp_path, cause):
+    """A Ctrl-C lands in whatever code runs; code that makes another exception of it (matplotlib)
+    must not turn the stop into a traceback: the sweep's one line, its stored batch and resume
+    command, exit 130. The same error without a signal is a bug, and is not hidden."""
+    import sys
+
+    out = tmp_path / "sweep"
+    script = [sys.executable, "-c", _CTRL_C_TURNED_INTO_AN_ERROR, str(CONFIG / "default.yaml"), cause, str(out)]
+    done = subprocess.run(script, capture_output=True, text=True, timeout=GUARD_S)
+    if cause == "signal":
+        last = done.stderr.strip().splitlines()[-1]
+        assert done.returncode == 130 and "Traceback" not in done.stderr, done.stderr
+        assert last.startswith("boom-sweep: error: interrupted (Ctrl-C); 1 of 1 batches are stored in "), last
+        assert last.endswith(" --resume"), last
+    else:
+        assert done.returncode == 1 and "ZeroDivisionError" in done.stderr, done.stderr

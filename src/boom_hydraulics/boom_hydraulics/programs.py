@@ -167,17 +167,39 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
         print(f"{prog}: error: out of memory; ask for a smaller run (fewer points or samples)", file=sys.stderr)
         return 1
     except Terminated:
-        print(f"{prog}: error: terminated (SIGTERM); stopped, and what it was writing was not kept", file=sys.stderr)
-        return 128 + signal.SIGTERM
+        return _stopped(prog, signal.SIGTERM)
     except KeyboardInterrupt:
-        print(f"{prog}: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept", file=sys.stderr)
-        return 130
+        return _stopped(prog, signal.SIGINT)
+    except Exception:
+        # a stop signal's exception that the code it landed in turned into another (matplotlib's
+        # drawing gave a ValueError for one, once): the stop that was asked for, not a traceback
+        if not _PENDING:
+            raise
+        return _stopped(prog, _PENDING[-1])
     finally:
         _PENDING.clear()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
         if interrupt is not None and signal.getsignal(signal.SIGINT) is _interrupt:
             signal.signal(signal.SIGINT, interrupt)
+
+
+def stop_words(signum: int) -> str:
+    """How a program's line names the stop signal ``signum``."""
+    return "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted (Ctrl-C)"
+
+
+def _stopped(prog: str, signum: int) -> int:
+    """The line and exit status of a run stopped by ``signum`` (SIGINT: 130, SIGTERM: 143)."""
+    print(f"{prog}: error: {stop_words(signum)}; stopped, and what it was writing was not kept", file=sys.stderr)
+    return 128 + signum
+
+
+def stop_received() -> int | None:
+    """The stop signal (SIGINT or SIGTERM) that run_main's body received last, or None: for a
+    program that reports a stop in its own words, where an exception other than the signal's
+    came out of the code the signal landed in."""
+    return _PENDING[-1] if _PENDING else None
 
 
 def _install_interrupt() -> object | None:

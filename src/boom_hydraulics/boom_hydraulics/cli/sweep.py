@@ -41,7 +41,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main
+from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main, stop_received, stop_words
 from ..sweeps import sweep
 from ..sweeps.recommend import RANKINGS
 from ..sweeps.runner import BATCH_SIZE, Reached, SweepOptions, run_sweep
@@ -193,12 +193,14 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     try:
         check_numbers(args)
         return run_sweep(SweepOptions(**vars(args)), reached)
-    except Terminated:
-        print(reached.interrupted("terminated (SIGTERM)", finish), file=sys.stderr)
-        return 128 + signal.SIGTERM
-    except KeyboardInterrupt:
-        print(reached.interrupted("interrupted (Ctrl-C)", finish), file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as stop:  # (Terminated, SIGTERM's, is one)
+        signum = signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT
+    except Exception:
+        signum = stop_received()  # a signal's exception that the code it landed in made another
+        if signum is None:
+            raise
+    print(reached.interrupted(stop_words(signum), finish), file=sys.stderr)
+    return 128 + signum
 
 
 def main(argv: Sequence[str] | None = None) -> int:
