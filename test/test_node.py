@@ -420,8 +420,8 @@ def test_ctrl_c_while_the_node_compiles_ends_it_in_one_line_with_nothing_recorde
     assert "physical mode," not in out, out  # (its first log line, once compiled: it was stopped before)
     said, stopped = out.strip().splitlines()
     assert said.endswith(
-        "the physical model's rk4 is not compiled on this machine yet: compiling it for this start takes about a "
-        "minute, minutes on a busy machine (once: later runs load it)"
+        "the physical model's rk4 is not compiled on this machine yet: compiling it for this start takes tens of "
+        "seconds, minutes on a busy machine (once: later runs load it)"
     ), out
     assert stopped == "boom_sim: stopped while starting; nothing was recorded", out
     assert not bags.exists()

@@ -100,6 +100,13 @@ def test_a_sweep_says_when_its_batches_compile_the_run_kernel(tmp_path, monkeypa
     assert cold.returncode == 0 and cold.stderr.count(line) == 1, cold.stderr
 
 
+def test_the_summary_says_what_a_status_other_than_ok_means(tmp_path):
+    short = _sweep("--config", CONFIG / "default.yaml", "--vary", "payload=0,150", "--duration", "0.2", "--no-plots",
+                   "--out", tmp_path / "short")  # fmt: skip
+    assert short.returncode == 0, short.stderr
+    assert "2 points: 2 incomplete (did not lift through --lift-angle-deg within --duration)" in short.stdout
+
+
 def test_a_local_dask_cluster_gives_the_same_table_as_this_process(tmp_path):
     local = _sweep(*FOUR_POINTS, "--batch-size", "3", "--out", tmp_path / "local")
     assert local.returncode == 0, local.stderr

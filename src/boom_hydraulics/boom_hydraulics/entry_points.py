@@ -2,7 +2,8 @@
 behind a Ctrl-C guard, so that a Ctrl-C while the modules load (numpy, numba and rclpy: a
 second or two, longer on a busy machine) ends in one line, as a Ctrl-C later does, and not
 in a traceback. Once its module is loaded, the program's own handling takes over: the tools'
-:func:`programs.run_main`, the node's :mod:`ros.process` (from its parameters file's check on).
+:func:`programs.run_main`, the node's :mod:`ros.process` (from rclpy's start on: the few
+milliseconds before it, reading the parameters file, are in neither's hands).
 
 This module is the top floor: it names the programs' modules as text and imports one of
 them only when that program starts, so that starting one does not load the others.

@@ -81,7 +81,7 @@ def compiling_notice(mode: str, method: str, work: str) -> str:
     the model, ``mode`` and ``method``, because numba's cache does not hold it yet."""
     return (
         f"the {mode} model's {method} is not compiled on this machine yet: compiling it for {work} takes "
-        "about a minute, minutes on a busy machine (once: later runs load it)"
+        "tens of seconds, minutes on a busy machine (once: later runs load it)"
     )
 
 

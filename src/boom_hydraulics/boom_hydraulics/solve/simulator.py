@@ -206,7 +206,7 @@ class Simulator:
 
     def compiles_first(self) -> bool:
         """Whether :meth:`warm` compiles what this simulator steps with (numba's cache does not
-        hold it yet: about a minute), rather than loading it: for a start to say so first."""
+        hold it yet: tens of seconds), rather than loading it: for a start to say so first."""
         return accelerate.not_in_cache(self.warm_kernels())
 
     # --- stepping -------------------------------------------------------------------------

@@ -99,7 +99,11 @@ def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[
 
 def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
     status = np.asarray(table["status"])
-    counts = ", ".join(f"{int((status == s).sum())} {s}" for s in sweep.STATUSES if (status == s).any())
+    counts = ", ".join(
+        f"{int((status == s).sum())} {s}" + (f" ({sweep.STATUS_MEANINGS[s]})" if s in sweep.STATUS_MEANINGS else "")
+        for s in sweep.STATUSES
+        if (status == s).any()
+    )
     lines = [f"{len(status)} points: {counts}"]
     ok = np.nonzero(status == "ok")[0]
     if len(ok):
@@ -112,7 +116,7 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
 
 def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
     """A line for each model and method whose compiled code ``batches`` (run on this machine)
-    call and numba's cache does not hold yet: its batches compile it, for about a minute,
+    call and numba's cache does not hold yet: its batches compile it, for tens of seconds,
     without a word else. (A batch's sets share their mode and method: sweep.SHARED.)"""
     kernels: dict[tuple[str, str], list] = {}
     for batch in batches:

@@ -82,6 +82,12 @@ METRIC_NAMES = tuple(name for name, _, _ in METRICS)
 #: failed (the integration diverged or left the model's geometry), invalid (parameters
 #: rejected before running).
 STATUSES = ("ok", "incomplete", "failed", "invalid")
+#: What a status other than ok means, as the sweep's summary says it.
+STATUS_MEANINGS = {
+    "incomplete": "did not lift through --lift-angle-deg within --duration",
+    "failed": "the run stopped: see their reason column",
+    "invalid": "parameters refused before running: see their reason column",
+}
 
 #: Parameters that all points of one batch share: integration and the scenario (the valve command).
 BATCH_KEYS = (*SHARED, *names_in("scenario"))
