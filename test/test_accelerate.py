@@ -172,5 +172,8 @@ def test_a_run_asks_the_cache_for_what_it_calls_and_a_kernel_without_one_always_
     assert accelerate.run_kernels("physical", "rk4", 4) == [accelerate.batch_runner("physical", "rk4", 4)]
     assert accelerate.batch_runner("physical", "ros2") is None
     assert accelerate.run_kernels("physical", "ros2") == [accelerate.stepper("physical", "ros2")]
-    assert jit.in_cache(numba.njit(cache=False)(lambda x: 2.0 * x)) is False
+    cacheless = numba.njit(cache=False)(lambda x: 2.0 * x)
+    assert jit.in_cache(cacheless) is False
+    cacheless(1.0)
+    assert jit.in_cache(cacheless) is True  # compiled in this process: its next call does not wait
     assert jit.in_cache(None) is None and jit.in_cache(lambda x: x) is None

@@ -343,3 +343,71 @@ def test_an_error_a_ctrl_c_turned_into_is_the_stop_and_a_bug_stays_a_bug(tmp_pat
         assert last.endswith(" --resume"), last
     else:
         assert done.returncode == 1 and "ZeroDivisionError" in done.stderr, done.stderr
+
+
+_TAKEN_AS_ITS_END = """
+import os, signal, sys
+from boom_hydraulics.programs import run_main, stop_handled
+
+def body():
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(10**7):  # the handler raises here
+            pass
+    except KeyboardInterrupt:
+        if sys.argv[1] == "handled":
+            stop_handled()  # as boom-replay and boom-sim live do: a Ctrl-C is how they end
+    raise KeyError("a bug after the stop")
+
+signal.signal(signal.SIGINT, signal.default_int_handler)
+sys.exit(run_main("tool", body))
+"""
+
+
+@pytest.mark.parametrize("way", ["handled", "not handled"])
+def test_a_bug_after_a_ctrl_c_that_a_program_took_as_its_end_is_not_hidden(way):
+    """boom-replay and boom-sim live catch a Ctrl-C and end normally: an error after it is a bug,
+    and shows as one; a program that did not take the stop reports the stop."""
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", _TAKEN_AS_ITS_END, way], capture_output=True, text=True,
+                          timeout=GUARD_S)  # fmt: skip
+    if way == "handled":
+        assert done.returncode == 1 and "KeyError: 'a bug after the stop'" in done.stderr, done.stderr
+    else:
+        assert (done.returncode, done.stderr.strip()) == (
+            130,
+            "tool: error: interrupted (Ctrl-C); stopped, and what it was writing was not kept",
+        ), done.stderr
+
+
+_SECOND_CTRL_C_AFTER_THE_LINE = """
+import os, signal, sys
+from importlib.metadata import entry_points
+
+signal.signal(signal.SIGINT, signal.default_int_handler)
+(entry,) = entry_points(group="console_scripts", name="boom-bag-recover")
+sys.argv = ["boom-bag-recover", sys.argv[1]]
+status = entry.load()()
+if os.environ.get("SECOND_CTRL_C"):
+    os.kill(os.getpid(), signal.SIGINT)  # pressed again as the line appears
+    for _ in range(10**6):
+        pass
+sys.exit(status)
+"""
+
+
+def test_a_second_ctrl_c_after_a_tools_last_line_changes_nothing(tmp_path):
+    """A tool that has said its line (here boom-bag-recover's for a missing bag) ends with the
+    status it decided, whatever signal comes after."""
+    import sys
+
+    missing = str(tmp_path / "no_such_bag")
+    script = [sys.executable, "-c", _SECOND_CTRL_C_AFTER_THE_LINE, missing]
+    runs = []
+    for second in ("", "1"):
+        env = {**os.environ, "SECOND_CTRL_C": second}
+        runs.append(subprocess.run(script, capture_output=True, text=True, timeout=GUARD_S, env=env))
+    alone, pressed = runs
+    assert alone.returncode != 0 and len(alone.stderr.strip().splitlines()) == 1, alone.stderr
+    assert (pressed.returncode, pressed.stderr) == (alone.returncode, alone.stderr), pressed.stderr

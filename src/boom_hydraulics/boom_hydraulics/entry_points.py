@@ -27,7 +27,8 @@ NODE_STOPPED = (NODE_STOPPED_WHILE_STARTING, 0)
 def guarded(module: str, prog: str, stopped: tuple[str, int] = INTERRUPTED) -> Callable[..., int | None]:
     """The entry point of ``prog``: ``module``'s ``main`` (given ``argv`` where a caller
     passes one, as the tests do), imported when called; a KeyboardInterrupt while it is
-    imported prints ``prog: <line>`` and returns the status, and later stop signals are ignored."""
+    imported prints ``prog: <line>`` and returns the status. Once the program is done (as a
+    console script: no ``argv``), later stop signals are ignored."""
 
     def main(argv: list[str] | None = None) -> int | None:
         try:
@@ -37,7 +38,11 @@ def guarded(module: str, prog: str, stopped: tuple[str, int] = INTERRUPTED) -> C
             line, status = stopped
             print(f"{prog}: {line}", file=sys.stderr, flush=True)
             return status
-        return program() if argv is None else program(argv)
+        if argv is not None:  # (called in a process that goes on: the tests)
+            return program(argv)
+        status = program()
+        ignore_stop_signals()  # done, its line said: a second Ctrl-C in Python's shutdown changes nothing
+        return status
 
     main.__doc__ = f"``{prog}``: {module}.main, imported behind the Ctrl-C guard."
     return main

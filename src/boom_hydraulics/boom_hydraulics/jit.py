@@ -143,6 +143,8 @@ def in_cache(entry: Callable[..., Any] | None) -> bool | None:
     own load does, and an index written for other argument types than the call's still counts."""
     if entry is None:
         return None
+    if getattr(entry, "signatures", None):  # compiled or loaded in this process already: no wait
+        return True
     cache = getattr(entry, "_cache", None)
     if type(cache).__name__ == "NullCache":  # njit(cache=False): every process compiles
         return False

@@ -151,6 +151,7 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
     SIGTERM is turned into an exception like Ctrl-C while ``body`` runs, so that a terminated
     tool cleans up as an interrupted one does (and exits 143, 130 for Ctrl-C). Both are also
     recorded for :func:`raise_pending`."""
+    _PENDING.clear()  # (a signal that came after an earlier run_main in this process cleared it)
     previous = _install_terminate()
     interrupt = _install_interrupt()
     try:
@@ -193,6 +194,13 @@ def _stopped(prog: str, signum: int) -> int:
     """The line and exit status of a run stopped by ``signum`` (SIGINT: 130, SIGTERM: 143)."""
     print(f"{prog}: error: {stop_words(signum)}; stopped, and what it was writing was not kept", file=sys.stderr)
     return 128 + signum
+
+
+def stop_handled() -> None:
+    """The stop signals run_main's body received so far are dealt with: a program that takes a
+    Ctrl-C as its way to end (boom-replay, boom-sim live) says so where it catches it, so that an
+    exception after it is reported as what it is, not as the stop (run_main, stop_received)."""
+    _PENDING.clear()
 
 
 def stop_received() -> int | None:

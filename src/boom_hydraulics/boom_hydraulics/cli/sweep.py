@@ -40,7 +40,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import BoomHydraulicsError, ConfigError
 from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main, stop_received, stop_words
 from ..sweeps import sweep
 from ..sweeps.recommend import RANKINGS
@@ -195,6 +195,8 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         return run_sweep(SweepOptions(**vars(args)), reached)
     except KeyboardInterrupt as stop:  # (Terminated, SIGTERM's, is one)
         signum = signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT
+    except (BoomHydraulicsError, OSError):  # their own one line (run_main), signal or not
+        raise
     except Exception:
         signum = stop_received()  # a signal's exception that the code it landed in made another
         if signum is None:

@@ -25,6 +25,7 @@ from foxglove.websocket import Capability, ChannelView, Client, ClientChannel
 
 from ..errors import ConfigError
 from ..model.parameters import Parameters
+from ..programs import stop_handled
 from .channels import DESCRIPTION, TF_STATIC, Outlet, open_channels
 from .run import LiveRun
 from .steering import ENCODINGS, Steer, SteeringError, steer_of
@@ -163,6 +164,7 @@ def serve(
         _end_on_signals(stopping)  # from here on a signal ends the ticks, and the main thread finishes
         stopped.wait()
     except KeyboardInterrupt:  # a signal while starting (the SDK, the model's compiling or loading)
+        stop_handled()  # (its way to end: what comes after it is not the stop)
         _end_on_signals(stopping)
     finally:
         stopping.set()

@@ -55,6 +55,7 @@ from ..model.parameters import Parameters
 from ..programs import RaisingParser, run_main, summary
 from ..solve import commands, duty_cycles
 from ..solve.commands import CYCLE
+from .shutdown import shut_down
 
 #: The scenarios by name (``--scenario``; ``loader:SEED`` too).
 SCENARIOS = ("cycle", *duty_cycles.CYCLES)
@@ -333,7 +334,7 @@ def _drive(
         return None
     finally:
         driver.destroy_node()
-        rclpy.try_shutdown()
+        shut_down()
 
 
 if __name__ == "__main__":

@@ -20,17 +20,7 @@ from ..errors import BoomHydraulicsError, ConfigError
 from ..programs import NODE_STOPPED_WHILE_STARTING, dropped_interrupts_unreported, ignore_stop_signals
 from . import node_parameters as ros_parameters
 from .node import BoomSimNode
-
-
-def _shut_down() -> None:
-    """rclpy.try_shutdown(), where a signal may be shutting the context down at the same moment
-    (rclpy's SIGINT and SIGTERM handling does): its 'rcl_shutdown already called' is then what
-    was asked for. A Ctrl-C just after the node's first log line gave that traceback once."""
-    try:
-        rclpy.try_shutdown()
-    except Exception:
-        if rclpy.ok():
-            raise
+from .shutdown import shut_down
 
 
 def _fail(message: str) -> None:
@@ -133,11 +123,11 @@ def _run() -> None:
     try:
         node = BoomSimNode()
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
-        _shut_down()
+        shut_down()
         _fail(str(exc))
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
         _shield_signals()
-        _shut_down()
+        shut_down()
         _stopped_while_starting()
         return
     except Exception:
@@ -175,7 +165,7 @@ def _run() -> None:
         if start is not None:
             start.finish()  # a signal came during the start: let it end, then finish what it began
         recorded = _finish(node, started)
-        _shut_down()
+        shut_down()
     if start_error is not None:
         print(f"boom_sim: error: {start_error}", file=sys.stderr, flush=True)
         raise SystemExit(1)

@@ -35,7 +35,8 @@ from rosgraph_msgs.msg import Clock
 
 from ..bags.reading import check_bag_path
 from ..errors import BagError, ConfigError
-from ..programs import RaisingParser, run_main, summary
+from ..programs import RaisingParser, run_main, stop_handled, summary
+from .shutdown import shut_down
 
 _SLICE_S = 0.05  # the longest a wait goes without looking for a shutdown
 
@@ -157,11 +158,12 @@ def replay(
     except AnyReaderError as exc:
         raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
     except KeyboardInterrupt:  # SIGINT that reached Python before rclpy shut the context down
+        stop_handled()  # (its way to end: what comes after it is not the stop)
         return published
     finally:
         reader.close()
         node.destroy_node()
-        rclpy.try_shutdown()
+        shut_down()
     return published
 
 
