@@ -146,3 +146,24 @@ def test_sets_in_lock_step_on_the_vector_units_give_each_sets_own_run_to_the_bit
             assert np.array_equal(values[k], alone.metrics[name][0], equal_nan=True), (k, name)
         for field in ("failed_at_s", "failed_why", "most_substeps", "samples"):
             assert np.array_equal(getattr(runs, field)[k], getattr(alone, field)[0], equal_nan=True), (k, field)
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
+def test_exp_of_a_block_is_each_lanes_float_exp_and_of_a_block_of_zeros_one_without_a_call():
+    """lanes' exp: each lane's math.exp, to the bit; a block of zeros (+0 or -0: a chamber's
+    volume within its stroke) 1.0, which is what exp gives there, without calling it."""
+    import numba
+
+    from boom_hydraulics.solve import lanes
+
+    @numba.njit
+    def block_exp(values):
+        x = lanes.block()
+        for j in range(len(values)):
+            x = lanes.with_lane(x, j, values[j])
+        e = math.exp(x)
+        return np.array([lanes.lane(e, j) for j in range(len(values))])
+
+    for values in ([0.0, -0.0, 0.0, -0.0], [0.0, -0.0, -1e-300, 0.0], [-0.3, 2.0, -745.2, 709.7]):
+        got = block_exp(np.array(values))
+        assert [float(v).hex() for v in got] == [math.exp(v).hex() for v in values], values
