@@ -141,6 +141,30 @@ def test_two_signals_at_once_still_finish_the_bag_with_status_0(client, tmp_path
     assert len(_states(bag)) > 5
 
 
+def test_a_second_signal_that_lands_while_the_shield_goes_up_is_taken_by_it(monkeypatch):
+    """The two-signal case above at its worst moment (make test met it once): the second
+    signal's KeyboardInterrupt comes out of the shield's own signal.signal call. The shield
+    goes up again, whole: both signals then only say the node is still finishing."""
+    from boom_hydraulics.ros import process
+
+    installed: dict[int, object] = {}
+
+    def landing_once(signum, handler):
+        if not installed and not landing_once.landed:
+            landing_once.landed = True
+            raise KeyboardInterrupt  # the second signal, as Python raises it there
+        installed[signum] = handler
+
+    landing_once.landed = False
+    monkeypatch.setattr(process.signal, "signal", landing_once)
+    try:
+        process._shield_signals()
+    except KeyboardInterrupt:  # (caught: pytest would take it as the user's and end the run)
+        pytest.fail("the second signal came out of the shield: a traceback, and the bag left unfinished")
+    assert landing_once.landed and set(installed) == {signal.SIGINT, signal.SIGTERM}
+    assert installed[signal.SIGINT] is installed[signal.SIGTERM]
+
+
 def test_commands_a_flood_drops_are_counted_in_diagnostics(node, client):
     """The sensor-data queue keeps the last few commands of a flood; what it drops is counted."""
     from rclpy.qos import QoSProfile, ReliabilityPolicy
