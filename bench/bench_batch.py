@@ -99,9 +99,9 @@ ROWS = (
 )
 
 
-def measured(checkout: Path) -> dict[str, float]:
-    """One round of ``checkout``: its rates, M state-steps/s."""
-    out = subprocess.run([*with_env(checkout), "python", "-c", MEASURE], cwd=checkout, capture_output=True, text=True)
+def measured(checkout: Path, script: str = MEASURE) -> dict[str, float]:
+    """One round of ``checkout``: ``script``'s rates (M state-steps/s), run in its environment."""
+    out = subprocess.run([*with_env(checkout), "python", "-c", script], cwd=checkout, capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(f"the batch run of {checkout} failed: {out.stderr.strip().splitlines()[-1:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -114,12 +114,7 @@ def spread(values: list[float]) -> str:
 
 def parts(rounds: int) -> int:
     """--parts: what the metrics' samples and the stability bound cost a step, this checkout."""
-    out = subprocess.run(
-        [*with_env(ROOT), "python", "-c", PARTS.format(rounds=rounds)], cwd=ROOT, capture_output=True, text=True
-    )
-    if out.returncode != 0:
-        raise RuntimeError(f"the batch run failed: {out.stderr.strip().splitlines()[-1:]}")
-    rates = json.loads(out.stdout.strip().splitlines()[-1])
+    rates = measured(ROOT, PARTS.format(rounds=rounds))
     first = rates[PART_ROWS[0][0]]
     rows = [[what, f"{rates[key]:.2f}", f"{first / rates[key] * 100:.0f} %"] for key, what in PART_ROWS]
     title = f"Blocks kernel, 4000 sets of the lift's opening, best of {rounds} rounds ({os.cpu_count()} cores)"

@@ -118,14 +118,16 @@ def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
     """A line for each model and method whose compiled code ``batches`` (run on this machine)
     call and numba's cache does not hold yet: its batches compile it, for tens of seconds,
     without a word else. (A batch's sets share their mode and method: sweep.SHARED.)"""
-    kernels: dict[tuple[str, str], list] = {}
+    kernels: dict[tuple[str, str], set] = {}
     for batch in batches:
         p = batch.params[0]
-        kernels.setdefault((p.mode, p.method), []).extend(accelerate.run_kernels(p.mode, p.method, len(batch.params)))
+        kernels.setdefault((p.mode, p.method), set()).update(
+            accelerate.run_kernels(p.mode, p.method, len(batch.params))
+        )
     return [
         accelerate.compiling_notice(mode, method, "its batches")
         for (mode, method), needed in kernels.items()
-        if accelerate.not_in_cache(list(dict.fromkeys(needed)))
+        if accelerate.not_in_cache(list(needed))
     ]
 
 
