@@ -117,3 +117,32 @@ def test_an_os_error_names_the_target_not_the_temporary_file(tmp_path):
         raise OSError(errno.ENOSPC, "No space left on device", str(stage / "a.png"))
     assert caught.value.filename == str(tmp_path / "out" / "a.png")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_table_written_column_by_column_has_csv_writers_bytes(tmp_path, monkeypatch):
+    import csv
+
+    import numpy as np
+
+    from boom_hydraulics import files
+
+    text = np.array(["ok", "", 'say "hi"', "a, b", "two\nlines", "cr\rhere", "ok"])
+    columns = [
+        np.arange(7),
+        np.array([0.1, np.nan, np.inf, -0.0, 1e300, 5e-324, 2.0]),
+        np.array([True, False, True, True, False, False, True]),
+        text,
+        np.array([1, "x,y", 2.5, True, "", "q", "r"], dtype=object),
+    ]
+    header = ["point", "value", "flag", "reason", "mixed"]
+    monkeypatch.setattr(files, "CSV_CHUNK_ROWS", 3)  # several chunks, the last a part one
+    files.write_csv_columns(tmp_path / "columns.csv", header, columns)
+    files.write_csv(tmp_path / "rows.csv", header, zip(*(files.csv_column(c) for c in columns)))
+    assert (tmp_path / "columns.csv").read_bytes() == (tmp_path / "rows.csv").read_bytes()
+    with (tmp_path / "columns.csv").open(newline="") as handle:
+        read = list(csv.reader(handle))
+    assert [row[3] for row in read[1:]] == text.tolist()
+
+    files.write_csv_columns(tmp_path / "one.csv", ["reason"], [np.array(["", "a", ""])])
+    files.write_csv(tmp_path / "one_rows.csv", ["reason"], [[""], ["a"], [""]])
+    assert (tmp_path / "one.csv").read_bytes() == (tmp_path / "one_rows.csv").read_bytes()

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg
 
 from ..model.drives import DRIVES
 from ..model.geometry import lever_rad_per_m
@@ -138,6 +137,8 @@ class LinearModel:
         creep: SLOW_RATIO times slower than the hydraulic mode, or slower) have not yet moved:
         -C_f A_f^-1 B_f + D of the fast block, A split into fast and slow blocks by an ordered
         real Schur form and a Sylvester equation (no eigenvectors: robust where slow modes repeat)."""
+        import scipy.linalg  # here: a sweep imports this module for its modes, which need no scipy
+
         mode = self.hydraulic_mode()
         limit = (abs(mode.eigenvalue) if mode else float(np.max(np.abs(np.linalg.eigvals(self.A))))) / SLOW_RATIO
         s, z, k = scipy.linalg.schur(self.A, output="real", sort=lambda re, im: math.hypot(re, im) >= limit)

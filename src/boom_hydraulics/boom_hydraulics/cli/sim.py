@@ -27,7 +27,7 @@ import numpy as np
 from ..analysis import studies
 from ..analysis.metrics import move_window
 from ..errors import ConfigError
-from ..files import atomic_path, check_apart, csv_column, write_bytes, write_csv
+from ..files import atomic_path, check_apart, csv_rows, write_bytes, write_csv
 from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
@@ -96,10 +96,9 @@ def _stream_csv(out: Path, stream: RunStream) -> tuple[float, float, int, float]
     progress = tqdm(total=stream.duration_s, unit="s", unit_scale=True, disable=None, file=sys.stderr,
                     desc="boom-sim", bar_format=PROGRESS_FORMAT)  # fmt: skip
     with progress, atomic_path(out) as tmp, tmp.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow([f"{name} [{unit}]" for name, unit, _ in OUTPUTS])
+        csv.writer(handle).writerow([f"{name} [{unit}]" for name, unit, _ in OUTPUTS])
         for chunk in stream:
-            writer.writerows(zip(*(csv_column(chunk[name]) for name, _, _ in OUTPUTS)))
+            handle.write(csv_rows([chunk[name] for name, _, _ in OUTPUTS]))
             handle.flush()  # what is written can be seen growing, and the disk fills now, not at the end
             if rows == 0:
                 first_q1 = float(chunk["q1"][0])

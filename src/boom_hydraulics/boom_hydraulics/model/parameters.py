@@ -23,7 +23,7 @@ import dataclasses
 import difflib
 import itertools
 import math
-from collections.abc import Container, Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -604,11 +604,16 @@ _CHECKS = tuple(
 )
 
 
-def _check_fields(p: Parameters, names: Container[str] | None = None) -> None:
-    """Each field of ``p`` (of ``names`` only, if given) of its type's choices or range, finite."""
-    for name, choices, low, high, low_inclusive in _CHECKS:
-        if names is not None and name not in names:
-            continue
+#: The check of each field by its name, and its place in NAMES.
+_CHECK_OF = {check[0]: check for check in _CHECKS}
+_PLACE = {name: place for place, name in enumerate(NAMES)}
+
+
+def _check_fields(p: Parameters, names: Collection[str] | None = None) -> None:
+    """Each field of ``p`` (of ``names`` only, if given) of its type's choices or range, finite;
+    in the order of NAMES, so that the first field at fault is named whatever ``names``' order."""
+    checks = _CHECKS if names is None else [_CHECK_OF[name] for name in sorted(names, key=_PLACE.__getitem__)]
+    for name, choices, low, high, low_inclusive in checks:
         value = getattr(p, name)
         if choices is not None:
             if value not in choices:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..files import check_apart, csv_column, write_bytes, write_csv, write_npz
+from ..files import check_apart, write_bytes, write_csv_columns, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..programs import raise_pending
@@ -93,7 +93,7 @@ def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[
     names = list(table)
     index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
     columns = {n: np.asarray(table[n])[index] for n in names}
-    write_csv(path_csv, names, zip(*(csv_column(columns[n]) for n in names)))  # column by column
+    write_csv_columns(path_csv, names, [columns[n] for n in names])
     write_npz(path_csv.with_suffix(".npz"), columns)
 
 

@@ -381,6 +381,7 @@ def plan(asked: Request) -> Plan:
     for base_name, base in configs:
         config, _, operator = base_name.rpartition("/") if asked.operators else (base_name, "", "")
         described = ({"config": config} if several else {}) | ({"operator": int(operator)} if operator else {})
+        base_key = _batch_key(base)
         for values in samples:
             index = len(points)
             points.append({**described, **values})
@@ -389,7 +390,7 @@ def plan(asked: Request) -> Plan:
             except ConfigError as exc:
                 invalid[index] = str(exc)
                 continue
-            key = tuple(_hashable(getattr(params, k)) for k in BATCH_KEYS)
+            key = _batch_key(params) if _BATCH_KEY_SET.intersection(values) else base_key
             groups.setdefault(key, []).append((index, params))
     batches = []
     for members in groups.values():
@@ -406,6 +407,15 @@ def plan(asked: Request) -> Plan:
                 )
             )
     return Plan(asked.as_json(), columns, tuple(points), invalid, tuple(batches))
+
+
+_BATCH_KEY_SET = frozenset(BATCH_KEYS)
+
+
+def _batch_key(params: Parameters) -> tuple:
+    """What the points of one batch share (BATCH_KEYS), as a key; a point that changes none of
+    them has its base config's."""
+    return tuple(_hashable(getattr(params, k)) for k in BATCH_KEYS)
 
 
 def _hashable(value: Any) -> Any:
