@@ -230,11 +230,10 @@ def test_stiction_holds_below_the_breakaway_force_and_slides_above():
     mass = 2600.0
 
     def rod(t, y, peak):  # y = [x, v, s]
-        ratio = friction.stribeck_level(y[1], c.coulomb_ratio, 1.0, c.stribeck)
+        decay = friction.stribeck_decay(y[1], c.stribeck)
+        ratio = friction.stribeck_level(decay, c.coulomb_ratio, 1.0)
         ds = friction.bristle_rate(y[1], y[2], ratio, c.presliding)
-        f = friction.seal_friction_n(
-            y[1], y[2], ds, c.static, c.presliding, c.presliding_damping, c.stribeck, c.viscous
-        )
+        f = friction.seal_friction_n(y[1], y[2], ds, c.static, c.presliding, c.presliding_damping, decay, c.viscous)
         return [y[1], (peak * min(t, 1.0) - f) / mass, ds]
 
     for factor in (0.9, 1.1):

@@ -25,10 +25,18 @@ def paper_friction_n(velocity_m_s: Num, coulomb_n: Num, viscous_n_s_m: Num) -> N
 
 
 @jitable
-def stribeck_level(velocity_m_s: Num, coulomb_n: Num, static_n: Num, stribeck_m_s: Num, xp: ModuleType = math) -> Num:
-    """g(v) = F_c + (F_s - F_c) exp(-(v / v_st)^2): the sliding friction at speed v, N (Stribeck curve)."""
+def stribeck_decay(velocity_m_s: Num, stribeck_m_s: Num, xp: ModuleType = math) -> Num:
+    """exp(-(v / v_st)^2): 1 at rest, 0 sliding fast; how far the Stribeck curve and the seals'
+    damping sigma1 have fallen from their values at rest (both take it: one exp per evaluation)."""
     ratio = velocity_m_s / stribeck_m_s
-    return coulomb_n + (static_n - coulomb_n) * xp.exp(-ratio * ratio)
+    return xp.exp(-ratio * ratio)
+
+
+@jitable
+def stribeck_level(decay: Num, coulomb_n: Num, static_n: Num) -> Num:
+    """g(v) = F_c + (F_s - F_c) exp(-(v / v_st)^2): the sliding friction at speed v, N (Stribeck
+    curve), with ``decay`` = exp(-(v / v_st)^2) (:func:`stribeck_decay`)."""
+    return coulomb_n + (static_n - coulomb_n) * decay
 
 
 @jitable
@@ -51,16 +59,15 @@ def seal_friction_n(
     static_n: Num,
     presliding_m: Num,
     damping_n_s_m: Num,
-    stribeck_m_s: Num,
+    decay: Num,
     viscous_n_s_m: Num,
-    xp: ModuleType = math,
 ) -> Num:
     """LuGre friction force opposing motion, N (positive for positive deflection and velocity).
 
     F = sigma0 z + sigma1(v) dz/dt + b_d v = F_s s + sigma1 exp(-(v / v_st)^2) z_ba ds/dt + b_d v.
     Sliding steadily, s = r(v) sign(v) and F = g(v) sign(v) + b_d v (the Stribeck curve);
     near rest the seals act as a spring F_s / z_ba in parallel with a damper sigma1 + b_d.
+    ``decay`` is exp(-(v / v_st)^2) (:func:`stribeck_decay`).
     """
-    ratio = velocity_m_s / stribeck_m_s
-    sigma1 = damping_n_s_m * xp.exp(-ratio * ratio)
+    sigma1 = damping_n_s_m * decay
     return static_n * bristle + sigma1 * presliding_m * bristle_rate_1_s + viscous_n_s_m * velocity_m_s

@@ -33,7 +33,7 @@ from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated, pump
 from .drives import constants as drive_constants
 from .drives.constants import DriveConstants, Supply
 from .end_stops import end_stop_energy_j, end_stop_force_n
-from .friction import bristle_rate, seal_friction_n, stribeck_level
+from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
 from .geometry import (
     annulus_area_m2,
     boom_angle_rad,
@@ -390,9 +390,10 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
     f_hyd = p1 * c.s1 - p2 * c.s2 - c.p_ambient * (c.s1 - c.s2)
     f_stop = end_stop_force_n(q1, v, c.q_min, c.q_max, c.stop_k, c.stop_damping)
-    ratio = stribeck_level(v, c.coulomb_ratio, 1.0, c.stribeck, xp)  # g(v) / F_s
+    decay = stribeck_decay(v, c.stribeck, xp)
+    ratio = stribeck_level(decay, c.coulomb_ratio, 1.0)  # g(v) / F_s
     ds = bristle_rate(v, s, ratio, c.presliding)
-    f_friction = seal_friction_n(v, s, ds, c.static, c.presliding, c.presliding_damping, c.stribeck, c.viscous, xp)
+    f_friction = seal_friction_n(v, s, ds, c.static, c.presliding, c.presliding_damping, decay, c.viscous)
     # eq. 11 without the boom load; F_ext (docs/model.md, "Mechanics") acts where f_hyd does, same sign
     f_rod = f_hyd - f_friction - c.spring * (q1 - c.spring_free) + f_stop + c.f_external
     k = lever_rad_per_m(q1, c.a, c.b, xp)

@@ -96,7 +96,9 @@ def advance(
     return n, OK, most, y
 
 
-@jitable
+# inlined into the run loop, as kernel._commands is: a call takes the block's constants and state
+# by value (inlined: 308 -> 291 ns per set-step of the lift's opening, one thread)
+@jitable(inline="always")
 def advance_lanes(
     step: Callable[..., Any], derivative: Callable[..., Any], stiffness_rate: Callable[..., Any],
     energy: Callable[..., Any], t0: float, y: Any, c: Any, u: Any, dt: float, min_substeps: int, limit: float,
