@@ -6,11 +6,13 @@ options and their checks are cli.sweep's).
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 import os
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -230,7 +232,20 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
         )
     plan = reached.plan = sweep.plan(asked)
     store.begin(plan.request)
-    return _run_plan(options, out, store, plan, cost, constraints, across)
+    with _frozen_heap():
+        return _run_plan(options, out, store, plan, cost, constraints, across)
+
+
+@contextlib.contextmanager
+def _frozen_heap() -> Iterator[None]:
+    """What is alive now (the plan: a Parameters and a dict per point) out of the garbage
+    collector's walks while the batches run, back in them after: its full collections walked
+    all of it (gc.callbacks, a 10 000-point sweep: 0.19 s of collections, 0.09 s frozen)."""
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _run_plan(
