@@ -55,7 +55,9 @@ def jitable(function: F | None = None, *, inline: str = "never") -> Any:
     """Mark ``function`` as callable from compiled code (it stays the same Python function).
 
     ``inline="always"`` has numba inline it into its callers before optimising, so that
-    what a caller does not use of its results is not computed (the model's terms)."""
+    what a caller does not use of its results is not computed (the model's terms), or so
+    that a call in the run loop does not pass a block's constants and state by value at
+    every step (kernel._commands, stepping.advance_lanes)."""
 
     def mark(f: F) -> F:
         return register_jitable(inline=inline)(f) if numba is not None else f
