@@ -209,8 +209,8 @@ def test_the_battery_summary_gives_a_band_only_where_a_design_ran_several_cycles
     columns = ("operator", "drive", "piston_diameter_m")
     one = energy.summary(bands(1, 13_700.0, 13_700.0), columns)
     assert one == (
-        "  least battery energy with pump_controlled: 13.7 kJ per cycle, 2628 cycles per charge, of its one cycle"
-        " at piston_diameter_m=0.05"
+        "  least battery energy with pump_controlled: 13.7 kJ per cycle, 2628 cycles per charge"
+        " (one cycle run: no band) at piston_diameter_m=0.05"
     )
     several = energy.summary(bands(5, 12_000.0, 15_000.0), columns)
     assert "13.5 kJ per cycle (12-15)" in several and "(2400-3000)" in several, several

@@ -109,7 +109,7 @@ def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
         cycles = [float(bands[f"cycles_per_charge_p{q}"][row]) for q in PERCENTILES]
         count = int(bands["cycles"][row])
         if count == 1:  # the one cycle's values
-            figures = f"{energy[1]:.3g} kJ per cycle, {cycles[1]:.0f} cycles per charge, of its one cycle"
+            figures = f"{energy[1]:.3g} kJ per cycle, {cycles[1]:.0f} cycles per charge (one cycle run: no band)"
         else:
             figures = (
                 f"{energy[1]:.3g} kJ per cycle ({energy[0]:.3g}-{energy[2]:.3g}), {cycles[1]:.0f} cycles per charge "

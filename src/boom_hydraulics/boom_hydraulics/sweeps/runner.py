@@ -266,8 +266,9 @@ def _run_plan(
         else LocalExecutor()
     )
     runnable = plan.size - len(plan.invalid)
+    batches = f"{len(plan.batches)} batch" + ("" if len(plan.batches) == 1 else "es")
     print(
-        f"boom-sweep: {plan.size} points ({len(plan.invalid)} invalid) in {len(plan.batches)} batches of up to "
+        f"boom-sweep: {plan.size} points ({len(plan.invalid)} invalid) in {batches} of up to "
         f"{plan.request['batch_size']}; {len(plan.batches) - len(todo)} done before, {len(todo)} to run "
         f"{executor.description} ({cost.run_time(sum(len(b.points) for b in todo), os.cpu_count() or 1)})",
         file=sys.stderr,
