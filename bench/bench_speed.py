@@ -215,11 +215,17 @@ def main() -> int:
         "<= 15 s on 2 cores",
         min(sweeps["10000"][0], sweeps["10000 workers"][0]) <= 15.0,
     )
-    kernel_s = plan_kernel_s()
-    share = kernel_s / sweeps["10000"][0]
+    # the batches alone and the sweep again, in turn, the best of two of each: one run of each
+    # moved by half a second between runs of the same code, which a share of 90 % cannot hold
+    kernel_runs = [plan_kernel_s()]
+    sweep_runs = [sweeps["10000"][0], full_sweep(None, 100)[0]]
+    kernel_runs.append(plan_kernel_s())
+    kernel_s, sweep_s = min(kernel_runs), min(sweep_runs)
+    share = kernel_s / sweep_s
     row(
-        "boom-sweep of 10 000 points against its batches through the run kernel alone: kernel s / sweep s (share)",
-        f"{kernel_s:.1f} s / {sweeps['10000'][0]:.1f} s ({share * 100:.0f} %)",
+        "boom-sweep of 10 000 points against its batches through the run kernel alone, best of 2 each in turn: "
+        "kernel s / sweep s (share)",
+        f"{kernel_s:.1f} s / {sweep_s:.1f} s ({share * 100:.0f} %)",
         ">= 90 %",
         share >= 0.9,
     )
