@@ -245,8 +245,8 @@ def write_csv_columns(path: Path, header: Sequence[str], columns: Sequence[np.nd
 
 def csv_rows(columns: Sequence[np.ndarray]) -> str:
     """The rows of a table given column by column (arrays of equal length) as CSV text: the
-    bytes csv.writer writes of :func:`csv_column`'s cells, joined in bulk (a sweep's table of
-    10 000 points and 50 columns: 0.04 s, where csv.writer took 0.14)."""
+    bytes csv.writer writes of :func:`csv_column`'s cells, joined in bulk (joining a sweep's
+    table of 10 000 points and 50 columns took 0.04 s, where csv.writer's rows took 0.14 s)."""
     cells = [csv_column(c) if np.asarray(c).dtype.kind in "biuf" else _quoted(csv_column(c)) for c in columns]
     if len(cells) == 1:  # (csv.writer quotes a row that is one empty cell)
         cells = [[cell or '""' for cell in cells[0]]]
