@@ -21,7 +21,7 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..files import csv_cell, results_folder, write_csv, write_npz
+from ..files import results_folder, write_csv_columns, write_npz
 from ..model.parameters import Parameters
 from . import linear_model as lm
 from .operating_point import OperatingPoint, operating_point
@@ -171,7 +171,7 @@ def _bode_csv(path: Path, omega: np.ndarray, curves: dict[str, tuple[np.ndarray,
         unit = f"{units[name]} per unit" if name in units else "1"  # the loop gain has none
         header += [f"{name} magnitude [{unit}]", f"{name} phase [deg]"]
     columns = [omega / (2 * math.pi)] + [c for pair in curves.values() for c in pair]
-    write_csv(path, header, ([csv_cell(v) for v in row] for row in zip(*columns)))
+    write_csv_columns(path, header, columns)
 
 
 def _bode_png(path: Path, omega: np.ndarray, curves: dict, result: Linearization) -> None:
@@ -239,13 +239,10 @@ def _ringing_files(folder: Path, result: Linearization) -> None:
     r = result.ringing
     system = result.model.system()
     linear = control.forced_response(system, r.t_s, np.full(len(r.t_s), SMALL_STEP)).outputs[1]
-    write_csv(
+    write_csv_columns(
         folder / "ringing.csv",
         ["t [s]", "v simulated [m/s]", "v fitted [m/s]", "v linear model [m/s]"],
-        (
-            [csv_cell(a), csv_cell(b), csv_cell(c), csv_cell(d)]
-            for a, b, c, d in zip(r.t_s, r.velocity_m_s, r.fitted_m_s, linear)
-        ),
+        [r.t_s, r.velocity_m_s, r.fitted_m_s, linear],
     )
     fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
     base = result.point.state[1]

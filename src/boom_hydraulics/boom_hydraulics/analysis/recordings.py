@@ -15,7 +15,7 @@ import numpy as np
 
 from ..bags.reading import read_drive_states, read_energy_ledger
 from ..errors import ConfigError
-from ..files import check_apart, csv_cell, json_text, results_folder, write_csv, write_npz
+from ..files import check_apart, json_text, results_folder, write_csv_columns, write_npz
 from ..solve.outputs import OUTPUTS
 from . import metrics as analysis
 from . import plots
@@ -38,7 +38,7 @@ def write_signals(folder: Path, label: str, signals: dict[str, np.ndarray]) -> N
     names = list(signals)
     header = [f"{n} [{_UNITS.get(n, 's' if n == 't' else '1')}]" for n in names]
     columns = [signals[n] for n in names]
-    write_csv(folder / f"{label}.csv", header, ([csv_cell(c[i]) for c in columns] for i in range(len(signals["t"]))))
+    write_csv_columns(folder / f"{label}.csv", header, columns)
     write_npz(folder / f"{label}.npz", signals, compressed=True)
 
 
