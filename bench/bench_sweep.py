@@ -115,15 +115,14 @@ def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
 
 
 def plan_kernel_s(side: int = 100) -> float:
-    """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone (the
-    run kernel and the batch's metrics, nothing else of boom-sweep): what the sweep would take
-    at the kernel's own speed."""
+    """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone, one
+    after the other in this thread (the run kernel and the batch's metrics, nothing else of
+    boom-sweep): what the sweep would take at the kernel's own speed."""
     axes = [parse_axis(axis) for axis in grid_axes(side)]
     plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=DURATION_S))
     sweep.run_batch(plan.batches[0])  # load the compiled kernel outside the timing
     t0 = time.perf_counter()
-    with LocalExecutor() as executor:
-        done = sum(len(b.points) for b, _ in executor.map(sweep.run_batch, plan.batches))
+    done = sum(len(sweep.run_batch(batch)["point"]) for batch in plan.batches)
     assert done == side * side
     return time.perf_counter() - t0
 

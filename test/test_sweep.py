@@ -5,6 +5,8 @@ from __future__ import annotations
 import functools
 import math
 import operator
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from boom_hydraulics.analysis import metrics as analysis
 from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
 from boom_hydraulics.model import config
 from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.programs import CalledOffError, raise_pending
 from boom_hydraulics.solve import commands
 from boom_hydraulics.solve.simulation import simulate
 from boom_hydraulics.sweeps import sweep
@@ -287,6 +290,47 @@ def test_table_cells_keep_whole_numbers_whole():
     assert format_value(0.0660000001) == "0.066"
     assert format_value(np.nan) == "-"
     assert format_value(np.str_("paper_fig8")) == "paper_fig8"
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_this_process_delivers_every_result_in_order_and_a_failure_after_the_ones_before(threads):
+    invert = functools.partial(operator.truediv, 1.0)
+    assert list(LocalExecutor(threads).map(invert, [1.0, 2.0, 4.0, 8.0, 0.5])) == [
+        (1.0, 1.0), (2.0, 0.5), (4.0, 0.25), (8.0, 0.125), (0.5, 2.0)
+    ]  # fmt: skip
+    delivered = []
+    with pytest.raises(ZeroDivisionError):
+        for item, result in LocalExecutor(threads).map(invert, [2.0, 4.0, 0.0, 8.0]):
+            delivered.append((item, result))
+    assert delivered == [(2.0, 0.5), (4.0, 0.25)]
+
+
+def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stops_taking_results():
+    """As a sweep whose disk filled up while storing a batch: the batches running in the
+    executor's threads are called off (programs.raise_pending), not run to their end."""
+    running = threading.Semaphore(0)
+    called_off: list[int] = []
+
+    def batch(index: int) -> int:
+        if index == 0:
+            return 0
+        running.release()
+        deadline = time.monotonic() + 60  # (a batch that was not called off ends on its own)
+        while time.monotonic() < deadline:  # a run's slices, each followed by raise_pending, as SetRun.slices
+            try:
+                raise_pending()
+            except CalledOffError:
+                called_off.append(index)
+                raise
+            time.sleep(0.001)
+        return index
+
+    results = LocalExecutor(2).map(batch, range(5))
+    assert next(results) == (0, 0)
+    for _ in range(2):  # batches 1 and 2 run in the two threads
+        assert running.acquire(timeout=60)
+    results.close()  # returns once the threads are idle
+    assert sorted(called_off) == [1, 2]  # and batches 3 and 4 never started
 
 
 def test_a_task_that_fails_on_a_worker_is_named_and_the_finished_ones_are_delivered():

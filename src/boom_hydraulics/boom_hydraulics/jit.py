@@ -110,19 +110,22 @@ def module_sources(*modules: Any) -> list[Path]:
 
 def kernel(sources: Sequence[Path], *, parallel: bool = False) -> Callable[[F], F]:
     """Make the decorated function a compiled entry point cached under :func:`cache_folder`
-    of ``sources``; without numba (or switched off), the function itself."""
+    of ``sources``; without numba (or switched off), the function itself.
+
+    Compiled, it runs without the GIL (it touches no Python object), so that Python in other
+    threads goes on beside it: boom-sweep prepares and stores batches while one runs."""
 
     def make(f: F) -> F:
         if not available():
             return f
         folder = _folder(tuple(sources))
         if folder is None:
-            return numba.njit(cache=False, error_model="numpy", parallel=parallel)(f)
+            return numba.njit(cache=False, error_model="numpy", parallel=parallel, nogil=True)(f)
         # numba takes the folder when the function is made (its cache locator reads it then)
         saved = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = str(folder)
         try:
-            return numba.njit(cache=True, error_model="numpy", parallel=parallel)(f)
+            return numba.njit(cache=True, error_model="numpy", parallel=parallel, nogil=True)(f)
         finally:
             numba.config.CACHE_DIR = saved
 

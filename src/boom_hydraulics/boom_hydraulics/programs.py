@@ -13,11 +13,15 @@ import argparse
 import errno
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, TypeVar
 
 from .errors import BoomHydraulicsError, ConfigError
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 #: What the node (boom_sim) says when a signal stops it before it runs (exit status 0, as for any
 #: stop of a node): ros.process once its modules are loaded, entry_points while they load.
@@ -121,9 +125,34 @@ def _left_half_made(dropped: Any) -> bool:
 def raise_pending() -> None:
     """Raise again the Ctrl-C or SIGTERM that run_main's body received, if one came: a long loop
     calls it between its slices, so that a signal whose exception a finalizer swallowed still
-    stops the run (a sweep once ran its day-long batch to the end after Ctrl-C)."""
+    stops the run (a sweep once ran its day-long batch to the end after Ctrl-C). In a thread
+    running work under :func:`cancellable`, raise CalledOffError once that work was called off.
+
+    (A signal lands in the main thread only: a loop in another thread learns of it here.)"""
     if _PENDING:
         raise Terminated() if _PENDING[-1] == signal.SIGTERM else KeyboardInterrupt
+    called_off = getattr(_WORK, "called_off", None)
+    if called_off is not None and called_off.is_set():
+        raise CalledOffError()
+
+
+class CalledOffError(BaseException):
+    """Work in a thread whose result is no longer wanted (:func:`cancellable`): a BaseException,
+    as KeyboardInterrupt, so that no ``except Exception`` of the work takes it for its own."""
+
+
+#: The Event of the work the current thread runs under cancellable, if any.
+_WORK = threading.local()
+
+
+def cancellable(called_off: threading.Event, fn: Callable[[T], R], item: T) -> R:
+    """``fn(item)``, in a thread of a pool, stopped (CalledOffError) at its next :func:`raise_pending`
+    once ``called_off`` is set: its caller stopped taking results (a Ctrl-C, a full disk)."""
+    _WORK.called_off = called_off
+    try:
+        return fn(item)
+    finally:
+        del _WORK.called_off
 
 
 #: What to do about the OSErrors a user meets writing results.

@@ -7,15 +7,19 @@ any order), so the caller can store every result as soon as it exists. Leaving t
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import logging
 import os
 import signal
+import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from ..errors import BoomHydraulicsError, ConfigError
+from ..programs import cancellable
 
 Item = TypeVar("Item")
 
@@ -46,9 +50,27 @@ def _close_quietly(clusters: Iterable[Any]) -> None:
 
 
 class LocalExecutor:
-    """One item after the other, in this process."""
+    """The items in this process, in their order, ``threads`` at a time in threads of its own.
+
+    A sweep's batch runs on every core in the compiled run kernel, which releases the GIL
+    (jit.kernel) and runs one call at a time (solve.batch's kernel lock). Around its kernel, a
+    batch spends Python on one core: its constants and start states before, its metrics after.
+    With a second batch in a second thread, that Python runs while the other batch's kernel
+    does, and the caller stores each result while the next ones run. The ten batches of a
+    10 000-point sweep of 5 s lifts took 7.8-8.0 s so, against 7.95-8.2 s one after the other
+    (2 cores). ``threads=1``: one item after the other in the calling thread.
+
+    A stop signal (Ctrl-C, SIGTERM) lands in the calling thread. Once the caller stops taking
+    results (by a stop, or an error of its own such as a full disk), the items running stop at
+    the next slice of their run (programs.raise_pending), and their results are not kept.
+    """
 
     description = "in this process"
+
+    def __init__(self, threads: int = 2) -> None:
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.threads = threads
 
     def __enter__(self) -> LocalExecutor:
         return self
@@ -57,8 +79,27 @@ class LocalExecutor:
         return None
 
     def map(self, fn: Callable[[Item], Any], items: Iterable[Item]) -> Iterator[tuple[Item, Any]]:
-        for item in items:
-            yield item, fn(item)
+        if self.threads == 1:
+            for item in items:
+                yield item, fn(item)
+            return
+        running: collections.deque[tuple[Item, Future]] = collections.deque()
+        called_off = threading.Event()
+        pool = ThreadPoolExecutor(self.threads, thread_name_prefix="boom-sweep-batch")
+        try:
+            for item in items:
+                running.append((item, pool.submit(cancellable, called_off, fn, item)))
+                # the oldest is yielded once one more than the threads are in hand: while the
+                # caller takes it, the next ones run
+                if len(running) > self.threads:
+                    first, future = running.popleft()
+                    yield first, future.result()
+            while running:
+                first, future = running.popleft()
+                yield first, future.result()
+        finally:  # done, or the caller stopped taking results: what still runs stops at its next slice
+            called_off.set()
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 class DaskExecutor:
