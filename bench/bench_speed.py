@@ -225,7 +225,7 @@ def main() -> int:
     row(
         "boom-sweep of 10 000 points against its batches through the run kernel alone, best of 2 each in turn: "
         "kernel s / sweep s (share)",
-        f"{kernel_s:.1f} s / {sweep_s:.1f} s ({share * 100:.0f} %)",
+        f"{kernel_s:.2f} s / {sweep_s:.2f} s ({share * 100:.1f} %)",  # (89.6 % is not 90 %)
         ">= 90 %",
         share >= 0.9,
     )
