@@ -305,6 +305,21 @@ def test_this_process_delivers_every_result_in_order_and_a_failure_after_the_one
     assert delivered == [(2.0, 0.5), (4.0, 0.25)]
 
 
+def test_the_first_batch_of_each_kind_runs_in_the_calling_thread_where_ctrl_c_can_stop_its_compile():
+    caller = threading.get_ident()
+    in_caller = []
+
+    def batch(index: int) -> int:
+        if threading.get_ident() == caller:
+            in_caller.append(index)
+        return -index
+
+    items = [0, 1, 2, 3, 10, 11, 12, 20, 4]
+    executor = LocalExecutor(2, kind=lambda index: index // 10)  # (4 is of the first kind)
+    assert list(executor.map(batch, items)) == [(index, -index) for index in items]
+    assert in_caller == [0, 10, 20]
+
+
 def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stops_taking_results():
     """As a sweep whose disk filled up while storing a batch: the batches running in the
     executor's threads are called off (programs.raise_pending), not run to their end."""
@@ -312,8 +327,8 @@ def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stop
     called_off: list[int] = []
 
     def batch(index: int) -> int:
-        if index == 0:
-            return 0
+        if index < 2:  # (the first runs in the calling thread)
+            return index
         running.release()
         deadline = time.monotonic() + 60  # (a batch that was not called off ends on its own)
         while time.monotonic() < deadline:  # a run's slices, each followed by raise_pending, as SetRun.slices
@@ -325,12 +340,12 @@ def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stop
             time.sleep(0.001)
         return index
 
-    results = LocalExecutor(2).map(batch, range(5))
-    assert next(results) == (0, 0)
-    for _ in range(2):  # batches 1 and 2 run in the two threads
+    results = LocalExecutor(2).map(batch, range(6))
+    assert [next(results), next(results)] == [(0, 0), (1, 1)]
+    for _ in range(2):  # batches 2 and 3 run in the two threads
         assert running.acquire(timeout=60)
     results.close()  # returns once the threads are idle
-    assert sorted(called_off) == [1, 2]  # and batches 3 and 4 never started
+    assert sorted(called_off) == [2, 3]  # and batches 4 and 5 never started
 
 
 def test_a_task_that_fails_on_a_worker_is_named_and_the_finished_ones_are_delivered():

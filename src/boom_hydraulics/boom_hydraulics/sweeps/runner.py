@@ -116,6 +116,13 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
+def _kernel_call(batch: sweep.Batch) -> tuple:
+    """What the first batch of its kind may compile: its run kernel (batch.SetRun), for the
+    arguments that its points' shared settings give it (sweep.batch_key)."""
+    p = batch.params[0]
+    return sweep.batch_key(p), accelerate.batch_runner(p.mode, p.method, len(batch.params))
+
+
 def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
     """A line for each model and method whose compiled code ``batches`` (run on this machine)
     call and numba's cache does not hold yet: its batches compile it, for tens of seconds,
@@ -263,7 +270,7 @@ def _run_plan(
     executor = (
         DaskExecutor(options.scheduler, options.workers, options.scheduler_timeout)
         if (options.scheduler or options.workers) is not None
-        else LocalExecutor()
+        else LocalExecutor(kind=_kernel_call)
     )
     runnable = plan.size - len(plan.invalid)
     batches = f"{len(plan.batches)} batch" + ("" if len(plan.batches) == 1 else "es")

@@ -381,7 +381,7 @@ def plan(asked: Request) -> Plan:
     for base_name, base in configs:
         config, _, operator = base_name.rpartition("/") if asked.operators else (base_name, "", "")
         described = ({"config": config} if several else {}) | ({"operator": int(operator)} if operator else {})
-        base_key = _batch_key(base)
+        base_key = batch_key(base)
         for values in samples:
             index = len(points)
             points.append({**described, **values})
@@ -390,7 +390,7 @@ def plan(asked: Request) -> Plan:
             except ConfigError as exc:
                 invalid[index] = str(exc)
                 continue
-            key = _batch_key(params) if _BATCH_KEY_SET.intersection(values) else base_key
+            key = batch_key(params) if _BATCH_KEY_SET.intersection(values) else base_key
             groups.setdefault(key, []).append((index, params))
     batches = []
     for members in groups.values():
@@ -412,7 +412,7 @@ def plan(asked: Request) -> Plan:
 _BATCH_KEY_SET = frozenset(BATCH_KEYS)
 
 
-def _batch_key(params: Parameters) -> tuple:
+def batch_key(params: Parameters) -> tuple:
     """What the points of one batch share (BATCH_KEYS), as a key; a point that changes none of
     them has its base config's."""
     return tuple(_hashable(getattr(params, k)) for k in BATCH_KEYS)
