@@ -11,12 +11,15 @@ from __future__ import annotations
 
 import argparse
 import errno
+import json
+import os
 import signal
 import sys
 import threading
+import traceback
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from typing import Any, TypeVar
+from contextlib import contextmanager, suppress
+from typing import Any, NoReturn, TypeVar
 
 from .errors import BoomHydraulicsError, ConfigError
 
@@ -258,3 +261,90 @@ def _install_terminate() -> object | None:
         return signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread
         return None
+
+
+class Forked:
+    """``work()`` in a child process forked from this one, beside what this process does next:
+    a share of a program's work that runs on another core without waiting for the GIL (the
+    sweep's plots, half of them each). :meth:`wait` waits for it and raises here what it
+    raised; a stop (Ctrl-C reaches both processes from the terminal) ends it quietly, and
+    :meth:`stop` ends it from here. Fork only where :func:`can_fork`.
+    """
+
+    def __init__(self, work: Callable[[], None]) -> None:
+        read, write = os.pipe()
+        self.pid = os.fork()
+        if self.pid == 0:  # the child, which never returns from here
+            os.close(read)
+            _child(work, write)
+        os.close(write)
+        self._read: int | None = read
+
+    def wait(self) -> None:
+        """Wait for the child to end; raise its failure here: an OSError as the same OSError,
+        a stop as the stop, a ConfigError or a failure of this package as one, anything else
+        (a bug) with the child's traceback."""
+        if self._read is None:
+            return
+        with os.fdopen(self._read, "rb") as pipe:  # (the child's end closes its side)
+            self._read = None
+            said = pipe.read()
+        _, status = os.waitpid(self.pid, 0)
+        code = os.waitstatus_to_exitcode(status)
+        report = json.loads(said) if said else {}
+        if code == 0:
+            return
+        if code == 128 + signal.SIGTERM:
+            raise Terminated()
+        if code == 128 + signal.SIGINT:
+            raise KeyboardInterrupt
+        if report.get("errno") is not None:
+            raise OSError(report["errno"], report["strerror"], report["filename"])
+        if "error" in report:
+            raise (ConfigError if report.get("config") else BoomHydraulicsError)(report["error"])
+        raise RuntimeError(f"a forked process ended with status {code}:\n{report.get('traceback', '')}")
+
+    def stop(self) -> None:
+        """End the child now (this process failed or was stopped) and wait for it: it removes
+        what it was writing, as a stopped program does."""
+        if self._read is None:
+            return
+        with suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGTERM)
+        with suppress(ChildProcessError):
+            os.waitpid(self.pid, 0)
+        os.close(self._read)
+        self._read = None
+
+
+def can_fork() -> bool:
+    """Whether :class:`Forked` may fork here: the platform forks, and no other Python thread is
+    alive (one holding a lock at the fork would hold it in the child for ever; the native
+    threads of numba's parallel kernels hold none)."""
+    return hasattr(os, "fork") and threading.active_count() == 1
+
+
+def _child(work: Callable[[], None], write: int) -> NoReturn:
+    """The forked child: ``work()``, then how it failed as JSON on ``write``, and its exit
+    status (0, 1, or 128 + the stop signal), without Python's exit (the parent's atexit
+    handlers and buffers are the parent's)."""
+    status, report = 1, {}
+    try:
+        try:
+            work()
+            status = 0
+        except Terminated:
+            status = 128 + signal.SIGTERM
+        except KeyboardInterrupt:
+            status = 128 + signal.SIGINT
+        except OSError as exc:
+            report = {"errno": exc.errno, "strerror": exc.strerror, "filename": exc.filename}
+        except BoomHydraulicsError as exc:
+            report = {"error": str(exc), "config": isinstance(exc, ConfigError)}
+        except BaseException:
+            report = {"traceback": traceback.format_exc()}
+        finally:  # from here on a stop changes nothing: the child ends as decided
+            ignore_stop_signals()
+        os.write(write, json.dumps(report, default=str).encode())
+    finally:
+        os._exit(status)

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import importlib
 import math
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -114,6 +116,20 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
             where = ", ".join(f"{c}={recommend.format_value(table[c][best])}" for c in columns) or "the one point"
             lines.append(f"  {label}: {float(table[metric][best]):.4g} {UNITS[metric]} at {where}")
     return "\n".join(lines)
+
+
+def _import_meanwhile(module: str) -> threading.Thread:
+    """Import ``module`` in a thread of its own while the batches run: the plots' matplotlib is
+    0.6 s of Python, which the batches' kernel (released from the GIL) leaves room for. An
+    import that fails raises again where the module is used."""
+
+    def load() -> None:
+        with contextlib.suppress(Exception):
+            importlib.import_module(module)
+
+    thread = threading.Thread(target=load, name="boom-sweep-import")
+    thread.start()
+    return thread
 
 
 def _kernel_call(batch: sweep.Batch) -> tuple:
@@ -285,7 +301,10 @@ def _run_plan(
         print(f"boom-sweep: {notice}", file=sys.stderr, flush=True)
     from tqdm import tqdm
 
-    progress = tqdm(
+    class Progress(tqdm):
+        monitor_interval = 0  # (no monitor thread: the plots fork once the batches are done, programs.can_fork)
+
+    progress = Progress(
         total=runnable,
         initial=sum(len(b.points) for b in plan.batches if b.index in done),
         unit="pt",
@@ -293,6 +312,7 @@ def _run_plan(
         file=sys.stderr,
     )
     started = time.perf_counter()
+    plotting = None if options.no_plots else _import_meanwhile(f"{__package__}.plots")
     with executor, progress:
         for batch, rows in executor.map(sweep.run_batch, todo):
             store.save(batch.index, rows)
@@ -300,6 +320,8 @@ def _run_plan(
             progress.update(len(batch.points))
             raise_pending()  # a Ctrl-C a finalizer swallowed here (batches on workers): stop after this one
     seconds = time.perf_counter() - started
+    if plotting is not None:
+        plotting.join()
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
     write_table(table, out / "results.csv")

@@ -1,0 +1,97 @@
+"""programs.Forked: a share of a program's work in a forked child (the sweep's plots, half each)."""
+
+from __future__ import annotations
+
+import errno
+import time
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
+from boom_hydraulics.files import atomic_path
+from boom_hydraulics.model import config
+from boom_hydraulics.programs import Forked, Terminated, run_main
+from boom_hydraulics.sweeps import plots, sweep
+from boom_hydraulics.sweeps.sampling import parse_axis
+
+GUARD_S = 60
+
+
+def _raising(exc: BaseException):
+    def work() -> None:
+        raise exc
+
+    return work
+
+
+def test_the_childs_work_is_done_when_wait_returns(tmp_path):
+    forked = Forked(lambda: (tmp_path / "made").write_text("by the child"))
+    forked.wait()
+    assert (tmp_path / "made").read_text() == "by the child"
+    forked.wait()  # (once waited, again is nothing)
+
+
+@pytest.mark.parametrize(
+    ("raised", "expected", "words"),
+    [
+        (OSError(errno.ENOSPC, "No space left on device", "/out/plot.png"), OSError, "No space left"),
+        (ConfigError("a bad value"), ConfigError, "a bad value"),
+        (BoomHydraulicsError("a run failed"), BoomHydraulicsError, "a run failed"),
+        (ZeroDivisionError("division by zero"), RuntimeError, "ZeroDivisionError: division by zero"),
+        (KeyboardInterrupt(), KeyboardInterrupt, None),
+        (Terminated(), Terminated, None),
+    ],
+    ids=["disk full", "config", "failure", "bug", "ctrl-c", "sigterm"],
+)
+def test_what_the_child_raised_is_raised_here_as_run_main_reports_it(raised, expected, words):
+    with pytest.raises(expected, match=words) as caught:
+        Forked(_raising(raised)).wait()
+    assert type(caught.value) is expected
+    if isinstance(raised, OSError):  # the same error: run_main names the file and the advice
+        assert (caught.value.errno, caught.value.filename) == (errno.ENOSPC, "/out/plot.png")
+    if expected is BoomHydraulicsError:
+        assert not isinstance(caught.value, ConfigError)  # (exit 1, not 2)
+
+
+def test_a_child_stopped_from_here_removes_the_file_it_was_writing(tmp_path):
+    """As the parent does when it fails or is stopped while the child draws: the child takes
+    the SIGTERM as a program under run_main does, and its half-written plot is removed."""
+    target = tmp_path / "plot.png"
+    writing = tmp_path / "writing"
+
+    def work() -> None:
+        with atomic_path(target) as tmp:
+            tmp.write_bytes(b"half a plot")
+            writing.touch()
+            ends = time.monotonic() + GUARD_S  # (a drawing that takes long; not stopped, it ends and renames)
+            while time.monotonic() < ends:
+                time.sleep(0.01)
+
+    def body() -> int:
+        forked = Forked(work)
+        deadline = time.monotonic() + GUARD_S
+        while not writing.exists() and time.monotonic() < deadline:  # the child is writing
+            time.sleep(0.01)
+        forked.stop()  # returns once the child has ended
+        return 0
+
+    assert run_main("test", body) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["writing"]
+
+
+def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_path, monkeypatch):
+    axes = [parse_axis("piston_diameter=0.04:0.08:3"), parse_axis("payload=0,150")]
+    plan = sweep.plan(sweep.request([("default", config.load(CONFIG / "default.yaml"))], axes, duration_s=4.0))
+    table = sweep.assemble(plan, [sweep.run_batch(batch) for batch in plan.batches])
+    written = {}
+    for forking in (False, True):  # (the test's process has threads of its own: fork as boom-sweep does)
+        monkeypatch.setattr(plots, "can_fork", lambda forking=forking: forking)
+        folder = tmp_path / str(forking)
+        paths = plots.plot_all(table, plan.columns, folder)
+        written[forking] = {p.name: p.read_bytes() for p in paths}
+        assert sorted(p.name for p in folder.iterdir()) == sorted(written[forking])
+    assert len(written[True]) == 5 and written[True] == written[False]
+    assert all(png[:8] == b"\x89PNG\r\n\x1a\n" for png in written[True].values())
+    assert np.isfinite(np.asarray(table["battery_energy_j"], float)).any()  # (so the battery's plots are among them)
