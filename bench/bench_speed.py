@@ -229,6 +229,20 @@ def main() -> int:
         ">= 90 %",
         share >= 0.9,
     )
+    # the default, with its plots, against the same sweep without them; beside the other
+    # checkout's, in turn (its own bench_speed may have no such row), the best of two of each
+    plotted, theirs = [], []
+    for _ in range(2):
+        plotted.append(full_sweep(None, 100, plots=True)[0])
+        if args.against is not None:
+            theirs.append(full_sweep(None, 100, plots=True, checkout=args.against)[0])
+    beside = f" (in turn, {commit(args.against)}: {min(theirs):.1f} s)" if theirs else ""
+    row(
+        "boom-sweep of 10 000 points with its plots (the default): s / without plots (ratio)",
+        f"{min(plotted):.1f} s / {sweep_s:.1f} s ({min(plotted) / sweep_s:.2f}x){beside}",
+        "<= 1.1x: plots off the critical path",
+        min(plotted) <= 1.1 * sweep_s,
+    )
     points, seconds, answer_rate = answer_sweep()
     lift_rate = 10_000 * 5.0 / 1e-3 / sweeps["10000"][0] / 1e6  # M steps of dt per second
     row(

@@ -93,14 +93,18 @@ def grid_axes(side: int) -> list[str]:
     return [f"piston_diameter=0.032:0.1:{side}", f"payload=0:200:{side}"]
 
 
-def full_sweep(workers: int | None, side: int = 100) -> tuple[float, float]:
-    """boom-sweep over side x side points of a 5 s lift, start to finish: (seconds, peak
-    resident memory of the boom-sweep process in MB; with workers, of the parent alone)."""
+def full_sweep(
+    workers: int | None, side: int = 100, plots: bool = False, checkout: Path | None = None
+) -> tuple[float, float]:
+    """boom-sweep over side x side points of a 5 s lift, start to finish, with its plots or
+    without: (seconds, peak resident memory of the boom-sweep process in MB; with workers, of
+    the parent alone). ``checkout``: that built checkout's boom-sweep, in its environment."""
     out = Path(tempfile.mkdtemp(prefix="bench-sweep-"))
-    args = [shutil.which("boom-sweep")]
+    args = [shutil.which("boom-sweep")] if checkout is None else [str(checkout / "tools" / "with-env"), "boom-sweep"]
     for axis in grid_axes(side):
         args += ["--vary", axis]
-    args += ["--duration", f"{DURATION_S:g}", "--out", str(out / "s"), "--no-plots", "--no-progress"]
+    args += ["--duration", f"{DURATION_S:g}", "--out", str(out / "s"), "--no-progress"]
+    args += [] if plots else ["--no-plots"]
     if workers:
         args += ["--workers", str(workers)]
     t0 = time.perf_counter()

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import errno
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -40,16 +43,18 @@ def test_the_childs_work_is_done_when_wait_returns(tmp_path):
         (ConfigError("a bad value"), ConfigError, "a bad value"),
         (BoomHydraulicsError("a run failed"), BoomHydraulicsError, "a run failed"),
         (ZeroDivisionError("division by zero"), RuntimeError, "ZeroDivisionError: division by zero"),
+        (OSError("encoder error -2 when writing image file"), OSError, "encoder error -2"),
+        (MemoryError(), MemoryError, None),
         (KeyboardInterrupt(), KeyboardInterrupt, None),
         (Terminated(), Terminated, None),
     ],
-    ids=["disk full", "config", "failure", "bug", "ctrl-c", "sigterm"],
+    ids=["disk full", "config", "failure", "bug", "no errno", "memory", "ctrl-c", "sigterm"],
 )
 def test_what_the_child_raised_is_raised_here_as_run_main_reports_it(raised, expected, words):
     with pytest.raises(expected, match=words) as caught:
         Forked(_raising(raised)).wait()
     assert type(caught.value) is expected
-    if isinstance(raised, OSError):  # the same error: run_main names the file and the advice
+    if isinstance(raised, OSError) and raised.errno is not None:  # the same: run_main names the file, the advice
         assert (caught.value.errno, caught.value.filename) == (errno.ENOSPC, "/out/plot.png")
     if expected is BoomHydraulicsError:
         assert not isinstance(caught.value, ConfigError)  # (exit 1, not 2)
@@ -81,17 +86,84 @@ def test_a_child_stopped_from_here_removes_the_file_it_was_writing(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["writing"]
 
 
-def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_path, monkeypatch):
+def _small_sweep() -> tuple[dict, tuple[str, ...]]:
     axes = [parse_axis("piston_diameter=0.04:0.08:3"), parse_axis("payload=0,150")]
     plan = sweep.plan(sweep.request([("default", config.load(CONFIG / "default.yaml"))], axes, duration_s=4.0))
-    table = sweep.assemble(plan, [sweep.run_batch(batch) for batch in plan.batches])
+    return sweep.assemble(plan, [sweep.run_batch(batch) for batch in plan.batches]), plan.columns
+
+
+def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_path, monkeypatch):
+    table, columns = _small_sweep()
     written = {}
     for forking in (False, True):  # (the test's process has threads of its own: fork as boom-sweep does)
         monkeypatch.setattr(plots, "can_fork", lambda forking=forking: forking)
         folder = tmp_path / str(forking)
-        paths = plots.plot_all(table, plan.columns, folder)
+        paths = plots.plot_all(table, columns, folder)
         written[forking] = {p.name: p.read_bytes() for p in paths}
         assert sorted(p.name for p in folder.iterdir()) == sorted(written[forking])
     assert len(written[True]) == 5 and written[True] == written[False]
     assert all(png[:8] == b"\x89PNG\r\n\x1a\n" for png in written[True].values())
     assert np.isfinite(np.asarray(table["battery_energy_j"], float)).any()  # (so the battery's plots are among them)
+
+
+_STOPPED_WHILE_WAITING = """
+import os, select, signal, sys, time
+from pathlib import Path
+from boom_hydraulics.files import atomic_path
+from boom_hydraulics.programs import Forked, run_main
+
+out = Path(sys.argv[1])
+
+def work():
+    if sys.argv[2] == "large report":
+        raise ValueError("x" * 200_000)  # a report larger than a pipe holds
+    with atomic_path(out / "plot.png") as tmp:
+        tmp.write_bytes(b"half a plot")
+        os.kill(os.getppid(), signal.SIGTERM)  # the parent alone is stopped, while it waits
+        ends = time.monotonic() + 60
+        while time.monotonic() < ends:
+            time.sleep(0.01)
+
+def body():
+    forked = Forked(work)
+    print(forked.pid, flush=True)
+    try:
+        if sys.argv[2] == "large report":
+            select.select([forked._read], [], [], 60)  # the child writes its report: it fills the pipe
+            forked.stop()  # without reading it
+        else:
+            forked.wait()
+    except BaseException:
+        forked.stop()
+        raise
+    return 0
+
+sys.exit(run_main("tool", body))
+"""
+
+
+@pytest.mark.parametrize("how", ["sigterm", "large report"])
+def test_a_child_is_never_left_behind_by_a_parent_stopped_while_waiting_or_stopping_it(tmp_path, how):
+    """SIGTERM to the parent alone while it waits (kill PID, docker stop): the child is
+    stopped and reaped, and writes nothing after the parent's line. A child whose report
+    fills the pipe does not hold up stop()."""
+    done = subprocess.run(
+        [sys.executable, "-c", _STOPPED_WHILE_WAITING, str(tmp_path), how],
+        capture_output=True, text=True, timeout=GUARD_S,
+    )  # fmt: skip
+    child = int(done.stdout.split()[0])
+    assert done.returncode == (143 if how == "sigterm" else 0), done.stderr
+    with pytest.raises(ProcessLookupError):  # reaped by the parent, not orphaned
+        os.kill(child, 0)
+    assert list(tmp_path.iterdir()) == []  # its half-written plot removed
+
+
+def test_a_fork_the_system_refuses_draws_every_plot_here(tmp_path, monkeypatch):
+    def refused() -> int:
+        raise OSError(errno.EAGAIN, "Resource temporarily unavailable")
+
+    table, columns = _small_sweep()
+    monkeypatch.setattr(plots, "can_fork", lambda: True)
+    monkeypatch.setattr(os, "fork", refused)
+    paths = plots.plot_all(table, columns, tmp_path)
+    assert len(paths) == 5 and sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)

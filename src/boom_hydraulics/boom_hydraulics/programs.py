@@ -268,28 +268,50 @@ class Forked:
     a share of a program's work that runs on another core without waiting for the GIL (the
     sweep's plots, half of them each). :meth:`wait` waits for it and raises here what it
     raised; a stop (Ctrl-C reaches both processes from the terminal) ends it quietly, and
-    :meth:`stop` ends it from here. Fork only where :func:`can_fork`.
+    :meth:`stop` ends it from here. Fork only where :func:`can_fork`; a fork the system
+    refuses raises OSError, and nothing is left of it.
+
+    The stop signals are blocked across the fork: one that came then is taken by each
+    process where it can take it, the child inside its own handling (which never returns to
+    the parent's code), the parent once the child is known (and stopped with it).
     """
 
     def __init__(self, work: Callable[[], None]) -> None:
+        for stream in (sys.stdout, sys.stderr):  # (what is buffered is this process's to write)
+            stream.flush()
         read, write = os.pipe()
-        self.pid = os.fork()
-        if self.pid == 0:  # the child, which never returns from here
+        self.pid, self._read, self._reaped = -1, read, False
+        signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+        try:
+            self.pid = os.fork()
+            if self.pid == 0:  # the child, which never returns from here
+                _child(work, read, write)
+        except BaseException:  # the system refused the fork (the stops still blocked: nothing cuts this short)
             os.close(read)
-            _child(work, write)
+            os.close(write)
+            self._reaped = True
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
+            raise
         os.close(write)
-        self._read: int | None = read
+        try:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # (a stop that came meanwhile lands here)
+        except BaseException:
+            self.stop()
+            raise
 
     def wait(self) -> None:
-        """Wait for the child to end; raise its failure here: an OSError as the same OSError,
-        a stop as the stop, a ConfigError or a failure of this package as one, anything else
-        (a bug) with the child's traceback."""
-        if self._read is None:
+        """Wait for the child to end; raise its failure here: an OSError as an OSError, a stop
+        as the stop, a failure of this package as one, running out of memory as MemoryError,
+        anything else (a bug) with the child's traceback. A stop that lands here leaves the
+        child to :meth:`stop`."""
+        if self._reaped:
             return
-        with os.fdopen(self._read, "rb") as pipe:  # (the child's end closes its side)
-            self._read = None
-            said = pipe.read()
+        said = b""
+        while chunk := os.read(self._read, 65536):  # (to the child's end, which closes its side)
+            said += chunk
         _, status = os.waitpid(self.pid, 0)
+        self._reaped = True
+        os.close(self._read)
         code = os.waitstatus_to_exitcode(status)
         report = json.loads(said) if said else {}
         if code == 0:
@@ -298,23 +320,33 @@ class Forked:
             raise Terminated()
         if code == 128 + signal.SIGINT:
             raise KeyboardInterrupt
-        if report.get("errno") is not None:
+        kind = report.get("kind")
+        if kind == "os":
             raise OSError(report["errno"], report["strerror"], report["filename"])
-        if "error" in report:
-            raise (ConfigError if report.get("config") else BoomHydraulicsError)(report["error"])
+        if kind == "os-text":
+            raise OSError(report["message"])
+        if kind == "memory":
+            raise MemoryError()
+        if kind in ("failure", "config"):
+            raise (ConfigError if kind == "config" else BoomHydraulicsError)(report["message"])
         raise RuntimeError(f"a forked process ended with status {code}:\n{report.get('traceback', '')}")
 
     def stop(self) -> None:
-        """End the child now (this process failed or was stopped) and wait for it: it removes
-        what it was writing, as a stopped program does."""
-        if self._read is None:
+        """End the child now, unless it is waited for already (this process failed or was
+        stopped), and wait for it: it removes what it was writing, as a stopped program does."""
+        if self._reaped:
             return
+        with suppress(OSError):  # first, so that a child writing its report is not held up
+            os.close(self._read)
         with suppress(ProcessLookupError):
             os.kill(self.pid, signal.SIGTERM)
         with suppress(ChildProcessError):
             os.waitpid(self.pid, 0)
-        os.close(self._read)
-        self._read = None
+        self._reaped = True
+
+
+#: The signals that stop a program (run_main's).
+_STOPS = frozenset({signal.SIGINT, signal.SIGTERM})
 
 
 def can_fork() -> bool:
@@ -324,13 +356,19 @@ def can_fork() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1
 
 
-def _child(work: Callable[[], None], write: int) -> NoReturn:
+def _child(work: Callable[[], None], read: int, write: int) -> NoReturn:
     """The forked child: ``work()``, then how it failed as JSON on ``write``, and its exit
     status (0, 1, or 128 + the stop signal), without Python's exit (the parent's atexit
-    handlers and buffers are the parent's)."""
-    status, report = 1, {}
+    handlers and buffers are the parent's). The first stop signal stops the work; from then
+    on, and once the work is done, the child ignores them."""
+    status = 1
     try:
+        report: dict[str, Any] = {}
+        os.close(read)
+        for signum in _STOPS:
+            signal.signal(signum, _stop_once)
         try:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # (one that came since the fork lands here)
             work()
             status = 0
         except Terminated:
@@ -338,13 +376,27 @@ def _child(work: Callable[[], None], write: int) -> NoReturn:
         except KeyboardInterrupt:
             status = 128 + signal.SIGINT
         except OSError as exc:
-            report = {"errno": exc.errno, "strerror": exc.strerror, "filename": exc.filename}
+            report = (
+                {"kind": "os", "errno": exc.errno, "strerror": exc.strerror, "filename": exc.filename}
+                if exc.errno is not None
+                else {"kind": "os-text", "message": str(exc)}
+            )
+        except MemoryError:
+            report = {"kind": "memory"}
         except BoomHydraulicsError as exc:
-            report = {"error": str(exc), "config": isinstance(exc, ConfigError)}
+            report = {"kind": "config" if isinstance(exc, ConfigError) else "failure", "message": str(exc)}
         except BaseException:
-            report = {"traceback": traceback.format_exc()}
+            report = {"kind": "bug", "traceback": traceback.format_exc()}
         finally:  # from here on a stop changes nothing: the child ends as decided
             ignore_stop_signals()
         os.write(write, json.dumps(report, default=str).encode())
     finally:
         os._exit(status)
+
+
+def _stop_once(signum: int, frame: Any) -> None:
+    """A forked child's stop: the first signal raises (Ctrl-C's KeyboardInterrupt, SIGTERM's
+    Terminated), the ones after it are ignored, so that none cuts short the clean-up of the first
+    (the terminal's Ctrl-C reaches the child, and the parent's stop() sends SIGTERM after it)."""
+    ignore_stop_signals()
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt

@@ -3,6 +3,7 @@ and the battery's energy per cycle and where it goes."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -170,8 +171,11 @@ def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], fold
     against 3.2-3.3 s one after the other)."""
     jobs = _plots(table, point_columns, folder)
     theirs, mine = jobs[1::2], jobs[0::2]
-    forked = Forked(lambda: _draw(theirs)) if theirs and can_fork() else None
+    forked = None
     try:
+        if theirs and can_fork():
+            with contextlib.suppress(OSError):  # (a fork the system refuses: all of them here)
+                forked = Forked(lambda: _draw(theirs))
         _draw(mine if forked is not None else jobs)
         if forked is not None:
             forked.wait()
