@@ -115,6 +115,7 @@ from boom_hydraulics.programs import Forked, run_main
 out = Path(sys.argv[1])
 
 def work():
+    os.write(1, f"{os.getpid()}\\n".encode())  # the child's pid, for the test to look for it after
     if sys.argv[2] == "large report":
         raise ValueError("x" * 200_000)  # a report larger than a pipe holds
     with atomic_path(out / "plot.png") as tmp:
@@ -126,8 +127,7 @@ def work():
 
 def body():
     forked = Forked(work)
-    print(forked.pid, flush=True)
-    try:
+    try:  # (the child's SIGTERM may come at once: from here on, this process stops the child)
         if sys.argv[2] == "large report":
             select.select([forked._read], [], [], 60)  # the child writes its report: it fills the pipe
             forked.stop()  # without reading it

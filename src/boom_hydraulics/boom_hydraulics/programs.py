@@ -388,7 +388,7 @@ def _child(work: Callable[[], None], read: int, write: int) -> NoReturn:
         except BaseException:
             report = {"kind": "bug", "traceback": traceback.format_exc()}
         finally:  # from here on a stop changes nothing: the child ends as decided
-            ignore_stop_signals()
+            _take_no_more_stops()
         os.write(write, json.dumps(report, default=str).encode())
     finally:
         os._exit(status)
@@ -396,7 +396,21 @@ def _child(work: Callable[[], None], read: int, write: int) -> NoReturn:
 
 def _stop_once(signum: int, frame: Any) -> None:
     """A forked child's stop: the first signal raises (Ctrl-C's KeyboardInterrupt, SIGTERM's
-    Terminated), the ones after it are ignored, so that none cuts short the clean-up of the first
+    Terminated), the ones after it do nothing, so that none cuts short the clean-up of the first
     (the terminal's Ctrl-C reaches the child, and the parent's stop() sends SIGTERM after it)."""
-    ignore_stop_signals()
+    _take_no_more_stops()
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt
+
+
+def _take_no_more_stops() -> None:
+    """In a forked child, the stop signals from here on do nothing. A handler that does nothing,
+    not SIG_IGN: a signal that came just before is still handled by Python afterwards, and with
+    SIG_IGN in place Python prints "OSError: Signal 15 ignored due to race condition" and a
+    traceback (seen once in four Ctrl-Cs of a sweep while it plotted). The child leaves by
+    os._exit, so Python's shutdown never puts the default action back."""
+    for signum in _STOPS:
+        signal.signal(signum, _no_stop)
+
+
+def _no_stop(signum: int, frame: Any) -> None:
+    """A stop signal a forked child takes once it is stopping or done: nothing."""
