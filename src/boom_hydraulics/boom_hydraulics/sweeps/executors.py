@@ -97,23 +97,24 @@ class LocalExecutor:
                 kind = self.kind(item) if self.kind is not None else None
                 if kind not in kinds:  # the first of its kind: here, after the ones before it
                     kinds.add(kind)
-                    while running:
-                        first, future = running.popleft()
-                        yield first, future.result()
+                    yield from _delivered(running, keep=0)
                     yield item, fn(item)
                     continue
                 running.append((item, pool.submit(cancellable, called_off, fn, item)))
                 # the oldest is yielded once one more than the threads are in hand: while the
                 # caller takes it, the next ones run
-                if len(running) > self.threads:
-                    first, future = running.popleft()
-                    yield first, future.result()
-            while running:
-                first, future = running.popleft()
-                yield first, future.result()
+                yield from _delivered(running, keep=self.threads)
+            yield from _delivered(running, keep=0)
         finally:  # done, or the caller stopped taking results: what still runs stops at its next slice
             called_off.set()
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _delivered(running: collections.deque[tuple[Item, Future]], keep: int) -> Iterator[tuple[Item, Any]]:
+    """The oldest of ``running`` with their results, in order, until ``keep`` are left."""
+    while len(running) > keep:
+        first, future = running.popleft()
+        yield first, future.result()
 
 
 class DaskExecutor:

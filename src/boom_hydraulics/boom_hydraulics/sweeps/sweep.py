@@ -413,8 +413,8 @@ _BATCH_KEY_SET = frozenset(BATCH_KEYS)
 
 
 def batch_key(params: Parameters) -> tuple:
-    """What the points of one batch share (BATCH_KEYS), as a key; a point that changes none of
-    them has its base config's."""
+    """What the points of one batch share (BATCH_KEYS), as a key (:func:`plan` gives a point
+    that changes none of them its base config's, without computing it again)."""
     return tuple(_hashable(getattr(params, k)) for k in BATCH_KEYS)
 
 
