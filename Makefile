@@ -14,6 +14,10 @@ BUILD_INPUTS := $(shell find src -path '*/__pycache__' -prune -o \( -name packag
 	$(wildcard config/*.yaml) \
 	tools/build tools/cmake/drop_missing_include_dirs.cmake
 
+# the package's modules byte-compiled (see the rule)
+PY_SOURCES := $(shell find src -path '*/__pycache__' -prune -o -name '*.py' -print)
+BYTECODE_STAMP := install/.boom-bytecode-stamp
+
 # the compiled model in numba's on-disk cache (tools/warm-up): again when a source the kernels
 # compile or the default configuration changed, or when the cache folder the stamp names is
 # gone (a cleared ~/.cache)
@@ -24,7 +28,7 @@ CACHE_THERE := $(shell read -r folder 2>/dev/null < $(WARM_STAMP) && { [ "$$fold
 
 .PHONY: setup run node test lint imports bench clean FORCE
 
-setup: $(BUILD_STAMP) $(WARM_STAMP)
+setup: $(BUILD_STAMP) $(BYTECODE_STAMP) $(WARM_STAMP)
 
 $(DEPS_STAMP): requirements.txt requirements-nodeps.txt constraints.txt
 	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
@@ -36,6 +40,15 @@ $(DEPS_STAMP): requirements.txt requirements-nodeps.txt constraints.txt
 
 $(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
 	tools/build
+	@touch $@
+
+# the package's modules byte-compiled beside their sources (src/**/__pycache__, which the
+# symlinked install imports): where Python may not write them itself (PYTHONDONTWRITEBYTECODE,
+# set in many containers and CI images), each program would compile every module it imports
+# again at its start, 0.16 s of a boom-sweep's 0.84 s (docs/performance.md). Only what changed
+# is compiled again; a module edited since is compiled afresh at import, as always.
+$(BYTECODE_STAMP): $(BUILD_STAMP) $(PY_SOURCES)
+	$(VENV)/bin/python -m compileall -q src
 	@touch $@
 
 # compiles before the first run, so that the node starts at once (it writes the stamp itself)
@@ -71,3 +84,4 @@ bench: setup
 
 clean:
 	rm -rf build install log $(VENV)
+	find src -name __pycache__ -type d -prune -exec rm -rf {} +
