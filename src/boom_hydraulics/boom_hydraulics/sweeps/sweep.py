@@ -98,13 +98,15 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 BYTES_PER_POINT = 4096
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
-#: sweep's run time (2.7-3.0 M on 2 cores for batches of 10 000 sets of the 30-state physical
-#: model in blocks of 4 in lock-step, measured by bench/bench_speed.py on 2026-12-04; rounded down).
-STEPS_PER_CORE_S = 1.2e6
+#: sweep's run time: a default 10 000-point sweep of the 5 s lift took 5e7 steps in 8.0-8.6 s of
+#: batches on 2 cores (3.1 M per core), the answer's sweep of three drives over loader cycles
+#: 3.56 M steps/s (1.8 M per core: the fixed pump's relief takes two substeps a step); measured
+#: on 2026-12-04 (bench/bench_speed.py), the lower one taken for a loaded machine.
+STEPS_PER_CORE_S = 1.8e6
 
-#: Wall time planning takes per point (its Parameters checked and grouped into batches): 64 us
-#: measured for 10 000 points on a 2-core machine, rounded up for a loaded one.
-PLAN_S_PER_POINT = 1e-4
+#: Wall time planning takes per point (its Parameters checked and grouped into batches): 10-12 us
+#: measured for 10 000 and 40 000 points on a 2-core machine (2026-12-04), 3x for a loaded one.
+PLAN_S_PER_POINT = 3e-5
 
 #: Steps of one point beyond which float64 time no longer tells one step from the next.
 MAX_STEPS_PER_POINT = 2**53
