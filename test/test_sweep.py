@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import operator
+import sys
 import threading
 import time
 
@@ -20,7 +21,7 @@ from boom_hydraulics.programs import CalledOffError, raise_pending
 from boom_hydraulics.solve import commands
 from boom_hydraulics.solve.simulation import simulate
 from boom_hydraulics.sweeps import sweep
-from boom_hydraulics.sweeps.executors import DaskExecutor, LocalExecutor
+from boom_hydraulics.sweeps.executors import SWITCH_INTERVAL_S, DaskExecutor, LocalExecutor
 from boom_hydraulics.sweeps.recommend import (
     Constraint,
     format_value,
@@ -303,6 +304,29 @@ def test_this_process_delivers_every_result_in_order_and_a_failure_after_the_one
         for item, result in LocalExecutor(threads).map(invert, [2.0, 4.0, 0.0, 8.0]):
             delivered.append((item, result))
     assert delivered == [(2.0, 0.5), (4.0, 0.25)]
+
+
+def test_the_batches_threads_take_the_gil_in_turn_quickly_and_the_caller_gets_its_switch_interval_back():
+    """While batches run in threads, CPython's switch interval is short (a batch whose kernel
+    returned waits for the GIL no longer); once the map ends, done or stopped, it is the
+    caller's again."""
+    before = sys.getswitchinterval()
+    seen = []
+
+    def batch(index: int) -> int:
+        seen.append(sys.getswitchinterval())
+        return 1 // (3 - index)  # the fourth fails
+
+    try:
+        sys.setswitchinterval(0.004)
+        assert [result for _, result in LocalExecutor(2).map(batch, range(3))] == [0, 0, 1]
+        assert sys.getswitchinterval() == pytest.approx(0.004)
+        with pytest.raises(ZeroDivisionError):
+            list(LocalExecutor(2).map(batch, range(5)))
+        assert sys.getswitchinterval() == pytest.approx(0.004)
+        assert seen and all(s == pytest.approx(SWITCH_INTERVAL_S) for s in seen)
+    finally:
+        sys.setswitchinterval(before)
 
 
 def test_the_first_batch_of_each_kind_runs_in_the_calling_thread_where_ctrl_c_can_stop_its_compile():
