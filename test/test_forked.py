@@ -106,6 +106,27 @@ def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_pat
     assert np.isfinite(np.asarray(table["battery_energy_j"], float)).any()  # (so the battery's plots are among them)
 
 
+def test_the_sweeps_table_is_written_beside_its_plots_whole_in_either_process(tmp_path, monkeypatch):
+    """boom-sweep hands plot_all its results table to write first: written by this process
+    when it draws alone, shared out to the other one when it forks, the same file either way;
+    plot_all returns the plots alone."""
+    from boom_hydraulics.sweeps.runner import write_table
+
+    table, columns = _small_sweep()
+    tables = {}
+    for forking in (False, True):
+        monkeypatch.setattr(plots, "can_fork", lambda forking=forking: forking)
+        folder = tmp_path / str(forking)
+        folder.mkdir()
+        results = folder / "results.csv"
+        paths = plots.plot_all(table, columns, folder, first=[(results, lambda r=results: write_table(table, r))])
+        assert results not in paths and len(paths) == 5
+        expected = ["results.csv", "results.npz", *(p.name for p in paths)]
+        assert sorted(p.name for p in folder.iterdir()) == sorted(expected)
+        tables[forking] = results.read_bytes()
+    assert tables[True] == tables[False] and tables[True].count(b"\r\n") == len(table["point"]) + 1
+
+
 _STOPPED_WHILE_WAITING = """
 import os, select, signal, sys, time
 from pathlib import Path

@@ -173,13 +173,21 @@ def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[s
         breakdown(bars, title, tmp)
 
 
-def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
+def plot_all(
+    table: Mapping[str, np.ndarray],
+    point_columns: Sequence[str],
+    folder: Path,
+    first: Sequence[tuple[Path, Callable[[], None]]] = (),
+) -> list[Path]:
     """Every sweep plot into ``folder``; returns the files written: with the battery (physical
     mode), also the battery energy per cycle and its breakdown. Where it can fork
     (programs.can_fork), a child process draws every other plot meanwhile: a figure is up to
     a second of Python, on one core (a 10 000-point sweep's five plots took 1.95-2.05 s so,
-    against 3.2-3.3 s one after the other)."""
-    jobs = _plots(table, point_columns, folder)
+    against 3.2-3.3 s one after the other). ``first``: other files and what writes each, done
+    before the plots and shared out with them the same way (boom-sweep's results table, 0.25 s
+    of Python for 10 000 points, is written here while the child draws)."""
+    plots = _plots(table, point_columns, folder)
+    jobs = [*first, *plots]
     theirs, mine = jobs[1::2], jobs[0::2]
     forked = None
     try:
@@ -193,7 +201,7 @@ def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], fold
         if forked is not None:
             forked.stop()
         raise
-    return [path for path, _ in jobs]
+    return [path for path, _ in plots]
 
 
 def _draw(jobs: Sequence[tuple[Path, Callable[[], None]]]) -> None:

@@ -7,6 +7,7 @@ options and their checks are cli.sweep's).
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import importlib
 import math
@@ -324,12 +325,17 @@ def _run_plan(
         plotting.join()
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
-    write_table(table, out / "results.csv")
     written = ["results.csv", "results.npz"]
-    if not options.no_plots:
-        from .plots import plot_all
-
-        written += [p.name for p in plot_all(table, plan.columns, out)]
+    results = (out / "results.csv", functools.partial(write_table, table, out / "results.csv"))
+    if options.no_plots:
+        results[1]()
+    else:  # the table is written beside the plots (plots.plot_all), before any of them in this process
+        try:
+            from .plots import plot_all
+        except BaseException:
+            results[1]()  # (the table first, whatever stops the plots)
+            raise
+        written += [p.name for p in plot_all(table, plan.columns, out, first=[results])]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     if "operator" in plan.columns:  # each design's band over its operators' cycles
