@@ -63,7 +63,8 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     bar = mapper is not None
     # a fixed layout, with room for the labels of these panels: constrained layout measured
     # every tick label of the 12 panels, 0.35-0.4 s of a figure's 1.2 s
-    fig.subplots_adjust(left=0.05, right=0.91 if bar else 0.985, bottom=0.06, top=0.935, wspace=0.32, hspace=0.3)
+    top = 0.905 if key else 0.935  # (a key to categories goes in a row under the title)
+    fig.subplots_adjust(left=0.05, right=0.91 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
     for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
         y = np.asarray(table[name], dtype=float) * scale
         ax.plot(x[~ok], y[~ok], "x", markersize=3.2, markeredgewidth=0.8, color="0.7", label="not ok")
@@ -76,7 +77,7 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
         fig.colorbar(plt.cm.ScalarMappable(norm=mapper, cmap="viridis"), cax=bar_axes, label=color_by)
     if key:  # categories (a drive, a config): which colour is which
         spots = [Line2D([], [], linestyle="", marker="o", color=c, label=str(name)) for name, c in key.items()]
-        fig.legend(handles=spots, loc="upper right", ncols=min(len(spots), 4), frameon=False, fontsize="small")
+        fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=min(len(spots), 6))
     fig.suptitle(
         f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
         + (f" by {color_by}" if color_by else "")
