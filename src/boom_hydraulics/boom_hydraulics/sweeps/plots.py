@@ -43,6 +43,10 @@ PLOTTED = (
 SPOT = 20.0
 
 
+#: Categories a row of a metrics figure's key holds.
+KEY_COLUMNS = 6
+
+
 def _save(fig, path: Path) -> None:
     """The figure as PNG at ``path``, whole or not at all (an interrupted plot leaves the old one)."""
     with atomic_path(path, suffix=".png") as tmp:
@@ -63,7 +67,8 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     bar = mapper is not None
     # a fixed layout, with room for the labels of these panels: constrained layout measured
     # every tick label of the 12 panels, 0.35-0.4 s of a figure's 1.2 s
-    top = 0.905 if key else 0.935  # (a key to categories goes in a row under the title)
+    rows = -(-len(key) // KEY_COLUMNS)  # a key to categories goes in rows under the title
+    top = 0.935 - 0.03 * rows
     fig.subplots_adjust(left=0.05, right=0.91 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
     for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
         y = np.asarray(table[name], dtype=float) * scale
@@ -77,7 +82,7 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
         fig.colorbar(plt.cm.ScalarMappable(norm=mapper, cmap="viridis"), cax=bar_axes, label=color_by)
     if key:  # categories (a drive, a config): which colour is which
         spots = [Line2D([], [], linestyle="", marker="o", color=c, label=str(name)) for name, c in key.items()]
-        fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=min(len(spots), 6))
+        fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=min(len(spots), KEY_COLUMNS))
     fig.suptitle(
         f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
         + (f" by {color_by}" if color_by else "")
