@@ -326,16 +326,16 @@ def _run_plan(
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
     written = ["results.csv", "results.npz"]
-    results = (out / "results.csv", functools.partial(write_table, table, out / "results.csv"))
+    write_results = functools.partial(write_table, table, out / "results.csv")
     if options.no_plots:
-        results[1]()
+        write_results()
     else:  # the table is written beside the plots (plots.plot_all), before any of them in this process
         try:
             from .plots import plot_all
         except BaseException:
-            results[1]()  # (the table first, whatever stops the plots)
+            write_results()  # (the table first, whatever stops the plots)
             raise
-        written += [p.name for p in plot_all(table, plan.columns, out, first=[results])]
+        written += [p.name for p in plot_all(table, plan.columns, out, first=[(out / "results.csv", write_results)])]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     if "operator" in plan.columns:  # each design's band over its operators' cycles
