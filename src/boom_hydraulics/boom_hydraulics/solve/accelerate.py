@@ -10,7 +10,6 @@ The first compile takes a few seconds; a later process loads from the cache (:fu
 
 from __future__ import annotations
 
-import contextlib
 import types
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -27,17 +26,6 @@ KERNELS: dict[str, types.ModuleType] = {"physical": physical_kernel, "paper": pa
 def available() -> bool:
     """True when numba is installed and not switched off by BOOM_HYDRAULICS_JIT=0."""
     return jit.available()
-
-
-def load_balanced() -> contextlib.AbstractContextManager:
-    """Within it, a parallel kernel started in this thread hands out its iterations (the blocks
-    of sets) one at a time to whichever of its threads is free, not half to each up front
-    (numba's parallel_chunksize, 1 instead of 0): a core that something else takes a share of
-    (the other batch's Python in boom-sweep, another process) slows its own blocks, not the
-    whole call. The same results: each block is independent of the others. The batches of a
-    10 000-point sweep, one after the other, took 8.03-8.07 s so against 7.99-8.35 s (three
-    runs each, in turn)."""
-    return jit.numba.parallel_chunksize(1) if available() else contextlib.nullcontext()
 
 
 def stepper(mode: str, method: str) -> Callable[..., tuple[int, int, int, np.ndarray]] | None:

@@ -379,12 +379,8 @@ class SetRun:
 
     def _slice(self, first: int, last: int) -> None:
         if self._runner is not None:
-            parallel = self._parallel
-            with (
-                _KERNEL_LOCK if parallel else contextlib.nullcontext(),
-                accelerate.load_balanced() if parallel else contextlib.nullcontext(),
-            ):
-                if parallel:
+            with _KERNEL_LOCK if self._parallel else contextlib.nullcontext():
+                if self._parallel:
                     raise_pending()  # (a batch that waited for the kernel while its sweep stopped: no slice more)
                 self._runner(self.state, self.status, self.metrics, self.rows, self.taken, first, last, *self._flat)
             return
