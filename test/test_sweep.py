@@ -325,6 +325,10 @@ def test_the_batches_threads_take_the_gil_in_turn_quickly_and_the_caller_gets_it
             list(LocalExecutor(2).map(batch, range(5)))
         assert sys.getswitchinterval() == pytest.approx(0.004)
         assert seen and all(s == pytest.approx(SWITCH_INTERVAL_S) for s in seen)
+        first, second = LocalExecutor(2).map(batch, range(3)), LocalExecutor(2).map(batch, range(3))
+        next(first), next(second)  # two maps at once: the first ends while the second runs
+        assert list(first) and sys.getswitchinterval() == pytest.approx(SWITCH_INTERVAL_S)
+        assert list(second) and sys.getswitchinterval() == pytest.approx(0.004)
     finally:
         sys.setswitchinterval(before)
 

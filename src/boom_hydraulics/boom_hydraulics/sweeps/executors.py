@@ -27,9 +27,36 @@ Item = TypeVar("Item")
 #: CPython's switch interval while batches run in threads, s. A batch whose kernel call returns
 #: needs the GIL to go on (and to let the other batch's kernel start), which the other thread's
 #: Python holds for up to the interval: 5 ms by default, at each of the hundred slices of a
-#: 10 000-point sweep. The ten batches of that sweep, in two threads: 7.86-8.05 s at 0.5 ms
-#: against 8.10-8.21 s at 5 ms (one after the other in one thread: 8.04-8.71 s; 3 rounds each).
+#: 10 000-point sweep. The ten batches of that sweep, in two threads: 7.95-8.07 s at 0.5 ms
+#: against 8.05-8.42 s at 5 ms (one after the other in one thread: 8.12-8.48 s; in turn, 3 rounds each).
 SWITCH_INTERVAL_S = 0.0005
+
+
+class _ShortSwitch:
+    """The short switch interval while any map runs batches in threads; the interval from
+    before the first of them once the last one ends (maps may overlap: interleaved, or in two
+    threads)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._running = 0
+        self._saved = 0.0
+
+    def begin(self) -> None:
+        with self._lock:
+            if self._running == 0:
+                self._saved = sys.getswitchinterval()
+                sys.setswitchinterval(min(self._saved, SWITCH_INTERVAL_S))
+            self._running += 1
+
+    def end(self) -> None:
+        with self._lock:
+            self._running -= 1
+            if self._running == 0:
+                sys.setswitchinterval(self._saved)
+
+
+_SHORT_SWITCH = _ShortSwitch()
 
 
 @contextlib.contextmanager
@@ -100,8 +127,7 @@ class LocalExecutor:
         called_off = threading.Event()
         pool = ThreadPoolExecutor(self.threads, thread_name_prefix="boom-sweep-batch")
         kinds: set[Hashable] = set()
-        switch_s = sys.getswitchinterval()
-        sys.setswitchinterval(min(switch_s, SWITCH_INTERVAL_S))
+        _SHORT_SWITCH.begin()
         try:
             for item in items:
                 kind = self.kind(item) if self.kind is not None else None
@@ -117,8 +143,10 @@ class LocalExecutor:
             yield from _delivered(running, keep=0)
         finally:  # done, or the caller stopped taking results: what still runs stops at its next slice
             called_off.set()
-            pool.shutdown(wait=True, cancel_futures=True)
-            sys.setswitchinterval(switch_s)
+            try:
+                pool.shutdown(wait=True, cancel_futures=True)
+            finally:  # (a second stop may cut the wait short)
+                _SHORT_SWITCH.end()
 
 
 def _delivered(running: collections.deque[tuple[Item, Future]], keep: int) -> Iterator[tuple[Item, Any]]:
