@@ -330,7 +330,8 @@ sys.exit(sweep.main(["--config", sys.argv[1], "--vary", "payload=0,150", "--dura
 def test_an_error_a_ctrl_c_turned_into_is_the_stop_and_a_bug_stays_a_bug(tmp_path, cause):
     """A Ctrl-C lands in whatever code runs; code that makes another exception of it (matplotlib)
     must not turn the stop into a traceback: the sweep's one line, its stored batch and resume
-    command, exit 130. The same error without a signal is a bug, and is not hidden."""
+    command, exit 130. The same error without a signal is a bug, and is not hidden. Either way
+    the batches' table is written (the plots write it first, and they never began)."""
     import sys
 
     out = tmp_path / "sweep"
@@ -343,6 +344,7 @@ def test_an_error_a_ctrl_c_turned_into_is_the_stop_and_a_bug_stays_a_bug(tmp_pat
         assert last.endswith(" --resume"), last
     else:
         assert done.returncode == 1 and "ZeroDivisionError" in done.stderr, done.stderr
+    assert (out / "results.csv").exists()  # the table, though the plots stopped before it was written
 
 
 _TAKEN_AS_ITS_END = """

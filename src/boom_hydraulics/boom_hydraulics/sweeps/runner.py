@@ -7,7 +7,6 @@ options and their checks are cli.sweep's).
 from __future__ import annotations
 
 import contextlib
-import functools
 import gc
 import importlib
 import math
@@ -326,16 +325,25 @@ def _run_plan(
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
     written = ["results.csv", "results.npz"]
-    write_results = functools.partial(write_table, table, out / "results.csv")
+    tried: list[bool] = []  # whether the table's writing began (it is tried once)
+
+    def write_results() -> None:
+        tried.append(True)
+        write_table(table, out / "results.csv")
+
     if options.no_plots:
         write_results()
-    else:  # the table is written beside the plots (plots.plot_all), before any of them in this process
+    else:  # the table is written beside the plots (plots.plot_all), first in this process
         try:
             from .plots import plot_all
+
+            written += [
+                p.name for p in plot_all(table, plan.columns, out, first=[(out / "results.csv", write_results)])
+            ]
         except BaseException:
-            write_results()  # (the table first, whatever stops the plots)
+            if not tried:  # what stopped the plots came before the table: the table all the same
+                write_results()
             raise
-        written += [p.name for p in plot_all(table, plan.columns, out, first=[(out / "results.csv", write_results)])]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     if "operator" in plan.columns:  # each design's band over its operators' cycles
