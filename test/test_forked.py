@@ -108,7 +108,7 @@ def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_pat
 
 def test_the_sweeps_table_is_written_beside_its_plots_whole_in_either_process(tmp_path, monkeypatch):
     """boom-sweep hands plot_all its results table to write first: written by this process
-    when it draws alone, shared out to the other one when it forks, the same file either way;
+    before its plots, whether a child draws beside it or not, the same file either way;
     plot_all returns the plots alone."""
     from boom_hydraulics.sweeps.runner import write_table
 

@@ -7,6 +7,7 @@ import contextlib
 import functools
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -67,9 +68,9 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     bar = mapper is not None
     # a fixed layout, with room for the labels of these panels: constrained layout measured
     # every tick label of the 12 panels, 0.35-0.4 s of a figure's 1.2 s
-    rows = -(-len(key) // KEY_COLUMNS)  # a key to categories goes in rows under the title
-    top = 0.935 - 0.03 * rows
-    fig.subplots_adjust(left=0.05, right=0.91 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
+    rows = _key(fig, key)  # a key to categories goes in rows under the title
+    top = max(0.5, 0.935 - 0.03 * rows)
+    fig.subplots_adjust(left=0.05, right=0.895 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
     for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
         y = np.asarray(table[name], dtype=float) * scale
         ax.plot(x[~ok], y[~ok], "x", markersize=3.2, markeredgewidth=0.8, color="0.7", label="not ok")
@@ -78,11 +79,8 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     if bar:
-        bar_axes = fig.add_axes((0.93, 0.25, 0.012, 0.5))
+        bar_axes = fig.add_axes((0.915, 0.25, 0.012, 0.5))
         fig.colorbar(plt.cm.ScalarMappable(norm=mapper, cmap="viridis"), cax=bar_axes, label=color_by)
-    if key:  # categories (a drive, a config): which colour is which
-        spots = [Line2D([], [], linestyle="", marker="o", color=c, label=str(name)) for name, c in key.items()]
-        fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=min(len(spots), KEY_COLUMNS))
     fig.suptitle(
         f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
         + (f" by {color_by}" if color_by else "")
@@ -90,6 +88,21 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     )
     _save(fig, path)
     plt.close(fig)
+
+
+def _key(fig, key: Mapping[Any, Any]) -> int:
+    """The key to categories (a drive, a config: which colour is which) in a row under the
+    title, in as many columns as fit the figure's width (at most KEY_COLUMNS); its rows."""
+    if not key:
+        return 0
+    spots = [Line2D([], [], linestyle="", marker="o", color=c, label=str(name)) for name, c in key.items()]
+    renderer = fig.canvas.get_renderer()
+    for columns in range(min(len(spots), KEY_COLUMNS), 0, -1):
+        legend = fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=columns)
+        if columns == 1 or legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
+            return -(-len(spots) // columns)
+        legend.remove()
+    return len(spots)
 
 
 def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray):
@@ -102,8 +115,9 @@ def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarr
         values = values.astype(float)
         low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
         return values, matplotlib.colors.Normalize(low, high if high > low else low + 1.0), {}
-    palette = plt.get_cmap("tab10")
-    key = {category: palette(k % 10) for k, category in enumerate(sorted(set(values.tolist())))}
+    categories = sorted(set(values.tolist()))
+    palette = plt.get_cmap("tab10" if len(categories) <= 10 else "tab20")  # (beyond 20, colours repeat)
+    key = {category: palette(k % palette.N) for k, category in enumerate(categories)}
     return [key[v] for v in values.tolist()], None, key
 
 
@@ -189,9 +203,11 @@ def plot_all(
     mode), also the battery energy per cycle and its breakdown. Where it can fork
     (programs.can_fork), a child process draws every other plot meanwhile: a figure is up to
     a second of Python, on one core (a 10 000-point sweep's five plots took 1.95-2.05 s so,
-    against 3.2-3.3 s one after the other). ``first``: other files and what writes each, done
-    before the plots and shared out with them the same way (boom-sweep's results table, 0.25 s
-    of Python for 10 000 points, is written here while the child draws)."""
+    against 3.2-3.3 s one after the other). ``first``: other files and what writes each, put
+    before the plots in the one list that is shared out: the first of them is written by this
+    process before its plots, whether it forks or not (boom-sweep's results table, 0.25 s of
+    Python for 10 000 points, while the child draws). A failure here stops the child; plots it
+    finished before that stay, whole."""
     plots = _plots(table, point_columns, folder)
     jobs = [*first, *plots]
     theirs, mine = jobs[1::2], jobs[0::2]
