@@ -325,10 +325,11 @@ def _run_plan(
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
     written = ["results.csv", "results.npz"]
-    tried: list[bool] = []  # whether the table's writing began (it is tried once)
+    tried = False  # whether the table's writing began (it is tried once)
 
     def write_results() -> None:
-        tried.append(True)
+        nonlocal tried
+        tried = True
         write_table(table, out / "results.csv")
 
     if options.no_plots:
