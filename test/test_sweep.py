@@ -30,6 +30,7 @@ from boom_hydraulics.sweeps.recommend import (
     recommend,
     trade_off_front,
 )
+from boom_hydraulics.sweeps.runner import BatchCells, write_table
 from boom_hydraulics.sweeps.sampling import parse_axis
 
 
@@ -124,6 +125,23 @@ def test_failing_and_invalid_points_are_recorded_and_the_rest_finish():
     assert "leave the valid geometry (1, 1.8) m (paper mode has no end stops)" in table["reason"][0]
     assert 2.0 < table["failed_at_s"][0] < 2.3
     assert table["lift_completed"][0] == 1.0 and table["lift_time_s"][0] < table["lift_time_s"][1]
+
+
+def test_the_table_formatted_as_its_batches_come_is_the_one_formatted_at_the_end(tmp_path):
+    paper = config.load(CONFIG / "paper_fig8.yaml")
+    axes = [parse_axis("piston_diameter=0.04,0.06,0.08"), parse_axis("rod_diameter_m=0.03,0.06")]
+    configs = [("fig8", paper), ("default", Parameters())]
+    plan = _plan(configs, axes, scenario="constant:1", duration_s=3.0, batch_size=2)
+    parts = [sweep.run_batch(b) for b in plan.batches]
+    cells = BatchCells(plan.size)
+    for rows in parts[:0:-1]:  # in another order, and the first batch as if stored by an earlier run
+        cells.add(rows)
+    table = sweep.assemble(plan, parts)
+    table["front"] = trade_off_front(table).astype(np.int64)
+    assert {"invalid", "failed", "ok"} <= set(table["status"]) and any("," in r for r in table["reason"])
+    write_table(table, tmp_path / "at_the_end.csv")
+    write_table(table, tmp_path / "as_they_came.csv", cells=cells)
+    assert (tmp_path / "as_they_came.csv").read_bytes() == (tmp_path / "at_the_end.csv").read_bytes()
 
 
 def test_a_point_that_does_not_lift_far_enough_is_incomplete_with_the_reason():

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..files import check_apart, write_bytes, write_csv_columns, write_npz
+from ..files import check_apart, csv_cells, write_bytes, write_csv_columns, write_csv_lines, write_npz
 from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..programs import raise_pending
@@ -92,13 +92,54 @@ def constraints_of(options: SweepOptions, columns: Sequence[str]) -> list[recomm
     return found
 
 
-def write_table(table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None) -> None:
-    """The table (or the given rows of it) as CSV, and beside a .npz of the same columns."""
+def write_table(
+    table: Mapping[str, np.ndarray], path_csv: Path, rows: Sequence[int] | None = None, cells: BatchCells | None = None
+) -> None:
+    """The table (or the given rows of it) as CSV, and beside a .npz of the same columns.
+    ``cells``: the cells of the whole table's batch columns, formatted as its batches came."""
     names = list(table)
     index = np.arange(len(table[names[0]])) if rows is None else np.asarray(rows, dtype=int)
     columns = {n: np.asarray(table[n])[index] for n in names}
-    write_csv_columns(path_csv, names, [columns[n] for n in names])
+    if cells is not None and rows is None:
+        write_csv_lines(path_csv, names, cells.lines(table))
+    else:
+        write_csv_columns(path_csv, names, [columns[n] for n in names])
     write_npz(path_csv.with_suffix(".npz"), columns)
+
+
+class BatchCells:
+    """The CSV cells of a sweep table's batch columns (sweep.run_batch's: status, reason, failure
+    time and metrics), formatted as each batch is stored, while the next ones run, rather than
+    all once the last is done: a float's text takes 0.35 us, 0.2 s for the 10 000 rows of 50
+    columns of a 5 s lift's sweep, which beside a kernel on every core costs about half of that."""
+
+    columns = ("status", "reason", "failed_at_s", *sweep.METRIC_NAMES)
+
+    def __init__(self, points: int) -> None:
+        self._by_point: list[str | None] = [None] * points
+
+    def add(self, rows: Mapping[str, np.ndarray]) -> None:
+        """Format the rows of a batch (``rows["point"]``: their points)."""
+        cells = csv_cells([rows[name] for name in self.columns])
+        for point, text in zip(np.asarray(rows["point"]).tolist(), cells, strict=True):
+            self._by_point[point] = text
+
+    def lines(self, table: Mapping[str, np.ndarray]) -> list[str]:
+        """The CSV lines of ``table`` (sweep.assemble's: row k is point k, with the batch columns
+        together after the point's), with the batch columns' cells formatted here; those of rows
+        not added (stored by an earlier run, invalid) are formatted now."""
+        names = list(table)
+        first = names.index(self.columns[0])
+        after = first + len(self.columns)
+        if tuple(names[first:after]) != self.columns:
+            raise ValueError(f"the table's batch columns are not {self.columns} in that order: {names}")
+        missing = [point for point, text in enumerate(self._by_point) if text is None]
+        if missing:
+            self.add({"point": np.array(missing)} | {name: np.asarray(table[name])[missing] for name in self.columns})
+        parts = [csv_cells([table[name] for name in names[:first]]), self._by_point]
+        if after < len(names):
+            parts.append(csv_cells([table[name] for name in names[after:]]))
+        return list(map(",".join, zip(*parts, strict=True)))
 
 
 def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
@@ -313,10 +354,12 @@ def _run_plan(
     )
     started = time.perf_counter()
     plotting = None if options.no_plots else _import_meanwhile(f"{__package__}.plots")
+    cells = BatchCells(plan.size)
     with executor, progress:
         for batch, rows in executor.map(sweep.run_batch, todo):
             store.save(batch.index, rows)
             parts.append(rows)
+            cells.add(rows)
             progress.update(len(batch.points))
             raise_pending()  # a Ctrl-C a finalizer swallowed here (batches on workers): stop after this one
     seconds = time.perf_counter() - started
@@ -330,7 +373,7 @@ def _run_plan(
     def write_results() -> None:
         nonlocal tried
         tried = True
-        write_table(table, out / "results.csv")
+        write_table(table, out / "results.csv", cells=cells)
 
     if options.no_plots:
         write_results()

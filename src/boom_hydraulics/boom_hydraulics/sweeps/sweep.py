@@ -94,7 +94,8 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 
 
 #: Memory a point takes while a sweep runs, rounded up: its values and Parameters in the plan
-#: (2.2 kB, measured with tracemalloc on a one-axis plan of 100 000 points) and its table row.
+#: (2.2 kB, measured with tracemalloc on a one-axis plan of 100 000 points), its table row and
+#: its row's CSV text, kept from its batch's end to the table's writing (0.7 kB; runner.BatchCells).
 BYTES_PER_POINT = 4096
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
