@@ -205,7 +205,7 @@ def plot_all(
     a second of Python, on one core (a 10 000-point sweep's five plots took 1.95-2.05 s so,
     against 3.2-3.3 s one after the other). ``first``: other files and what writes each, put
     before the plots in the one list that is shared out: the first of them is written by this
-    process before its plots, whether it forks or not (boom-sweep's results table, 0.25 s of
+    process before its plots, whether it forks or not (boom-sweep's results table, 0.05 s of
     Python for 10 000 points, while the child draws). A failure here stops the child; plots it
     finished before that stay, whole."""
     plots = _plots(table, point_columns, folder)
