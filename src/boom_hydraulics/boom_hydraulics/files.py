@@ -237,19 +237,23 @@ def write_csv_columns(path: Path, header: Sequence[str], columns: Sequence[np.nd
     """:func:`write_csv` of a table given column by column (arrays of equal length), whole or
     not at all, in chunks of CSV_CHUNK_ROWS rows (:func:`csv_rows`)."""
     rows = len(columns[0]) if columns else 0
-    with atomic_path(path) as tmp, tmp.open("w", newline="", encoding="utf-8") as handle:
-        csv.writer(handle).writerow(header)
-        for start in range(0, rows, CSV_CHUNK_ROWS):
-            handle.write(csv_rows([column[start : start + CSV_CHUNK_ROWS] for column in columns]))
+    chunks = range(0, rows, CSV_CHUNK_ROWS)
+    _write_csv_text(path, header, (csv_rows([c[start : start + CSV_CHUNK_ROWS] for c in columns]) for start in chunks))
 
 
 def write_csv_lines(path: Path, header: Sequence[str], lines: Sequence[str]) -> None:
     """:func:`write_csv` of rows given as their CSV text without the line end (:func:`csv_cells`
     of all of a row's columns, joined by commas), whole or not at all."""
+    chunks = range(0, len(lines), CSV_CHUNK_ROWS)
+    _write_csv_text(path, header, (_ended(lines[start : start + CSV_CHUNK_ROWS]) for start in chunks))
+
+
+def _write_csv_text(path: Path, header: Sequence[str], texts: Iterable[str]) -> None:
+    """The header row, then each of ``texts`` (CSV rows, line ends included), whole or not at all."""
     with atomic_path(path) as tmp, tmp.open("w", newline="", encoding="utf-8") as handle:
         csv.writer(handle).writerow(header)
-        for start in range(0, len(lines), CSV_CHUNK_ROWS):
-            handle.write("".join(f"{line}\r\n" for line in lines[start : start + CSV_CHUNK_ROWS]))
+        for text in texts:
+            handle.write(text)
 
 
 def csv_rows(columns: Sequence[np.ndarray]) -> str:
@@ -259,6 +263,11 @@ def csv_rows(columns: Sequence[np.ndarray]) -> str:
     lines = csv_cells(columns)
     if len(columns) == 1:  # (csv.writer quotes a row that is one empty cell)
         lines = [line or '""' for line in lines]
+    return _ended(lines)
+
+
+def _ended(lines: Iterable[str]) -> str:
+    """Rows' CSV text, each with csv.writer's line end."""
     return "".join(f"{line}\r\n" for line in lines)
 
 
