@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -16,7 +17,7 @@ from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
 from boom_hydraulics.files import atomic_path
 from boom_hydraulics.model import config
 from boom_hydraulics.programs import Forked, Terminated, run_main
-from boom_hydraulics.sweeps import plots, sweep
+from boom_hydraulics.sweeps import plots, plotter, sweep
 from boom_hydraulics.sweeps.sampling import parse_axis
 
 GUARD_S = 60
@@ -106,25 +107,59 @@ def test_a_sweeps_plots_drawn_in_two_processes_are_the_ones_drawn_in_one(tmp_pat
     assert np.isfinite(np.asarray(table["battery_energy_j"], float)).any()  # (so the battery's plots are among them)
 
 
-def test_the_sweeps_table_is_written_beside_its_plots_whole_in_either_process(tmp_path, monkeypatch):
-    """boom-sweep hands plot_all its results table to write first: written by this process
-    before its plots, whether a child draws beside it or not, the same file either way;
-    plot_all returns the plots alone."""
-    from boom_hydraulics.sweeps.runner import write_table
-
+def test_the_plotter_process_draws_the_plots_drawn_here(tmp_path):
+    """boom-sweep's plotter, forked before the batches, draws from the table it is handed the
+    same files plot_all draws in this process, and says which."""
     table, columns = _small_sweep()
-    tables = {}
-    for forking in (False, True):
-        monkeypatch.setattr(plots, "can_fork", lambda forking=forking: forking)
-        folder = tmp_path / str(forking)
-        folder.mkdir()
-        results = folder / "results.csv"
-        paths = plots.plot_all(table, columns, folder, first=[(results, lambda r=results: write_table(table, r))])
-        assert results not in paths and len(paths) == 5
-        expected = ["results.csv", "results.npz", *(p.name for p in paths)]
-        assert sorted(p.name for p in folder.iterdir()) == sorted(expected)
-        tables[forking] = results.read_bytes()
-    assert tables[True] == tables[False] and tables[True].count(b"\r\n") == len(table["point"]) + 1
+    here = plots.plot_all(table, columns, tmp_path / "here")
+    drawer = plotter.Plotter()  # (forked as boom-sweep forks it: one thread)
+    try:
+        drawer.draw(table, columns, tmp_path / "plotter")
+        names = drawer.wait()
+    except BaseException:
+        drawer.stop()
+        raise
+    assert names == [p.name for p in here]
+    assert {n: (tmp_path / "plotter" / n).read_bytes() for n in names} == {p.name: p.read_bytes() for p in here}
+
+
+def test_a_plotter_stopped_before_its_table_draws_nothing_and_is_not_left_behind(tmp_path):
+    drawer = plotter.Plotter()
+    pid = drawer._forked.pid
+    drawer.stop()
+    with pytest.raises(ProcessLookupError):  # reaped, not a zombie or an orphan
+        os.kill(pid, 0)
+    assert list(tmp_path.iterdir()) == []
+    drawer.stop()  # (again: nothing)
+
+
+def test_a_plotter_that_fails_says_why_when_waited_for(tmp_path):
+    table, columns = _small_sweep()
+    del table["lift_time_s"]  # (a table without a plotted metric: a bug of the caller, not hidden)
+    drawer = plotter.Plotter()
+    drawer.draw(table, columns, tmp_path)
+    with pytest.raises(RuntimeError, match="KeyError: 'lift_time_s'"):
+        drawer.wait()
+
+
+def test_what_the_childs_work_returned_comes_back_from_wait():
+    assert Forked(lambda: ["metrics_vs_payload_mass_kg.png", 2]).wait() == ["metrics_vs_payload_mass_kg.png", 2]
+
+
+def test_an_error_that_a_stop_was_turned_into_in_the_child_is_the_stop():
+    """A Ctrl-C that the code it lands in makes another exception of (matplotlib's drawing):
+    the child ends as stopped (130), so that the parent reports the stop, not a bug."""
+
+    def work() -> None:
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(10**7):  # the handler raises here
+                pass
+        except KeyboardInterrupt:
+            raise ValueError("Invalid bounding box") from None
+
+    with pytest.raises(KeyboardInterrupt):
+        Forked(work).wait()
 
 
 _STOPPED_WHILE_WAITING = """

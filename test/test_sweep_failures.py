@@ -3,6 +3,7 @@ folder left as it was (or holding only what the sweep names)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -194,4 +195,47 @@ def test_ctrl_c_in_a_long_batch_ends_with_one_line_and_stores_nothing_half_made(
     rest = process.stderr.read()
     assert process.wait(timeout=60) == 130
     assert rest == "boom-sweep: error: interrupted (Ctrl-C) before a batch finished; nothing was stored\n"
+    assert not out.exists()
+
+
+def _alive_in_session(session: int) -> list[str]:
+    """The processes of ``session`` still running (not zombies): their command lines."""
+    alive = []
+    for entry in Path("/proc").iterdir():
+        try:
+            stat = (entry / "stat").read_text()
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except (OSError, ValueError):
+            continue  # (not a process, or one that ended meanwhile)
+        state, _, _, sid = stat.rsplit(")", 1)[1].split()[:4]
+        if int(sid) == session and state != "Z":
+            alive.append(cmdline)
+    return alive
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+@pytest.mark.parametrize("to", ["the terminal's group", "boom-sweep alone"])
+def test_ctrl_c_while_batches_run_leaves_no_plotting_process_behind(tmp_path, to):
+    """The process that draws the plots is forked before the batches: a Ctrl-C from the terminal
+    (to every process of the group) or to boom-sweep alone (kill -INT) ends it too, with the
+    sweep's one line and nothing written."""
+    out = tmp_path / "s"
+    args = ["--vary", "payload=0,100", "--duration", "1e5", "--out", out]
+    process = subprocess.Popen([BOOM_SWEEP, *map(str, args)], stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)  # fmt: skip
+    try:
+        line = process.stderr.readline()  # (said once the plots' process is forked)
+        assert "0 done before, " in line, line
+        assert len(_alive_in_session(process.pid)) == 2  # boom-sweep and the process that will plot
+        if to == "boom-sweep alone":
+            process.send_signal(signal.SIGINT)
+        else:
+            os.killpg(process.pid, signal.SIGINT)
+        rest = process.stderr.read()
+        assert process.wait(timeout=60) == 130
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+    assert rest == "boom-sweep: error: interrupted (Ctrl-C) before a batch finished; nothing was stored\n"
+    assert _alive_in_session(process.pid) == []
     assert not out.exists()

@@ -276,7 +276,7 @@ class Forked:
     the parent's code), the parent once the child is known (and stopped with it).
     """
 
-    def __init__(self, work: Callable[[], None]) -> None:
+    def __init__(self, work: Callable[[], Any]) -> None:
         for stream in (sys.stdout, sys.stderr):  # (what is buffered is this process's to write)
             stream.flush()
         read, write = os.pipe()
@@ -299,13 +299,14 @@ class Forked:
             self.stop()
             raise
 
-    def wait(self) -> None:
-        """Wait for the child to end; raise its failure here: an OSError as an OSError, a stop
-        as the stop, a failure of this package as one, running out of memory as MemoryError,
-        anything else (a bug) with the child's traceback. A stop that lands here leaves the
-        child to :meth:`stop`."""
+    def wait(self) -> Any:
+        """Wait for the child to end and return what ``work()`` returned (made of what JSON
+        holds: a list, a dict, a string, a number); raise its failure here: an OSError as an
+        OSError, a stop as the stop, a failure of this package as one, running out of memory as
+        MemoryError, anything else (a bug) with the child's traceback. A stop that lands here
+        leaves the child to :meth:`stop`."""
         if self._reaped:
-            return
+            return None
         said = b""
         while chunk := os.read(self._read, 65536):  # (to the child's end, which closes its side)
             said += chunk
@@ -315,7 +316,7 @@ class Forked:
         code = os.waitstatus_to_exitcode(status)
         report = json.loads(said) if said else {}
         if code == 0:
-            return
+            return report.get("result")
         if code == 128 + signal.SIGTERM:
             raise Terminated()
         if code == 128 + signal.SIGINT:
@@ -356,20 +357,22 @@ def can_fork() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1
 
 
-def _child(work: Callable[[], None], read: int, write: int) -> NoReturn:
-    """The forked child: ``work()``, then how it failed as JSON on ``write``, and its exit
-    status (0, 1, or 128 + the stop signal), without Python's exit (the parent's atexit
-    handlers and buffers are the parent's). The first stop signal stops the work; from then
-    on, and once the work is done, the child ignores them."""
+def _child(work: Callable[[], Any], read: int, write: int) -> NoReturn:
+    """The forked child: ``work()``, then what it returned or how it failed as JSON on
+    ``write``, and its exit status (0, 1, or 128 + the stop signal), without Python's exit (the
+    parent's atexit handlers and buffers are the parent's). The first stop signal stops the
+    work; from then on, and once the work is done, the child ignores them. An error that the
+    code a stop landed in made of it (matplotlib's drawing, run_main) ends the child as the stop."""
     status = 1
     try:
         report: dict[str, Any] = {}
         os.close(read)
+        _PENDING.clear()  # (the parent's stops are the parent's)
         for signum in _STOPS:
             signal.signal(signum, _stop_once)
         try:
             signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # (one that came since the fork lands here)
-            work()
+            report = {"result": work()}
             status = 0
         except Terminated:
             status = 128 + signal.SIGTERM
@@ -389,6 +392,8 @@ def _child(work: Callable[[], None], read: int, write: int) -> NoReturn:
             report = {"kind": "bug", "traceback": traceback.format_exc()}
         finally:  # from here on a stop changes nothing: the child ends as decided
             _take_no_more_stops()
+        if status == 1 and _PENDING:  # an error made of a stop: the stop
+            status, report = 128 + _PENDING[-1], {}
         os.write(write, json.dumps(report, default=str).encode())
     finally:
         os._exit(status)
@@ -399,6 +404,7 @@ def _stop_once(signum: int, frame: Any) -> None:
     Terminated), the ones after it do nothing, so that none cuts short the clean-up of the first
     (the terminal's Ctrl-C reaches the child, and the parent's stop() sends SIGTERM after it)."""
     _take_no_more_stops()
+    _PENDING.append(signum)
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt
 
 

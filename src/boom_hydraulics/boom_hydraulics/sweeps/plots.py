@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Callable, Mapping, Sequence
+import gc
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import matplotlib
 
@@ -15,6 +16,7 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
 from ..analysis.plots import energy_breakdown as breakdown
 from ..files import atomic_path
@@ -39,10 +41,21 @@ PLOTTED = (
 )
 
 
-#: A design's spot, pt^2: filled, without an edge. Drawing the edge of each of 10 000 spots
-#: took a quarter of a figure's time; this spot is about as large as the edged one.
-SPOT = 20.0
+#: A design's spot, its diameter in pt: filled, without an edge (about as large as scatter's
+#: default spot with its edge).
+SPOT = 4.5
 
+#: Colour bands of a numeric colouring: at most this many, between round values; a parameter
+#: with this many values or fewer has a band (a colour) for each. The spots of a band are one
+#: line of markers, whose marker Agg draws once and stamps at every spot: a 12-panel figure of
+#: 10 000 designs took 0.5 s so, against 0.84 s with a colour for each spot (scatter, whose
+#: every spot Agg draws as a path of its own).
+BANDS = 10
+
+
+#: Intervals between a metrics panel's ticks, at most: its 24 axes made 214 ticks by default,
+#: each five artists (tick marks, grid line, labels), 0.4 s of the figure's 0.67 s (cProfile).
+TICKS = 4
 
 #: Categories a row of a metrics figure's key holds.
 KEY_COLUMNS = 6
@@ -51,7 +64,9 @@ KEY_COLUMNS = 6
 def _save(fig, path: Path) -> None:
     """The figure as PNG at ``path``, whole or not at all (an interrupted plot leaves the old one)."""
     with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
+        # zlib's fastest level: 0.036 s a 1500 x 950 figure, against 0.056 s at PIL's default
+        # (6), for a file 10 % larger
+        fig.savefig(tmp, dpi=100, format="png", pil_kwargs={"compress_level": 1})
 
 
 def _numeric(column: np.ndarray) -> bool:
@@ -64,23 +79,25 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     x = np.asarray(table[parameter])
     ok = np.asarray(table["status"]) == "ok"
     fig, axes = plt.subplots(3, 4, figsize=(15, 9.5))
-    colours, mapper, key = _colours(table, color_by, ok)
-    bar = mapper is not None
+    colouring = _colours(table, color_by, ok)
+    bar = colouring.norm is not None
     # a fixed layout, with room for the labels of these panels: constrained layout measured
     # every tick label of the 12 panels, 0.35-0.4 s of a figure's 1.2 s
-    rows = _key(fig, key)  # a key to categories goes in rows under the title
+    rows = _key(fig, colouring.key)  # a key to categories goes in rows under the title
     top = max(0.5, 0.935 - 0.03 * rows)
     fig.subplots_adjust(left=0.05, right=0.895 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
     for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
         y = np.asarray(table[name], dtype=float) * scale
         ax.plot(x[~ok], y[~ok], "x", markersize=3.2, markeredgewidth=0.8, color="0.7", label="not ok")
-        ax.scatter(x[ok], y[ok], s=SPOT, linewidths=0, c=colours, cmap="viridis" if mapper else None, norm=mapper)
+        _spots(ax, x[ok], y[ok], colouring.groups)
         ax.set_xlabel(parameter)
         ax.set_ylabel(label)
+        ax.locator_params(nbins=TICKS)
         ax.grid(True, alpha=0.3)
     if bar:
         bar_axes = fig.add_axes((0.915, 0.25, 0.012, 0.5))
-        fig.colorbar(plt.cm.ScalarMappable(norm=mapper, cmap="viridis"), cax=bar_axes, label=color_by)
+        mapper = plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis")
+        fig.colorbar(mapper, cax=bar_axes, label=color_by, ticks=colouring.ticks)
     fig.suptitle(
         f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
         + (f" by {color_by}" if color_by else "")
@@ -90,7 +107,7 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
     plt.close(fig)
 
 
-def _key(fig, key: Mapping[Any, Any]) -> int:
+def _key(fig, key: Mapping[Any, Any] | None) -> int:
     """The key to categories (a drive, a config: which colour is which) in a row under the
     title, in as many columns as fit the figure's width (at most KEY_COLUMNS); its rows."""
     if not key:
@@ -105,20 +122,76 @@ def _key(fig, key: Mapping[Any, Any]) -> int:
     return len(spots)
 
 
-def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray):
-    """Colours of the ok points, the norm of a colour bar (None for categories), and for
-    categories, each one's colour: {category: colour}."""
+class Colouring(NamedTuple):
+    """How a figure colours its ok designs: ``groups``, [(their rows among the ok designs, a
+    colour)]; for numbers, the colour bar's ``norm`` (a BoundaryNorm of the bands) and
+    ``ticks`` (None: at the bands' edges); for categories, ``key``, {category: colour}."""
+
+    groups: list[tuple[np.ndarray, Any]]
+    norm: matplotlib.colors.BoundaryNorm | None = None
+    ticks: np.ndarray | None = None
+    key: Mapping[Any, Any] | None = None
+
+
+def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray) -> Colouring:
+    """The colours of the ok designs by ``color_by``: one for all without it, a band's colour of
+    viridis for a number (:func:`bands`), a colour of tab10 (tab20) for each category."""
+    everyone = np.arange(int(ok.sum()))
     if color_by is None:
-        return "tab:blue", None, {}
+        return Colouring([(everyone, "tab:blue")])
     values = np.asarray(table[color_by])[ok]
     if _numeric(values):
-        values = values.astype(float)
-        low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
-        return values, matplotlib.colors.Normalize(low, high if high > low else low + 1.0), {}
+        return banded(values.astype(float))
     categories = sorted(set(values.tolist()))
     palette = plt.get_cmap("tab10" if len(categories) <= 10 else "tab20")  # (beyond 20, colours repeat)
     key = {category: palette(k % palette.N) for k, category in enumerate(categories)}
-    return [key[v] for v in values.tolist()], None, key
+    return Colouring([(everyone[values == category], key[category]) for category in categories], key=key)
+
+
+def bands(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """The edges of the colour bands of ``values`` (their finite ones), ascending, and the colour
+    bar's ticks: a band around each distinct value where there are at most :data:`BANDS` (the
+    edges half-way between them, the ticks at the values), else at most :data:`BANDS` bands
+    between round values that hold them all (the ticks at the edges: None)."""
+    distinct = np.unique(values[np.isfinite(values)])
+    if len(distinct) <= 1:
+        middle = float(distinct[0]) if len(distinct) else 0.0
+        half = 0.5 * max(abs(middle), 1.0)
+        return np.array([middle - half, middle + half]), distinct
+    if len(distinct) <= BANDS:
+        between = 0.5 * (distinct[1:] + distinct[:-1])
+        first, last = 2.0 * distinct[0] - between[0], 2.0 * distinct[-1] - between[-1]
+        return np.concatenate([[first], between, [last]]), distinct
+    low, high = float(distinct[0]), float(distinct[-1])
+    for most in range(BANDS, 0, -1):  # (round edges that hold the values may take one band more)
+        edges = MaxNLocator(nbins=most).tick_values(low, high)
+        first = np.searchsorted(edges, low, side="right") - 1  # the last edge at or below the lowest value
+        last = np.searchsorted(edges, high, side="left")  # the first at or above the highest
+        edges = edges[max(first, 0) : last + 1]
+        if len(edges) <= BANDS + 1:
+            break
+    return edges, None
+
+
+def banded(values: np.ndarray) -> Colouring:
+    """``values`` coloured by :func:`bands` in viridis; a value that is not finite is not drawn
+    (as scatter draws it)."""
+    edges, ticks = bands(values)
+    viridis = plt.get_cmap("viridis")
+    norm = matplotlib.colors.BoundaryNorm(edges, viridis.N)
+    band = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, len(edges) - 2)
+    rows = np.arange(len(values))
+    finite = np.isfinite(values)
+    groups = [
+        (rows[finite & (band == k)], viridis(norm(0.5 * (edges[k] + edges[k + 1])))) for k in range(len(edges) - 1)
+    ]
+    return Colouring([(r, colour) for r, colour in groups if len(r)], norm, ticks)
+
+
+def _spots(ax, x: np.ndarray, y: np.ndarray, groups: Sequence[tuple[np.ndarray, Any]]) -> None:
+    """A spot at each (x, y), each group's in its colour (a line of markers per group)."""
+    for rows, colour in groups:
+        ax.plot(x[rows], y[rows], linestyle="none", marker="o", markersize=SPOT, markeredgewidth=0, color=colour)
 
 
 def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], path: Path) -> None:
@@ -128,13 +201,16 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
     time_s, energy_kj, pressure_mpa = (
         np.asarray(table[m], dtype=float) * s for m, s in zip(TRADE_OFF, (1.0, 1e-3, 1e-6))
     )
-    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5), constrained_layout=True)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
+    # a fixed layout (constrained layout drew the figure twice: 0.27 s of its 0.75 s)
+    fig.subplots_adjust(left=0.055, right=0.985, bottom=0.1, top=0.86, wspace=0.2)
     panels = ((left, energy_kj, "lift energy [kJ]", pressure_mpa, "peak pressure [MPa]"),
               (right, pressure_mpa, "peak pressure [MPa]", energy_kj, "lift energy [kJ]"))  # fmt: skip
     for ax, y, ylabel, colour, clabel in panels:
-        points = ax.scatter(time_s[ok], y[ok], c=colour[ok], s=SPOT, linewidths=0, cmap="viridis")
+        colouring = banded(colour[ok])
+        _spots(ax, time_s[ok], y[ok], colouring.groups)
         ax.scatter(time_s[front], y[front], s=70, facecolors="none", edgecolors="tab:red", label="non-dominated")
-        fig.colorbar(points, ax=ax, label=clabel)
+        fig.colorbar(plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis"), ax=ax, label=clabel)
         ax.set_xlabel("lift time [s]")
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
@@ -157,7 +233,8 @@ def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) 
     operators' cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`."""
     x = np.asarray(bands[parameter], dtype=float)
     drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(x)
-    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    fig.subplots_adjust(left=0.09, right=0.97, bottom=0.1, top=0.92)  # (a fixed layout: drawn once)
     for drive in dict.fromkeys(drives):
         rows = np.array([i for i, d in enumerate(drives) if d == drive])
         rows = rows[np.argsort(x[rows], kind="stable")]
@@ -170,7 +247,8 @@ def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) 
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     cycles = int(np.max(bands["cycles"])) if len(bands["cycles"]) else 0
-    ax.set_title(f"Battery energy per cycle: median and 10th-90th percentile over {cycles} cycle(s) per design")
+    title = f"Battery energy per cycle: median and 10th-90th percentile over {cycles} cycle(s) per design"
+    ax.set_title(title, fontsize="medium")
     _save(fig, path)
     plt.close(fig)
 
@@ -193,65 +271,89 @@ def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[s
         breakdown(bars, title, tmp)
 
 
-def plot_all(
-    table: Mapping[str, np.ndarray],
-    point_columns: Sequence[str],
-    folder: Path,
-    first: Sequence[tuple[Path, Callable[[], None]]] = (),
-) -> list[Path]:
+def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
     """Every sweep plot into ``folder``; returns the files written: with the battery (physical
     mode), also the battery energy per cycle and its breakdown. Where it can fork
-    (programs.can_fork), a child process draws every other plot meanwhile: a figure is up to
-    a second of Python, on one core (a 10 000-point sweep's five plots took 1.95-2.05 s so,
-    against 3.2-3.3 s one after the other). ``first``: other files and what writes each, put
-    before the plots in the one list that is shared out: the first of them is written by this
-    process before its plots, whether it forks or not (boom-sweep's results table, 0.05 s of
-    Python for 10 000 points, while the child draws). A failure here stops the child; plots it
-    finished before that stay, whole."""
+    (programs.can_fork), a child process draws some of them meanwhile, about half the work
+    each (:data:`Plot`'s estimates): a figure is up to half a second of Python, on one core. A
+    failure here stops the child; plots it finished before that stay, whole."""
     plots = _plots(table, point_columns, folder)
-    jobs = [*first, *plots]
-    theirs, mine = jobs[1::2], jobs[0::2]
+    mine, theirs = _shared(plots)
     forked = None
+    with _seldom_collected():
+        try:
+            if theirs and can_fork():
+                with contextlib.suppress(OSError):  # (a fork the system refuses: all of them here)
+                    forked = Forked(lambda: _draw(theirs))
+            _draw(mine if forked is not None else plots)
+            if forked is not None:
+                forked.wait()
+        except BaseException:
+            if forked is not None:
+                forked.stop()
+            raise
+    return [plot.path for plot in plots]
+
+
+class Plot(NamedTuple):
+    """A plot of :func:`plot_all`: its file, what draws it, and about how long that takes, s
+    (measured for 10 000 designs on a 2-core AMD EPYC; what counts is their ratios)."""
+
+    path: Path
+    draw: Callable[[], None]
+    seconds: float
+
+
+def _shared(plots: Sequence[Plot]) -> tuple[list[Plot], list[Plot]]:
+    """``plots`` in two shares of about the same time, the longest first to the lesser share:
+    this process's and a child's."""
+    shares: tuple[list[Plot], list[Plot]] = ([], [])
+    for plot in sorted(plots, key=lambda p: -p.seconds):
+        lesser = min(shares, key=lambda share: sum(p.seconds for p in share))
+        lesser.append(plot)
+    return shares
+
+
+@contextlib.contextmanager
+def _seldom_collected(young: int = 50_000) -> Iterator[None]:
+    """The garbage collector's youngest generation collected once ``young`` objects (not 700)
+    were made, while the figures are drawn: matplotlib makes tens of thousands of small objects
+    a figure, and the collections their count set off took 0.1-0.6 s of a 10 000-point sweep's
+    five figures (1.6-1.8 s; gc.callbacks), against 0.02-0.03 s so."""
+    before = gc.get_threshold()
+    gc.set_threshold(young, *before[1:])
     try:
-        if theirs and can_fork():
-            with contextlib.suppress(OSError):  # (a fork the system refuses: all of them here)
-                forked = Forked(lambda: _draw(theirs))
-        _draw(mine if forked is not None else jobs)
-        if forked is not None:
-            forked.wait()
-    except BaseException:
-        if forked is not None:
-            forked.stop()
-        raise
-    return [path for path, _ in plots]
+        yield
+    finally:
+        gc.set_threshold(*before)
 
 
-def _draw(jobs: Sequence[tuple[Path, Callable[[], None]]]) -> None:
-    for _, draw in jobs:
-        draw()
+def _draw(plots: Sequence[Plot]) -> None:
+    for plot in plots:
+        plot.draw()
 
 
-def _plots(
-    table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path
-) -> list[tuple[Path, Callable[[], None]]]:
-    """The plots of :func:`plot_all`, each as its file and what draws it, in their order."""
-    jobs: list[tuple[Path, Callable[[], None]]] = []
+def _plots(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Plot]:
+    """The plots of :func:`plot_all`, in their order."""
+
+    def plot(name: str, seconds: float, draw: Callable[..., None], *args: Any) -> Plot:
+        path = folder / name
+        return Plot(path, functools.partial(draw, *args, path), seconds)
+
+    plots = []
     varied = [c for c in point_columns if _numeric(table[c]) and len(np.unique(table[c])) > 1]
     for parameter in varied:
         others = [c for c in point_columns if c != parameter and len(np.unique(table[c])) > 1]
-        path = folder / f"metrics_vs_{parameter}.png"
-        jobs.append((path, functools.partial(metrics_against, table, parameter, others[0] if others else None, path)))
-    path = folder / "trade_off.png"
-    jobs.append((path, functools.partial(trade_off, table, point_columns, path)))
+        colour = others[0] if others else None
+        plots.append(plot(f"metrics_vs_{parameter}.png", 0.4, metrics_against, table, parameter, colour))
+    plots.append(plot("trade_off.png", 0.2, trade_off, table, point_columns))
     ok = np.asarray(table["status"]) == "ok"
     if np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[ok]).any():
         bands = operator_bands(table, point_columns)
         designs = design_columns(point_columns)
         axes = [c for c in designs if c in varied]
         if axes:
-            path = folder / "battery_energy.png"
             parameter = "piston_diameter_m" if "piston_diameter_m" in axes else axes[0]
-            jobs.append((path, functools.partial(battery_energy, bands, parameter, path)))
-        path = folder / "energy_breakdown.png"
-        jobs.append((path, functools.partial(energy_breakdown, bands, designs, path)))
-    return jobs
+            plots.append(plot("battery_energy.png", 0.1, battery_energy, bands, parameter))
+        plots.append(plot("energy_breakdown.png", 0.13, energy_breakdown, bands, designs))
+    return plots

@@ -8,11 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import gc
-import importlib
 import math
 import os
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -27,7 +25,7 @@ from ..model import config
 from ..model.parameters import Parameters, from_mapping
 from ..programs import raise_pending
 from ..solve import accelerate
-from . import energy, recommend, sweep
+from . import energy, plotter, recommend, sweep
 from .executors import DaskExecutor, LocalExecutor
 from .sampling import parse_axis, point_count, resolve_name
 from .store import OUTPUTS, SweepStore, plot_names
@@ -159,20 +157,6 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
-def _import_meanwhile(module: str) -> threading.Thread:
-    """Import ``module`` in a thread of its own while the batches run: the plots' matplotlib is
-    0.6 s of Python, which the batches' kernel (released from the GIL) leaves room for. An
-    import that fails raises again where the module is used."""
-
-    def load() -> None:
-        with contextlib.suppress(Exception):
-            importlib.import_module(module)
-
-    thread = threading.Thread(target=load, name="boom-sweep-import")
-    thread.start()
-    return thread
-
-
 def _kernel_call(batch: sweep.Batch) -> tuple:
     """What the first batch of its kind may compile: its run kernel (batch.SetRun), for the
     arguments that its points' shared settings give it (sweep.batch_key)."""
@@ -294,10 +278,17 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
             file=sys.stderr,
             flush=True,
         )
-    plan = reached.plan = sweep.plan(asked)
-    store.begin(plan.request)
-    with _frozen_heap():
-        return _run_plan(options, out, store, plan, cost, constraints, across)
+    # forked now, the plots' process loads matplotlib while this one plans and loads its kernel
+    drawer = None if options.no_plots else plotter.start()
+    try:
+        plan = reached.plan = sweep.plan(asked)
+        store.begin(plan.request)
+        with _frozen_heap():
+            return _run_plan(options, out, store, plan, cost, constraints, across, drawer)
+    except BaseException:
+        if drawer is not None:
+            drawer.stop()
+        raise
 
 
 @contextlib.contextmanager
@@ -320,8 +311,11 @@ def _run_plan(
     cost: sweep.Estimate,
     constraints: Sequence[recommend.Constraint],
     across: Sequence[str],
+    drawer: plotter.Plotter | None,
 ) -> int:
-    """Run what is not stored yet, storing each batch as it finishes; then the table, plots and ranking."""
+    """Run what is not stored yet, storing each batch as it finishes; then the table, plots and
+    ranking. ``drawer``: the process that draws the plots, forked before the plan (None: this
+    process draws them, unless --no-plots)."""
     parts, done = _stored_parts(store, plan)
     todo = [b for b in plan.batches if b.index not in done]
     executor = (
@@ -343,7 +337,7 @@ def _run_plan(
     from tqdm import tqdm
 
     class Progress(tqdm):
-        monitor_interval = 0  # (no monitor thread: the plots fork once the batches are done, programs.can_fork)
+        monitor_interval = 0  # (no monitor thread: plots.plot_all may fork, programs.can_fork)
 
     progress = Progress(
         total=runnable,
@@ -353,7 +347,6 @@ def _run_plan(
         file=sys.stderr,
     )
     started = time.perf_counter()
-    plotting = None if options.no_plots else _import_meanwhile(f"{__package__}.plots")
     cells = BatchCells(plan.size)
     with executor, progress:
         for batch, rows in executor.map(sweep.run_batch, todo):
@@ -363,31 +356,18 @@ def _run_plan(
             progress.update(len(batch.points))
             raise_pending()  # a Ctrl-C a finalizer swallowed here (batches on workers): stop after this one
     seconds = time.perf_counter() - started
-    if plotting is not None:
-        plotting.join()
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
+    if drawer is not None:
+        drawer.draw(table, plan.columns, out)  # it draws while the table is written here
+    write_table(table, out / "results.csv", cells=cells)
     written = ["results.csv", "results.npz"]
-    tried = False  # whether the table's writing began (it is tried once)
+    if drawer is not None:
+        written += drawer.wait()
+    elif not options.no_plots:
+        from .plots import plot_all
 
-    def write_results() -> None:
-        nonlocal tried
-        tried = True
-        write_table(table, out / "results.csv", cells=cells)
-
-    if options.no_plots:
-        write_results()
-    else:  # the table is written beside the plots (plots.plot_all), first in this process
-        try:
-            from .plots import plot_all
-
-            written += [
-                p.name for p in plot_all(table, plan.columns, out, first=[(out / "results.csv", write_results)])
-            ]
-        except BaseException:
-            if not tried:  # what stopped the plots came before the table: the table all the same
-                write_results()
-            raise
+        written += [p.name for p in plot_all(table, plan.columns, out)]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     if "operator" in plan.columns:  # each design's band over its operators' cycles
