@@ -58,3 +58,10 @@ def test_categories_each_have_their_colour_and_a_key():
     colouring = plots._colours(table, "drive", np.ones(4, bool))
     assert set(colouring.key) == {"pump", "valve"} and colouring.norm is None
     assert {tuple(r.tolist()) for r, _ in colouring.groups} == {(0, 2), (1, 3)}
+
+
+def test_values_a_rounding_apart_share_a_band_and_one_value_has_a_band_around_it():
+    edges, ticks = plots.bands(np.array([0.3, 0.1 * 3, 0.6]))
+    assert np.all(np.diff(edges) > 0) and len(ticks) == 2  # no band without width
+    edges, ticks = plots.bands(np.array([0.05, 0.05]))
+    assert edges.tolist() == pytest.approx([0.025, 0.075]) and ticks.tolist() == [0.05]

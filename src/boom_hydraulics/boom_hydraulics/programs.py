@@ -266,10 +266,11 @@ def _install_terminate() -> object | None:
 class Forked:
     """``work()`` in a child process forked from this one, beside what this process does next:
     a share of a program's work that runs on another core without waiting for the GIL (the
-    sweep's plots, half of them each). :meth:`wait` waits for it and raises here what it
-    raised; a stop (Ctrl-C reaches both processes from the terminal) ends it quietly, and
-    :meth:`stop` ends it from here. Fork only where :func:`can_fork`; a fork the system
-    refuses raises OSError, and nothing is left of it.
+    sweep's plots: the process that draws them, and half of them in a child of that one).
+    :meth:`wait` waits for it and raises here what it raised; a stop (Ctrl-C reaches both
+    processes from the terminal) ends it quietly, and :meth:`stop` ends it from here. Fork
+    only where :func:`can_fork`; a fork the system refuses raises OSError, and nothing is
+    left of it.
 
     The stop signals are blocked across the fork: one that came then is taken by each
     process where it can take it, the child inside its own handling (which never returns to
@@ -330,6 +331,9 @@ class Forked:
             raise MemoryError()
         if kind in ("failure", "config"):
             raise (ConfigError if kind == "config" else BoomHydraulicsError)(report["message"])
+        if code < 0:  # killed by a signal of someone else's (the system out of memory: SIGKILL)
+            name = signal.Signals(-code).name
+            raise BoomHydraulicsError(f"a process this program forked for its work was killed by {name}")
         raise RuntimeError(f"a forked process ended with status {code}:\n{report.get('traceback', '')}")
 
     def stop(self) -> None:
@@ -337,10 +341,14 @@ class Forked:
         stopped), and wait for it: it removes what it was writing, as a stopped program does."""
         if self._reaped:
             return
-        with suppress(OSError):  # first, so that a child writing its report is not held up
-            os.close(self._read)
-        with suppress(ProcessLookupError):
-            os.kill(self.pid, signal.SIGTERM)
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)  # (a second stop does not cut this short)
+        try:
+            with suppress(OSError):  # first, so that a child writing its report is not held up
+                os.close(self._read)
+            with suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGTERM)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
         with suppress(ChildProcessError):
             os.waitpid(self.pid, 0)
         self._reaped = True

@@ -154,9 +154,12 @@ def bands(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     edges half-way between them, the ticks at the values), else at most :data:`BANDS` bands
     between round values that hold them all (the ticks at the edges: None)."""
     distinct = np.unique(values[np.isfinite(values)])
+    if len(distinct) > 1:  # values a rounding apart (0.3 and 0.1 * 3) are one: a band has a width
+        apart = np.diff(distinct) > 1e-9 * np.abs(distinct).max()
+        distinct = distinct[np.concatenate([[True], apart])]
     if len(distinct) <= 1:
         middle = float(distinct[0]) if len(distinct) else 0.0
-        half = 0.5 * max(abs(middle), 1.0)
+        half = 0.5 * abs(middle) if middle else 0.5
         return np.array([middle - half, middle + half]), distinct
     if len(distinct) <= BANDS:
         between = 0.5 * (distinct[1:] + distinct[:-1])
@@ -210,7 +213,8 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
         colouring = banded(colour[ok])
         _spots(ax, time_s[ok], y[ok], colouring.groups)
         ax.scatter(time_s[front], y[front], s=70, facecolors="none", edgecolors="tab:red", label="non-dominated")
-        fig.colorbar(plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis"), ax=ax, label=clabel)
+        mapper = plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis")
+        fig.colorbar(mapper, ax=ax, label=clabel, ticks=colouring.ticks)
         ax.set_xlabel("lift time [s]")
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)

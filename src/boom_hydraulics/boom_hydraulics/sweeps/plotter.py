@@ -18,10 +18,11 @@ from ..programs import Forked, can_fork
 
 class Plotter:
     """The plots of a sweep, drawn by a child forked now, before the batches (:func:`start`).
-    :meth:`draw` hands it the table, and it draws while this process writes the table and its
-    summaries; :meth:`wait` returns the names of the plots it wrote, or raises what stopped it.
-    :meth:`stop` ends it (this process failed or was stopped): what it was writing is not
-    kept; plots it finished stay, whole."""
+    :meth:`draw` hands it the table, and it draws while this process writes the results, the
+    operators' table and the recommendation; :meth:`wait` returns the names of the plots it
+    wrote, or raises what stopped it (a child killed meanwhile, by the system out of memory:
+    one line). :meth:`stop` ends it (this process failed or was stopped): what it was writing
+    is not kept; plots it finished stay, whole."""
 
     def __init__(self) -> None:
         read, write = os.pipe()
@@ -31,8 +32,12 @@ class Plotter:
             os.close(read)
             os.close(write)
             raise
-        os.close(read)
         self._table: int | None = write
+        try:
+            os.close(read)
+        except BaseException:  # (a stop that lands here: the caller never gets hold of this one)
+            self.stop()
+            raise
 
     def draw(self, table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> None:
         """Hand ``table`` to the child, which draws its plots into ``folder`` now
@@ -42,7 +47,9 @@ class Plotter:
         if write is None:
             raise RuntimeError("Plotter.draw: the table was handed over already")
         with contextlib.suppress(BrokenPipeError), open(write, "wb") as stream:
-            pickle.dump((dict(table), tuple(point_columns), folder), stream, protocol=pickle.HIGHEST_PROTOCOL)
+            # (without the reasons of failed points, text the plots do not read: up to a kB a point)
+            plotted = {name: column for name, column in table.items() if name != "reason"}
+            pickle.dump((plotted, tuple(point_columns), folder), stream, protocol=pickle.HIGHEST_PROTOCOL)
 
     def wait(self) -> list[str]:
         """The names of the plots the child wrote, once it is done; its failure raised here

@@ -278,9 +278,9 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
             file=sys.stderr,
             flush=True,
         )
-    # forked now, the plots' process loads matplotlib while this one plans and loads its kernel
-    drawer = None if options.no_plots else plotter.start()
-    try:
+    drawer = None
+    try:  # forked now, the plots' process loads matplotlib while this one plans and loads its kernel
+        drawer = None if options.no_plots else plotter.start()
         plan = reached.plan = sweep.plan(asked)
         store.begin(plan.request)
         with _frozen_heap():
@@ -359,9 +359,18 @@ def _run_plan(
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
     if drawer is not None:
-        drawer.draw(table, plan.columns, out)  # it draws while the table is written here
+        drawer.draw(table, plan.columns, out)  # it draws while the files below are written here
     write_table(table, out / "results.csv", cells=cells)
     written = ["results.csv", "results.npz"]
+    if "operator" in plan.columns:  # each design's band over its operators' cycles
+        write_table(energy.operator_bands(table, plan.columns), out / "operators.csv")
+        written += ["operators.csv", "operators.npz"]
+    ranked = None
+    if options.recommend or constraints or options.across or options.rank_by:
+        ranked = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
+        text = recommend.format_table(ranked, options.top)
+        write_bytes(out / "recommendation.txt", text.encode())
+        write_table(ranked.table, out / "recommendation.csv", rows=ranked.rows)
     if drawer is not None:
         written += drawer.wait()
     elif not options.no_plots:
@@ -370,18 +379,10 @@ def _run_plan(
         written += [p.name for p in plot_all(table, plan.columns, out)]
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
-    if "operator" in plan.columns:  # each design's band over its operators' cycles
-        bands = energy.operator_bands(table, plan.columns)
-        write_table(bands, out / "operators.csv")
-        written[2:2] = ["operators.csv", "operators.npz"]
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns))
     if np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any():
         print(energy.summary(energy.operator_bands(table, plan.columns), plan.columns))
-    if options.recommend or constraints or options.across or options.rank_by:
-        rec = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
-        text = recommend.format_table(rec, options.top)
-        write_bytes(out / "recommendation.txt", text.encode())
-        write_table(rec.table, out / "recommendation.csv", rows=rec.rows)
+    if ranked is not None:
         print(text, end="")
     return 0

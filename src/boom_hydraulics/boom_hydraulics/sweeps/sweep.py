@@ -94,9 +94,12 @@ BATCH_KEYS = (*SHARED, *names_in("scenario"))
 
 
 #: Memory a point takes while a sweep runs, rounded up: its values and Parameters in the plan
-#: (2.2 kB, measured with tracemalloc on a one-axis plan of 100 000 points), its table row and
-#: its row's CSV text, kept from its batch's end to the table's writing (0.7 kB; runner.BatchCells).
-BYTES_PER_POINT = 4096
+#: (2.2 kB, measured with tracemalloc on a one-axis plan of 100 000 points), its table row
+#: (0.6 kB, numpy's nbytes of a 10 000-point table) and its row's CSV text, kept from its
+#: batch's end to the table's writing (0.7 kB; runner.BatchCells); while the plots are drawn,
+#: the row again in the plots' process (0.45 kB, without its reason: sweeps.plotter) and its
+#: spots in the figure each of two processes draws (12 panels of x and y, 0.4 kB each).
+BYTES_PER_POINT = 5120
 
 #: State-steps the compiled run kernel takes per second and core, for the up-front estimate of a
 #: sweep's run time: a default 10 000-point sweep of the 5 s lift took 5e7 steps in 8.0-8.6 s of
