@@ -154,22 +154,6 @@ def test_what_the_childs_work_returned_comes_back_from_wait():
     assert Forked(lambda: ["metrics_vs_payload_mass_kg.png", 2]).wait() == ["metrics_vs_payload_mass_kg.png", 2]
 
 
-def test_an_error_that_a_stop_was_turned_into_in_the_child_is_the_stop():
-    """A Ctrl-C that the code it lands in makes another exception of (matplotlib's drawing):
-    the child ends as stopped (130), so that the parent reports the stop, not a bug."""
-
-    def work() -> None:
-        try:
-            os.kill(os.getpid(), signal.SIGINT)
-            for _ in range(10**7):  # the handler raises here
-                pass
-        except KeyboardInterrupt:
-            raise ValueError("Invalid bounding box") from None
-
-    with pytest.raises(KeyboardInterrupt):
-        Forked(work).wait()
-
-
 _STOPPED_WHILE_WAITING = """
 import os, select, signal, sys, time
 from pathlib import Path

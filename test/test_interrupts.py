@@ -304,7 +304,8 @@ def test_ctrl_c_while_a_program_loads_its_modules_ends_in_one_line(tool):
 
 
 #: A Ctrl-C that the code it lands in turns into another exception, as matplotlib's drawing
-#: once made a ValueError ('Invalid bounding box') of one while a sweep plotted.
+#: once made a ValueError ('Invalid bounding box') of one while a sweep plotted. The plots are
+#: drawn in the process boom-sweep forks (sweeps.plotter), which ends as stopped, not failed.
 _CTRL_C_TURNED_INTO_AN_ERROR = """
 import os, signal, sys
 from pathlib import Path
