@@ -52,6 +52,9 @@ SPOT = 4.5
 #: every spot Agg draws as a path of its own).
 BANDS = 10
 
+#: The bands' colours, low to high.
+COLOUR_MAP = "viridis"
+
 
 #: Intervals between a metrics panel's ticks, at most: its 24 axes made 214 ticks by default,
 #: each five artists (tick marks, grid line, labels), 0.4 s of the figure's 0.67 s (cProfile).
@@ -96,8 +99,7 @@ def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: s
         ax.grid(True, alpha=0.3)
     if bar:
         bar_axes = fig.add_axes((0.915, 0.25, 0.012, 0.5))
-        mapper = plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis")
-        fig.colorbar(mapper, cax=bar_axes, label=color_by, ticks=colouring.ticks)
+        colouring.colour_bar(fig, color_by, cax=bar_axes)
     fig.suptitle(
         f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
         + (f" by {color_by}" if color_by else "")
@@ -131,6 +133,11 @@ class Colouring(NamedTuple):
     norm: matplotlib.colors.BoundaryNorm | None = None
     ticks: np.ndarray | None = None
     key: Mapping[Any, Any] | None = None
+
+    def colour_bar(self, fig, label: str | None, **where: Any) -> None:
+        """The bands' colour bar in ``fig``, placed by ``where`` (colorbar's ``cax`` or ``ax``)."""
+        mapper = plt.cm.ScalarMappable(norm=self.norm, cmap=COLOUR_MAP)
+        fig.colorbar(mapper, label=label, ticks=self.ticks, **where)
 
 
 def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray) -> Colouring:
@@ -180,7 +187,7 @@ def banded(values: np.ndarray) -> Colouring:
     """``values`` coloured by :func:`bands` in viridis; a value that is not finite is not drawn
     (as scatter draws it)."""
     edges, ticks = bands(values)
-    viridis = plt.get_cmap("viridis")
+    viridis = plt.get_cmap(COLOUR_MAP)
     norm = matplotlib.colors.BoundaryNorm(edges, viridis.N)
     band = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, len(edges) - 2)
     rows = np.arange(len(values))
@@ -213,8 +220,7 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
         colouring = banded(colour[ok])
         _spots(ax, time_s[ok], y[ok], colouring.groups)
         ax.scatter(time_s[front], y[front], s=70, facecolors="none", edgecolors="tab:red", label="non-dominated")
-        mapper = plt.cm.ScalarMappable(norm=colouring.norm, cmap="viridis")
-        fig.colorbar(mapper, ax=ax, label=clabel, ticks=colouring.ticks)
+        colouring.colour_bar(fig, clabel, ax=ax)
         ax.set_xlabel("lift time [s]")
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)

@@ -362,8 +362,11 @@ def _run_plan(
         drawer.draw(table, plan.columns, out)  # it draws while the files below are written here
     write_table(table, out / "results.csv", cells=cells)
     written = ["results.csv", "results.npz"]
-    if "operator" in plan.columns:  # each design's band over its operators' cycles
-        write_table(energy.operator_bands(table, plan.columns), out / "operators.csv")
+    battery = np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any()
+    # each design's band over its operators' cycles: their table, and the battery's summary
+    bands = energy.operator_bands(table, plan.columns) if battery or "operator" in plan.columns else None
+    if "operator" in plan.columns:
+        write_table(bands, out / "operators.csv")
         written += ["operators.csv", "operators.npz"]
     ranked = None
     if options.recommend or constraints or options.across or options.rank_by:
@@ -381,8 +384,8 @@ def _run_plan(
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns))
-    if np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any():
-        print(energy.summary(energy.operator_bands(table, plan.columns), plan.columns))
+    if battery:
+        print(energy.summary(bands, plan.columns))
     if ranked is not None:
         print(text, end="")
     return 0
