@@ -58,6 +58,8 @@ def first_start_s() -> float:
 
 
 TITLE = "Speed and memory targets"
+#: Runs of each side of the sweep's share of the kernel's throughput, in turn; the best of each is compared.
+SHARE_ROUNDS = 3
 NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
@@ -215,16 +217,18 @@ def main() -> int:
         "<= 15 s on 2 cores",
         min(sweeps["10000"][0], sweeps["10000 workers"][0]) <= 15.0,
     )
-    # the batches alone and the sweep again, in turn, the best of two of each: one run of each
-    # moved by half a second between runs of the same code, which a share of 90 % cannot hold
-    kernel_runs = [plan_kernel_s()]
-    sweep_runs = [sweeps["10000"][0], full_sweep(None, 100)[0]]
-    kernel_runs.append(plan_kernel_s())
+    # the batches alone and the sweep again, in turn, the best of SHARE_ROUNDS of each: one run of
+    # each moved by up to a second between runs of the same code, which a share of 90 % cannot hold
+    kernel_runs, sweep_runs = [], [sweeps["10000"][0]]
+    for _ in range(SHARE_ROUNDS):
+        kernel_runs.append(plan_kernel_s())
+        if len(sweep_runs) < SHARE_ROUNDS:
+            sweep_runs.append(full_sweep(None, 100)[0])
     kernel_s, sweep_s = min(kernel_runs), min(sweep_runs)
     share = kernel_s / sweep_s
     row(
-        "boom-sweep of 10 000 points against its batches through the run kernel alone, best of 2 each in turn: "
-        "kernel s / sweep s (share)",
+        "boom-sweep of 10 000 points against its batches through the run kernel alone, "
+        f"best of {SHARE_ROUNDS} each in turn: kernel s / sweep s (share)",
         f"{kernel_s:.2f} s / {sweep_s:.2f} s ({share * 100:.1f} %)",  # (89.6 % is not 90 %)
         ">= 90 %",
         share >= 0.9,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import operator
+import subprocess
 import sys
 import threading
 import time
@@ -18,7 +19,7 @@ from boom_hydraulics.errors import BoomHydraulicsError, ConfigError
 from boom_hydraulics.model import config
 from boom_hydraulics.model.parameters import Parameters
 from boom_hydraulics.programs import CalledOffError, raise_pending
-from boom_hydraulics.solve import commands
+from boom_hydraulics.solve import accelerate, commands
 from boom_hydraulics.solve.simulation import simulate
 from boom_hydraulics.sweeps import sweep
 from boom_hydraulics.sweeps.executors import SWITCH_INTERVAL_S, DaskExecutor, LocalExecutor
@@ -351,19 +352,79 @@ def test_the_batches_threads_take_the_gil_in_turn_quickly_and_the_caller_gets_it
         sys.setswitchinterval(before)
 
 
-def test_the_first_batch_of_each_kind_runs_in_the_calling_thread_where_ctrl_c_can_stop_its_compile():
+@pytest.mark.parametrize("threads", [1, 2])
+def test_each_kinds_kernel_loads_in_the_calling_thread_where_ctrl_c_can_stop_its_compile_then_its_batch_runs(threads):
+    """The first batch of each kind has its kernel loaded first, in the calling thread (a stop
+    signal interrupts a compile there), once the batches before it are delivered; then every
+    batch runs as the others do (with threads, in the executor's), and all come in order."""
     caller = threading.get_ident()
-    in_caller = []
+    events: list[tuple[str, int]] = []
+
+    def load(index: int) -> None:
+        assert threading.get_ident() == caller
+        events.append(("load", index))
 
     def batch(index: int) -> int:
-        if threading.get_ident() == caller:
-            in_caller.append(index)
+        if threads > 1:
+            assert threading.get_ident() != caller
         return -index
 
     items = [0, 1, 2, 3, 10, 11, 12, 20, 4]
-    executor = LocalExecutor(2, kind=lambda index: index // 10)  # (4 is of the first kind)
-    assert list(executor.map(batch, items)) == [(index, -index) for index in items]
-    assert in_caller == [0, 10, 20]
+    executor = LocalExecutor(threads, load=load, kind=lambda index: index // 10)  # (4 is of the first kind)
+    for index, result in executor.map(batch, items):
+        assert result == -index
+        events.append(("delivered", index))
+    assert [index for what, index in events if what == "delivered"] == items
+    assert [index for what, index in events if what == "load"] == [0, 10, 20]
+    for loaded in (10, 20):  # loaded once every batch before it was delivered
+        before = items[: items.index(loaded)]
+        place = events.index(("load", loaded))
+        assert {index for what, index in events[:place] if what == "delivered"} == set(before)
+
+
+#: A new process's batch of POINTS points: the signatures of its run kernel after
+#: sweep.load_kernel, and after its run (a process of its own: nothing loaded before).
+_LOADED_AHEAD = """
+import sys
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.solve import accelerate
+from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.sampling import parse_axis
+
+asked = sweep.request([("default", Parameters())], [parse_axis(f"payload=0:100:{sys.argv[1]}")], duration_s=0.05)
+batch = sweep.plan(asked).batches[0]
+p = batch.params[0]
+kernel = accelerate.batch_runner(p.mode, p.method, len(batch.params))
+before = len(kernel.signatures)
+sweep.load_kernel(batch)
+loaded = set(kernel.signatures)
+status = set(sweep.run_batch(batch)["status"].tolist())
+print(before, len(loaded), set(kernel.signatures) == loaded, sorted(status))
+"""
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba not installed")
+@pytest.mark.parametrize("points", [3, 10])
+def test_the_kernel_a_batch_has_loaded_ahead_is_the_one_its_run_calls(points):
+    """sweep.load_kernel loads what run_batch then calls: the batch's run kernel (blocks in
+    lock-step from lanes.WIDTH sets on, one set per thread below) for the types it is called
+    with; the batch's run adds no signature of its own, so that it neither compiles nor loads."""
+    script = [sys.executable, "-c", _LOADED_AHEAD, str(points)]
+    done = subprocess.run(script, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", "1", "True", "['incomplete']"]
+
+
+def test_a_kernel_that_fails_to_load_stops_the_map_after_the_batches_before_it():
+    def load(index: int) -> None:
+        if index == 10:
+            raise ConfigError("no kernel")
+
+    delivered = []
+    with pytest.raises(ConfigError, match="no kernel"):
+        for index, _ in LocalExecutor(2, load=load, kind=lambda index: index // 10).map(abs, [0, 1, 10, 11]):
+            delivered.append(index)
+    assert delivered == [0, 1]
 
 
 def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stops_taking_results():
@@ -373,7 +434,7 @@ def test_batches_running_beside_the_caller_stop_at_their_next_slice_once_it_stop
     called_off: list[int] = []
 
     def batch(index: int) -> int:
-        if index < 2:  # (the first runs in the calling thread)
+        if index < 2:
             return index
         running.release()
         deadline = time.monotonic() + 60  # (a batch that was not called off ends on its own)

@@ -95,21 +95,30 @@ class LocalExecutor:
     10 000-point sweep of 5 s lifts took 7.80-7.84 s so, against 7.95-8.07 s one after the
     other (2 cores, 3 rounds each). ``threads=1``: one item after the other in the calling thread.
 
-    The first item of each ``kind`` (of the one kind, without ``kind``) runs in the calling
-    thread, once the items before it are delivered: its first call may compile its kernel (a
-    minute), and a stop signal interrupts only the calling thread; a thread's compile would
-    run to its end. A stop signal (Ctrl-C, SIGTERM) lands in the calling thread. Once the
-    caller stops taking results (by a stop, or an error of its own such as a full disk), the
-    items running stop at the next slice of their run (programs.raise_pending), and their
-    results are not kept.
+    Before the first item of each ``kind`` (of the one kind, without ``kind``), ``load(item)``
+    runs in the calling thread, once the items before it are delivered: what its calls need
+    loaded (a sweep's run kernel: loaded from numba's cache in 0.3 s, or compiled in a minute),
+    where a stop signal can interrupt it; a thread's compile would run to its end. That item
+    then runs in a thread as the others do, beside the next one from the start: when it ran in
+    the calling thread instead, alone, the Python before and after its kernel had no kernel
+    beside it (0.05-0.1 s of a 10 000-point sweep). A stop signal (Ctrl-C, SIGTERM) lands in
+    the calling thread. Once the caller stops taking results (by a stop, or an error of its
+    own such as a full disk), the items running stop at the next slice of their run
+    (programs.raise_pending), and their results are not kept.
     """
 
     description = "in this process"
 
-    def __init__(self, threads: int = 2, kind: Callable[[Any], Hashable] | None = None) -> None:
+    def __init__(
+        self,
+        threads: int = 2,
+        load: Callable[[Any], object] | None = None,
+        kind: Callable[[Any], Hashable] | None = None,
+    ) -> None:
         if threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.threads = threads
+        self.load = load
         self.kind = kind
 
     def __enter__(self) -> LocalExecutor:
@@ -119,23 +128,29 @@ class LocalExecutor:
         return None
 
     def map(self, fn: Callable[[Item], Any], items: Iterable[Item]) -> Iterator[tuple[Item, Any]]:
+        kinds: set[Hashable] = set()
+
+        def first_of_its_kind(item: Item) -> bool:
+            kind = self.kind(item) if self.kind is not None else None
+            new = self.load is not None and kind not in kinds
+            kinds.add(kind)
+            return new
+
         if self.threads == 1:
             for item in items:
+                if first_of_its_kind(item):
+                    self.load(item)
                 yield item, fn(item)
             return
         running: collections.deque[tuple[Item, Future]] = collections.deque()
         called_off = threading.Event()
         pool = ThreadPoolExecutor(self.threads, thread_name_prefix="boom-sweep-batch")
-        kinds: set[Hashable] = set()
         _SHORT_SWITCH.begin()
         try:
             for item in items:
-                kind = self.kind(item) if self.kind is not None else None
-                if kind not in kinds:  # the first of its kind: here, after the ones before it
-                    kinds.add(kind)
+                if first_of_its_kind(item):  # its kernel loaded here, after the ones before it
                     yield from _delivered(running, keep=0)
-                    yield item, fn(item)
-                    continue
+                    self.load(item)
                 running.append((item, pool.submit(cancellable, called_off, fn, item)))
                 # the oldest is yielded once one more than the threads are in hand: while the
                 # caller takes it, the next ones run

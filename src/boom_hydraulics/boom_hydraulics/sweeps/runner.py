@@ -321,7 +321,7 @@ def _run_plan(
     executor = (
         DaskExecutor(options.scheduler, options.workers, options.scheduler_timeout)
         if (options.scheduler or options.workers) is not None
-        else LocalExecutor(kind=_kernel_call)
+        else LocalExecutor(load=sweep.load_kernel, kind=_kernel_call)
     )
     runnable = plan.size - len(plan.invalid)
     batches = f"{len(plan.batches)} batch" + ("" if len(plan.batches) == 1 else "es")

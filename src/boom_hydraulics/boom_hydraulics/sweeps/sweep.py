@@ -24,7 +24,7 @@ from ..errors import BoomHydraulicsError, ConfigError
 from ..model import ledger, physical
 from ..model.battery import J_PER_KWH
 from ..model.parameters import Parameters, as_dict, describe, from_mapping, names_in
-from ..solve import commands, duty_cycles, streaming
+from ..solve import commands, duty_cycles, lanes, streaming
 from ..solve.batch import SHARED, run_sets
 from ..solve.integrators import BATCHED
 from .sampling import Axis, Spacing, point_count, sample_points
@@ -482,6 +482,15 @@ def run_batch(batch: Batch) -> dict[str, np.ndarray]:
     for j, name in enumerate(METRIC_NAMES):
         out[name] = values[:, j]
     return out
+
+
+def load_kernel(batch: Batch) -> None:
+    """Load the compiled run kernel that :func:`run_batch` calls for ``batch`` (or compile it,
+    where numba's cache lacks it), by a run of one step of up to lanes.WIDTH of its sets: the
+    kernel it takes for them is the batch's (accelerate.batch_runner), for the same types."""
+    params = list(batch.params[: lanes.WIDTH])
+    run_sets(params, params[0].time_step_s, commands.for_batch(params), every=batch.every,
+             lift_angle_deg=batch.lift_angle_deg)  # fmt: skip
 
 
 def invalid_rows(plan: Plan) -> dict[str, np.ndarray]:
