@@ -100,6 +100,38 @@ def test_a_sweep_says_when_its_batches_compile_the_run_kernel(tmp_path, monkeypa
     assert cold.returncode == 0 and cold.stderr.count(line) == 1, cold.stderr
 
 
+def test_a_sweep_loads_each_kernel_in_its_main_thread_before_the_batches_that_call_it(tmp_path, monkeypatch):
+    """boom-sweep loads (or compiles) the run kernel of each kind of batch in its main thread,
+    where a Ctrl-C stops a compile, once, before the first batch of that kind runs; the batches
+    themselves run in the executor's threads. Five points in batches of 4: a block of 4 sets,
+    then 1 set, two kernels."""
+    import threading
+
+    from boom_hydraulics.sweeps import sweep
+
+    main, events = threading.get_ident(), []
+    load_kernel, run_batch = sweep.load_kernel, sweep.run_batch
+
+    def loading(batch):
+        events.append(("load", batch.index, threading.get_ident() == main))
+        load_kernel(batch)
+
+    def running(batch):
+        events.append(("run", batch.index, threading.get_ident() == main))
+        return run_batch(batch)
+
+    monkeypatch.setattr(sweep, "load_kernel", loading)
+    monkeypatch.setattr(sweep, "run_batch", running)
+    five = ["--config", CONFIG / "default.yaml", "--vary", "payload=0:200:5", "--duration", "0.2", "--no-plots"]
+    done = _sweep(*five, "--batch-size", 4, "--out", tmp_path / "s")
+    assert done.returncode == 0, done.stderr
+    assert [e for e in events if e[0] == "load"] == [("load", 0, True), ("load", 1, True)]
+    runs = [e for e in events if e[0] == "run"]
+    assert sorted(index for _, index, _ in runs) == [0, 1] and not any(in_main for *_, in_main in runs)
+    for index in (0, 1):  # each batch after its kernel's load
+        assert events.index(("load", index, True)) < next(k for k, e in enumerate(events) if e[:2] == ("run", index))
+
+
 def test_the_summary_says_what_a_status_other_than_ok_means(tmp_path):
     short = _sweep("--config", CONFIG / "default.yaml", "--vary", "payload=0,150", "--duration", "0.2", "--no-plots",
                    "--out", tmp_path / "short")  # fmt: skip
