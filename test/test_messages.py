@@ -84,6 +84,42 @@ def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
     assert (clock.clock.sec, clock.clock.nanosec) == (5, 1)
 
 
+def test_packed_energy_ledger_is_the_canonical_cdr_of_the_same_message():
+    """The EnergyLedger the node packs is byte for byte what rosbags' serializer writes for the
+    same message, and rclpy reads each field back, every term with its own power and energy."""
+    import numpy as np
+
+    from boom_hydraulics.bags.encoding import ENERGY_LEDGER, message, stamp, to_cdr
+    from boom_hydraulics.bags.energy import LedgerNow, energy_ledger_cdr
+    from boom_hydraulics.model import ledger
+    from boom_hydraulics_msgs.msg import EnergyLedger
+
+    names = ledger.TERM_NAMES
+    power = {name: 10.0 + i + 0.5 for i, name in enumerate(names)}
+    energy = {name: 100.0 + i + 0.25 for i, name in enumerate(names)}
+    energy.update(battery_drawn=5.5, battery_returned=1.25, lift_work=3.0)
+    integrals = [5.5 - 1.25 if name == "battery_power" else energy[name] for name in names]
+    packed = energy_ledger_cdr(LedgerNow(power, energy, 0.8), 12 * 10**9 + 7)
+    expected = message(
+        ENERGY_LEDGER,
+        header={"stamp": stamp(12 * 10**9 + 7)},
+        state_of_charge=0.8,
+        battery_power_w=power["battery_power"],
+        battery_drawn_j=5.5,
+        battery_returned_j=1.25,
+        lift_work_j=3.0,
+        terms=list(names),
+        power_w=np.array([power[name] for name in names]),
+        energy_j=np.array(integrals),
+    )
+    assert packed == to_cdr(expected)
+    msg = deserialize_message(packed, EnergyLedger)
+    assert msg.header.stamp == Time(sec=12, nanosec=7) and msg.state_of_charge == 0.8
+    assert (msg.battery_drawn_j, msg.battery_returned_j, msg.lift_work_j) == (5.5, 1.25, 3.0)
+    assert list(msg.terms) == list(names)
+    assert list(msg.power_w) == [power[name] for name in names] and list(msg.energy_j) == integrals
+
+
 PUBLISHER = textwrap.dedent(
     """
     import time, rclpy

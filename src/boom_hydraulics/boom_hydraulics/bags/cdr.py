@@ -58,6 +58,17 @@ def _header_items(frame_id: bytes) -> Layout:
     return ("i", "I", "I", ("s", len(frame_id)))
 
 
+def _strings(texts: Sequence[str]) -> tuple[Layout, list[Any]]:
+    """A string[] of constant ``texts``: its fields and their values (the count, then each
+    string's length, NUL included, and bytes)."""
+    items: Layout = ("I",)
+    values: list[Any] = [len(texts)]
+    for text in map(_text, texts):
+        items += ("I", ("s", len(text)))
+        values += [len(text), text]
+    return items, values
+
+
 # Each message of a fixed shape has a packer: a function of the stamp and the numbers that
 # change, with the layout and the constant fields (frame ids, names, lengths) bound once.
 # The node takes its packers once; the functions below them look them up per call.
@@ -85,11 +96,8 @@ def drive_state_packer(frame_id: str, n_floats: int, n_flags: int) -> DriveState
 def joint_state_packer(names: tuple[str, ...], lengths: tuple[int, int, int], frame_id: str = "") -> JointStatePacker:
     """sensor_msgs/JointState of the joints ``names``, with ``lengths`` positions, velocities, efforts."""
     frame = _text(frame_id)
-    items, named = (*_header_items(frame), "I"), [len(names)]
-    for name in names:
-        text = _text(name)
-        items += ("I", ("s", len(text)))
-        named += [len(text), text]
+    name_items, named = _strings(names)
+    items = _header_items(frame) + name_items
     for n in lengths:
         items += ("I",) + ("d",) * n
     struct_pack = layout(items).pack
@@ -137,6 +145,29 @@ def wrench_stamped_packer(frame_id: str) -> WrenchPacker:
     def packed(stamp_ns: int, force: Sequence[float], torque: Sequence[float]) -> bytes:
         sec, nanosec = _stamp(stamp_ns)
         return struct_pack(ENCAPSULATION, sec, nanosec, len(frame), frame, *force, *torque)
+
+    return packed
+
+
+EnergyLedgerPacker = Callable[[int, Sequence[float], Sequence[float], Sequence[float]], bytes]
+
+
+@functools.lru_cache(maxsize=16)
+def energy_ledger_packer(terms: tuple[str, ...], frame_id: str = "") -> EnergyLedgerPacker:
+    """boom_hydraulics_msgs/EnergyLedger of the ledger's ``terms``: a function of the stamp,
+    the five battery fields in the message's order (state_of_charge, battery_power_w,
+    battery_drawn_j, battery_returned_j, lift_work_j), and each term's power (W) and integral
+    (J) in the order of ``terms``."""
+    frame = _text(frame_id)
+    term_items, named = _strings(terms)
+    n = len(terms)
+    struct_pack = layout(
+        _header_items(frame) + ("d",) * 5 + term_items + ("I",) + ("d",) * n + ("I",) + ("d",) * n
+    ).pack
+
+    def packed(stamp_ns: int, battery: Sequence[float], power_w: Sequence[float], energy_j: Sequence[float]) -> bytes:
+        sec, nanosec = _stamp(stamp_ns)
+        return struct_pack(ENCAPSULATION, sec, nanosec, len(frame), frame, *battery, *named, n, *power_w, n, *energy_j)
 
     return packed
 

@@ -1,6 +1,6 @@
 """Messages as CDR bytes without ROS: what the node and the tools write into bags.
 
-DriveState and the setpoint's JointState are packed directly (:mod:`cdr`); other messages
+DriveState, the setpoint's JointState and EnergyLedger are packed directly (:mod:`cdr`); other messages
 are encoded with rosbags' typestore (Jazzy's types plus this package's DriveState, read
 from its installed .msg). Both write canonical CDR, which every reader takes (rclpy's
 serializer leaves trailing padding after empty 8-byte sequences, which strict readers refuse),

@@ -15,15 +15,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from ..model import ledger, physical
 from ..model.battery import J_PER_KWH, state_of_charge
-from .encoding import ENERGY_LEDGER, message, stamp, to_cdr
+from . import cdr
 
 #: How often the node publishes its energy ledger (~/energy), and boom-resim writes it, Hz of
 #: simulated time.
 ENERGY_HZ = 10.0
+
+_PACK_LEDGER = cdr.energy_ledger_packer(tuple(ledger.TERM_NAMES))
 
 
 @dataclass(frozen=True)
@@ -59,20 +59,22 @@ def _integral(energy: Mapping[str, float], term: str) -> float:
 
 
 def energy_ledger_cdr(now: LedgerNow, stamp_ns: int) -> bytes:
-    """``now`` as an EnergyLedger message stamped ``stamp_ns``, CDR bytes."""
-    return to_cdr(
-        message(
-            ENERGY_LEDGER,
-            header={"stamp": stamp(stamp_ns)},
-            state_of_charge=now.state_of_charge,
-            battery_power_w=now.power_w["battery_power"],
-            battery_drawn_j=now.energy_j["battery_drawn"],
-            battery_returned_j=now.energy_j["battery_returned"],
-            lift_work_j=now.energy_j["lift_work"],
-            terms=list(ledger.TERM_NAMES),
-            power_w=np.array([now.power_w[name] for name in ledger.TERM_NAMES], dtype=np.float64),
-            energy_j=np.array([_integral(now.energy_j, name) for name in ledger.TERM_NAMES], dtype=np.float64),
-        )
+    """``now`` as an EnergyLedger message stamped ``stamp_ns``, CDR bytes: packed with the
+    layout bound once (:func:`cdr.energy_ledger_packer`), 3-5 us a message against rosbags'
+    serializer's 21 us; the bytes are the same (tested)."""
+    power, energy = now.power_w, now.energy_j
+    battery = (
+        now.state_of_charge,
+        power["battery_power"],
+        energy["battery_drawn"],
+        energy["battery_returned"],
+        energy["lift_work"],
+    )
+    return _PACK_LEDGER(
+        stamp_ns,
+        battery,
+        [power[name] for name in ledger.TERM_NAMES],
+        [_integral(energy, name) for name in ledger.TERM_NAMES],
     )
 
 
