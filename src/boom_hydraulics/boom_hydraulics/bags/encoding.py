@@ -1,8 +1,8 @@
 """Messages as CDR bytes without ROS: what the node and the tools write into bags.
 
-DriveState, the setpoint's JointState and EnergyLedger are packed directly (:mod:`cdr`); other messages
-are encoded with rosbags' typestore (Jazzy's types plus this package's DriveState, read
-from its installed .msg). Both write canonical CDR, which every reader takes (rclpy's
+DriveState, the setpoint's JointState and EnergyLedger are packed directly (:mod:`cdr`);
+other messages are encoded with rosbags' typestore (Jazzy's types plus this package's
+messages, read from their installed .msg). Both write canonical CDR, which every reader takes (rclpy's
 serializer leaves trailing padding after empty 8-byte sequences, which strict readers refuse),
 and need no rclpy.
 """
