@@ -2,9 +2,9 @@
 
 DriveState, the setpoint's JointState and EnergyLedger are packed directly (:mod:`cdr`);
 other messages are encoded with rosbags' typestore (Jazzy's types plus this package's
-messages, read from their installed .msg). Both write canonical CDR, which every reader takes (rclpy's
-serializer leaves trailing padding after empty 8-byte sequences, which strict readers refuse),
-and need no rclpy.
+messages, read from their installed .msg). Both write canonical CDR, which every reader
+takes (rclpy's serializer leaves trailing padding after empty 8-byte sequences, which
+strict readers refuse), and need no rclpy.
 """
 
 from __future__ import annotations
