@@ -5,12 +5,14 @@ from __future__ import annotations
 import itertools
 import math
 import signal
+import subprocess
+import sys
 import threading
 import time
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, CONFIG, stop_process
+from conftest import BOOM_SIM, CONFIG, GUARD_S, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 from rcl_interfaces.srv import GetParameters  # noqa: E402
@@ -265,6 +267,56 @@ def test_a_broken_energy_balance_stops_the_node_and_is_reported(nodes, client):
     finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=10) == 0
+
+
+#: A process of its own (rclpy refuses two types on one topic in one process): publishers
+#: whose messages cannot reach boom_sim, and one that can, until it is stopped.
+_UNREACHABLE_PUBLISHERS = """
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory
+rclpy.init()
+node = rclpy.create_node("unreachable_publishers")
+node.create_publisher(String, "valve_command", 10)
+best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+node.create_publisher(JointTrajectory, "boom_sim/joint_trajectory", best_effort)
+good = rclpy.create_node("good_publisher")
+good.create_publisher(JointTrajectory, "boom_sim/joint_trajectory", QoSProfile(depth=10))  # (reliable)
+print("publishing", flush=True)
+rclpy.spin(node)
+"""
+
+
+def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes, client):
+    """Another type on valve_command, best effort on the reliable ~/joint_trajectory: the node
+    says so once per publisher, naming it and the topic (in place of rclpy's default event
+    handlers, which the node leaves out); publishers that reach it are not mentioned."""
+    proc = nodes.start()
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)  # (line by line)
+    reader.start()
+    publishers = subprocess.Popen(
+        [sys.executable, "-c", _UNREACHABLE_PUBLISHERS], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        assert publishers.stdout.readline() == "publishing\n", stop_process(publishers)
+        wrong_type = "publisher /unreachable_publishers sends std_msgs/msg/String on /valve_command"
+        wrong_qos = "publisher /unreachable_publishers on /boom_sim/joint_trajectory offers QoS"
+        told = lambda: all(any(want in line for line in lines) for want in (wrong_type, wrong_qos))  # noqa: E731
+        assert client.spin_until(lambda: told() or proc.poll() is not None) and told(), "".join(lines)
+        seen = len(client.diagnostics)  # the node looks once a second, then publishes /diagnostics:
+        assert client.spin_until(lambda: len(client.diagnostics) >= seen + 2)  # it looked again since
+    finally:
+        stop_process(publishers)
+    proc.send_signal(signal.SIGINT)
+    reader.join(timeout=GUARD_S)
+    out = "".join(lines)
+    assert "where this node takes boom_hydraulics_msgs/msg/ValveCommand" in out, out
+    assert "(best effort publisher and reliable subscription)" in out, out
+    warnings = [line for line in lines if "none of its messages arrive" in line]
+    assert len(warnings) == 2, out  # once each; not the good publisher, nor the test's client
+    assert proc.wait(timeout=GUARD_S) == 0, out
 
 
 def test_bad_node_parameter_at_start_is_one_clear_line(nodes):

@@ -33,7 +33,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -64,6 +64,7 @@ from . import node_parameters as ros_parameters
 from .clock import ClockMode, Follow, NodeClock
 from .commands import CommandIntake
 from .motion import Motion, Plant
+from .publishers import PublisherWatch
 from .recording import NodeRecording
 
 #: Markers go out at most this often (they are for eyes, not for control).
@@ -198,6 +199,7 @@ class BoomSimNode(Node):
         )
 
         self.clock.restart()
+        self.publisher_watch = PublisherWatch(self, self.get_logger())
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -227,6 +229,15 @@ class BoomSimNode(Node):
         command subscriptions keep theirs, to tell of a publisher offering what they cannot take."""
         kwargs.setdefault("event_callbacks", PublisherEventCallbacks(use_default_callbacks=False))
         return super().create_publisher(*args, **kwargs)
+
+    def create_subscription(self, *args: Any, **kwargs: Any) -> Any:
+        """rclpy's, without the default QoS event handlers, for the same reason as
+        :meth:`create_publisher`: each command received woke the executor into two wait sets
+        holding the subscriptions' six handlers. A publisher whose messages cannot arrive
+        (another type, QoS the subscription cannot take) is told of once a second instead
+        (:class:`.publishers.PublisherWatch`)."""
+        kwargs.setdefault("event_callbacks", SubscriptionEventCallbacks(use_default_callbacks=False))
+        return super().create_subscription(*args, **kwargs)
 
     def start(self) -> None:
         """Start stepping: simulated time 0 is now (on the node's own clock; on a shared one,
@@ -578,7 +589,9 @@ class BoomSimNode(Node):
             self.recording.publish([(self.description_pub, String(data=urdf(self.sim.params)))], self.clock.now_ns())
 
     def on_second(self) -> None:
-        """Once a second: diagnostics, and the command topics' publishers for the bag."""
+        """Once a second: diagnostics, the command topics' publishers for the bag, and a
+        warning for a publisher that cannot reach this node's subscriptions."""
+        self.publisher_watch.look()
         self.recording.watch_command_topics()
         with self.lock:
             self.commands.watch_publishers(self.count_publishers)

@@ -1,0 +1,71 @@
+"""The publishers of the node's subscriptions, looked up once a second: one warning line for
+each publisher whose messages cannot arrive.
+
+A publisher cannot reach a subscription when it sends another message type on the topic,
+or when it offers QoS the subscription cannot take (a best-effort publisher and the
+reliable ``~/joint_trajectory``). The line names the publishing node, the topic and what
+to change, once per publisher (a publisher that comes back is a new one).
+
+This stands in for rclpy's default event handlers on the subscriptions, which say the same
+as soon as DDS notices. Each of those handlers is a waitable that the executor goes through
+in Python at every message the node receives (two wait sets per command); the node creates
+its subscriptions without them (docs/performance.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.node import Node
+from rclpy.qos import QoSCompatibility, qos_check_compatible
+
+from .recording import type_name
+
+
+def node_path(info: Any) -> str:
+    """The fully qualified name of the node behind a graph endpoint (TopicEndpointInfo)."""
+    namespace = info.node_namespace.rstrip("/")
+    return f"{namespace}/{info.node_name}"
+
+
+def unreachable(info: Any, topic: str, msg_type: str, qos: Any) -> str | None:
+    """Why the publisher ``info`` (TopicEndpointInfo) on ``topic`` cannot reach a subscription
+    of type ``msg_type`` ('pkg/msg/Type') with QoS profile ``qos``; None when it can."""
+    if info.topic_type != msg_type:
+        return (
+            f"publisher {node_path(info)} sends {info.topic_type} on {topic}, where this node takes "
+            f"{msg_type}: none of its messages arrive; publish {msg_type} there"
+        )
+    compatibility, reason = qos_check_compatible(info.qos_profile, qos)
+    if compatibility == QoSCompatibility.ERROR:
+        reason = reason.strip().removeprefix("ERROR:").strip().rstrip(";").lower()  # (rcl's words)
+        return (
+            f"publisher {node_path(info)} on {topic} offers QoS this node's subscription cannot take "
+            f"({reason}): none of its messages arrive; see the topic's QoS in docs/ros-api.md"
+        )
+    return None
+
+
+class PublisherWatch:
+    """The node's subscriptions' publishers (:meth:`look`, once a second from the node's timer)."""
+
+    def __init__(self, node: Node, logger: RcutilsLogger) -> None:
+        self.node, self.logger = node, logger
+        self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
+
+    def look(self) -> None:
+        """Warn once about each publisher that cannot reach its subscription."""
+        seen: set[tuple[int, ...]] = set()
+        for subscription in self.node.subscriptions:
+            topic, msg_type = subscription.topic_name, type_name(subscription.msg_type)
+            for info in self.node.get_publishers_info_by_topic(topic):
+                gid = tuple(info.endpoint_gid)
+                seen.add(gid)
+                if gid in self._told:
+                    continue
+                why = unreachable(info, topic, msg_type, subscription.qos_profile)
+                if why is not None:
+                    self._told.add(gid)
+                    self.logger.warning(why)
+        self._told &= seen  # gone publishers: forgotten
