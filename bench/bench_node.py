@@ -14,7 +14,11 @@ another commit; publish jitter and clock lock at real time; where a tick's time 
    - the node at real-time factor 1 in its own process (100 Hz publishing, 1 ms RK4,
      compiled, recording as by default), driven by this process (it subscribes and sends
      valve commands at 20 Hz, or at 100 Hz, or one joint trajectory that its position
-     controller follows): its CPU share of one core (from /proc).
+     controller follows): its CPU share of one core (from /proc), and its executor's CPU
+     per valve command (the main thread's, from /proc, over the commands of the 20 Hz and
+     100 Hz runs together); and, less disturbed by the machine, the executor's CPU per
+     command back to back in the fast run's process (publishing it, and both of the wakes it
+     causes).
    Each figure is the median over the rounds, with the smallest and the largest, and the
    ratio of this checkout's median to the other's. Without ``--against``, this checkout alone.
 2. Real time in detail, interpreted and compiled: the CPU share, the period between
@@ -75,7 +79,9 @@ ARGS = ["--ros-args", "-p", f"record_folder:={BAGS}"]
 
 #: The fast run in a checkout's own environment: only what every commit since the node's
 #: thin redesign has (BoomSimNode, drive.current, on_tick, _begin_recording, recording.finish,
-#: drive.follow and drive.reset).
+#: drive.follow, drive.reset and commands.on_valve_command). Then the executor back to back:
+#: the CPU of publishing a valve command in this process and spinning the node's executor
+#: until it has taken it (both of its wakes), in this thread.
 FAST_RUN = """
 import json, sys, time
 import rclpy
@@ -107,8 +113,36 @@ node.clock.restart()
 node._begin_recording()  # as start() does, without the loop thread
 recorded = rate(500)
 node.recording.finish()
+from rclpy.executors import SingleThreadedExecutor
+from boom_hydraulics_msgs.msg import ValveCommand
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+client = rclpy.create_node("bench_node_commands")
+publisher = client.create_publisher(ValveCommand, "valve_command", 10)
+taken = [0]
+intake = node.commands.on_valve_command
+def counted(data, info):
+    taken[0] += 1
+    intake(data, info)
+node.commands.on_valve_command = counted
+while node.count_publishers("valve_command") == 0 or client.count_subscribers("valve_command") == 0:
+    executor.spin_once(timeout_sec=0.05)
+def per_command(commands):
+    best = float("inf")
+    for _ in range(3):  # the least disturbed of three blocks
+        t0 = time.thread_time()
+        for _ in range(commands):
+            target = taken[0] + 1
+            publisher.publish(ValveCommand(opening=0.1))
+            while taken[0] < target:
+                executor.spin_once()
+            executor.spin_once(timeout_sec=0)  # the second wake each callback's guard trigger causes
+        best = min(best, (time.thread_time() - t0) / commands)
+    return best
+per_command(50)  # warm
+executor_s = per_command(300)
 node.destroy()
-print(json.dumps({"fast": fast, "recorded": recorded, "following": following}))
+print(json.dumps({"fast": fast, "recorded": recorded, "following": following, "executor_hot": executor_s}))
 """
 
 
@@ -117,18 +151,23 @@ def with_env(checkout: Path) -> list[str]:
     return [str(checkout / "tools" / "with-env")]
 
 
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def cpu_seconds(pid: int, task: int | None = None) -> float:
+    """CPU seconds (user and system) of process ``pid``, or of its thread ``task`` alone."""
+    stat = Path(f"/proc/{pid}/stat" if task is None else f"/proc/{pid}/task/{task}/stat")
+    fields = stat.read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
 
 
 @dataclass
 class RealTime:
-    """One real-time run: CPU share of one core, drive_state periods (ms), clock errors (ms)."""
+    """One real-time run: CPU share of one core, drive_state periods (ms), clock errors (ms),
+    and the CPU time of boom_sim's executor (its main thread) per valve command sent (s; NaN
+    when following a trajectory, without commands)."""
 
     cpu: float
     periods_ms: np.ndarray
     clock_errors_ms: np.ndarray
+    executor_s_per_command: float
 
 
 def real_time_run(
@@ -185,15 +224,19 @@ def real_time_run(
     if follow:
         trajectories.publish(lift_and_lower(seconds + 5.0))
     cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
+    executor0 = cpu_seconds(proc.pid, proc.pid)  # (rclpy.spin runs in the main thread)
     next_command = wall0 if not follow else math.inf
+    sent = 0
     while time.monotonic() - wall0 < seconds:
         if time.monotonic() >= next_command:  # a slow lift-and-lower sine keeps the drive moving
             pub.publish(ValveCommand(opening=0.6 * np.sin(2 * np.pi * 0.1 * (time.monotonic() - wall0))))
             next_command += 1.0 / command_hz
+            sent += 1
         rclpy.spin_once(node, timeout_sec=min(0.005, max(0.0, next_command - time.monotonic())))
     if follow and not moved:
         raise RuntimeError(f"boom_sim of {checkout} did not follow the joint trajectory")
     cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
+    per_command = (cpu_seconds(proc.pid, proc.pid) - executor0) / sent if sent else math.nan
     node.destroy_node()
     proc.send_signal(signal.SIGINT)
     try:
@@ -202,7 +245,7 @@ def real_time_run(
         proc.kill()
         proc.wait()
         raise RuntimeError(f"boom_sim of {checkout} did not stop on SIGINT within 60 s: killed") from None
-    return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3)
+    return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3, per_command)
 
 
 def lift_and_lower(seconds: float) -> JointTrajectory:
@@ -236,7 +279,8 @@ def print_real_time(run: RealTime, seconds: float, jit: bool) -> None:
 
 
 def fast_run(checkout: Path) -> dict[str, float]:
-    """{"fast": without a bag, "recorded": with it}: simulated s per wall s of ``checkout``'s node."""
+    """{"fast": without a bag, "recorded": with it, "following": following a path}: simulated
+    s per wall s of ``checkout``'s node; "executor_hot": its executor's CPU s per command back to back."""
     out = subprocess.run(
         [*with_env(checkout), "python", "-c", FAST_RUN, str(BAGS)],
         cwd=checkout,
@@ -254,16 +298,26 @@ def side_by_side(checkouts: list[Path], rounds: int, seconds: float) -> dict[Pat
     for n in range(rounds):
         for checkout in checkouts:
             rates = fast_run(checkout)
-            cpu = real_time_run(seconds, True, checkout).cpu
-            cpu_100 = real_time_run(seconds, True, checkout, command_hz=100.0).cpu
+            at_20 = real_time_run(seconds, True, checkout)
+            at_100 = real_time_run(seconds, True, checkout, command_hz=100.0)
+            cpu, cpu_100 = at_20.cpu, at_100.cpu
             cpu_follow = real_time_run(seconds, True, checkout, follow=True).cpu
-            for key, value in (*rates.items(), ("cpu", cpu), ("cpu_100", cpu_100), ("cpu_follow", cpu_follow)):
+            # the executor's CPU per command, over both runs' commands (weighted by their count)
+            per_command = (at_20.executor_s_per_command * 20.0 + at_100.executor_s_per_command * 100.0) / 120.0
+            for key, value in (
+                *rates.items(),
+                ("cpu", cpu),
+                ("cpu_100", cpu_100),
+                ("cpu_follow", cpu_follow),
+                ("executor", per_command),
+            ):
                 figures[checkout][key].append(value)
             print(
                 f"round {n + 1}/{rounds}, {commit(checkout)}: as fast as possible {rates['fast']:.0f}x "
                 f"({rates['recorded']:.0f}x recording, {rates['following']:.0f}x following a path), "
                 f"CPU at real time {cpu * 100:.1f} % "
-                f"({cpu_100 * 100:.1f} % with commands at 100 Hz, {cpu_follow * 100:.1f} % following a trajectory)",
+                f"({cpu_100 * 100:.1f} % with commands at 100 Hz, {cpu_follow * 100:.1f} % following a trajectory; "
+                f"the executor {per_command * 1e6:.0f} us a command)",
                 flush=True,
             )
     return figures
@@ -282,6 +336,8 @@ ROWS = (  # key, what, scale, unit, target, met
     ("cpu", "CPU share of one core at real time (100 Hz)", 100.0, " %", "<= 8 %", lambda v: v <= 8.0),
     ("cpu_100", "the same, commands at 100 Hz (not 20)", 100.0, " %", "", None),
     ("cpu_follow", "the same, following a joint trajectory", 100.0, " %", "", None),
+    ("executor", "executor's CPU per valve command (its thread)", 1e6, " us", "", None),
+    ("executor_hot", "the same back to back, with publishing it, in process", 1e6, " us", "", None),
 )
 
 
