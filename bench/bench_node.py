@@ -161,13 +161,14 @@ def cpu_seconds(pid: int, task: int | None = None) -> float:
 @dataclass
 class RealTime:
     """One real-time run: CPU share of one core, drive_state periods (ms), clock errors (ms),
-    and the CPU time of boom_sim's executor (its main thread) per valve command sent (s; NaN
-    when following a trajectory, without commands)."""
+    the CPU time of boom_sim's executor (its main thread, s) and the valve commands sent
+    (none when following a trajectory)."""
 
     cpu: float
     periods_ms: np.ndarray
     clock_errors_ms: np.ndarray
-    executor_s_per_command: float
+    executor_s: float
+    commands: int
 
 
 def real_time_run(
@@ -236,7 +237,7 @@ def real_time_run(
     if follow and not moved:
         raise RuntimeError(f"boom_sim of {checkout} did not follow the joint trajectory")
     cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
-    per_command = (cpu_seconds(proc.pid, proc.pid) - executor0) / sent if sent else math.nan
+    executor_s = cpu_seconds(proc.pid, proc.pid) - executor0
     node.destroy_node()
     proc.send_signal(signal.SIGINT)
     try:
@@ -245,7 +246,7 @@ def real_time_run(
         proc.kill()
         proc.wait()
         raise RuntimeError(f"boom_sim of {checkout} did not stop on SIGINT within 60 s: killed") from None
-    return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3, per_command)
+    return RealTime(cpu, np.diff(np.array(stamps)) * 1e3, np.array(clock_errors) * 1e3, executor_s, sent)
 
 
 def lift_and_lower(seconds: float) -> JointTrajectory:
@@ -302,8 +303,8 @@ def side_by_side(checkouts: list[Path], rounds: int, seconds: float) -> dict[Pat
             at_100 = real_time_run(seconds, True, checkout, command_hz=100.0)
             cpu, cpu_100 = at_20.cpu, at_100.cpu
             cpu_follow = real_time_run(seconds, True, checkout, follow=True).cpu
-            # the executor's CPU per command, over both runs' commands (weighted by their count)
-            per_command = (at_20.executor_s_per_command * 20.0 + at_100.executor_s_per_command * 100.0) / 120.0
+            # the executor's CPU per command: over both runs, its CPU time over the commands sent
+            per_command = (at_20.executor_s + at_100.executor_s) / (at_20.commands + at_100.commands)
             for key, value in (
                 *rates.items(),
                 ("cpu", cpu),

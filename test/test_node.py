@@ -300,7 +300,10 @@ def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes,
         [sys.executable, "-c", _UNREACHABLE_PUBLISHERS], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     try:
-        assert publishers.stdout.readline() == "publishing\n", stop_process(publishers)
+        ready = threading.Event()
+        first: list[str] = []
+        threading.Thread(target=lambda: (first.append(publishers.stdout.readline()), ready.set()), daemon=True).start()
+        assert ready.wait(GUARD_S) and first == ["publishing\n"], stop_process(publishers)
         wrong_type = "publisher /unreachable_publishers sends std_msgs/msg/String on /valve_command"
         wrong_qos = "publisher /unreachable_publishers on /boom_sim/joint_trajectory offers QoS"
         told = lambda: all(any(want in line for line in lines) for want in (wrong_type, wrong_qos))  # noqa: E731
@@ -314,6 +317,7 @@ def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes,
     out = "".join(lines)
     assert "where this node takes boom_hydraulics_msgs/msg/ValveCommand" in out, out
     assert "(best effort publisher and reliable subscription)" in out, out
+    assert "publish with --qos-reliability reliable" in out, out
     warnings = [line for line in lines if "none of its messages arrive" in line]
     assert len(warnings) == 2, out  # once each; not the good publisher, nor the test's client
     assert proc.wait(timeout=GUARD_S) == 0, out

@@ -38,6 +38,7 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -93,6 +94,8 @@ class BoomSimNode(Node):
     (:mod:`.motion`), the bag (:mod:`.recording`) and the diagnostics (:mod:`.diagnostics`)."""
 
     def __init__(self) -> None:
+        # each subscription's topic as given, for PublisherWatch (/clock's is made in rclpy's __init__)
+        self.topics_as_given: dict[Subscription, str] = {}
         # the start values (params files and -p) arrive as parameters, read through the public API
         super().__init__("boom_sim", automatically_declare_parameters_from_overrides=True)
         self._declare_parameters()
@@ -199,7 +202,7 @@ class BoomSimNode(Node):
         )
 
         self.clock.restart()
-        self.publisher_watch = PublisherWatch(self, self.get_logger())
+        self.publisher_watch = PublisherWatch(self, self.topics_as_given)
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -225,19 +228,24 @@ class BoomSimNode(Node):
         executor goes through in Python at every command received. With them, at commands
         of 100 Hz the node took 22.6-24.4 % of a core at real time; without, 18.9-19.2 %
         (bench/bench_node.py's real-time run). A subscriber asking for QoS these publishers
-        do not offer is still told so where it subscribes (its own default handler); the
-        command subscriptions keep theirs, to tell of a publisher offering what they cannot take."""
+        do not offer is still told so where it subscribes (its own default handler); a publisher
+        offering what this node's subscriptions cannot take is told of by
+        :class:`.publishers.PublisherWatch`."""
         kwargs.setdefault("event_callbacks", PublisherEventCallbacks(use_default_callbacks=False))
         return super().create_publisher(*args, **kwargs)
 
-    def create_subscription(self, *args: Any, **kwargs: Any) -> Any:
+    def create_subscription(
+        self, msg_type: Any, topic: str, callback: Any, qos_profile: Any, **kwargs: Any
+    ) -> Subscription:
         """rclpy's, without the default QoS event handlers, for the same reason as
         :meth:`create_publisher`: each command received woke the executor into two wait sets
-        holding the subscriptions' six handlers. A publisher whose messages cannot arrive
+        holding the subscriptions' handlers, two each. A publisher whose messages cannot arrive
         (another type, QoS the subscription cannot take) is told of once a second instead
-        (:class:`.publishers.PublisherWatch`)."""
+        (:class:`.publishers.PublisherWatch`, which looks its publishers up by ``topic``)."""
         kwargs.setdefault("event_callbacks", SubscriptionEventCallbacks(use_default_callbacks=False))
-        return super().create_subscription(*args, **kwargs)
+        subscription = super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
+        self.topics_as_given[subscription] = topic
+        return subscription
 
     def start(self) -> None:
         """Start stepping: simulated time 0 is now (on the node's own clock; on a shared one,

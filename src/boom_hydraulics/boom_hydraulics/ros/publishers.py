@@ -14,9 +14,9 @@ its subscriptions without them (docs/performance.md).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
-from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.qos import QoSCompatibility, qos_check_compatible
 
@@ -42,24 +42,37 @@ def unreachable(info: Any, topic: str, msg_type: str, qos: Any) -> str | None:
         reason = reason.strip().removeprefix("ERROR:").strip().rstrip(";").lower()  # (rcl's words)
         return (
             f"publisher {node_path(info)} on {topic} offers QoS this node's subscription cannot take "
-            f"({reason}): none of its messages arrive; see the topic's QoS in docs/ros-api.md"
+            f"({reason}): none of its messages arrive; publish with {_qos_words(qos)}"
         )
     return None
 
 
-class PublisherWatch:
-    """The node's subscriptions' publishers (:meth:`look`, once a second from the node's timer)."""
+def _qos_words(qos: Any) -> str:
+    """The policies of a subscription's QoS profile that a publisher must match, as
+    ``ros2 topic pub`` takes them."""
+    return f"--qos-reliability {qos.reliability.name.lower()} --qos-durability {qos.durability.name.lower()}"
 
-    def __init__(self, node: Node, logger: RcutilsLogger) -> None:
-        self.node, self.logger = node, logger
+
+class PublisherWatch:
+    """The node's subscriptions' publishers (:meth:`look`, once a second from the node's timer).
+
+    ``topics`` maps each subscription to its topic name as the node gave it, so that rclpy
+    expands and remaps it once here, as it did when subscribing (the subscription's own
+    ``topic_name`` is already remapped: a second remap is wrong under chained rules)."""
+
+    def __init__(self, node: Node, topics: Mapping[Any, str]) -> None:
+        self.node, self.topics = node, topics
         self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
 
     def look(self) -> None:
         """Warn once about each publisher that cannot reach its subscription."""
         seen: set[tuple[int, ...]] = set()
         for subscription in self.node.subscriptions:
+            given = self.topics.get(subscription)
+            if given is None:  # (not made through the node's create_subscription)
+                continue
             topic, msg_type = subscription.topic_name, type_name(subscription.msg_type)
-            for info in self.node.get_publishers_info_by_topic(topic):
+            for info in self.node.get_publishers_info_by_topic(given):
                 gid = tuple(info.endpoint_gid)
                 seen.add(gid)
                 if gid in self._told:
@@ -67,5 +80,5 @@ class PublisherWatch:
                 why = unreachable(info, topic, msg_type, subscription.qos_profile)
                 if why is not None:
                     self._told.add(gid)
-                    self.logger.warning(why)
+                    self.node.get_logger().warning(why)
         self._told &= seen  # gone publishers: forgotten

@@ -1,0 +1,69 @@
+"""The node's subscriptions, in process: made without rclpy's default QoS event handlers, and
+their publishers looked up by the topic names as the node gave them (remapped once)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from conftest import GUARD_S
+
+rclpy = pytest.importorskip("rclpy")
+from rclpy.event_handler import EventHandler  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+
+
+@pytest.fixture
+def sim_node():
+    """boom_sim under use_sim_time, its trajectory topic remapped twice over: a rule for
+    the name it gives, then a rule for the name that rule gives (rcl applies the first that
+    matches a name, once)."""
+    from boom_hydraulics.ros.node import BoomSimNode
+
+    remaps = ["-r", "~/joint_trajectory:=/boom_goal", "-r", "/boom_goal:=/elsewhere"]
+    rclpy.init(args=["--ros-args", *remaps, "-p", "record:=false", "-p", "use_sim_time:=true"])
+    node = BoomSimNode()
+    yield node
+    node.destroy()
+    rclpy.shutdown()
+
+
+def test_no_subscription_or_publisher_carries_a_qos_event_handler(sim_node):
+    """Each handler would be a waitable the executor walks in Python at every command."""
+    topics = {subscription.topic_name for subscription in sim_node.subscriptions}
+    assert {"/valve_command", "/commands", "/boom_goal", "/clock"} <= topics, topics
+    assert not [w for w in sim_node.waitables if isinstance(w, EventHandler)]
+
+
+class _Warnings:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def warning(self, line: str) -> None:
+        self.lines.append(line)
+
+
+def test_the_watch_names_a_publisher_on_the_remapped_topic_once(sim_node, monkeypatch):
+    """A best-effort publisher on /boom_goal, where the trajectories arrive, is named; one on
+    /elsewhere (where a second remap of /boom_goal would look) reaches nothing of the node's."""
+    warnings = _Warnings()
+    monkeypatch.setattr(sim_node, "get_logger", lambda: warnings)
+    best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    # (nodes of their own, not remapped: the warning names the node)
+    goal = rclpy.create_node("goal_publisher", use_global_arguments=False)
+    elsewhere = rclpy.create_node("elsewhere_publisher", use_global_arguments=False)
+    try:
+        goal.create_publisher(JointTrajectory, "/boom_goal", best_effort)
+        elsewhere.create_publisher(JointTrajectory, "/elsewhere", best_effort)
+        deadline = time.monotonic() + GUARD_S
+        while not warnings.lines and time.monotonic() < deadline:  # (until the graph shows it)
+            sim_node.publisher_watch.look()
+            time.sleep(0.01)
+        sim_node.publisher_watch.look()  # once more: not named again
+    finally:
+        goal.destroy_node()
+        elsewhere.destroy_node()
+    assert len(warnings.lines) == 1, warnings.lines
+    assert warnings.lines[0].startswith("publisher /goal_publisher on /boom_goal offers QoS"), warnings.lines
+    assert "--qos-reliability reliable --qos-durability volatile" in warnings.lines[0]
