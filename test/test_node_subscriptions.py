@@ -46,7 +46,9 @@ class _Warnings:
 
 def test_the_watch_names_a_publisher_on_the_remapped_topic_once(sim_node, monkeypatch):
     """A best-effort publisher on /boom_goal, where the trajectories arrive, is named; one on
-    /elsewhere (where a second remap of /boom_goal would look) reaches nothing of the node's."""
+    /elsewhere (where a second remap of /boom_goal would look) reaches nothing of the node's.
+    Of the publishers on /boom_goal, the reliable one alone is counted as reaching the node
+    (what the bag records as offered, and the command intake counts as publishers)."""
     warnings = _Warnings()
     monkeypatch.setattr(sim_node, "get_logger", lambda: warnings)
     best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -56,14 +58,24 @@ def test_the_watch_names_a_publisher_on_the_remapped_topic_once(sim_node, monkey
     try:
         goal.create_publisher(JointTrajectory, "/boom_goal", best_effort)
         elsewhere.create_publisher(JointTrajectory, "/elsewhere", best_effort)
+        reliable = rclpy.create_node("reliable_goal_publisher", use_global_arguments=False)
+        reliable.create_publisher(JointTrajectory, "/boom_goal", QoSProfile(depth=10))
         deadline = time.monotonic() + GUARD_S
-        while not warnings.lines and time.monotonic() < deadline:  # (until the graph shows it)
-            sim_node.publisher_watch.look()
+        reaching: dict = {}
+        while time.monotonic() < deadline:  # (until the graph shows both)
+            reaching = sim_node.publisher_watch.look()
+            if warnings.lines and reaching["/boom_goal"]:
+                break
             time.sleep(0.01)
-        sim_node.publisher_watch.look()  # once more: not named again
+        reaching = sim_node.publisher_watch.look()  # once more: not named again
+        by_topic = sim_node.publisher_watch.reaching("/boom_goal")
+        reliable.destroy_node()
     finally:
         goal.destroy_node()
         elsewhere.destroy_node()
     assert len(warnings.lines) == 1, warnings.lines
     assert warnings.lines[0].startswith("publisher /goal_publisher on /boom_goal offers QoS"), warnings.lines
     assert "--qos-reliability reliable --qos-durability volatile" in warnings.lines[0]
+    assert [info.node_name for info in reaching["/boom_goal"]] == ["reliable_goal_publisher"]
+    assert [info.node_name for info in by_topic] == ["reliable_goal_publisher"]
+    assert reaching["/valve_command"] == [] and reaching["/clock"] == []

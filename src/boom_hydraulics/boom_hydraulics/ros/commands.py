@@ -11,7 +11,7 @@ sequence numbers. The counts go to /diagnostics.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -95,10 +95,11 @@ class CommandIntake:
             self.counts.lost += sequence - last - 1
         self._last_sequence[topic] = sequence
 
-    def watch_publishers(self, count_publishers: Callable[[str], int]) -> None:
-        """Once a second: which command topics have one publisher (whose gaps are losses)."""
+    def watch_publishers(self, publishers: Mapping[str, Sequence[Any]]) -> None:
+        """Once a second, with the publishers that reach each command topic: which topics have
+        one (whose gaps are losses)."""
         for topic in self.topics:
-            sole = count_publishers(topic) == 1
+            sole = len(publishers.get(topic, ())) == 1
             if sole != self._sole_publisher[topic]:
                 self._sole_publisher[topic] = sole
                 self._last_sequence.pop(topic, None)

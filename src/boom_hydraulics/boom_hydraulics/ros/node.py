@@ -157,10 +157,12 @@ class BoomSimNode(Node):
             self.resolve_topic_name("valve_command"): ValveCommand,
             self.resolve_topic_name("commands"): Float64MultiArray,
         }
+        self.publisher_watch = PublisherWatch(self, self.topics_as_given)
         self.recording = NodeRecording(
             self,
             self.clock.now_ns,
             command_topics,
+            self.publisher_watch.reaching,
             record=bool(self.get_parameter("record").value),
             folder=self.get_parameter("record_folder").value,
             chunk_kib=self.get_parameter("record_chunk_kib").value,
@@ -202,7 +204,6 @@ class BoomSimNode(Node):
         )
 
         self.clock.restart()
-        self.publisher_watch = PublisherWatch(self, self.topics_as_given)
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
         p = self.sim.params
@@ -599,10 +600,10 @@ class BoomSimNode(Node):
     def on_second(self) -> None:
         """Once a second: diagnostics, the command topics' publishers for the bag, and a
         warning for a publisher that cannot reach this node's subscriptions."""
-        self.publisher_watch.look()
-        self.recording.watch_command_topics()
+        reaching = self.publisher_watch.look()  # (the one look at the graph: by the names as given)
+        self.recording.watch_command_topics(reaching)
         with self.lock:
-            self.commands.watch_publishers(self.count_publishers)
+            self.commands.watch_publishers(reaching)
         self.publish_diagnostics()
 
     @_locked

@@ -54,7 +54,8 @@ def _qos_words(qos: Any) -> str:
 
 
 class PublisherWatch:
-    """The node's subscriptions' publishers (:meth:`look`, once a second from the node's timer).
+    """The publishers of the node's subscriptions: :meth:`reaching` a topic, and :meth:`look`
+    once a second from the node's timer (one graph lookup per subscription).
 
     ``topics`` maps each subscription to its topic name as the node gave it, so that rclpy
     expands and remaps it once here, as it did when subscribing (the subscription's own
@@ -64,21 +65,41 @@ class PublisherWatch:
         self.node, self.topics = node, topics
         self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
 
-    def look(self) -> None:
-        """Warn once about each publisher that cannot reach its subscription."""
-        seen: set[tuple[int, ...]] = set()
+    def _publishers(self, subscription: Any) -> list[Any]:
+        given = self.topics.get(subscription)
+        if given is None:  # (not made through the node's create_subscription)
+            return []
+        return self.node.get_publishers_info_by_topic(given)
+
+    def reaching(self, topic: str) -> list[Any]:
+        """The publishers (TopicEndpointInfo) whose messages can arrive at this node's
+        subscription of ``topic`` (its resolved name): of its type, with QoS it takes."""
         for subscription in self.node.subscriptions:
-            given = self.topics.get(subscription)
-            if given is None:  # (not made through the node's create_subscription)
-                continue
+            if subscription.topic_name == topic:
+                msg_type = type_name(subscription.msg_type)
+                return [
+                    info
+                    for info in self._publishers(subscription)
+                    if unreachable(info, topic, msg_type, subscription.qos_profile) is None
+                ]
+        return []
+
+    def look(self) -> dict[str, list[Any]]:
+        """Warn once about each publisher that cannot reach its subscription; the publishers
+        that can, by resolved topic name (what the bag and the command intake count)."""
+        seen: set[tuple[int, ...]] = set()
+        reaching: dict[str, list[Any]] = {}
+        for subscription in self.node.subscriptions:
             topic, msg_type = subscription.topic_name, type_name(subscription.msg_type)
-            for info in self.node.get_publishers_info_by_topic(given):
+            arrive = reaching.setdefault(topic, [])
+            for info in self._publishers(subscription):
                 gid = tuple(info.endpoint_gid)
                 seen.add(gid)
-                if gid in self._told:
-                    continue
                 why = unreachable(info, topic, msg_type, subscription.qos_profile)
-                if why is not None:
+                if why is None:
+                    arrive.append(info)
+                elif gid not in self._told:
                     self._told.add(gid)
                     self.node.get_logger().warning(why)
         self._told &= seen  # gone publishers: forgotten
+        return reaching

@@ -9,7 +9,7 @@ fails (a full disk) stops with one error line; the run goes on.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 from rcl_interfaces.msg import ParameterEvent
@@ -32,6 +32,11 @@ def type_name(msg_type: Any) -> str:
 def _qos_time(duration: Any) -> QosTime:
     sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
     return QosTime(sec=sec, nsec=nsec)
+
+
+def _offers(publishers: Iterable[Any]) -> tuple[Qos, ...]:
+    """What the publishers (TopicEndpointInfo) of a topic offer (as ``ros2 bag record`` records it)."""
+    return tuple(offer_of(info.qos_profile) for info in publishers)
 
 
 def offer_of(profile: Any) -> Qos:
@@ -57,6 +62,7 @@ class NodeRecording:
         node: Node,
         now_ns: Callable[[], int],
         command_topics: dict[str, Any],
+        publishers_of: Callable[[str], Sequence[Any]],
         *,
         record: bool,
         folder: str,
@@ -66,6 +72,7 @@ class NodeRecording:
         self.node = node
         self.now_ns = now_ns
         self.command_topics = command_topics  # resolved name -> message type
+        self.publishers_of = publishers_of  # resolved name -> the publishers that reach it
         self.pending = record  # asked for, not yet begun (FOLLOWED: no /clock yet)
         self.recorder: BagRecorder | None = None
         self.error: str | None = None
@@ -129,16 +136,13 @@ class NodeRecording:
         data = parameter_event_cdr(self.node.get_fully_qualified_name(), changed_at_ns, changed)
         self.recorder.write(PARAMETER_EVENTS, self.now_ns(), data)
 
-    def _offers(self, topic: str) -> tuple[Qos, ...]:
-        """What the publishers of ``topic`` offer (as ``ros2 bag record`` records it)."""
-        return tuple(offer_of(info.qos_profile) for info in self.node.get_publishers_info_by_topic(topic))
-
-    def watch_command_topics(self) -> None:
-        """Once a second: declare a command topic once it has a publisher; keep its offers up to date."""
+    def watch_command_topics(self, publishers: Mapping[str, Sequence[Any]]) -> None:
+        """Once a second, with the publishers (TopicEndpointInfo) that reach each command topic:
+        declare a command topic once it has one; keep its offers up to date."""
         if self.recorder is None:
             return
         for topic, msg_type in self.command_topics.items():
-            offers = self._offers(topic)
+            offers = _offers(publishers.get(topic, ()))
             if offers and topic not in self.recorder.topics:
                 self.recorder.add_topic(Topic(topic, type_name(msg_type), offers))
             self.recorder.add_offers(topic, offers)
@@ -152,7 +156,7 @@ class NodeRecording:
         if self.recorder is None:
             return
         if topic not in self.recorder.topics:
-            offers = self._offers(topic) or (offered_qos(),)
+            offers = _offers(self.publishers_of(topic)) or (offered_qos(),)
             self.recorder.add_topic(Topic(topic, type_name(self.command_topics[topic]), offers))
         received = self.now_ns()
         self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
