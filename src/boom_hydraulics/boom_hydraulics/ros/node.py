@@ -248,6 +248,11 @@ class BoomSimNode(Node):
         self.topics_as_given[subscription] = topic
         return subscription
 
+    def destroy_subscription(self, subscription: Subscription) -> bool:
+        """rclpy's; its topic as given is forgotten."""
+        self.topics_as_given.pop(subscription, None)
+        return super().destroy_subscription(subscription)
+
     def start(self) -> None:
         """Start stepping: simulated time 0 is now (on the node's own clock; on a shared one,
         the first /clock), so that a command stamped in ROS time acts at its stamp."""
@@ -601,8 +606,8 @@ class BoomSimNode(Node):
         """Once a second: diagnostics, the command topics' publishers for the bag, and a
         warning for a publisher that cannot reach this node's subscriptions."""
         reaching = self.publisher_watch.look()  # (the one look at the graph: by the names as given)
-        self.recording.watch_command_topics(reaching)
-        with self.lock:
+        with self.lock:  # (the loop thread opens the bag, declaring command topics, under it)
+            self.recording.watch_command_topics(reaching)
             self.commands.watch_publishers(reaching)
         self.publish_diagnostics()
 

@@ -19,6 +19,7 @@ from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import QoSCompatibility, qos_check_compatible
+from rclpy.subscription import Subscription
 
 from .recording import type_name
 
@@ -61,15 +62,13 @@ class PublisherWatch:
     expands and remaps it once here, as it did when subscribing (the subscription's own
     ``topic_name`` is already remapped: a second remap is wrong under chained rules)."""
 
-    def __init__(self, node: Node, topics: Mapping[Any, str]) -> None:
+    def __init__(self, node: Node, topics: Mapping[Subscription, str]) -> None:
         self.node, self.topics = node, topics
         self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
 
-    def _publishers(self, subscription: Any) -> list[Any]:
-        given = self.topics.get(subscription)
-        if given is None:  # (not made through the node's create_subscription)
-            return []
-        return self.node.get_publishers_info_by_topic(given)
+    def _publishers(self, subscription: Subscription) -> list[Any]:
+        """The publishers on the subscription's topic (TopicEndpointInfo), of any type and QoS."""
+        return self.node.get_publishers_info_by_topic(self.topics[subscription])
 
     def reaching(self, topic: str) -> list[Any]:
         """The publishers (TopicEndpointInfo) whose messages can arrive at this node's
