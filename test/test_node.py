@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 import pytest
+import yaml
 from conftest import BOOM_SIM, CONFIG, GUARD_S, stop_process
 
 rclpy = pytest.importorskip("rclpy")
@@ -278,8 +279,8 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 rclpy.init()
 node = rclpy.create_node("unreachable_publishers")
-node.create_publisher(String, "valve_command", 10)
 best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+node.create_publisher(String, "valve_command", best_effort)
 node.create_publisher(JointTrajectory, "boom_sim/joint_trajectory", best_effort)
 good = rclpy.create_node("good_publisher")
 good.create_publisher(JointTrajectory, "boom_sim/joint_trajectory", QoSProfile(depth=10))  # (reliable)
@@ -288,11 +289,13 @@ rclpy.spin(node)
 """
 
 
-def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes, client):
+def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes, client, tmp_path):
     """Another type on valve_command, best effort on the reliable ~/joint_trajectory: the node
     says so once per publisher, naming it and the topic (in place of rclpy's default event
-    handlers, which the node leaves out); publishers that reach it are not mentioned."""
-    proc = nodes.start()
+    handlers, which the node leaves out); publishers that reach it are not mentioned. The
+    bag's valve_command lists the offer of the test's publisher alone (reliable), not that
+    of the best-effort String publisher."""
+    proc = nodes.start(f"record_folder:={tmp_path}", record=True)
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)  # (line by line)
     reader.start()
@@ -321,6 +324,14 @@ def test_a_publisher_whose_messages_cannot_arrive_is_named_in_one_warning(nodes,
     warnings = [line for line in lines if "none of its messages arrive" in line]
     assert len(warnings) == 2, out  # once each; not the good publisher, nor the test's client
     assert proc.wait(timeout=GUARD_S) == 0, out
+    (bag,) = tmp_path.iterdir()
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    (valve,) = [
+        t["topic_metadata"]
+        for t in info["topics_with_message_count"]
+        if t["topic_metadata"]["name"] == "/valve_command"
+    ]
+    assert [o["reliability"] for o in valve["offered_qos_profiles"]] == ["reliable"], valve
 
 
 def test_bad_node_parameter_at_start_is_one_clear_line(nodes):
