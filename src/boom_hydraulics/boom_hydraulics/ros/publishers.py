@@ -66,21 +66,21 @@ class PublisherWatch:
         self.node, self.topics = node, topics
         self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
 
-    def _publishers(self, subscription: Subscription) -> list[Any]:
-        """The publishers on the subscription's topic (TopicEndpointInfo), of any type and QoS."""
-        return self.node.get_publishers_info_by_topic(self.topics[subscription])
+    def _publishers(self, subscription: Subscription) -> list[tuple[Any, str | None]]:
+        """The publishers on the subscription's topic (TopicEndpointInfo), each with why its
+        messages cannot arrive there (:func:`unreachable`; None when they can)."""
+        topic, msg_type = subscription.topic_name, type_name(subscription.msg_type)
+        return [
+            (info, unreachable(info, topic, msg_type, subscription.qos_profile))
+            for info in self.node.get_publishers_info_by_topic(self.topics[subscription])
+        ]
 
     def reaching(self, topic: str) -> list[Any]:
         """The publishers (TopicEndpointInfo) whose messages can arrive at this node's
         subscription of ``topic`` (its resolved name): of its type, with QoS it takes."""
         for subscription in self.node.subscriptions:
             if subscription.topic_name == topic:
-                msg_type = type_name(subscription.msg_type)
-                return [
-                    info
-                    for info in self._publishers(subscription)
-                    if unreachable(info, topic, msg_type, subscription.qos_profile) is None
-                ]
+                return [info for info, why in self._publishers(subscription) if why is None]
         return []
 
     def look(self) -> dict[str, list[Any]]:
@@ -89,12 +89,10 @@ class PublisherWatch:
         seen: set[tuple[int, ...]] = set()
         reaching: dict[str, list[Any]] = {}
         for subscription in self.node.subscriptions:
-            topic, msg_type = subscription.topic_name, type_name(subscription.msg_type)
-            arrive = reaching.setdefault(topic, [])
-            for info in self._publishers(subscription):
+            arrive = reaching.setdefault(subscription.topic_name, [])
+            for info, why in self._publishers(subscription):
                 gid = tuple(info.endpoint_gid)
                 seen.add(gid)
-                why = unreachable(info, topic, msg_type, subscription.qos_profile)
                 if why is None:
                     arrive.append(info)
                 elif gid not in self._told:
