@@ -81,3 +81,38 @@ def test_the_watch_names_a_publisher_on_the_remapped_topic_once(sim_node, monkey
     assert [info.node_name for info in reaching["/boom_goal"]] == ["reliable_goal_publisher"]
     assert [info.node_name for info in by_topic] == ["reliable_goal_publisher"]
     assert reaching["/valve_command"] == [] and reaching["/clock"] == []
+
+
+@pytest.mark.parametrize("second_type", ["std_msgs/String", "ValveCommand"])
+def test_a_lone_publishers_gaps_are_lost_commands_beside_one_that_cannot_reach(sim_node, second_type):
+    """Beside a ValveCommand publisher, a publisher of another type on /valve_command reaches
+    nothing: the first is still the topic's one publisher, and the gaps in its sequence
+    numbers are commands lost on the way. Beside a second ValveCommand publisher, the
+    sequence numbers of two publishers interleave: no gap is a loss, and none is counted."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from boom_hydraulics_msgs.msg import ValveCommand
+
+    # (the other publisher in a context of its own: one DDS participant takes one type per topic)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    valve = rclpy.create_node("valve_publisher", use_global_arguments=False)
+    other = rclpy.create_node("other_publisher", use_global_arguments=False, context=context)
+    try:
+        valve.create_publisher(ValveCommand, "/valve_command", 10)
+        other.create_publisher(String if second_type == "std_msgs/String" else ValveCommand, "/valve_command", 10)
+        deadline = time.monotonic() + GUARD_S
+        while time.monotonic() < deadline and len(sim_node.get_publishers_info_by_topic("/valve_command")) < 2:
+            time.sleep(0.01)
+        sim_node.on_second()  # the node's look at the graph, once a second
+        data = serialize_message(ValveCommand(opening=0.1))
+        for sequence in (1, 2, 5, 6):  # 3 and 4 never arrived
+            sim_node.commands.on_valve_command(data, {"publication_sequence_number": sequence})
+    finally:
+        for node in (valve, other):
+            node.destroy_node()
+        rclpy.shutdown(context=context)
+    counts = sim_node.commands.counts
+    assert counts.received == 4
+    assert counts.lost == (2 if second_type == "std_msgs/String" else 0)
