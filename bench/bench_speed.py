@@ -24,6 +24,7 @@ import argparse
 import os
 import re
 import shutil
+import statistics
 import subprocess
 import sys
 import time
@@ -60,6 +61,9 @@ def first_start_s() -> float:
 TITLE = "Speed and memory targets"
 #: Runs of each side of the sweep's share of the kernel's throughput, in turn; the best of each is compared.
 SHARE_ROUNDS = 3
+#: Real-time runs of the compiled node; its CPU row takes their median (one run is one sample of a
+#: figure that spread 5.7-8.4 % over bench_node's three rounds of the same commit).
+NODE_ROUNDS = 3
 NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
@@ -156,20 +160,22 @@ def main() -> int:
 
     rclpy.init()
     try:
-        cpu = {}
-        for jit in (False, True):
+        cpu: dict[bool, list[float]] = {False: [], True: []}
+        for jit in (False, *(True,) * NODE_ROUNDS):
             run = real_time_run(args.seconds, jit)
             print_real_time(run, args.seconds, jit)
-            cpu[jit] = run.cpu
+            cpu[jit].append(run.cpu)
         rates = in_process_rates()
     finally:
         rclpy.try_shutdown()
         shutil.rmtree(BAGS, ignore_errors=True)
+    compiled_cpu = statistics.median(cpu[True])
     row(
-        "node CPU at real time (100 Hz, 1 ms RK4), compiled / interpreted",
-        f"{cpu[True] * 100:.1f} % / {cpu[False] * 100:.1f} %",
+        f"node CPU at real time (100 Hz, 1 ms RK4), compiled (median of {NODE_ROUNDS} runs) / interpreted",
+        f"{compiled_cpu * 100:.1f} % ({min(cpu[True]) * 100:.1f}-{max(cpu[True]) * 100:.1f}) / "
+        f"{cpu[False][0] * 100:.1f} %",
         "<= 8 %",
-        cpu[True] <= 0.08,
+        compiled_cpu <= 0.08,
     )
     row(
         "node as fast as possible, publishing every 10 ms, compiled / interpreted",
