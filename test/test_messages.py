@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 import textwrap
@@ -17,42 +18,85 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
 from boom_hydraulics.bags import cdr, messages  # noqa: E402
-from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, setpoint_cdr  # noqa: E402
+from boom_hydraulics.bags.encoding import DRIVE_STATE_FIELDS, drive_state_cdr, setpoint_cdr  # noqa: E402
 from boom_hydraulics.model.geometry import boom_angle_rad  # noqa: E402
-from boom_hydraulics.model.parameters import Parameters  # noqa: E402
-from boom_hydraulics.solve.simulation import OUTPUTS  # noqa: E402
+from boom_hydraulics.model.kinematics import chain  # noqa: E402
+from boom_hydraulics.model.outputs import PUBLISHED_NAMES  # noqa: E402
+from boom_hydraulics.model.parameters import Parameters, with_updates  # noqa: E402
+from boom_hydraulics.solve.simulation import Simulator  # noqa: E402
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand  # noqa: E402
 
 
-def _distinct_outputs() -> dict:
-    """Every model output with a value no other output has: a swapped field shows."""
-    out = {name: 1000.0 + i + 0.25 for i, (name, _, _) in enumerate(OUTPUTS)}
-    out.update(q1=1.42, at_end_stop=True, cavitation=False, relief_open=True)
-    return out
+def _distinct_published() -> list[float]:
+    """Everything a state publishes (Simulator.published), each with a value no other has: a
+    swapped field shows."""
+    values = {name: 1000.0 + i + 0.25 for i, name in enumerate(PUBLISHED_NAMES)}
+    values.update(q1=1.42, at_end_stop=1.0, cavitation=0.0, relief_open=1.0, finite=1.0)
+    return [values[name] for name in PUBLISHED_NAMES]
 
 
 def test_every_drive_state_field_carries_its_own_output():
-    out = _distinct_outputs()
+    values = _distinct_published()
+    out = messages.by_name(values)
     ns = 12 * 10**9 + 5
-    msg = deserialize_message(messages.drive_state(out, ns), DriveState)
+    msg = deserialize_message(messages.drive_state(values, ns), DriveState)
     assert set(DRIVE_STATE_FIELDS) == set(DriveState.get_fields_and_field_types()) - {"header"}
     for field, name in DRIVE_STATE_FIELDS.items():
         assert getattr(msg, field) == out[name], field
+    assert (msg.at_end_stop, msg.cavitation, msg.relief_open) == (True, False, True)
     assert msg.header.stamp == Time(sec=12, nanosec=5) and msg.header.frame_id == "base_link"
     # the same length as rclpy's serializer gives (the packing's alignment is CDR's)
-    assert len(messages.drive_state(out, ns)) == len(serialize_message(msg))
+    assert len(messages.drive_state(values, ns)) == len(serialize_message(msg))
+
+
+@pytest.mark.parametrize("jit", [True, False])
+def test_the_node_and_boom_resim_pack_one_drive_state_for_one_instant(jit):
+    """The node packs what a state publishes (one compiled call), boom-resim the outputs by
+    name: the same bytes, compiled and interpreted."""
+    sim = Simulator(Parameters(), jit=jit)
+    sim.step(0.6, 300)  # lifting, every output in motion
+    ns = 3 * 10**9 + 1
+    assert messages.drive_state(sim.published(), ns) == drive_state_cdr(sim.outputs(), ns)
+    assert messages.finite(sim.published())
+
+
+@pytest.mark.parametrize("jit", [True, False])
+def test_a_state_with_a_nan_is_not_published_and_paper_modes_battery_is_not_asked(jit):
+    """The node publishes nothing of a state with a NaN among its published outputs; the
+    battery's outputs, NaN in paper mode (no battery), are not among them."""
+    paper = Simulator(with_updates(Parameters(), mode="paper"), jit=jit)
+    values = paper.published()
+    assert math.isnan(messages.by_name(values)["battery_power"]) and messages.finite(values)
+    sim = Simulator(Parameters(), jit=jit)
+    sim.y = [sim.y[0], math.nan, *sim.y[2:]]  # the rod's velocity
+    assert not messages.finite(sim.published())
 
 
 def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
+    values = _distinct_published()
+    out = messages.by_name(values)
+    piston, rod = (deserialize_message(data, FluidPressure) for data in messages.state_messages(values, 0)[2:4])
+    assert (piston.fluid_pressure, piston.header.frame_id) == (out["p1"], "piston_chamber")
+    assert (rod.fluid_pressure, rod.header.frame_id) == (out["p2"], "rod_chamber")
+    force = deserialize_message(messages.state_messages(values, 0)[4], WrenchStamped)
+    assert (force.wrench.force.x, force.header.frame_id) == (out["f_hyd"], "cylinder_rod")
+    joints = deserialize_message(messages.joint_state(values, 7), JointState)
+    assert joints.position.tolist() == [out["alpha"], out["barrel"], out["q1"]]
+    assert joints.velocity.tolist() == [out["alpha_rate"], out["barrel_rate"], out["v"]]
+    assert joints.effort.tolist() == [out["f_hyd"] / out["lever"], 0.0, out["f_hyd"]]
+    # a real instant: the joints consistent with each other (model.kinematics), and the boom's
+    # torque by virtual work, torque * d(alpha) = force * dq1, with d(alpha)/dq1 by finite differences
     p = Parameters()
-    out = _distinct_outputs()
-    data = messages.joint_state(out, 7, p)
+    sim = Simulator(p)
+    sim.step(0.6, 300)
+    data = messages.joint_state(sim.published(), 7)
     joints = deserialize_message(data, JointState)
     assert len(data) == len(serialize_message(joints)) and joints.header.stamp == Time(sec=0, nanosec=7)
     assert joints.name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"]
-    assert [joints.position[0], joints.position[2]] == [out["alpha"], out["q1"]]
-    assert [joints.velocity[0], joints.velocity[2]] == [out["alpha_rate"], out["v"]]
-    # virtual work: torque * d(alpha) = force * dq1, with d(alpha)/dq1 by finite differences
+    out = sim.outputs()
+    c = chain(p, out["q1"], out["v"])
+    assert joints.position.tolist() == [out["alpha"], c.barrel_rad, out["q1"]]
+    assert joints.velocity.tolist() == [out["alpha_rate"], c.barrel_rate_rad_s, out["v"]]
     h = 1e-6
     k = (
         boom_angle_rad(out["q1"] + h, p.a_m, p.b_m, p.support_height_m)
@@ -60,11 +104,6 @@ def test_joint_effort_is_the_boom_torque_and_pressures_keep_their_chambers():
     ) / (2 * h)
     assert joints.effort[0] == pytest.approx(out["f_hyd"] / k, rel=1e-6)
     assert joints.effort[2] == out["f_hyd"]
-    piston, rod = (deserialize_message(data, FluidPressure) for data in messages.chamber_pressures(out, 0))
-    assert (piston.fluid_pressure, piston.header.frame_id) == (out["p1"], "piston_chamber")
-    assert (rod.fluid_pressure, rod.header.frame_id) == (out["p2"], "rod_chamber")
-    force = deserialize_message(messages.rod_force(out, 0), WrenchStamped)
-    assert (force.wrench.force.x, force.header.frame_id) == (out["f_hyd"], "cylinder_rod")
 
 
 def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
@@ -76,9 +115,7 @@ def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
     setpoint = store.deserialize_cdr(setpoint_cdr("boom_joint", 0.5, -0.25, 3 * 10**9), "sensor_msgs/msg/JointState")
     assert (setpoint.name, list(setpoint.position), list(setpoint.velocity)) == (["boom_joint"], [0.5], [-0.25])
     assert len(setpoint.effort) == 0 and setpoint.header.stamp.sec == 3
-    joints = store.deserialize_cdr(
-        messages.joint_state(_distinct_outputs(), 0, Parameters()), "sensor_msgs/msg/JointState"
-    )
+    joints = store.deserialize_cdr(messages.joint_state(_distinct_published(), 0), "sensor_msgs/msg/JointState")
     assert joints.name == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint"] and len(joints.effort) == 3
     clock = deserialize_message(cdr.clock(5 * 10**9 + 1), Clock)
     assert (clock.clock.sec, clock.clock.nanosec) == (5, 1)

@@ -1,71 +1,102 @@
-"""The node's messages from model outputs: one builder per message type, as CDR bytes.
+"""The node's messages of one instant, as CDR bytes: one builder per message type.
 
-DriveState follows the one field mapping in :mod:`..bags.encoding`; JointState, FluidPressure
-and WrenchStamped are the standard views of the same outputs, the MarkerArray the drawn crane
-(:mod:`.markers`). Every builder takes the outputs of one instant (``Simulator.outputs()``)
-and the stamp (ns on the node's clock) and packs the message straight into CDR
-(:mod:`..bags.cdr`) with packers bound once, with no message object: the node publishes and
-records these bytes. :class:`TickMessages` is what the node calls each tick: every message
-of one instant, with what depends only on the parameters worked out once.
+Every builder takes what a state publishes (``Simulator.published()``: the outputs, the
+cylinder barrel's angle and rate and the lever, in the order of ``PUBLISHED_NAMES``) and the
+stamp (ns on the node's clock), and packs the message straight into CDR (:mod:`..bags.cdr`)
+with packers bound once, with no message object: the node and ``boom-sim live`` publish
+and record these bytes. DriveState follows the one field mapping in :mod:`..bags.encoding`;
+JointState, FluidPressure and WrenchStamped are the standard views of the same outputs, the
+MarkerArray the drawn crane (:mod:`.markers`). :class:`TickMessages` is what the node calls
+each tick: every message of one instant, with what depends only on the parameters worked
+out once.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import operator
+from collections.abc import Sequence
 from typing import Any
 
-from ..model.kinematics import Chain, chain
-from ..model.robot_description import JOINTS
+from ..model.kinematics import Chain
+from ..model.outputs import PUBLISHED_NAMES
+from ..model.robot_description import BASE_FRAME, JOINTS
 from . import cdr
-from .encoding import drive_state_cdr
+from .encoding import DRIVE_STATE_FIELDS, FLAGS
 from .markers import CraneMarkers
 
 CHAMBER_FRAMES = {"p1": "piston_chamber", "p2": "rod_chamber"}
 ROD_FRAME = "cylinder_rod"  # x along the rod, positive extending
 
-#: A boom_hydraulics_msgs/DriveState of the outputs: drive_state(out, stamp_ns, frame_id=BASE_FRAME).
-drive_state = drive_state_cdr
-
+#: Where each of what a state publishes is in ``Simulator.published()``.
+AT = {name: i for i, name in enumerate(PUBLISHED_NAMES)}
+_Q1, _V, _ALPHA, _ALPHA_RATE, _F = (AT[name] for name in ("q1", "v", "alpha", "alpha_rate", "f_hyd"))
+_BARREL, _BARREL_RATE, _LEVER, _P1, _P2 = (AT[name] for name in ("barrel", "barrel_rate", "lever", "p1", "p2"))
+# DriveState's float64 fields and its flags, in the message's order (taken in one call each)
+_DRIVE_FLOATS = operator.itemgetter(*(AT[name] for name in DRIVE_STATE_FIELDS.values() if name not in FLAGS))
+_DRIVE_FLAGS = operator.itemgetter(*(AT[name] for name in FLAGS))
+_DRIVE_STATE = cdr.drive_state_packer(BASE_FRAME, len(DRIVE_STATE_FIELDS) - len(FLAGS), len(FLAGS))
 _JOINT_STATE = cdr.joint_state_packer(tuple(JOINTS), (3, 3, 3))
-_PRESSURES = [(name, cdr.fluid_pressure_packer(frame)) for name, frame in CHAMBER_FRAMES.items()]
+_PISTON, _ROD = (cdr.fluid_pressure_packer(frame) for frame in CHAMBER_FRAMES.values())
 _ROD_FORCE = cdr.wrench_stamped_packer(ROD_FRAME)
 _NO_TORQUE = (0.0, 0.0, 0.0)
 
 
-def joint_state(out: Mapping[str, Any], stamp_ns: int, p: Any, c: Chain | None = None) -> bytes:
+def finite(values: Sequence[float]) -> bool:
+    """Whether the outputs a state publishes (``values``, as :func:`state_messages` takes
+    them) are finite: a NaN is never published (the battery's, NaN in paper mode, are not
+    among them)."""
+    return values[AT["finite"]] != 0.0
+
+
+def drive_state(values: Sequence[float], stamp_ns: int) -> bytes:
+    """boom_hydraulics_msgs/DriveState in base_link: each field its output (encoding.DRIVE_STATE_FIELDS)."""
+    return _DRIVE_STATE(stamp_ns, _DRIVE_FLOATS(values), [flag != 0.0 for flag in _DRIVE_FLAGS(values)])
+
+
+def joint_state(values: Sequence[float], stamp_ns: int) -> bytes:
     """The three joints of the URDF, consistent with each other (see model.kinematics):
     boom_joint (rad, rad/s, N m), cylinder_barrel_joint (rad, rad/s; a free pivot, effort 0)
     and cylinder_joint (m, m/s, N). The boom's torque is the rod force over the lever
-    k = d(alpha)/dq1 (virtual work: T d(alpha) = F dq1). ``c``: the chain of this instant,
-    where the caller has it."""
-    q1, v = float(out["q1"]), float(out["v"])
-    if c is None:
-        c = chain(p, q1, v)
-    force = float(out["f_hyd"])
+    k = d(alpha)/dq1 (virtual work: T d(alpha) = F dq1)."""
+    force = values[_F]
     return _JOINT_STATE(
         stamp_ns,
-        (float(out["alpha"]), c.barrel_rad, q1),
-        (float(out["alpha_rate"]), c.barrel_rate_rad_s, v),
-        (force / c.lever_rad_per_m, 0.0, force),
+        (values[_ALPHA], values[_BARREL], values[_Q1]),
+        (values[_ALPHA_RATE], values[_BARREL_RATE], values[_V]),
+        (force / values[_LEVER], 0.0, force),
     )
 
 
-def chamber_pressures(out: Mapping[str, Any], stamp_ns: int) -> list[bytes]:
-    """Piston- and rod-chamber pressures (Pa, absolute) as FluidPressure, in that order."""
-    return [pressure(stamp_ns, float(out[name])) for name, pressure in _PRESSURES]
+def state_messages(values: Sequence[float], stamp_ns: int) -> list[bytes]:
+    """The state of one instant as the node publishes it at every tick, in the order of its
+    topics drive_state, joint_states, piston_pressure, rod_pressure and rod_force: the
+    chamber pressures (Pa, absolute) as FluidPressure, the hydraulic force on the rod (N) as
+    WrenchStamped, force.x along the rod."""
+    return [
+        drive_state(values, stamp_ns),
+        joint_state(values, stamp_ns),
+        _PISTON(stamp_ns, values[_P1]),
+        _ROD(stamp_ns, values[_P2]),
+        _ROD_FORCE(stamp_ns, (values[_F], 0.0, 0.0), _NO_TORQUE),
+    ]
 
 
-def rod_force(out: Mapping[str, Any], stamp_ns: int) -> bytes:
-    """The hydraulic force on the rod (N) as WrenchStamped, force.x along the rod."""
-    return _ROD_FORCE(stamp_ns, (float(out["f_hyd"]), 0.0, 0.0), _NO_TORQUE)
+def by_name(values: Sequence[float]) -> dict[str, float]:
+    """What a state publishes, by name (flags 1.0 or 0.0)."""
+    return dict(zip(PUBLISHED_NAMES, values))
 
 
-def state_messages(out: Mapping[str, Any], stamp_ns: int, p: Any, c: Chain | None = None) -> list[bytes]:
-    """The state of one instant as the node publishes it at every tick, in the order of
-    its topics drive_state, joint_states, piston_pressure, rod_pressure and rod_force
-    (``c``: the chain of this instant, where the caller has it)."""
-    piston, rod = chamber_pressures(out, stamp_ns)
-    return [drive_state(out, stamp_ns), joint_state(out, stamp_ns, p, c), piston, rod, rod_force(out, stamp_ns)]
+def joints(values: Sequence[float]) -> Chain:
+    """The joint values of what a state publishes."""
+    return Chain(
+        values[_ALPHA],
+        values[_ALPHA_RATE],
+        values[_BARREL],
+        values[_BARREL_RATE],
+        values[_Q1],
+        values[_V],
+        values[_LEVER],
+    )
 
 
 class TickMessages:
@@ -76,11 +107,10 @@ class TickMessages:
         self.params = params
         self.crane = CraneMarkers(params)
 
-    def state(self, out: Mapping[str, Any], stamp_ns: int, markers: bool) -> list[bytes]:
-        """The messages of :func:`state_messages` and, with ``markers``, the MarkerArray
-        after them, as CDR bytes."""
-        c = chain(self.params, float(out["q1"]), float(out["v"]))
-        packed = state_messages(out, stamp_ns, self.params, c)
+    def state(self, values: Sequence[float], stamp_ns: int, markers: bool) -> list[bytes]:
+        """The messages of :func:`state_messages` of what a state publishes (``values``) and,
+        with ``markers``, the MarkerArray after them, as CDR bytes."""
+        packed = state_messages(values, stamp_ns)
         if markers:
-            packed.append(self.crane.cdr(out, c, stamp_ns))
+            packed.append(self.crane.cdr(by_name(values), joints(values), stamp_ns))
         return packed

@@ -29,8 +29,6 @@ from ..bags.encoding import message, setpoint_cdr, to_cdr
 from ..bags.markers import crane_markers
 from ..errors import ConfigError, SimulationError
 from ..model.geometry import outside_stroke
-from ..model.kinematics import chain
-from ..model.outputs import finite_state
 from ..model.parameters import Parameters
 from ..model.robot_description import JOINTS, urdf
 from ..model.setpoints import move
@@ -87,7 +85,7 @@ class LiveRun:
         self._noticed: dict[str, float] = {}
         self._joints = joints(urdf(params))
         # the first message of a type has rosbags build its serialiser: before the clock starts
-        self._state(self.sim.outputs(), 0, markers=True)
+        self._state(self.sim.published(), 0, markers=True)
         self._latched(params, 0)
         self._diagnostics(0)
 
@@ -145,26 +143,25 @@ class LiveRun:
             if outlet.topic == topic:
                 self.sink(outlet, data, now)
 
-    def _state(self, out: dict[str, float], stamp_ns: int, markers: bool) -> list[tuple[Outlet, bytes]]:
-        """The messages of the state ``out``: the state topics, the setpoint while the
-        controller drives, the markers if asked for, and the moving frames."""
-        p = self.sim.params
-        tick = list(zip(STATE_OUTLETS, messages.state_messages(out, stamp_ns, p)))
+    def _state(self, values: list[float], stamp_ns: int, markers: bool) -> list[tuple[Outlet, bytes]]:
+        """The messages of the state ``values`` (``Simulator.published()``): the state topics,
+        the setpoint while the controller drives, the markers if asked for, and the moving frames."""
+        tick = list(zip(STATE_OUTLETS, messages.state_messages(values, stamp_ns)))
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((SETPOINT, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
         if markers:
-            tick.append((MARKERS, crane_markers(out, stamp_ns, p)))
-        values = dict(zip(JOINTS, (float(out["alpha"]), chain(p, float(out["q1"]), 0.0).barrel_rad, float(out["q1"]))))
-        tick.append((TF, moving_frames(self._joints, values, stamp_ns)))
+            tick.append((MARKERS, crane_markers(messages.by_name(values), stamp_ns, self.sim.params)))
+        c = messages.joints(values)
+        tick.append((TF, moving_frames(self._joints, dict(zip(JOINTS, (c.boom_rad, c.barrel_rad, c.rod_m))), stamp_ns)))
         return tick
 
     def publish_state(self) -> None:
         """The state now, stamped with its instant (markers every few ticks)."""
-        out = self.sim.outputs()
-        if not finite_state(out):  # (the battery's outputs are NaN in paper mode: not published)
+        values = self.sim.published()
+        if not messages.finite(values):  # (the battery's outputs are NaN in paper mode: not among them)
             return  # a NaN never reaches a topic
         self._ticks += 1
-        tick = self._state(out, self.clock.state_stamp_ns(), self._ticks % self._markers_every == 0)
+        tick = self._state(values, self.clock.state_stamp_ns(), self._ticks % self._markers_every == 0)
         self._out(tick, self.clock.now_ns())
 
     def _diagnostics(self, stamp_ns: int) -> bytes:

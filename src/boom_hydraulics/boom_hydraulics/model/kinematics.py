@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
+from ..jit import jitable
 from .geometry import boom_angle_rad, lever_rad_per_m
 
 #: Height of the cylinder base A above the column's foot, m (a drawing choice, not a parameter).
@@ -58,18 +59,28 @@ def along_boom_xz(p: Any, alpha_rad: float, distance_m: float) -> tuple[float, f
     return ox + distance_m * math.cos(alpha_rad), oz + distance_m * math.sin(alpha_rad)
 
 
+@jitable
+def barrel_and_lever(q1_m: float, v_m_s: float, a_m: float, b_m: float, h_m: float) -> tuple[float, float, float]:
+    """The cylinder barrel's angle beta (rad) and rate (rad/s), and the lever k = d(alpha)/dq1
+    (rad/m, eq. 5), at cylinder length ``q1_m`` and rod velocity ``v_m_s`` (compiled code calls
+    it for the node's joint states)."""
+    alpha = boom_angle_rad(q1_m, a_m, b_m, h_m)
+    lever = lever_rad_per_m(q1_m, a_m, b_m)
+    alpha_rate = lever * v_m_s
+    # K (along_boom_xz at a) and A (base_xz), written out
+    kx, kz = 0.0 + a_m * math.cos(alpha), (COLUMN_FOOT_M + h_m) + a_m * math.sin(alpha)
+    rx, rz = kx - math.sqrt(b_m * b_m - h_m * h_m), kz - COLUMN_FOOT_M
+    beta = math.atan2(rz, rx)
+    # d(beta)/dt = (rx rz' - rz rx') / |r|^2 with r' = a alpha' (-sin alpha, cos alpha)
+    barrel_rate = a_m * alpha_rate * (rx * math.cos(alpha) + rz * math.sin(alpha)) / (rx * rx + rz * rz)
+    return beta, barrel_rate, lever
+
+
 def chain(p: Any, q1_m: float, v_m_s: float) -> Chain:
     """Joint values and rates at cylinder length ``q1_m`` and rod velocity ``v_m_s``."""
     alpha = boom_angle_rad(q1_m, p.a_m, p.b_m, p.support_height_m)
-    lever = lever_rad_per_m(q1_m, p.a_m, p.b_m)
-    alpha_rate = lever * v_m_s
-    kx, kz = along_boom_xz(p, alpha, p.a_m)
-    ax, az = base_xz(p)
-    rx, rz = kx - ax, kz - az
-    beta = math.atan2(rz, rx)
-    # d(beta)/dt = (rx rz' - rz rx') / |r|^2 with r' = a alpha' (-sin alpha, cos alpha)
-    barrel_rate = p.a_m * alpha_rate * (rx * math.cos(alpha) + rz * math.sin(alpha)) / (rx * rx + rz * rz)
-    return Chain(alpha, alpha_rate, beta, barrel_rate, q1_m, v_m_s, lever)
+    beta, barrel_rate, lever = barrel_and_lever(q1_m, v_m_s, p.a_m, p.b_m, p.support_height_m)
+    return Chain(alpha, lever * v_m_s, beta, barrel_rate, q1_m, v_m_s, lever)
 
 
 def rod_length_m(p: Any, alpha_rad: float) -> float:

@@ -10,6 +10,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
+from ..jit import jitable
+from .kinematics import barrel_and_lever
 from .ledger import INTEGRALS, TERMS
 
 #: The integrals of the energy ledger's terms beside the battery's and the lift's
@@ -60,12 +64,31 @@ BATTERY_OUTPUTS = (
 PUBLISHED_FINITE = tuple(name for name in OUTPUT_NAMES if name not in BATTERY_OUTPUTS)
 
 
-def finite_state(out: dict[str, Any]) -> bool:
-    """Whether the outputs ``out`` (by name) a state publishes are finite: one sum is finite
-    when every one is, so only a sum that is not looks at each."""
-    return math.isfinite(sum(out[k] for k in PUBLISHED_FINITE)) or all(
-        math.isfinite(float(out[k])) for k in PUBLISHED_FINITE
-    )
+#: What a state publishes (Simulator.published), in this order: every output, then the
+#: cylinder barrel's angle (rad) and rate (rad/s) and the lever (rad/m) of model.kinematics, and
+#: 1.0 where the outputs a state publishes (PUBLISHED_FINITE) are finite, else 0.0: a NaN is
+#: never published.
+PUBLISHED_NAMES = (*OUTPUT_NAMES, "barrel", "barrel_rate", "lever", "finite")
+_FINITE_INDICES = tuple(OUTPUT_NAMES.index(name) for name in PUBLISHED_FINITE)
+_Q1, _V = OUTPUT_NAMES.index("q1"), OUTPUT_NAMES.index("v")
+
+
+@jitable
+def published(values: Any, a_m: float, b_m: float, h_m: float) -> np.ndarray:
+    """The outputs ``values`` of one instant (a tuple in the order of OUTPUT_NAMES) as a
+    state publishes them (PUBLISHED_NAMES), for the boom geometry a, b, h (m, eq. 1-5): one
+    compiled call a tick for the node's five state messages."""
+    n = len(values)
+    row = np.empty(n + 4)
+    for i in range(n):
+        row[i] = values[i]
+    finite = 1.0
+    for i in _FINITE_INDICES:
+        if not math.isfinite(values[i]):
+            finite = 0.0
+    row[n], row[n + 1], row[n + 2] = barrel_and_lever(values[_Q1], values[_V], a_m, b_m, h_m)
+    row[n + 3] = finite
+    return row
 
 
 #: The outputs the run metrics take (solve.streaming), in their order: each model's ``samples``

@@ -55,7 +55,6 @@ from ..bags.encoding import setpoint_cdr
 from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
-from ..model.outputs import finite_state
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve import accelerate
@@ -575,8 +574,8 @@ class BoomSimNode(Node):
     def publish_state(self) -> None:
         """The state messages of now (and the markers, every ``_markers_every`` call), as CDR
         bytes packed with layouts bound once per parameter set (:class:`messages.TickMessages`)."""
-        out = self.sim.outputs()
-        if not finite_state(out):  # (the battery's outputs are NaN in paper mode: not published)
+        values = self.sim.published()  # (one compiled call)
+        if not messages.finite(values):  # (the battery's outputs are NaN in paper mode: not among them)
             return  # a NaN never reaches a topic
         clock = self.clock
         stamp_ns = clock.state_stamp_ns()
@@ -586,7 +585,7 @@ class BoomSimNode(Node):
         if self._messages.params is not self.sim.params:  # new parameters: new dimensions for the markers
             self._messages = messages.TickMessages(self.sim.params)
         self._ticks += 1
-        packed = self._messages.state(out, stamp_ns, markers=self._ticks % self._markers_every == 0)
+        packed = self._messages.state(values, stamp_ns, markers=self._ticks % self._markers_every == 0)
         tick = list(zip(self._state_pubs, packed))  # (the markers' publisher is the last: only when packed)
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((self.setpoint_pub, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))

@@ -49,6 +49,15 @@ def observer(mode: str, method: str) -> Callable[..., tuple] | None:
     return KERNELS[mode].outputs_of
 
 
+def publisher(mode: str, method: str) -> Callable[..., np.ndarray] | None:
+    """What a state of one model publishes, compiled: ``published_of(t, y, constants, u)`` ->
+    an array in the order of outputs.PUBLISHED_NAMES (``y`` and ``constants`` as for
+    :func:`stepper`); or None."""
+    if stepper(mode, method) is None:
+        return None
+    return KERNELS[mode].published_of
+
+
 def batch_runner(mode: str, method: str, sets: int = 1) -> Callable[..., None] | None:
     """The compiled parallel run kernel (kernel.batch_set over the sets of a batch) of one
     model and method for ``sets`` parameter sets, or None: ``run(states, status, metrics, rows,

@@ -1,4 +1,5 @@
-"""The compiled kernels of the paper model: its stepping, its outputs and its batch run.
+"""The compiled kernels of the paper model: its stepping, its outputs (and what a state
+publishes) and its batch run.
 
 Ordinary code that numba compiles as written (see :mod:`..jit`): each entry point calls the
 one stepping loop (:func:`stepping.advance`) or the one run loop (:func:`kernel.run_set`)
@@ -18,7 +19,7 @@ import numpy as np
 
 from .. import jit
 from ..jit import jitable, kernel, prange
-from ..model import control, end_stops, friction, geometry, hydraulics, mechanics, outputs, setpoints
+from ..model import control, end_stops, friction, geometry, hydraulics, kinematics, mechanics, outputs, setpoints
 from ..model import paper as model
 from . import integrators, lanes, profiles, stepping, streaming
 from . import kernel as run
@@ -27,6 +28,7 @@ from .integrators import euler_step, rk4_step, ros2_step
 #: Every source the kernels compile: a change to any of them gives a fresh cache.
 SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
+    *jit.module_sources(kinematics),
     *jit.module_sources(model, integrators, lanes, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
@@ -98,6 +100,14 @@ def steps_ros2(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int,
 def outputs_of(t: float, y0: Any, crow: Any, u: float) -> tuple:
     """The model's outputs (model.outputs: floats in the order of OUTPUT_NAMES, flags 1.0 or 0.0)."""
     return model.outputs(t, state_of(y0), constants_of(crow), u)
+
+
+@kernel(SOURCES)
+def published_of(t: float, y0: Any, crow: Any, u: float) -> np.ndarray:
+    """What a state publishes (outputs.published: the outputs, the barrel's angle and rate, the
+    lever and whether the published outputs are finite, in the order of PUBLISHED_NAMES)."""
+    c = constants_of(crow)
+    return outputs.published(model.outputs(t, state_of(y0), c, u), c.a, c.b, c.h)
 
 
 @jitable

@@ -29,7 +29,7 @@ from . import accelerate, integrators, kernel, stepping
 from .batch import MODEL_ERRORS, SetRun, Start, columns_of, stability_limit
 from .closed_loop import PositionLoop
 from .outcomes import MAX_SUBSTEPS, OK, OUT_OF_GEOMETRY, TOO_STIFF, evaluation_message, message
-from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
+from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES, published
 
 _SCALES = {"length": 1.0, "velocity": 1.0, "unit": 1.0, "energy": 1.0e3}
 
@@ -108,6 +108,7 @@ class Simulator:
         )  # the compiled kernels' loop, interpreted
         self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
         self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
+        self._publish = accelerate.publisher(params.mode, params.method) if self._compiled is not None else None
         self._hold(self._full)
 
     def _hold(self, constants: Any, payload_share: float = 1.0) -> None:
@@ -191,6 +192,7 @@ class Simulator:
             return
         self.step(0.0, 0)
         self.outputs()
+        self.published()
         if self.params.mode == "physical":
             self.following(PositionLoop.of_parameters([self.params])).go_on(0)  # its start, taken by no one
 
@@ -199,7 +201,7 @@ class Simulator:
         if not self.compiled:
             return []
         p = self.params
-        kernels = [self._compiled, self._observe]
+        kernels = [self._compiled, self._observe, self._publish]
         if p.mode == "physical":  # (the controller's run too)
             kernels.append(accelerate.set_runner(p.mode, p.method))
         return [k for k in kernels if k is not None]
@@ -253,6 +255,15 @@ class Simulator:
         for name in BOOLEAN_OUTPUTS:
             out[name] = out[name] != 0.0
         return out
+
+    def published(self) -> list[float]:
+        """What a state publishes now, in the order of :data:`.outputs.PUBLISHED_NAMES`: every
+        output (flags 1.0 or 0.0), the cylinder barrel's angle and rate, the lever, and 1.0 where
+        the published outputs are finite (compiled: the node's one call a tick)."""
+        if self._publish is None:
+            c = self.constants
+            return published(self.model.outputs(self.t, self.y, c, self.u), c.a, c.b, c.h).tolist()
+        return self._publish(self.t, np.array(self.y), self._constants_row, float(self.u)).tolist()
 
     # --- whole runs -----------------------------------------------------------------------
     def whole_run(
