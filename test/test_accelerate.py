@@ -147,7 +147,8 @@ def test_a_simulator_tells_whether_its_warm_up_compiles(monkeypatch):
 
     sim = Simulator(Parameters(), jit=True)
     sim.warm()
-    assert [jit.in_cache(k) for k in sim.warm_kernels()] == [True] * 3  # stepping, outputs, the controller's run
+    # stepping, outputs, what a state publishes, the controller's run
+    assert [jit.in_cache(k) for k in sim.warm_kernels()] == [True] * 4
     assert not sim.compiles_first()
     asked = []
 
