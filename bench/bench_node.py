@@ -412,7 +412,7 @@ def tick_breakdown() -> None:
         node.drive.current = 0.3
         spent: dict[str, float] = defaultdict(float)
         _timed(node, "advance", "stepping (advance)", spent)
-        _timed(node.sim, "outputs", "model outputs", spent)
+        _timed(node.sim, "published", "the outputs and joints (published)", spent)
         _timed(messages.TickMessages, "state", "packing messages (markers every 5th tick)", spent)
         _timed(recording_module, "serialize_message", "serialising (message objects)", spent)
         for publisher in (node.state_pub, node.joint_pub, node.p1_pub, node.p2_pub, node.force_pub, node.markers_pub):

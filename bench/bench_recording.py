@@ -41,8 +41,7 @@ def rss_mib(pid: int) -> float:
 
 def write_latency(ticks: int) -> None:
     sim = Simulator(Parameters())
-    out = sim.outputs()
-    data = drive_state(out, 0)
+    data = drive_state(sim.published(), 0)
     folder = Path(tempfile.mkdtemp()) / "bag"
     topics = [Topic(f"/t{i}", "boom_hydraulics_msgs/msg/DriveState") for i in range(6)]
     recorder = BagRecorder(folder, topics)

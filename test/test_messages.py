@@ -61,6 +61,37 @@ def test_the_node_and_boom_resim_pack_one_drive_state_for_one_instant(jit):
 
 
 @pytest.mark.parametrize("jit", [True, False])
+def test_a_tick_carries_the_outputs_by_name_and_the_joints_of_the_geometry(jit):
+    """Every message of a tick (TickMessages, as the node packs it from one compiled call)
+    against what the outputs by name give: the pressures and the force, the markers as
+    boom-sim live draws them, and the cylinder barrel's angle and rate worked out again from
+    the points A and K of model.kinematics (and the rate by finite differences)."""
+    from boom_hydraulics.bags.markers import crane_markers
+    from boom_hydraulics.model.kinematics import along_boom_xz, base_xz
+
+    p = Parameters()
+    sim = Simulator(p, jit=jit)
+    sim.step(0.6, 300)
+    ns = 4 * 10**9 + 3
+    packed = messages.TickMessages(p).state(sim.published(), ns, markers=True)
+    out = sim.outputs()
+    assert packed[-1] == crane_markers(out, ns, p)
+    piston, rod = (deserialize_message(data, FluidPressure) for data in packed[2:4])
+    force = deserialize_message(packed[4], WrenchStamped).wrench.force
+    assert (piston.fluid_pressure, rod.fluid_pressure, force.x) == (out["p1"], out["p2"], out["f_hyd"])
+
+    def barrel(q1: float) -> float:
+        (kx, kz), (ax, az) = along_boom_xz(p, boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m), p.a_m), base_xz(p)
+        return math.atan2(kz - az, kx - ax)
+
+    joints = deserialize_message(packed[1], JointState)
+    h = 1e-6
+    assert joints.position[1] == pytest.approx(barrel(out["q1"]), rel=1e-12)
+    rate = (barrel(out["q1"] + h) - barrel(out["q1"] - h)) / (2 * h) * out["v"]
+    assert joints.velocity[1] == pytest.approx(rate, rel=1e-6)
+
+
+@pytest.mark.parametrize("jit", [True, False])
 def test_a_state_with_a_nan_is_not_published_and_paper_modes_battery_is_not_asked(jit):
     """The node publishes nothing of a state with a NaN among its published outputs; the
     battery's outputs, NaN in paper mode (no battery), are not among them."""

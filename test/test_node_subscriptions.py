@@ -105,6 +105,7 @@ def test_a_lone_publishers_gaps_are_lost_commands_beside_one_that_cannot_reach(s
         deadline = time.monotonic() + GUARD_S
         while time.monotonic() < deadline and len(sim_node.get_publishers_info_by_topic("/valve_command")) < 2:
             time.sleep(0.01)
+        assert len(sim_node.get_publishers_info_by_topic("/valve_command")) == 2  # (both seen: the test holds)
         sim_node.on_second()  # the node's look at the graph, once a second
         data = serialize_message(ValveCommand(opening=0.1))
         for sequence in (1, 2, 5, 6):  # 3 and 4 never arrived

@@ -69,6 +69,8 @@ PUBLISHED_FINITE = tuple(name for name in OUTPUT_NAMES if name not in BATTERY_OU
 #: 1.0 where the outputs a state publishes (PUBLISHED_FINITE) are finite, else 0.0: a NaN is
 #: never published.
 PUBLISHED_NAMES = (*OUTPUT_NAMES, "barrel", "barrel_rate", "lever", "finite")
+# (compiled, published() takes a model's outputs as a tuple of one type, indexed at run time:
+# every output is a float64, flags 1.0 or 0.0)
 _FINITE_INDICES = tuple(OUTPUT_NAMES.index(name) for name in PUBLISHED_FINITE)
 _Q1, _V = OUTPUT_NAMES.index("q1"), OUTPUT_NAMES.index("v")
 
@@ -87,6 +89,9 @@ def published(values: Any, a_m: float, b_m: float, h_m: float) -> np.ndarray:
         if not math.isfinite(values[i]):
             finite = 0.0
     row[n], row[n + 1], row[n + 2] = barrel_and_lever(values[_Q1], values[_V], a_m, b_m, h_m)
+    for i in range(n, n + 3):
+        if not math.isfinite(row[i]):
+            finite = 0.0
     row[n + 3] = finite
     return row
 
