@@ -152,6 +152,21 @@ def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
     assert (clock.clock.sec, clock.clock.nanosec) == (5, 1)
 
 
+@pytest.mark.parametrize("frame_id", ["", "a", "base", "base_link", "a_frame_of_eleven"])
+def test_a_valve_command_reads_as_rclpy_reads_it(frame_id):
+    """The node reads a command's stamp and opening from its bytes (no message object): the
+    same as rclpy's deserialisation, whatever the frame id's length does to the alignment; bytes
+    in another encoding, or cut short, are left to rclpy."""
+    from boom_hydraulics_msgs.msg import ValveCommand
+
+    command = ValveCommand(opening=-0.375)
+    command.header.stamp, command.header.frame_id = Time(sec=1_765_000_123, nanosec=999_999_999), frame_id
+    data = serialize_message(command)
+    assert cdr.valve_command(data) == (cdr.Stamp(1_765_000_123, 999_999_999), -0.375)
+    assert cdr.valve_command(b"\x00\x00\x00\x00" + data[4:]) is None  # big-endian CDR
+    assert cdr.valve_command(data[: len(data) - 1]) is None
+
+
 def test_packed_energy_ledger_is_the_canonical_cdr_of_the_same_message():
     """The EnergyLedger the node packs is byte for byte what rosbags' serializer writes for the
     same message, and rclpy reads each field back, every term with its own power and energy."""

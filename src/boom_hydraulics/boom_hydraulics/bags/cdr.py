@@ -208,6 +208,30 @@ def clock(stamp_ns: int) -> bytes:
     return _CLOCK.pack(ENCAPSULATION, *_stamp(stamp_ns))
 
 
+class Stamp(NamedTuple):
+    """builtin_interfaces/Time as read from CDR bytes."""
+
+    sec: int
+    nanosec: int
+
+
+_VALVE_COMMAND_HEAD = struct.Struct("<iII")  # header.stamp.sec, .nanosec, the length of header.frame_id
+_FLOAT64 = struct.Struct("<d")
+
+
+def valve_command(data: bytes) -> tuple[Stamp, float] | None:
+    """The stamp and opening of a boom_hydraulics_msgs/ValveCommand received as CDR bytes
+    (little-endian plain CDR, as rmw publishes it here), read without a message object; None
+    for bytes in another encoding or cut short (the caller has rclpy deserialise them)."""
+    if data[:4] != ENCAPSULATION or len(data) < 16:
+        return None
+    sec, nanosec, length = _VALVE_COMMAND_HEAD.unpack_from(data, 4)
+    at = 4 + ((12 + length + 7) & ~7)  # the opening, aligned to 8 after the frame id
+    if len(data) < at + 8:
+        return None
+    return Stamp(sec, nanosec), _FLOAT64.unpack_from(data, at)[0]
+
+
 class MarkerFields(NamedTuple):
     """What one visualization_msgs/Marker carries here: an ADD of a shape (or a text) in
     place, for ever (lifetime 0), with no points, per-point colours, texture or mesh."""

@@ -20,6 +20,7 @@ from std_msgs.msg import Float64MultiArray
 
 from boom_hydraulics_msgs.msg import ValveCommand
 
+from ..bags import cdr
 from ..bags.diagnostics import CommandCounts
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from .clock import NodeClock
@@ -46,8 +47,12 @@ class CommandIntake:
     def on_valve_command(self, data: bytes, info: dict) -> None:
         self.record(self.valve_topic, data, info)
         self._count_lost(self.valve_topic, info)
-        msg = deserialize_message(data, ValveCommand)
-        self._accept(msg.opening, msg.header.stamp)
+        read = cdr.valve_command(data)  # (without a message object: the executor's time a command)
+        if read is None:  # another encoding: rclpy reads it
+            msg = deserialize_message(data, ValveCommand)
+            read = msg.header.stamp, msg.opening
+        stamp, opening = read
+        self._accept(opening, stamp)
 
     def on_command_array(self, data: bytes, info: dict) -> None:
         self.record(self.array_topic, data, info)
