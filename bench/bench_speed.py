@@ -263,9 +263,13 @@ def main() -> int:
         answer_rate >= 0.8 * lift_rate,
     )
     small, large = sweeps["1000"][1], sweeps["10000"][1]
+    # beside the other checkout's sweeps measured from here (its own bench_speed may count its
+    # own peak memory in the sweep's, as bench_sweep did before PEAK_OF)
+    theirs_mb = [full_sweep(None, side, checkout=args.against)[1] for side in (32, 100)] if args.against else []
+    beside = f" (from here, {commit(args.against)}: {theirs_mb[0]:.0f} MB / {theirs_mb[1]:.0f} MB)" if theirs_mb else ""
     row(
         "boom-sweep peak memory: 1000 / 10 000 points",
-        f"{small:.0f} MB / {large:.0f} MB",
+        f"{small:.0f} MB / {large:.0f} MB{beside}",
         "O(points), not O(points x steps)",
         large < 2 * small,  # 10x the points: the table grows, the batches do not
     )

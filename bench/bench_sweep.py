@@ -109,18 +109,19 @@ def full_sweep(
     args += [] if plots else ["--no-plots"]
     if workers:
         args += ["--workers", str(workers)]
-    run = subprocess.run([sys.executable, "-c", PEAK_OF, *args], capture_output=True, text=True)
-    status, seconds, peak_kb = run.stdout.split() if run.returncode == 0 else ("?", "nan", "0")
+    run = subprocess.run([sys.executable, "-c", PEAK_OF, *args], capture_output=True, text=True, errors="replace")
+    status, seconds, peak_kb = run.stdout.split() if run.returncode == 0 else (f"{run.returncode} (the timer)", "", "")
     if status != "0":
-        raise RuntimeError(f"boom-sweep failed: {run.stderr}")
+        raise RuntimeError(f"boom-sweep failed with status {status}: {run.stderr.strip()[-400:]}")
     shutil.rmtree(out)
     return float(seconds), int(peak_kb) / 1024
 
 
 #: Runs the command of its arguments and prints its exit status, its seconds start to finish
-#: and its peak resident memory (kB), from a process of its own: a child's peak counts the
-#: resident memory of the process it was forked from, up to its exec (Linux keeps the larger),
-#: and this benchmark's process holds hundreds of MB by the time it starts a sweep.
+#: and its peak resident memory (kB), from a small process of its own: Linux counts in a child's
+#: peak the peak of the memory it was started from, up to its exec (Python starts children with
+#: vfork, in the parent's memory), and this benchmark's peak is hundreds of MB by the time it
+#: starts a sweep.
 PEAK_OF = """
 import os, subprocess, sys, time
 t0 = time.perf_counter()

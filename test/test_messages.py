@@ -152,19 +152,29 @@ def test_packed_messages_read_back_in_rosbags_as_in_rclpy():
     assert (clock.clock.sec, clock.clock.nanosec) == (5, 1)
 
 
-@pytest.mark.parametrize("frame_id", ["", "a", "base", "base_link", "a_frame_of_eleven"])
-def test_a_valve_command_reads_as_rclpy_reads_it(frame_id):
+@pytest.mark.parametrize("length", range(21))
+def test_a_valve_command_reads_as_rclpy_reads_it(length):
     """The node reads a command's stamp and opening from its bytes (no message object): the
     same as rclpy's deserialisation, whatever the frame id's length does to the alignment; bytes
     in another encoding, or cut short, are left to rclpy."""
+    import struct
+
+    from boom_hydraulics.ros.commands import read_valve_command
     from boom_hydraulics_msgs.msg import ValveCommand
 
     command = ValveCommand(opening=-0.375)
-    command.header.stamp, command.header.frame_id = Time(sec=1_765_000_123, nanosec=999_999_999), frame_id
+    command.header.stamp, command.header.frame_id = Time(sec=1_765_000_123, nanosec=999_999_999), "f" * length
     data = serialize_message(command)
     assert cdr.valve_command(data) == (cdr.Stamp(1_765_000_123, 999_999_999), -0.375)
-    assert cdr.valve_command(b"\x00\x00\x00\x00" + data[4:]) is None  # big-endian CDR
     assert cdr.valve_command(data[: len(data) - 1]) is None
+    # the same command in big-endian CDR: rclpy reads it for the node
+    frame = b"f" * length + b"\x00"
+    pad = b"\x00" * ((-(12 + len(frame))) % 8)
+    big = b"\x00\x00\x00\x00" + struct.pack(">iII", 1_765_000_123, 999_999_999, len(frame)) + frame + pad
+    big += struct.pack(">d", -0.375)
+    assert cdr.valve_command(big) is None
+    stamp, opening = read_valve_command(big)
+    assert (stamp.sec, stamp.nanosec, opening) == (1_765_000_123, 999_999_999, -0.375)
 
 
 def test_packed_energy_ledger_is_the_canonical_cdr_of_the_same_message():

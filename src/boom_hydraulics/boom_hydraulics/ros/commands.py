@@ -26,6 +26,17 @@ from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from .clock import NodeClock
 
 
+def read_valve_command(data: bytes) -> tuple[Any, float]:
+    """The stamp (with ``sec`` and ``nanosec``) and the opening of a ValveCommand received as
+    CDR bytes: read straight from them (no message object: the executor's time a command),
+    or by rclpy where they are in another encoding."""
+    read = cdr.valve_command(data)
+    if read is None:
+        msg = deserialize_message(data, ValveCommand)
+        return msg.header.stamp, msg.opening
+    return read
+
+
 class CommandIntake:
     """The two command topics of one node (callers hold the node's lock)."""
 
@@ -47,11 +58,7 @@ class CommandIntake:
     def on_valve_command(self, data: bytes, info: dict) -> None:
         self.record(self.valve_topic, data, info)
         self._count_lost(self.valve_topic, info)
-        read = cdr.valve_command(data)  # (without a message object: the executor's time a command)
-        if read is None:  # another encoding: rclpy reads it
-            msg = deserialize_message(data, ValveCommand)
-            read = msg.header.stamp, msg.opening
-        stamp, opening = read
+        stamp, opening = read_valve_command(data)
         self._accept(opening, stamp)
 
     def on_command_array(self, data: bytes, info: dict) -> None:
