@@ -117,3 +117,45 @@ def test_a_lone_publishers_gaps_are_lost_commands_beside_one_that_cannot_reach(s
     counts = sim_node.commands.counts
     assert counts.received == 4
     assert counts.lost == (2 if second_type == "std_msgs/String" else 0)
+
+
+def test_a_warning_waits_for_the_publishers_node_name_and_goes_without_it_in_the_end():
+    """The graph shows an endpoint a moment before its node's name (rmw's placeholder names
+    it meanwhile): the warning waits a few looks for the name; a publisher whose node never
+    shows (a DDS writer outside ROS) is named as such, once."""
+    from types import SimpleNamespace
+
+    from rclpy.qos import QoSProfile
+
+    from boom_hydraulics.ros.publishers import NAME_WAIT_LOOKS, UNKNOWN_NODE, PublisherWatch
+    from boom_hydraulics_msgs.msg import ValveCommand
+
+    class Subscription:  # (hashable, as rclpy's: the watch keys the names as given by subscription)
+        topic_name, msg_type, qos_profile = "/valve_command", ValveCommand, QoSProfile(depth=5)
+
+    subscription = Subscription()
+
+    def endpoint(gid: int, name: str) -> SimpleNamespace:
+        return SimpleNamespace(
+            node_name=name,
+            node_namespace="/" if name != UNKNOWN_NODE else "_NODE_NAMESPACE_UNKNOWN_",
+            topic_type="std_msgs/msg/String",
+            qos_profile=QoSProfile(depth=10),
+            endpoint_gid=[gid],
+        )
+
+    warnings = _Warnings()
+    graph: list[SimpleNamespace] = []
+    node = SimpleNamespace(subscriptions=[subscription], get_logger=lambda: warnings)
+    node.get_publishers_info_by_topic = lambda topic: list(graph)
+    watch = PublisherWatch(node, {subscription: "valve_command"})
+    graph.append(endpoint(1, UNKNOWN_NODE))  # its node's name comes a look later
+    watch.look()
+    assert warnings.lines == []
+    graph[0] = endpoint(1, "talker")
+    watch.look()
+    assert [line.split(" sends ")[0] for line in warnings.lines] == ["publisher /talker"]
+    graph[:] = [endpoint(2, UNKNOWN_NODE)]  # never named
+    for _ in range(NAME_WAIT_LOOKS + 3):
+        watch.look()
+    assert [line.split(" sends ")[0] for line in warnings.lines] == ["publisher /talker", "publisher of no known node"]

@@ -23,9 +23,17 @@ from rclpy.subscription import Subscription
 
 from .recording import type_name
 
+#: What the graph names an endpoint's node before it knows it (rmw_dds_common): the endpoint
+#: shows up a moment before its node's name, and a DDS writer outside ROS never has one.
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+#: Looks at the graph (one a second) that a publisher's warning waits for its node's name.
+NAME_WAIT_LOOKS = 3
+
 
 def node_path(info: Any) -> str:
     """The fully qualified name of the node behind a graph endpoint (TopicEndpointInfo)."""
+    if info.node_name == UNKNOWN_NODE:
+        return "of no known node"
     namespace = info.node_namespace.rstrip("/")
     return f"{namespace}/{info.node_name}"
 
@@ -65,6 +73,7 @@ class PublisherWatch:
     def __init__(self, node: Node, topics: Mapping[Subscription, str]) -> None:
         self.node, self.topics = node, topics
         self._told: set[tuple[int, ...]] = set()  # endpoint gids warned about, while they publish
+        self._unnamed: dict[tuple[int, ...], int] = {}  # looks that saw a gid without its node's name
 
     def _publishers(self, subscription: Subscription) -> list[tuple[Any, str | None]]:
         """The publishers on the subscription's topic (TopicEndpointInfo), each with why its
@@ -95,8 +104,17 @@ class PublisherWatch:
                 seen.add(gid)
                 if why is None:
                     arrive.append(info)
-                elif gid not in self._told:
+                elif gid not in self._told and not self._name_pending(gid, info):
                     self._told.add(gid)
                     self.node.get_logger().warning(why)
         self._told &= seen  # gone publishers: forgotten
+        self._unnamed = {gid: looks for gid, looks in self._unnamed.items() if gid in seen}
         return reaching
+
+    def _name_pending(self, gid: tuple[int, ...], info: Any) -> bool:
+        """Whether the warning about a publisher waits for its node's name: the graph may show
+        it a look later; after NAME_WAIT_LOOKS looks without it, the warning goes without it."""
+        if info.node_name != UNKNOWN_NODE:
+            return False
+        looks = self._unnamed[gid] = self._unnamed.get(gid, 0) + 1
+        return looks <= NAME_WAIT_LOOKS
