@@ -186,8 +186,9 @@ class Simulator:
     def warm(self) -> None:
         """Compile (or load from the cache) what this simulator steps with, so that its first
         steps do not stall: its stepping, its outputs, what a state publishes and, where the
-        position controller can drive the valve (physical mode), the run loop of :meth:`following`. Nothing where it
-        steps interpreted; where it is, its state and time stay as they are."""
+        position controller can drive the valve (physical mode), the run loop of
+        :meth:`following`. Nothing where it steps interpreted; where it is, its state and time
+        stay as they are."""
         if not self.compiled:
             return
         self.step(0.0, 0)
