@@ -9,7 +9,7 @@ text names it.
 :class:`CraneMarkers` works out what depends only on the parameters once and gives each
 instant's markers as fields (:class:`.cdr.MarkerFields`), packed straight into CDR
 (:func:`.cdr.marker_array`), with no rclpy and no message object: the node publishes and
-records these bytes, and so does ``boom-sim live`` (:func:`crane_markers`).
+records these bytes, and so does ``boom-sim live`` (both through :class:`.messages.TickMessages`).
 """
 
 from __future__ import annotations

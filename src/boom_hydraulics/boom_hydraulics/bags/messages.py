@@ -31,6 +31,7 @@ ROD_FRAME = "cylinder_rod"  # x along the rod, positive extending
 AT = {name: i for i, name in enumerate(PUBLISHED_NAMES)}
 _Q1, _V, _ALPHA, _ALPHA_RATE, _F = (AT[name] for name in ("q1", "v", "alpha", "alpha_rate", "f_hyd"))
 _BARREL, _BARREL_RATE, _LEVER, _P1, _P2 = (AT[name] for name in ("barrel", "barrel_rate", "lever", "p1", "p2"))
+_FINITE = AT["finite"]
 # DriveState's float64 fields and its flags, in the message's order (taken in one call each)
 _DRIVE_FLOATS = operator.itemgetter(*(AT[name] for name in DRIVE_STATE_FIELDS.values() if name not in FLAGS))
 _DRIVE_FLAGS = operator.itemgetter(*(AT[name] for name in FLAGS))
@@ -45,7 +46,7 @@ def finite(values: Sequence[float]) -> bool:
     """Whether the outputs a state publishes (``values``, as :func:`state_messages` takes
     them) are finite: a NaN is never published (the battery's, NaN in paper mode, are not
     among them)."""
-    return values[AT["finite"]] != 0.0
+    return values[_FINITE] != 0.0
 
 
 def drive_state(values: Sequence[float], stamp_ns: int) -> bytes:

@@ -26,7 +26,6 @@ from foxglove import Parameter
 from ..bags import messages
 from ..bags.diagnostics import CommandCounts, RunCounts, diagnostics
 from ..bags.encoding import message, setpoint_cdr, to_cdr
-from ..bags.markers import crane_markers
 from ..errors import ConfigError, SimulationError
 from ..model.geometry import outside_stroke
 from ..model.parameters import Parameters
@@ -42,7 +41,7 @@ from .frames import Joint, joints, moving_frames, static_frames
 from .recording import LiveRecording
 from .steering import Steer
 
-#: The state topics in the order of :func:`~..bags.messages.state_messages`.
+#: The state topics in the order of :func:`~..bags.messages.state_messages` (the markers after them).
 STATE_OUTLETS = (DRIVE, JOINT_STATES, PISTON, ROD, FORCE)
 MARKERS_HZ = 20.0  # as the node: markers are for eyes, not for control
 DIAGNOSTICS_PERIOD_S = 1.0  # wall time, as the node's timer
@@ -84,6 +83,7 @@ class LiveRun:
         self._diagnosed_at = -math.inf
         self._noticed: dict[str, float] = {}
         self._joints = joints(urdf(params))
+        self._messages = messages.TickMessages(params)
         # the first message of a type has rosbags build its serialiser: before the clock starts
         self._state(self.sim.published(), 0, markers=True)
         self._latched(params, 0)
@@ -146,11 +146,11 @@ class LiveRun:
     def _state(self, values: list[float], stamp_ns: int, markers: bool) -> list[tuple[Outlet, bytes]]:
         """The messages of the state ``values`` (``Simulator.published()``): the state topics,
         the setpoint while the controller drives, the markers if asked for, and the moving frames."""
-        tick = list(zip(STATE_OUTLETS, messages.state_messages(values, stamp_ns)))
+        if self._messages.params is not self.sim.params:  # new parameters: new dimensions for the markers
+            self._messages = messages.TickMessages(self.sim.params)
+        tick = list(zip((*STATE_OUTLETS, MARKERS), self._messages.state(values, stamp_ns, markers)))
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((SETPOINT, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
-        if markers:
-            tick.append((MARKERS, crane_markers(messages.by_name(values), stamp_ns, self.sim.params)))
         c = messages.joints(values)
         tick.append((TF, moving_frames(self._joints, dict(zip(JOINTS, (c.boom_rad, c.barrel_rad, c.rod_m))), stamp_ns)))
         return tick
