@@ -12,7 +12,6 @@ tables; nothing is asserted (these machines are shared and noisy).
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 import shutil
 import subprocess
@@ -22,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from kernel_alone import DURATION_S, batches_s, grid_axes, grid_plan
 from scipy.integrate import solve_ivp
 from tables import ROOT, table
 
@@ -34,7 +34,6 @@ from boom_hydraulics.sweeps import sweep
 from boom_hydraulics.sweeps.executors import DaskExecutor, LocalExecutor
 from boom_hydraulics.sweeps.sampling import parse_axis
 
-DURATION_S = 5.0
 OPEN_S = 2.5  # the lift scenario: valve open for the first half, then closed
 AXES = [parse_axis("piston_diameter=0.032:0.1:40"), parse_axis("payload=0:200:25")]  # 1000 points
 
@@ -90,11 +89,6 @@ def with_solve_ivp(points: int, method: str) -> float:
     return time.perf_counter() - t0
 
 
-def grid_axes(side: int) -> list[str]:
-    """The axes of :func:`full_sweep`'s side x side grid, as --vary takes them."""
-    return [f"piston_diameter=0.032:0.1:{side}", f"payload=0:200:{side}"]
-
-
 def full_sweep(
     workers: int | None, side: int = 100, plots: bool = False, checkout: Path | None = None
 ) -> tuple[float, float]:
@@ -109,12 +103,19 @@ def full_sweep(
     args += [] if plots else ["--no-plots"]
     if workers:
         args += ["--workers", str(workers)]
+    seconds, peak_mb, _ = timed(args, "boom-sweep")
+    shutil.rmtree(out)
+    return seconds, peak_mb
+
+
+def timed(args: list[str], what: str) -> tuple[float, float, str]:
+    """Run ``args`` through :data:`PEAK_OF`: (its seconds start to finish, its peak resident
+    memory in MB, what it printed on stderr); RuntimeError naming ``what`` if it failed."""
     run = subprocess.run([sys.executable, "-c", PEAK_OF, *args], capture_output=True, text=True, errors="replace")
     status, seconds, peak_kb = run.stdout.split() if run.returncode == 0 else (f"{run.returncode} (the timer)", "", "")
     if status != "0":
-        raise RuntimeError(f"boom-sweep failed with status {status}: {run.stderr.strip()[-400:]}")
-    shutil.rmtree(out)
-    return float(seconds), int(peak_kb) / 1024
+        raise RuntimeError(f"{what} failed with status {status}: {run.stderr.strip()[-400:]}")
+    return float(seconds), int(peak_kb) / 1024, run.stderr
 
 
 #: Runs the command of its arguments and prints its exit status, its seconds start to finish
@@ -132,23 +133,25 @@ print(os.waitstatus_to_exitcode(status), time.perf_counter() - t0, usage.ru_maxr
 
 
 def plan_kernel_s(side: int = 100) -> float:
-    """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone, one
-    after the other in this thread (the run kernel and the batch's metrics, nothing else of
-    boom-sweep): what the sweep would take at the kernel's own speed. What this process holds
-    is out of the garbage collector's walks meanwhile, as boom-sweep's plan is during its
-    batches (runner._frozen_heap): a benchmark's heap is larger, and its walks no part of the kernel."""
-    axes = [parse_axis(axis) for axis in grid_axes(side)]
-    plan = sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=DURATION_S))
+    """Seconds the batches of :func:`full_sweep`'s plan take through sweep.run_batch alone, in
+    this process, the kernel loaded before (kernel_alone.batches_s): what the sweep's batches
+    would take at the kernel's own speed, without what a new process pays first."""
+    plan = grid_plan(side)
     sweep.load_kernel(plan.batches[0])  # outside the timing
-    gc.freeze()
-    try:
-        t0 = time.perf_counter()
-        done = sum(len(sweep.run_batch(batch)["point"]) for batch in plan.batches)
-        seconds = time.perf_counter() - t0
-    finally:
-        gc.unfreeze()
-    assert done == side * side
-    return seconds
+    return batches_s(plan)
+
+
+def kernel_program_s(side: int = 100, checkout: Path | None = None) -> float:
+    """Seconds of bench/kernel_alone.py over :func:`full_sweep`'s grid in a new process, start
+    to finish, less its plan's: the least a process does to give the sweep's numbers (Python,
+    numpy, numba and its registries, the kernel loaded, the batches, the exit), which the sweep
+    does too, beside its own planning, storage and table. ``checkout``: in that checkout's
+    environment (the program is this checkout's; it calls what the sweep's planning and
+    batches are called by)."""
+    program = str(ROOT / "bench" / "kernel_alone.py")
+    python = [sys.executable] if checkout is None else [str(checkout / "tools" / "with-env"), "python"]
+    seconds, _, printed = timed([*python, program, str(side)], "kernel_alone.py")
+    return seconds - float(printed.split()[-1])
 
 
 #: The answer's sweep at the issue's size: 3 drives x 30 cylinders x 20 operators' loader cycles.

@@ -1,0 +1,59 @@
+"""boom-sweep's grid of a 5 s lift, its batches through the run kernel alone: the reference a
+sweep's share of the kernel's throughput is measured against.
+
+    python bench/kernel_alone.py SIDE     # the side x side grid in this new process; prints the plan's seconds
+
+Run as a program, it is the least a process does to give the sweep's numbers: Python, numpy,
+numba and its registries, the kernel loaded from the cache, the batches one after the other,
+the exit. It prints the seconds its plan took (the plan is boom-sweep's own work, as storage
+and the table are), so that the caller can take them from the process's wall time. It imports
+only the model and the sweep's planning, so that any checkout's environment can run it.
+"""
+
+from __future__ import annotations
+
+import gc
+import sys
+import time
+
+from boom_hydraulics.model.parameters import Parameters
+from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.sampling import parse_axis
+
+DURATION_S = 5.0
+
+
+def grid_axes(side: int) -> list[str]:
+    """The axes of the side x side grid, as boom-sweep's --vary takes them."""
+    return [f"piston_diameter=0.032:0.1:{side}", f"payload=0:200:{side}"]
+
+
+def grid_plan(side: int) -> sweep.Plan:
+    """boom-sweep's plan of the grid (its default batch size)."""
+    axes = [parse_axis(axis) for axis in grid_axes(side)]
+    return sweep.plan(sweep.request([("default", Parameters())], axes, duration_s=DURATION_S))
+
+
+def batches_s(plan: sweep.Plan) -> float:
+    """Seconds the plan's batches take through sweep.run_batch alone (the run kernel and the
+    batch's metrics, nothing else of boom-sweep), one after the other in this thread. What this
+    process holds is out of the garbage collector's walks meanwhile, as boom-sweep's plan is
+    during its batches (runner._frozen_heap)."""
+    gc.freeze()
+    try:
+        t0 = time.perf_counter()
+        done = sum(len(sweep.run_batch(batch)["point"]) for batch in plan.batches)
+        seconds = time.perf_counter() - t0
+    finally:
+        gc.unfreeze()
+    assert done == len(plan.points)
+    return seconds
+
+
+if __name__ == "__main__":
+    started = time.perf_counter()
+    plan = grid_plan(int(sys.argv[1]))
+    plan_s = time.perf_counter() - started
+    sweep.load_kernel(plan.batches[0])
+    batches_s(plan)
+    print(f"{plan_s:.6f}", file=sys.stderr)
