@@ -5,9 +5,10 @@ sweep's share of the kernel's throughput is measured against.
 
 Run as a program, it is the least a process does to give the sweep's numbers: Python, numpy,
 numba and its registries, the kernel loaded from the cache, the batches one after the other,
-the exit. It prints the seconds its plan took (the plan is boom-sweep's own work, as storage
-and the table are), so that the caller can take them from the process's wall time. It imports
-only the model and the sweep's planning, so that any checkout's environment can run it.
+the exit (its heap frozen first, as boom-sweep's is). It prints the seconds its plan took (the
+plan is boom-sweep's own work, as storage and the table are), so that the caller can take them
+from the process's wall time. It imports only the model and the sweep's planning, so that any
+checkout's environment can run it.
 """
 
 from __future__ import annotations
@@ -57,3 +58,4 @@ if __name__ == "__main__":
     sweep.load_kernel(plan.batches[0])
     batches_s(plan)
     print(f"{plan_s:.6f}", file=sys.stderr)
+    gc.freeze()  # Python's shutdown then skips numba's objects, as boom-sweep's does (entry_points)
