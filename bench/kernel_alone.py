@@ -1,5 +1,6 @@
-"""boom-sweep's grid of a 5 s lift, its batches through the run kernel alone: the reference a
-sweep's share of the kernel's throughput is measured against.
+"""The batches of boom-sweep's grid of a 5 s lift through the run kernel alone, and no more.
+
+The reference a sweep's share of the kernel's throughput is measured against (bench_speed).
 
     python bench/kernel_alone.py SIDE     # the side x side grid in this new process; prints the plan's seconds
 
@@ -13,6 +14,7 @@ checkout's environment can run it.
 
 from __future__ import annotations
 
+import argparse
 import gc
 import sys
 import time
@@ -52,8 +54,11 @@ def batches_s(plan: sweep.Plan) -> float:
 
 
 if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("side", type=int, help="points along each of the grid's two axes (100: 10 000 points)")
+    side = parser.parse_args().side
     started = time.perf_counter()
-    plan = grid_plan(int(sys.argv[1]))
+    plan = grid_plan(side)
     plan_s = time.perf_counter() - started
     sweep.load_kernel(plan.batches[0])
     batches_s(plan)
