@@ -155,14 +155,112 @@ def test_settings_too_stiff_for_any_substeps_stop_and_point_to_ros2():
         sim.step(1.0, 10)
 
 
-def test_ros2_takes_the_stiff_reproduction_at_one_step_per_millisecond():
-    """L-stable and implicit: no substeps, within 1 mm and 1 % of LSODA."""
-    p = with_updates(Parameters(), method="ros2", **STIFF)
+@pytest.mark.parametrize("dead_volume_m3", [1e-5, 1e-6])
+def test_ros2_takes_the_stiff_reproduction_at_one_step_per_millisecond(dead_volume_m3):
+    """L-stable and implicit: no stability substeps; within 0.2 mm and 0.1 % of LSODA, through
+    to the end (measured: 0.1 mm, 0.04 %). Where a step's Jacobian does not see what happens
+    within it (an end-stop impact; a chamber's void filling, so that its pressure leaves the
+    cavitation floor and its stiffness jumps from none to E / V), the step can break the energy
+    balance, and is taken again in halves (stepping.advance_halving): with 1 cm³ at the
+    impacts, up to 256 substeps (before the halves, that run stopped at the first impact; with
+    10 cm³, whether a step held a cavitating chamber against the upper stop through turned on
+    LAPACK's rounding, by processor)."""
+    p = with_updates(Parameters(), method="ros2", **{**STIFF, "piston_dead_volume_m3": dead_volume_m3,
+                                                       "rod_dead_volume_m3": dead_volume_m3})  # fmt: skip
     got, most = cycle(p)
     expected = reference(p)
-    assert most == 1
-    assert np.max(np.abs(got["q1"] - expected["q1"])) < 1e-3
-    assert got["supply_energy"][-1] == pytest.approx(expected["supply_energy"][-1], rel=0.01)
+    assert np.max(np.abs(got["q1"] - expected["q1"])) < 2e-4
+    assert got["supply_energy"][-1] == pytest.approx(expected["supply_energy"][-1], rel=1e-3)
+    assert got["q1"][-1] < 1.051  # lowered onto the lower stop: the run went to its end
+    if dead_volume_m3 < 1e-5:
+        assert most > 1  # the halves took it through
+
+
+def test_ros2_solves_its_stages_as_lapack_does_without_lapack():
+    """integrators.lu_factor / lu_solve: LAPACK's solution to rounding, on matrices like a
+    stiff step's (I - g h J, the ledger's columns those of I) and on random ones, pivoting
+    where the diagonal is small; a singular matrix gives NaN, which the step reports as not
+    finite."""
+    rng = np.random.default_rng(7)
+    for trial in range(20):
+        n = 30 if trial % 2 else 5
+        a = rng.standard_normal((n, n)) * 10.0 ** rng.uniform(-3, 3, size=(n, 1))
+        if trial % 2:
+            a[:11, 11:], a[11:, 11:] = 0.0, np.eye(n - 11)
+        if trial == 3:
+            a[0, 0] = 0.0  # a zero on the diagonal: pivoting, not a failure
+        b = rng.standard_normal(n)
+        factors = a.copy()
+        rows = integrators.lu_factor(factors)
+        x = integrators.lu_solve(factors, rows, b)
+        expected = np.linalg.solve(a, b)
+        assert np.max(np.abs(x - expected)) <= 1e-9 * np.max(np.abs(expected))
+    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
+    rows = integrators.lu_factor(singular)
+    assert np.isnan(integrators.lu_solve(singular, rows, np.array([1.0, 1.0]))).all()
+
+
+@pytest.mark.skipif(not JIT, reason="numba not installed")
+def test_ros2_solves_its_stages_to_the_same_bits_compiled_and_interpreted():
+    """The compiled loops (integrators._lu_factor_compiled, _lu_solve_compiled) do what the
+    Python form's row operations do, in the same order: the same factors, row order and
+    solution, bit for bit, pivoting and singular matrices included."""
+    import numba
+
+    @numba.njit
+    def compiled(a, b):
+        rows = integrators.lu_factor(a)
+        return rows, integrators.lu_solve(a, rows, b)
+
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        n = 1 + trial % 30
+        a = rng.standard_normal((n, n)) * 10.0 ** rng.uniform(-3, 3, size=(n, 1))
+        if trial % 5 == 0:
+            a[:, 0] = 0.0  # singular
+        elif trial % 5 == 1:
+            a[0, 0] = 0.0  # pivoting
+        b = rng.standard_normal(n)
+        python_lu, compiled_lu = a.copy(), a.copy()
+        rows = integrators.lu_factor(python_lu)
+        x = integrators.lu_solve(python_lu, rows, b)
+        compiled_rows, compiled_x = compiled(compiled_lu, b)
+        assert np.array_equal(rows, compiled_rows)
+        assert np.array_equal(python_lu, compiled_lu, equal_nan=True)
+        assert np.array_equal(x, compiled_x, equal_nan=True)
+
+
+def _toy_step(bad_above_s: float):
+    """Explicit Euler that gives NaN for a substep longer than ``bad_above_s``."""
+
+    def step(fun, t, y, h, args):
+        return [math.nan] * len(y) if h > bad_above_s else integrators.euler_step(fun, t, y, h, args)
+
+    return step
+
+
+@pytest.mark.parametrize("bad_above_s, most", [(1.0, 1), (0.6e-3, 2), (0.3e-3, 4)])
+def test_a_halving_loop_takes_a_failed_step_again_in_halves_and_equals_advance_where_none_fails(bad_above_s, most):
+    f = (_toy_step(bad_above_s), _decay, _rate_of, _stored)  # y' = -y
+    done, outcome, used, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0)
+    assert (done, outcome, used) == (50, stepping.OK, most)
+    assert y[0] == pytest.approx(math.exp(-0.05), rel=1e-3)
+    if most == 1:  # nothing failed: advance's run, to the bit
+        assert (done, outcome, used, y) == stepping.advance(
+            *f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0
+        )
+
+
+def test_a_halving_loop_stops_where_its_most_substeps_still_fail():
+    f = (_toy_step(0.1e-3), _decay, _rate_of, _stored)  # 8 substeps of 0.125 ms: still too long
+    done, outcome, _, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0)
+    assert (done, outcome, y) == (0, stepping.NONFINITE, [1.0])
+
+
+def test_only_ros2_halves_its_failed_steps():
+    """The explicit methods' substeps come from the stability bound, and their failures end
+    the run at once (as the batch kernel's blocks of sets do, which must equal them)."""
+    assert {name for name in integrators.METHODS if stepping.loop_of(name) is stepping.advance_halving} == {"ros2"}
 
 
 def test_ros2_is_l_stable_and_second_order():

@@ -41,7 +41,7 @@ from .kernel import Command, RunSpec
 from .outcomes import MAX_SUBSTEPS, NONFINITE, OK, evaluation_message, message
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 from .profiles import ANGLE
-from .stepping import advance
+from .stepping import loop_of
 from .streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
@@ -216,7 +216,7 @@ def python_sets(
     for k, p in enumerate(params):
         guard = Guard()
         c = model.constants(p)
-        step_once = advance if stepper is None else compiled_stepping(stepper)
+        step_once = loop_of(p0.method) if stepper is None else compiled_stepping(stepper)
         controller = kernel.controller_value if encoded else guard.command(command, k)
         functions = (guard.stepping(step_once), step, model.derivative, model.stiffness_rate, model.energy,
                      model.outputs, model.samples, controller, model.with_payload)  # fmt: skip

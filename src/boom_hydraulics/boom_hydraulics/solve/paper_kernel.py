@@ -2,7 +2,8 @@
 publishes) and its batch run.
 
 Ordinary code that numba compiles as written (see :mod:`..jit`): each entry point calls the
-one stepping loop (:func:`stepping.advance`) or the one run loop (:func:`kernel.run_set`)
+one stepping loop (:func:`stepping.advance`; ros2's :func:`stepping.advance_halving`, which
+calls it) or the one run loop (:func:`kernel.run_set`)
 with the method's step and the model's functions by name, so that numba compiles them into
 it; the state is a tuple (euler, rk4: on the stack) or a list (ros2, whose stages are numpy
 arrays). Python hands the constants over as a row of floats (:func:`constants_of`): numba
@@ -91,9 +92,10 @@ def steps_rk4(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, 
 
 @kernel(SOURCES)
 def steps_ros2(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
-    """Up to n steps of Rosenbrock ROS2 (as :func:`steps_euler`)."""
+    """Up to n steps of Rosenbrock ROS2, a step that fails its checks taken again in more
+    substeps (stepping.advance_halving; as :func:`steps_euler`)."""
     f = (ros2_step, model.derivative, model.stiffness_rate, model.energy)
-    done, outcome, most, y = stepping.advance(*f, t, list_of(y0), constants_of(crow), u, *rest)
+    done, outcome, most, y = stepping.advance_halving(*f, t, list_of(y0), constants_of(crow), u, *rest)
     return done, outcome, most, np.array(y)
 
 

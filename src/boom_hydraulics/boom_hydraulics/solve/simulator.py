@@ -3,12 +3,13 @@
 :class:`Simulator` owns the state, the simulated time and the integrator, and applies a
 valve command held constant over each step (zero-order hold). :meth:`Simulator.step` takes
 steps with one command (the node's ticks, :class:`command_queue.CommandedDrive`) through the
-stepping loop :func:`stepping.advance`; :meth:`Simulator.run` and :meth:`Simulator.samples`
-run a whole command from the current state through the run loop (:class:`batch.SetRun`,
-:func:`kernel.run_set`), whose step is that same stepping loop, and :meth:`Simulator.following`
-and :meth:`Simulator.go_on` a tick's steps of the position controller through it (the node's
-ticks while the controller drives). Physics lives in the model
-modules (:mod:`physical`, :mod:`paper`); this module only drives them.
+stepping loop :func:`stepping.advance` (ros2's: :func:`stepping.advance_halving`);
+:meth:`Simulator.run` and :meth:`Simulator.samples` run a whole command from the current
+state through the run loop (:class:`batch.SetRun`, :func:`kernel.run_set`), whose step is
+that same stepping loop, and :meth:`Simulator.following` and :meth:`Simulator.go_on` a
+tick's steps of the position controller through it (the node's ticks while the controller
+drives). Physics lives in the model modules (:mod:`physical`, :mod:`paper`); this module
+only drives them.
 """
 
 from __future__ import annotations
@@ -100,7 +101,7 @@ class Simulator:
         self._min_substeps = 1 if adaptive else params.substeps
         model = self.model
         self._run = functools.partial(
-            stepping.advance,
+            stepping.loop_of(params.method),
             self._adaptive_step if adaptive else step,
             model.derivative,
             model.stiffness_rate,

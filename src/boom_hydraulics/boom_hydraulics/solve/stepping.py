@@ -21,7 +21,7 @@ from typing import Any
 
 from ..jit import jitable
 from ..model.hydraulics import larger
-from . import lanes
+from . import integrators, lanes
 
 #: Outcomes of the stepping loop.
 OK, NONFINITE, ENERGY, TOO_STIFF = 0, 1, 2, 3
@@ -94,6 +94,74 @@ def advance(
             return i, ENERGY, most, y
         y = y_new
     return n, OK, most, y
+
+
+@jitable
+def advance_halving(
+    step: Callable[..., list],
+    derivative: Callable[..., list],
+    stiffness_rate: Callable[..., float],
+    energy: Callable[..., float],
+    t0: float,
+    y: Any,
+    c: Any,
+    u: float,
+    dt: float,
+    min_substeps: int,
+    limit: float,
+    max_substeps: int,
+    n: int,
+    energy_index: int,
+    energy_base: float,
+) -> tuple[int, int, int, Any]:
+    """:func:`advance` for a method whose steps no stability bound sizes (ros2: L-stable, it has
+    no limit to split a step by): a step that fails its checks (not finite, or the energy
+    balance broken) is taken again from the same state in twice as many substeps, and again,
+    up to ``max_substeps``, before the run stops on it. The arguments and results are
+    :func:`advance`'s; a run whose steps all pass is :func:`advance`'s to the bit.
+
+    A linearly implicit step sees the model through its Jacobian at the step's start: where
+    a chamber's void fills within the step (its pressure leaves the cavitation floor, where
+    the chamber's stiffness jumps from none to E / V), the step overshoots, and its energy
+    balance shows it (docs/model.md, "Stepping").
+    """
+    done = 0
+    most = min_substeps
+    while done < n:
+        taken, outcome, used, y = advance(
+            step, derivative, stiffness_rate, energy, t0 + done * dt, y, c, u, dt, min_substeps, limit,
+            max_substeps, n - done, energy_index, energy_base,
+        )  # fmt: skip
+        done += taken
+        most = max(most, used)
+        if outcome == OK:
+            return done, OK, most, y
+        if outcome != NONFINITE and outcome != ENERGY:
+            return done, outcome, used, y
+        substeps = 2 * min_substeps
+        while True:
+            if substeps > max_substeps:
+                return done, outcome, most, y
+            taken, again, used, y_again = advance(
+                step, derivative, stiffness_rate, energy, t0 + done * dt, y, c, u, dt, substeps, limit,
+                max_substeps, 1, energy_index, energy_base,
+            )  # fmt: skip
+            if again == OK:
+                done += 1
+                most = max(most, used)
+                y = y_again
+                break
+            if again != NONFINITE and again != ENERGY:
+                return done, again, used, y
+            outcome = again
+            substeps *= 2
+    return done, OK, most, y
+
+
+def loop_of(method: str) -> Callable[..., tuple[int, int, int, Any]]:
+    """The stepping loop of integration method ``method``: :func:`advance_halving` where the
+    method halves a failed step (integrators.Method.halving), else :func:`advance`."""
+    return advance_halving if integrators.METHODS[method].halving else advance
 
 
 # inlined into the run loop, as kernel._commands is: a call takes the block's constants and state
