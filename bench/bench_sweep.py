@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -21,7 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from kernel_alone import DURATION_S, batches_s, grid_axes, grid_plan
+from kernel_alone import DURATION_S, PLAN_PATTERN, batches_s, grid_axes, grid_plan
 from scipy.integrate import solve_ivp
 from tables import ROOT, table
 
@@ -143,15 +144,18 @@ def plan_kernel_s(side: int = 100) -> float:
 
 def kernel_program_s(side: int = 100, checkout: Path | None = None) -> float:
     """Seconds of bench/kernel_alone.py over :func:`full_sweep`'s grid in a new process, start
-    to finish, less its plan's: the least a process does to give the sweep's numbers (Python,
-    numpy, numba and its registries, the kernel loaded, the batches, the exit), which the sweep
-    does too, beside its own planning, storage and table. ``checkout``: in that checkout's
-    environment (the program is this checkout's; it calls what the sweep's planning and
-    batches are called by)."""
+    to finish, less its plan's: what a process does to give the sweep's numbers and no more
+    (Python, numpy, numba and its registries, the kernel loaded, the batches as boom-sweep runs
+    them, the exit), beside which the sweep adds its own planning, storage and table.
+    ``checkout``: in that checkout's environment (the program is this checkout's; it calls what
+    the sweep's planning and batches are called by)."""
     program = str(ROOT / "bench" / "kernel_alone.py")
     python = [sys.executable] if checkout is None else [str(checkout / "tools" / "with-env"), "python"]
     seconds, _, printed = timed([*python, program, str(side)], "kernel_alone.py")
-    return seconds - float(printed.split()[-1])
+    found = re.search(PLAN_PATTERN, printed, re.MULTILINE)
+    if found is None:
+        raise RuntimeError(f"kernel_alone.py printed no plan's seconds: {printed.strip()[-400:]}")
+    return seconds - float(found.group(1))
 
 
 #: The answer's sweep at the issue's size: 3 drives x 30 cylinders x 20 operators' loader cycles.

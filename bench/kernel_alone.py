@@ -4,12 +4,14 @@ The reference a sweep's share of the kernel's throughput is measured against (be
 
     python bench/kernel_alone.py SIDE     # the side x side grid in this new process; prints the plan's seconds
 
-Run as a program, it is the least a process does to give the sweep's numbers: Python, numpy,
-numba and its registries, the kernel loaded from the cache, the batches one after the other,
-the exit (its heap frozen first, as boom-sweep's is). It prints the seconds its plan took (the
-plan is boom-sweep's own work, as storage and the table are), so that the caller can take them
-from the process's wall time. It imports only the model and the sweep's planning, so that any
-checkout's environment can run it.
+Run as a program, it is what a process does to give the sweep's numbers and no more: Python,
+numpy, numba and its registries, the kernel loaded from the cache, the batches two at a time
+as boom-sweep runs them (its LocalExecutor: a batch's Python beside the other's kernel), the
+exit; its heap is frozen from the plan on, as boom-sweep's is. It prints the seconds its plan
+took on a line of its own (``kernel_alone: plan_s=...``; the plan is boom-sweep's own work, as
+storage and the table are), so that the caller can take them from the process's wall time.
+It imports only the model and the sweep's planning and executor, so that the environment of
+a checkout since b3199a5 (sweep.load_kernel, LocalExecutor's ``load``) can run it.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import time
 
 from boom_hydraulics.model.parameters import Parameters
 from boom_hydraulics.sweeps import sweep
+from boom_hydraulics.sweeps.executors import LocalExecutor
 from boom_hydraulics.sweeps.sampling import parse_axis
 
 DURATION_S = 5.0
@@ -53,6 +56,11 @@ def batches_s(plan: sweep.Plan) -> float:
     return seconds
 
 
+#: The line the program prints its plan's seconds on (stderr), and how a caller finds it.
+PLAN_LINE = "kernel_alone: plan_s={:.6f}"
+PLAN_PATTERN = r"^kernel_alone: plan_s=([0-9.]+)$"
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("side", type=int, help="points along each of the grid's two axes (100: 10 000 points)")
@@ -60,7 +68,9 @@ if __name__ == "__main__":
     started = time.perf_counter()
     plan = grid_plan(side)
     plan_s = time.perf_counter() - started
-    sweep.load_kernel(plan.batches[0])
-    batches_s(plan)
-    print(f"{plan_s:.6f}", file=sys.stderr)
+    gc.freeze()  # from the plan on, as boom-sweep's heap is (runner._frozen_heap): the kernel's load too
+    with LocalExecutor(load=sweep.load_kernel) as executor:
+        done = sum(len(rows["point"]) for _, rows in executor.map(sweep.run_batch, plan.batches))
+    assert done == len(plan.points)
+    print(PLAN_LINE.format(plan_s), file=sys.stderr, flush=True)
     gc.freeze()  # Python's shutdown then skips numba's objects, as boom-sweep's does (entry_points)
