@@ -20,7 +20,7 @@ from scipy.integrate import solve_ivp
 from boom_hydraulics.errors import SimulationError
 from boom_hydraulics.model import end_stops, friction, geometry, physical
 from boom_hydraulics.model.parameters import Parameters, with_updates
-from boom_hydraulics.solve import accelerate, integrators, stepping
+from boom_hydraulics.solve import accelerate, integrators, outcomes, stepping
 from boom_hydraulics.solve.commands import steps
 from boom_hydraulics.solve.simulation import Simulator
 
@@ -195,9 +195,20 @@ def test_ros2_solves_its_stages_as_lapack_does_without_lapack():
         x = integrators.lu_solve(factors, rows, b)
         expected = np.linalg.solve(a, b)
         assert np.max(np.abs(x - expected)) <= 1e-9 * np.max(np.abs(expected))
-    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
-    rows = integrators.lu_factor(singular)
-    assert np.isnan(integrators.lu_solve(singular, rows, np.array([1.0, 1.0]))).all()
+    for singular in (np.array([[1.0, 2.0], [2.0, 4.0]]), np.array([[2.0, 1.0, 1.0], [4.0, 2.0, 3.0], [2.0, 1.0, 5.0]])):
+        rows = integrators.lu_factor(singular)  # the second: its second column's pivot is zero after one step
+        assert np.isnan(integrators.lu_solve(singular, rows, np.ones(len(singular)))).all()
+
+
+def test_a_ros2_step_of_a_model_not_finite_near_its_state_is_not_finite():
+    """A Jacobian with inf or NaN gives a step of NaN (not a finite solve of it), which the
+    stepping reports as not finite."""
+    for bad in (math.inf, math.nan):
+
+        def fun(t, y, bad=bad):
+            return [bad * y[0] if y[0] != 1.0 else -y[0], -y[1]]
+
+        assert all(math.isnan(v) for v in integrators.ros2_step(fun, 0.0, [1.0, 1.0], 1e-3))
 
 
 @pytest.mark.skipif(not JIT, reason="numba not installed")
@@ -253,8 +264,57 @@ def test_a_halving_loop_takes_a_failed_step_again_in_halves_and_equals_advance_w
 
 def test_a_halving_loop_stops_where_its_most_substeps_still_fail():
     f = (_toy_step(0.1e-3), _decay, _rate_of, _stored)  # 8 substeps of 0.125 ms: still too long
-    done, outcome, _, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0)
-    assert (done, outcome, y) == (0, stepping.NONFINITE, [1.0])
+    done, outcome, most, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0)
+    assert (done, outcome, most, y) == (0, stepping.NONFINITE, 8, [1.0])
+    f = (_toy_step(0.13e-3), _decay, _rate_of, _stored)  # 8 substeps of 0.125 ms: the last it may try
+    assert stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 50, -1, 0.0)[:3] == (
+        50,
+        stepping.OK,
+        8,
+    )
+    assert stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 4, 50, -1, 0.0)[:3] == (
+        0,
+        stepping.NONFINITE,
+        4,
+    )
+
+
+def test_a_halving_loop_halves_only_the_steps_that_fail_and_goes_on_after_them():
+    """Steps fail at one substep only while y > 0.9 (the first 106 steps of y' = -y): those
+    take 2, and the rest 1 again, which the result's accuracy shows (Euler at 1 ms, 0.2 s)."""
+
+    def step(fun, t, y, h, args):
+        return [math.nan] if y[0] > 0.9 and h > 0.6e-3 else integrators.euler_step(fun, t, y, h, args)
+
+    f = (step, _decay, _rate_of, _stored)
+    done, outcome, most, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 200, -1, 0.0)
+    assert (done, outcome, most) == (200, stepping.OK, 2)
+    halves, whole = 0.9995**2, 0.999
+    k = next(i for i in range(200) if halves**i <= 0.9)  # the steps taken in halves, from y > 0.9
+    assert y[0] == pytest.approx(halves**k * whole ** (200 - k), rel=1e-12)
+
+
+def test_a_halving_loop_mends_a_broken_energy_balance_and_not_a_state_that_is_not_finite():
+    """y' = -y with y as its stored energy and W its integral: an Euler step of 1 ms balances
+    within the tolerance only in halves here; a state already NaN stops at once."""
+
+    def step(fun, t, y, h, args):
+        flowed = y[1] + (h * y[0] if h > 0.6e-3 else 0.0)  # a whole step adds energy from nowhere
+        return [y[0], flowed, abs(flowed)]
+
+    def stored(y, c):
+        return 0.0
+
+    f = (step, _decay, _rate_of, stored)
+    done, outcome, most, _ = stepping.advance_halving(*f, 0.0, [1e4, 0.0, 0.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8,
+                                                      10, 1, 0.0)  # fmt: skip
+    assert (done, outcome, most) == (10, stepping.OK, 2)
+    assert stepping.advance(*f, 0.0, [1e4, 0.0, 0.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 10, 1, 0.0)[:2] == (
+        0,
+        stepping.ENERGY,
+    )
+    nan_start = stepping.advance_halving(*f, 0.0, [math.nan, 0.0, 0.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 10, 1, 0.0)
+    assert nan_start[:3] == (0, stepping.NONFINITE, 1)
 
 
 def test_only_ros2_halves_its_failed_steps():
@@ -454,3 +514,16 @@ def test_a_block_in_lock_step_stops_the_set_whose_stiffness_has_no_count_and_ste
         alone = stepping.advance(integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), c, 0.0, 1e-3, 1, 2.8,
                                  10_000, 1, -1, 0.0)  # fmt: skip
         assert alone[2] == out[1, j] and alone[3][0] == out[2, j]
+
+
+def test_what_a_diverged_run_is_told_to_try_fits_its_method():
+    """ros2 has tried up to HALVED_MOST substeps itself: it is told a smaller step or rk4, not
+    more substeps; rk4 is told more substeps or ros2. The substeps a run reports are named by
+    their cause."""
+    ros2 = outcomes.step_advice(with_updates(Parameters(), method="ros2"))
+    assert f"taken again in up to {stepping.HALVED_MOST} substeps" in ros2 and "method rk4" in ros2
+    assert "more substeps" not in ros2
+    rk4 = outcomes.step_advice(Parameters())
+    assert "more substeps" in rk4 and "method ros2" in rk4
+    assert outcomes.substeps_cause("rk4") == "stability bound"
+    assert outcomes.substeps_cause("ros2") == "failed steps taken again in halves"

@@ -32,7 +32,7 @@ from ..model import config
 from ..model.parameters import METHODS, Parameters, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..programs import RaisingParser, run_main
-from ..solve import accelerate, commands, duty_cycles
+from ..solve import accelerate, commands, duty_cycles, outcomes
 from ..solve.simulation import OUTPUTS, RunStream, check_fits, step_count
 from . import fmu, linearize, live
 
@@ -74,7 +74,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{args.out}: {rows} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
         f"q1 {first_q1:.4f} -> {last_q1:.4f} m"
         + (
-            f", up to {stream.most_substeps} substeps per step (stability bound)"
+            f", up to {stream.most_substeps} substeps per step ({outcomes.substeps_cause(params.method)})"
             if stream.most_substeps > params.substeps
             else ""
         )

@@ -57,7 +57,7 @@ from ..bags.recording import run_description
 from ..errors import ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
-from ..solve import accelerate
+from ..solve import accelerate, outcomes
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
 from . import node_parameters as ros_parameters
@@ -516,8 +516,8 @@ class BoomSimNode(Node):
             self._substeps_logged = self.sim.most_substeps
             p = self.sim.params
             self.get_logger().info(
-                f"stability bound: {p.method} takes {self._substeps_logged} substeps per time step of "
-                f"{p.time_step_s:g} s here (the step and the outputs stay at {p.time_step_s:g} s)"
+                f"{outcomes.substeps_cause(p.method)}: {p.method} takes {self._substeps_logged} substeps per time "
+                f"step of {p.time_step_s:g} s here (the step and the outputs stay at {p.time_step_s:g} s)"
             )
 
     def run_loop(self) -> None:

@@ -61,7 +61,7 @@ SLICE_FLOATS = 8_000_000
 
 #: What an interpreted model function may raise where compiled code gives NaN (math.acos
 #: outside its domain, a singular ros2 matrix) ...
-MODEL_ERRORS = (ValueError, ZeroDivisionError, OverflowError, np.linalg.LinAlgError)
+MODEL_ERRORS = (ValueError, ZeroDivisionError, OverflowError)
 #: ... and what else a step or a Python command may raise (rk45's step control, a non-finite command).
 EVALUATION_ERRORS = (SimulationError, *MODEL_ERRORS)
 

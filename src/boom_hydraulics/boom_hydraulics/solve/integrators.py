@@ -179,6 +179,8 @@ def ros2_step(fun: Derivative, t: float, y: list, h: float, args: tuple = ()) ->
         column = (np.array(fun(t, shifted, *args)) - f0) / delta
         for i in range(n):
             matrix[i, j] = -ROS2_GAMMA * h * column[i] + (i == j)
+    if not np.isfinite(matrix).all():  # a model not finite near y: so is the step, not a wrong solve
+        return [math.nan for _ in range(n)]
     rows = lu_factor(matrix)
     k1 = lu_solve(matrix, rows, f0)
     stage = [y[i] + h * k1[i] for i in range(n)]
@@ -193,8 +195,9 @@ def lu_factor(a: np.ndarray) -> np.ndarray:
     so that a step that solves with it is not finite.
 
     Written out, not LAPACK's: each entry is updated by one product and one difference in a
-    fixed order (no sums whose order a vector unit chooses), so a step gives the same bits on
-    every machine, interpreted and compiled alike. LAPACK's dgesv, as numpy and numba call it,
+    fixed order (no sums whose order a vector unit chooses), so the solve gives the same bits
+    on every machine, interpreted and compiled alike (the model's exp, sin and acos still come
+    from the machine's C library). LAPACK's dgesv, as numpy and numba call it,
     orders its sums by the BLAS kernels of the processor it runs on: a stiff cycle held a
     cavitating chamber against an end stop through on one processor and broke its energy
     balance on another (docs/model.md, "Stepping"). Compiled, the same operations run as
@@ -240,7 +243,7 @@ def _lu_factor_compiled(a: Any) -> Callable[..., Any]:
         rows = np.arange(n)
         for k in range(n):
             pivot = k
-            for i in range(k + 1, n):  # the first of the largest, as argmax
+            for i in range(k + 1, n):  # the first of the largest, as argmax (ros2_step hands it no NaN)
                 if abs(a[i, k]) > abs(a[pivot, k]):
                     pivot = i
             if pivot != k:

@@ -14,7 +14,8 @@ from collections.abc import Sequence
 from ..model import MODELS
 from ..model.geometry import triangle_bounds_m
 from ..model.parameters import Parameters
-from .stepping import ENERGY, ENERGY_TOLERANCE, NONFINITE, OK, TOO_STIFF
+from . import integrators
+from .stepping import ENERGY, ENERGY_TOLERANCE, HALVED_MOST, NONFINITE, OK, TOO_STIFF
 
 #: The rod would leave the geometry of eq. 1 (q1 outside (|b - a|, a + b)), where the
 #: triangle degenerates and the model cannot be evaluated (model.md, "Geometry").
@@ -23,10 +24,14 @@ OUT_OF_GEOMETRY = 4
 #: Every outcome code, by name: OK (0) and the failures.
 OUTCOMES = {"ok": OK, "non-finite": NONFINITE, "energy": ENERGY, "too stiff": TOO_STIFF, "geometry": OUT_OF_GEOMETRY}
 
-#: Most substeps the stability bound may ask for in one time step before a run stops (TOO_STIFF).
+#: Most substeps the stability bound may ask for in one time step before a run stops (TOO_STIFF);
+#: ros2 takes a failed step again in at most stepping.HALVED_MOST.
 MAX_SUBSTEPS = 10_000
 
-__all__ = ["ENERGY", "MAX_SUBSTEPS", "NONFINITE", "OK", "OUTCOMES", "OUT_OF_GEOMETRY", "TOO_STIFF", "message"]
+__all__ = [
+    "ENERGY", "MAX_SUBSTEPS", "NONFINITE", "OK", "OUTCOMES", "OUT_OF_GEOMETRY", "TOO_STIFF", "message",
+    "substeps_cause",
+]  # fmt: skip
 
 
 def describe(p: Parameters, y: Sequence[float]) -> str:
@@ -36,11 +41,23 @@ def describe(p: Parameters, y: Sequence[float]) -> str:
 
 def step_advice(p: Parameters) -> str:
     """What to change when the integration diverged at the parameters' step."""
-    fixes = "a smaller time_step_s or more substeps" + ("" if p.method == "ros2" else ", or method ros2")
+    if integrators.METHODS[p.method].halving:  # it has tried up to HALVED_MOST substeps itself
+        return (
+            f"the integration diverged: the step of {p.time_step_s:g} s ({p.method}, taken again in up to "
+            f"{HALVED_MOST} substeps) is too large for these parameters; try a smaller time_step_s, or "
+            "method rk4 (its stability bound sizes its substeps)"
+        )
     return (
         f"the integration diverged: the step of {p.time_step_s:g} s ({p.method}, at least "
-        f"{p.substeps} substeps) is too large for these parameters; try {fixes}"
+        f"{p.substeps} substeps) is too large for these parameters; try a smaller time_step_s or more "
+        "substeps, or method ros2"
     )
+
+
+def substeps_cause(method: str) -> str:
+    """Why a step of ``method`` took more than its least substeps: its stability bound, or
+    (ros2) a step that failed its checks taken again in halves."""
+    return "failed steps taken again in halves" if integrators.METHODS[method].halving else "stability bound"
 
 
 def likely_cause(p: Parameters) -> str:

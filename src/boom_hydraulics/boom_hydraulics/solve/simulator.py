@@ -59,7 +59,7 @@ class Trajectory:
 
     columns: dict[str, np.ndarray]
     stopped: str | None = None  # why the run ended early (run(stop_on_error=True)), else None
-    most_substeps: int = 1  # the most substeps one time step took (the stability bound's doing)
+    most_substeps: int = 1  # the most substeps one time step took (outcomes.substeps_cause: why)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
