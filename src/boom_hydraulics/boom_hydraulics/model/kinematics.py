@@ -45,7 +45,13 @@ def pivot_height_m(p: Any) -> float:
 
 def base_xz(p: Any) -> tuple[float, float]:
     """The cylinder base A in base_link (x, z), m."""
-    return math.sqrt(p.b_m * p.b_m - p.support_height_m * p.support_height_m), COLUMN_FOOT_M
+    return cylinder_base_xz(p.b_m, p.support_height_m)
+
+
+@jitable
+def cylinder_base_xz(b_m: float, h_m: float) -> tuple[float, float]:
+    """The cylinder base A in base_link (x, z), m, for the geometry's b and h (:func:`base_xz`)."""
+    return math.sqrt(b_m * b_m - h_m * h_m), COLUMN_FOOT_M
 
 
 def pivot_xz(p: Any) -> tuple[float, float]:
@@ -55,8 +61,13 @@ def pivot_xz(p: Any) -> tuple[float, float]:
 
 def along_boom_xz(p: Any, alpha_rad: float, distance_m: float) -> tuple[float, float]:
     """The point ``distance_m`` from O along the boom at elevation ``alpha_rad``, in base_link."""
-    ox, oz = pivot_xz(p)
-    return ox + distance_m * math.cos(alpha_rad), oz + distance_m * math.sin(alpha_rad)
+    return boom_point_xz(p.support_height_m, alpha_rad, distance_m)
+
+
+@jitable
+def boom_point_xz(h_m: float, alpha_rad: float, distance_m: float) -> tuple[float, float]:
+    """:func:`along_boom_xz` for the geometry's h: O is at (0, COLUMN_FOOT_M + h) (:func:`pivot_xz`)."""
+    return 0.0 + distance_m * math.cos(alpha_rad), (COLUMN_FOOT_M + h_m) + distance_m * math.sin(alpha_rad)
 
 
 @jitable
@@ -67,9 +78,9 @@ def barrel_and_lever(q1_m: float, v_m_s: float, a_m: float, b_m: float, h_m: flo
     alpha = boom_angle_rad(q1_m, a_m, b_m, h_m)
     lever = lever_rad_per_m(q1_m, a_m, b_m)
     alpha_rate = lever * v_m_s
-    # K (along_boom_xz at a) and A (base_xz), written out
-    kx, kz = 0.0 + a_m * math.cos(alpha), (COLUMN_FOOT_M + h_m) + a_m * math.sin(alpha)
-    rx, rz = kx - math.sqrt(b_m * b_m - h_m * h_m), kz - COLUMN_FOOT_M
+    kx, kz = boom_point_xz(h_m, alpha, a_m)  # K
+    ax, az = cylinder_base_xz(b_m, h_m)  # A
+    rx, rz = kx - ax, kz - az
     beta = math.atan2(rz, rx)
     # d(beta)/dt = (rx rz' - rz rx') / |r|^2 with r' = a alpha' (-sin alpha, cos alpha)
     barrel_rate = a_m * alpha_rate * (rx * math.cos(alpha) + rz * math.sin(alpha)) / (rx * rx + rz * rz)
