@@ -140,6 +140,11 @@ def test_boom_sim_linearize_writes_what_it_says(tmp_path, capsys):
     ("args", "message"),
     [
         (["--rod-length-m", "1.9"], "lies outside the stroke"),
+        # past the stroke's ends the law of cosines gives a mirrored angle's length (170 deg
+        # was taken as 52, -170 as 32): refused, naming the angles the stroke reaches
+        (["--angle-deg", "170"], "--angle-deg 2.9671 rad (170.00 deg) lies outside the stroke's"),
+        (["--angle-deg", "-170"], "(-170.00 deg) lies outside the stroke's"),
+        (["--angle-deg", "400"], "(400.00 deg) lies outside the stroke's"),
         (["--opening", "2"], "--opening must be a valve opening in [-1, 1]"),
         (["--set", "mode=paper"], "a linear model is taken of the physical drive"),
     ],

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..model import MODELS
 from ..model.control import full_opening_rate
-from ..model.geometry import boom_angle_rad, lever_rad_per_m
+from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
 from ..model.hydraulics import orifice_pressure_drop
 from ..model.parameters import Parameters
 from ..solve.closed_loop import stacked_constants
@@ -75,7 +75,11 @@ class OperatingPoint:
 
 def rod_length_at_angle(p: Parameters, angle_rad: float) -> float:
     """The cylinder length q1 at boom elevation ``angle_rad`` (eq. 4 inverted: theta = alpha +
-    pi/2 - arccos(h/b), then the law of cosines of eq. 1), m."""
+    pi/2 - arccos(h/b), then the law of cosines of eq. 1), m; ConfigError for an angle outside
+    the stroke (the law of cosines would give the length of a mirrored angle, not this one)."""
+    why = outside_stroke(p, angle_rad, "--angle-deg")
+    if why is not None:
+        raise ConfigError(f"{why}; choose an angle within it")
     theta = angle_rad + math.pi / 2.0 - math.acos(p.support_height_m / p.b_m)
     return math.sqrt(p.a_m * p.a_m + p.b_m * p.b_m - 2.0 * p.a_m * p.b_m * math.cos(theta))
 
