@@ -225,3 +225,86 @@ def test_a_second_run_on_the_same_bag_is_refused_and_touches_nothing(tmp_path, b
         == f"boom-bag-recover: error: {bag}: another boom-bag-recover is working on it; wait for it to end"
     )
     assert busy.exists() and not (bag / "metadata.yaml").exists()
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
+    """Every file below ``folder`` with its bytes and modification time: what 'unchanged' means."""
+    return {
+        str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _other_mcap(path: Path, profile: str) -> None:
+    """A whole MCAP file another tool wrote: one channel, three messages."""
+    from mcap.writer import Writer
+
+    with path.open("wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile=profile, library="someone else's logger")
+        schema = writer.register_schema("pose", "jsonschema", b"{}")
+        channel = writer.register_channel("/pose", "json", schema)
+        for i in range(3):
+            writer.add_message(channel, i, b"{}", i)
+        writer.finish()
+
+
+@pytest.mark.parametrize("profile", ["ros2", "", "ros1"])
+def test_a_whole_mcap_of_another_tool_in_a_folder_of_notes_is_refused_and_nothing_changes(tmp_path, profile):
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    (folder / "ideas.md").write_text("the user's notes")
+    (folder / ".run.mcap.a1b2c3d4.partial").write_text("the user's, though named like our leftovers")
+    _other_mcap(folder / "run.mcap", profile)
+    before = _snapshot(folder)
+    result = run_tool("boom-bag-recover", folder)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "nothing was changed" in result.stderr
+    assert ("whole MCAP file" if profile == "ros2" else "is not a rosbag2 recording") in result.stderr
+    assert _snapshot(folder) == before
+
+
+def test_a_folder_whose_mcap_is_no_mcap_is_one_line_and_nothing_changes(tmp_path):
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    (folder / "n.md").write_text("notes")
+    (folder / "x.mcap").write_text("not an MCAP file at all, just text")  # read through a map: a traceback before
+    before = _snapshot(folder)
+    result = run_tool("boom-bag-recover", folder)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.strip() == (
+        f"boom-bag-recover: error: {folder / 'x.mcap'}: not an MCAP file (wrong magic bytes); nothing was changed"
+    )
+    assert _snapshot(folder) == before
+
+
+def test_the_nodes_whole_file_without_metadata_yaml_gets_one_and_is_not_rewritten(tmp_path, big_file):
+    bag = _cut_bag(tmp_path, big_file, len(big_file), "late")  # killed after finishing the file, before metadata.yaml
+    file = bag / f"{bag.name}_0.mcap"
+    result = run_tool("boom-bag-recover", bag)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == (
+        f"boom-bag-recover: {file} was whole (its recorder was killed before writing metadata.yaml): "
+        "wrote metadata.yaml for its 3000 messages, the file is unchanged"
+    )
+    assert file.read_bytes() == big_file
+    assert sorted(p.name for p in bag.iterdir()) == [file.name, "metadata.yaml"]
+    assert check_bag(bag) == {"/drive_state": 3000}
+    again = run_tool("boom-bag-recover", bag)
+    assert again.returncode == 1 and "nothing to recover" in again.stderr
+
+
+def test_a_cut_file_beside_its_metadata_yaml_is_recovered_and_the_old_metadata_kept(tmp_path, big_file):
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    (whole / "whole_0.mcap").write_bytes(big_file)
+    assert run_tool("boom-bag-recover", whole).returncode == 0  # a finished bag: the file and its metadata.yaml
+    old_metadata = (whole / "metadata.yaml").read_bytes()
+    bag, expected = _killed(tmp_path, big_file)  # then its file was cut (a copy broken off)
+    (bag / "metadata.yaml").write_bytes(old_metadata)
+    result = run_tool("boom-bag-recover", bag)
+    assert result.returncode == 0, result.stderr
+    assert f"{expected} messages kept" in result.stdout and "metadata.yaml.damaged" in result.stdout
+    assert (bag / "metadata.yaml.damaged").read_bytes() == old_metadata
+    assert check_bag(bag) == {"/drive_state": expected}

@@ -20,6 +20,12 @@ pattern, for this bag's file and metadata.yaml, are touched.
 
 A bag whose recorder is still running is refused: the recorder holds a lock on its file
 until it finishes or dies.
+
+Only a killed recording is changed. The node's whole file without metadata.yaml (killed
+between the two) gets a metadata.yaml and is not rewritten; a cut file beside a
+metadata.yaml is recovered, the old metadata.yaml kept as metadata.yaml.damaged. A whole
+file of another tool, another profile than ros2, or no MCAP file at all is refused before
+anything changes.
 """
 
 from __future__ import annotations
@@ -56,6 +62,8 @@ _HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK, _METADATA, _DATA_END = (
     0x0F,
 )
 _RECORD_HEAD = 9  # opcode (1 byte) and content length (uint64)
+_FOOTER_RECORD = _RECORD_HEAD + 20  # the footer: summary start, summary offset start (uint64), summary CRC (uint32)
+RECORDER_LIBRARY = "boom_hydraulics"  # the header's library field of the node's recorder (bags.recording)
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # a message's channel id, sequence, log time, publish time
 
 
@@ -217,38 +225,15 @@ def salvage(data: bytes | memoryview) -> Salvage:
     return found
 
 
-def _library(path: Path) -> str | None:
-    """The library field of an MCAP file's header (None if it has none)."""
-    try:
-        with path.open("rb") as handle:
-            head = handle.read(1 << 12)
-    except OSError:
-        return None
-    try:
-        for opcode, content, _ in _records(memoryview(head)[len(MCAP_MAGIC) :]):
-            if opcode == _HEADER:
-                cursor = _Cursor(content)
-                cursor.string()
-                return cursor.string()
-            return None
-    except (_CutError, _DamagedError):
-        return None
-    return None
-
-
 def _finished_by_us(path: Path) -> bool:
     """True for a finished MCAP file that this module wrote: an earlier run's result."""
     try:
-        with path.open("rb") as handle:
-            handle.seek(0, os.SEEK_END)
-            if handle.tell() < 2 * len(MCAP_MAGIC):
-                return False
-            handle.seek(-len(MCAP_MAGIC), os.SEEK_END)
-            if handle.read() != MCAP_MAGIC:
-                return False
-    except OSError:
+        if not _whole(path):
+            return False
+        header = _header(path)
+    except (OSError, BagError):
         return False
-    return _library(path) == RECOVERED_LIBRARY
+    return header is not None and header[1] == RECOVERED_LIBRARY
 
 
 # --- writing ----------------------------------------------------------------------------
@@ -306,16 +291,22 @@ def _write_mcap(handle: object, file_name: str, found: Salvage) -> dict:
         cid: writer.register_channel(topic, encoding, new_schema.get(sid, 0), meta)
         for cid, (topic, encoding, sid, meta) in found.channels.items()
     }
-    counts = dict.fromkeys(found.channels, 0)
     for cid, seq, log_ns, publish_ns, data in found.messages:
         writer.add_message(new_channel[cid], log_ns, data, publish_ns, seq)
-        counts[cid] += 1
-    custom = next((pairs for name, pairs in found.metadata if name == CUSTOM_DATA_RECORD), {})
-    times = [m[2] for m in found.messages]
-    info = bag_info(file_name, _topics(found, counts), min(times, default=0), max(times, default=0), dict(custom))
+    info = _info(file_name, found)
     writer.add_metadata(ROSBAG2_RECORD, rosbag2_record(info))
     writer.finish()
     return info
+
+
+def _info(file_name: str, found: Salvage) -> dict:
+    """The bag's metadata (metadata.yaml's content) of the salvaged records."""
+    counts = dict.fromkeys(found.channels, 0)
+    for message in found.messages:
+        counts[message[0]] += 1
+    custom = next((pairs for name, pairs in found.metadata if name == CUSTOM_DATA_RECORD), {})
+    times = [m[2] for m in found.messages]
+    return bag_info(file_name, _topics(found, counts), min(times, default=0), max(times, default=0), dict(custom))
 
 
 def _write_partial(final: Path, fill: object) -> Path:
@@ -346,12 +337,13 @@ class Recovery:
     """What :func:`recover` did."""
 
     file: Path  # the finished MCAP file
-    damaged: Path  # the original, kept
+    damaged: Path | None  # the original, kept (None: the file was whole, only metadata.yaml was written)
     messages: int  # messages kept
     dropped_chunks: int  # complete chunks whose contents were damaged
     orphans: int  # messages dropped because their channel was lost
     removed: list[Path]  # leftovers of an interrupted earlier run, removed
     resumed: bool  # True when an earlier run had renamed the original already
+    old_metadata: Path | None = None  # a metadata.yaml beside a cut file, kept under this name
 
 
 def _mcap_name(bag: Path) -> str:
@@ -363,18 +355,58 @@ def _mcap_name(bag: Path) -> str:
 
 
 def _read(source: Path) -> Salvage:
+    why = None
     try:
         with source.open("rb") as handle:
             size = os.fstat(handle.fileno()).st_size
             if size == 0:
                 return salvage(b"")
             with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
-                found = salvage(data)
+                try:
+                    found = salvage(data)
+                except BagError as exc:  # its traceback holds views of the map: let it go before the map closes
+                    why = str(exc)
     except OSError as exc:
         raise BagError(f"{source}: cannot read it ({exc.strerror or exc})") from None
-    except BagError as exc:
-        raise BagError(f"{source}: {exc}") from None
+    if why is not None:
+        raise BagError(f"{source}: {why}")
     return found
+
+
+def _header(path: Path) -> tuple[str, str] | None:
+    """The profile and library of an MCAP file's header record (None where it has none)."""
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(1 << 12)
+    except OSError as exc:
+        raise BagError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if head[: len(MCAP_MAGIC)] != MCAP_MAGIC[: len(head)]:  # a prefix of the magic: cut at the start
+        raise BagError(f"{path}: not an MCAP file (wrong magic bytes); nothing was changed")
+    try:
+        for opcode, content, _ in _records(memoryview(head)[len(MCAP_MAGIC) :]):
+            if opcode != _HEADER:
+                return None
+            cursor = _Cursor(content)
+            return cursor.string(), cursor.string()
+    except (_CutError, _DamagedError):
+        return None
+    return None
+
+
+def _whole(path: Path) -> bool:
+    """True for an MCAP file that ends in its footer record and the magic bytes: it was finished."""
+    tail = _FOOTER_RECORD + len(MCAP_MAGIC)
+    with path.open("rb") as handle:
+        handle.seek(0, os.SEEK_END)
+        if handle.tell() < len(MCAP_MAGIC) + tail:
+            return False
+        handle.seek(-tail, os.SEEK_END)
+        end = handle.read(tail)
+    return (
+        end[-len(MCAP_MAGIC) :] == MCAP_MAGIC
+        and end[0] == _FOOTER
+        and int.from_bytes(end[1:_RECORD_HEAD], "little") == _FOOTER_RECORD - _RECORD_HEAD
+    )
 
 
 def recover(bag: Path) -> Recovery:
@@ -398,23 +430,78 @@ def recover(bag: Path) -> Recovery:
 
 
 def _recover(bag: Path) -> Recovery:
+    """Which state the folder is in decides what is done; anything that is not a killed
+    recording (or an interrupted run of this tool) is refused before anything changes."""
     name = _mcap_name(bag)
     target, kept = bag / name, bag / f"{name}{DAMAGED_SUFFIX}"
+    metadata = bag / "metadata.yaml"
     if target.exists() and is_being_recorded(target):
         raise BagError(f"{bag}: is still being recorded; stop its recorder first (a killed one frees the bag)")
-    removed = _remove_leftovers(bag, name)
-    if (bag / "metadata.yaml").exists():
-        raise BagError(f"{bag}: has a metadata.yaml already, so it was finished; nothing to recover")
     resumed = kept.exists()
     if resumed and target.exists() and not _finished_by_us(target):
         raise BagError(f"{kept} exists already; move it out of the bag folder first")
+    if resumed and metadata.exists():
+        raise BagError(f"{bag}: has a metadata.yaml already, so it was finished; nothing to recover")
+    if not resumed:
+        header = _header(target)
+        if header is not None and header[0] != "ros2":  # (none: cut before its header ended)
+            raise BagError(
+                f"{target}: is not a rosbag2 recording (profile {header[0]!r}); nothing was changed "
+                "(boom-bag-recover finishes the bags of the node and of ros2 bag record)"
+            )
+        if header is not None and _whole(target):
+            if metadata.exists():
+                raise BagError(f"{bag}: has a metadata.yaml already, so it was finished; nothing to recover")
+            if header[1] != RECORDER_LIBRARY:
+                raise BagError(
+                    f"{target}: is a whole MCAP file (written by {header[1] or 'an unnamed library'}), not a killed "
+                    "recording; nothing was changed (every reader here reads a lone .mcap file as it is)"
+                )
+            return _describe(bag, target, _remove_leftovers(bag, name))
+        if metadata.exists() and (bag / f"metadata.yaml{DAMAGED_SUFFIX}").exists():
+            raise BagError(
+                f"{bag / f'metadata.yaml{DAMAGED_SUFFIX}'} exists already; move it out of the bag folder first"
+            )
+    removed = _remove_leftovers(bag, name)
     source = kept if resumed else target
     found = _read(source)
     if not found.channels:
         raise BagError(f"{source}: no channel survived; nothing to recover")
     found.messages.sort(key=lambda m: m[2])  # by log time; stable, so per channel as recorded
+    old_metadata = None
+    if not resumed and metadata.exists():  # a finished bag whose file was cut since (a copy broken off)
+        old_metadata = bag / f"metadata.yaml{DAMAGED_SUFFIX}"
+        _rename(metadata, old_metadata, bag)  # kept; from here on the bag is one a rerun continues
     _place(bag, source, target, kept, found)
-    return Recovery(target, kept, len(found.messages), found.dropped_chunks, found.orphans, removed, resumed)
+    return Recovery(
+        target, kept, len(found.messages), found.dropped_chunks, found.orphans, removed, resumed, old_metadata
+    )
+
+
+def _rename(source: Path, target: Path, bag: Path) -> None:
+    try:
+        os.rename(source, target)
+        _sync_folder(bag)
+    except OSError as exc:
+        raise BagError(f"{exc.filename or source}: {exc.strerror or exc}; nothing was changed") from None
+
+
+def _describe(bag: Path, file: Path, removed: list[Path]) -> Recovery:
+    """metadata.yaml for the node's whole MCAP file: its recorder was killed after finishing the
+    file and before writing metadata.yaml. The file itself is not changed."""
+    found = _read(file)
+    text = yaml.safe_dump({"rosbag2_bagfile_information": _info(file.name, found)}, sort_keys=False).encode()
+    try:
+        tmp = _write_partial(bag / "metadata.yaml", lambda handle: handle.write(text))
+    except OSError as exc:
+        raise BagError(f"{exc.filename or bag}: {exc.strerror or exc}; nothing was changed") from None
+    try:
+        os.replace(tmp, bag / "metadata.yaml")
+        _sync_folder(bag)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise BagError(f"{exc.filename or bag}: {exc.strerror or exc}; nothing was changed") from None
+    return Recovery(file, None, len(found.messages), found.dropped_chunks, found.orphans, removed, False)
 
 
 def _place(bag: Path, source: Path, target: Path, kept: Path, found: Salvage) -> None:

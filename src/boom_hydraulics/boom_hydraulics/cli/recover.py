@@ -3,9 +3,13 @@
     boom-bag-recover bags/20261122-044106_boom_sim
 
 Every complete chunk that reached the disk comes back, in a finished MCAP file under the
-original name with metadata.yaml; the damaged file stays beside it as <name>.damaged. The
-result is whole or nothing: on a full disk nothing changes, and after an interruption a
-rerun continues. A bag whose recorder is still running is refused. See :mod:`..bags.recovery`.
+original name with metadata.yaml; the damaged file stays beside it as <name>.damaged (and
+a metadata.yaml that stood beside a cut file, as metadata.yaml.damaged). A whole file of
+the node's whose metadata.yaml is missing gets one, and is not changed. The result is whole
+or nothing: on a full disk nothing changes, and after an interruption a rerun continues. A
+bag whose recorder is still running, a whole MCAP file of another tool, a file that is not
+a rosbag2 recording, and a finished bag are refused, and nothing is changed. See
+:mod:`..bags.recovery`.
 """
 
 from __future__ import annotations
@@ -32,9 +36,19 @@ def report(result: Recovery) -> str:
     if result.orphans:
         lost.append(f"{result.orphans} message(s) of a lost channel dropped")
     tail = f"; {', '.join(lost)}" if lost else ""
+    if result.damaged is None:
+        lines.append(
+            f"boom-bag-recover: {result.file} was whole (its recorder was killed before writing metadata.yaml): "
+            f"wrote metadata.yaml for its {result.messages} messages, the file is unchanged{tail}"
+        )
+        return "\n".join(lines)
+    kept = (
+        result.damaged.name
+        if result.old_metadata is None
+        else f"{result.damaged.name}, its old metadata.yaml {result.old_metadata.name}"
+    )
     lines.append(
-        f"boom-bag-recover: {result.messages} messages kept in {result.file} "
-        f"(the damaged file is {result.damaged.name}){tail}"
+        f"boom-bag-recover: {result.messages} messages kept in {result.file} (the damaged file is {kept}){tail}"
     )
     return "\n".join(lines)
 
