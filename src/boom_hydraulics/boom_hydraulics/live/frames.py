@@ -42,9 +42,10 @@ def _triple(text: str | None, default: Vector) -> Vector:
 
 
 def joints(urdf_text: str) -> list[Joint]:
-    """The joints of a URDF, in document order."""
+    """The joints of a URDF, in document order: the robot's own ``<joint>`` elements, not those
+    named inside other tags (a ``<ros2_control>`` tag's joints, say)."""
     found = []
-    for element in ElementTree.fromstring(urdf_text).iter("joint"):
+    for element in ElementTree.fromstring(urdf_text).findall("joint"):
         origin = element.find("origin")
         axis = element.find("axis")
         found.append(
