@@ -18,6 +18,9 @@ from websockets.sync.client import connect
 
 #: What the Foxglove app offers: the protocol's v1 under its first name and the SDK's name for it.
 SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
+#: What @foxglove/ws-protocol's clients offer (``new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL])``,
+#: which is "foxglove.websocket.v1"): the first name alone, ``Sec-WebSocket-Protocol: foxglove.websocket.v1``.
+WS_PROTOCOL_OFFER = ["foxglove.websocket.v1"]
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -61,10 +64,10 @@ class FoxgloveClient:
     """One connection (a context manager): server info, advertised channels, subscriptions,
     client channels, parameters."""
 
-    def __init__(self, port: int) -> None:
+    def __init__(self, port: int, subprotocols: list[str] = SUBPROTOCOLS) -> None:
         # an unbounded queue: with a bounded one, a subscribed client stops reading when it is full,
         # never reads the server's close frame, and each close waited out its 10 s timeout
-        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, open_timeout=30, max_queue=None)
+        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=subprotocols, open_timeout=30, max_queue=None)
         self.ws = self._connection.__enter__()
         self.info = self._json(lambda m: m["op"] == "serverInfo")
         self.channels: dict[str, dict] = {}

@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 import yaml
 from bag_checks import check_bag
-from foxglove_client import ROOT, FoxgloveClient, LiveServer
+from foxglove_client import ROOT, WS_PROTOCOL_OFFER, FoxgloveClient, LiveServer
 from rosbags.typesys import Stores, get_typestore
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
 
 from boom_hydraulics.bags.reading import read_drive_states
 from boom_hydraulics.model import config
@@ -110,6 +112,33 @@ def test_a_client_published_valve_command_moves_the_rod_up_and_a_teleop_twist_do
     client.publish(2, bytes(JAZZY.serialize_cdr(down, "geometry_msgs/msg/Twist")))
     lowered = client.until("/drive_state", lambda s: s.rod_position_m < top.rod_position_m - 0.01)
     assert lowered.valve_command == -1.0
+
+
+def test_a_client_that_offers_only_the_first_name_connects_subscribes_and_publishes(server):
+    """@foxglove/ws-protocol's clients offer the protocol's first name alone, which the SDK's
+    server by itself refuses with HTTP 400: they get the same server under that name."""
+    with FoxgloveClient(server.port, subprotocols=WS_PROTOCOL_OFFER) as client:
+        assert client.ws.request.headers.get_all("Sec-WebSocket-Protocol") == ["foxglove.websocket.v1"]
+        assert client.ws.subprotocol == "foxglove.websocket.v1"  # the name it offered (its client checks it)
+        assert {"clientPublish", "parameters", "parametersSubscribe"} <= set(client.info["capabilities"])
+        assert {"/drive_state", "/joint_states", "/tf", "/robot_description"} <= set(client.channels)
+        client.subscribe("/drive_state")
+        _, start = client.next_message("/drive_state")
+        _, following = client.next_message("/drive_state")
+        assert following.header.stamp.sec * 10**9 + following.header.stamp.nanosec > (
+            start.header.stamp.sec * 10**9 + start.header.stamp.nanosec
+        )  # in the order they were published
+        client.advertise(1, "/valve_command", "json", "boom_hydraulics_msgs/msg/ValveCommand")
+        client.publish(1, {"opening": 1.0})
+        top = client.until("/drive_state", lambda s: s.rod_position_m > following.rod_position_m + 0.01)
+        assert top.valve_command == 1.0
+        assert client.get_parameters("g1", "payload_mass_kg")["parameters"][0]["name"] == "payload_mass_kg"
+
+
+def test_a_client_that_offers_neither_name_is_refused_at_the_handshake(server):
+    with pytest.raises(InvalidStatus) as refused:
+        connect(f"ws://127.0.0.1:{server.port}", subprotocols=["foxglove.websocket.v2"], open_timeout=30)
+    assert refused.value.response.status_code == 400
 
 
 def test_a_target_angle_moves_the_boom_there_and_one_outside_the_stroke_is_refused(client):

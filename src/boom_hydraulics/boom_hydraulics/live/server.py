@@ -1,9 +1,12 @@
 """``boom-sim live``: the Foxglove WebSocket server of a live run, until Ctrl-C.
 
-The server is the ``foxglove-sdk`` package's (the protocol's v1 message set; the SDK names
-its subprotocol ``foxglove.sdk.v1``): it advertises :data:`.channels.OUTLETS`, takes client
-channels (``clientPublish``, JSON or CDR) for the steering topics of :mod:`.steering`, and
-serves the model parameters (``parameters``, ``parametersSubscribe``). The run ticks in a
+The server is the ``foxglove-sdk`` package's (the protocol's v1 message set): it advertises
+:data:`.channels.OUTLETS`, takes client channels (``clientPublish``, JSON or CDR) for the
+steering topics of :mod:`.steering`, and serves the model parameters (``parameters``,
+``parametersSubscribe``). It listens on this machine's loopback, on a free port; clients
+reach it through a :class:`.relay.Relay` on the address asked for, which serves the
+protocol under both its names (``foxglove.sdk.v1``, the SDK's, and ``foxglove.websocket.v1``,
+its first, which the SDK's server alone refuses). The run ticks in a
 thread of its own; the main thread waits for it, so that a Ctrl-C (or SIGTERM) lands there,
 ends the ticks between two of them, stops the server and finishes the bag. From the first
 signal on, another one cannot cut that short: it is told to wait. Exit statuses: 0 stopped
@@ -27,6 +30,7 @@ from ..errors import ConfigError
 from ..model.parameters import Parameters
 from ..programs import stop_handled
 from .channels import DESCRIPTION, TF_STATIC, Outlet, open_channels
+from .relay import Relay
 from .run import LiveRun
 from .steering import ENCODINGS, Steer, SteeringError, steer_of
 
@@ -147,16 +151,18 @@ def serve(
 
     stopping, stopped = threading.Event(), threading.Event()
     run: LiveRun | None = None
+    relay: Relay | None = None
     ticks: threading.Thread | None = None
     try:
         pace = {"real_time_factor": real_time_factor, "max_catch_up_s": max_catch_up_s}
         run = LiveRun(params, sink, notify, command_timeout_s=command_timeout_s, jit=jit, **pace)
-        server.append(_start_server(run, server, context, host, port))
+        server.append(_start_server(run, server, context))
+        relay = _start_relay(server[0].port, host, port)
         run.start(record)
         ticks = threading.Thread(target=_tick_loop, args=(run, stopping, stopped), name="boom_live_ticks", daemon=True)
         ticks.start()
         print(
-            f"{PROG}: serving ws://{host}:{server[0].port} (Foxglove: Open connection, Foxglove WebSocket); "
+            f"{PROG}: serving ws://{host}:{relay.port} (Foxglove: Open connection, Foxglove WebSocket); "
             f"real-time factor {real_time_factor:g}{'; recording to ' + str(record) if record else ''}; "
             "Ctrl-C ends it",
             flush=True,
@@ -171,26 +177,39 @@ def serve(
         if ticks is not None:
             ticks.join()  # the tick in progress ends, whole, before the bag is finished
         if server:
-            server[0].stop()
+            server[0].stop()  # (it closes its connections, the relay's too)
+        if relay is not None:
+            relay.stop()
     return _finish(run)
 
 
-def _start_server(run: LiveRun, server: list[Any], context: foxglove.Context, host: str, port: int) -> Any:
-    """The SDK's WebSocket server on ``host``:``port`` (0: any free port); ConfigError if it cannot listen there."""
+def _start_server(run: LiveRun, server: list[Any], context: foxglove.Context) -> Any:
+    """The SDK's WebSocket server on a free port of the loopback, for the relay."""
     try:
         return foxglove.start_server(
             name=PROG,
-            host=host,
-            port=port,
+            host="127.0.0.1",
+            port=0,
             capabilities=[Capability.ClientPublish, Capability.Parameters],
             server_listener=Listener(run, server),
             supported_encodings=list(ENCODINGS),
             context=context,
         )
     except RuntimeError as exc:
+        raise ConfigError(f"cannot start the Foxglove server on the loopback ({exc})") from None
+
+
+def _start_relay(upstream_port: int, host: str, port: int) -> Relay:
+    """The relay on ``host``:``port`` (0: any free port); ConfigError if it cannot listen there."""
+    relay = Relay(upstream_port)
+    try:
+        relay.start(host, port)
+    except OSError as exc:
+        relay.stop()
         raise ConfigError(
-            f"cannot serve on {host}:{port} ({exc}); choose another --port (0: any free port) or --host"
+            f"cannot serve on {host}:{port} ({exc.strerror or exc}); choose another --port (0: any free port) or --host"
         ) from None
+    return relay
 
 
 def _finish(run: LiveRun | None) -> int:
