@@ -18,11 +18,12 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ..analysis.plots import energy_breakdown as breakdown
+from ..analysis import labels, layout
+from ..analysis.plots import energy_breakdown_figure
 from ..files import atomic_path
 from ..programs import Forked, can_fork
 from .energy import BREAKDOWN, PERCENTILES, best_per_drive, design_columns, operator_bands
-from .recommend import TRADE_OFF, format_value, trade_off_front
+from .recommend import TRADE_OFF, trade_off_front
 
 #: Metrics plotted against the varied parameters: (column, label, scale).
 PLOTTED = (
@@ -77,36 +78,59 @@ def _numeric(column: np.ndarray) -> bool:
 
 
 def metrics_against(table: Mapping[str, np.ndarray], parameter: str, color_by: str | None, path: Path) -> None:
-    """A panel per metric of :data:`PLOTTED` against ``parameter``; ok designs coloured by
-    ``color_by`` (numeric or categorical), the others grey."""
-    x = np.asarray(table[parameter])
+    """:func:`metrics_figure` as a PNG at ``path``."""
+    fig = metrics_figure(table, parameter, color_by)
+    _save(fig, path)
+    plt.close(fig)
+
+
+def metrics_figure(table: Mapping[str, np.ndarray], parameter: str, color_by: str | None):
+    """A panel per metric of :data:`PLOTTED` against ``parameter`` (in its shown unit,
+    labels.quantity); ok designs coloured by ``color_by`` (numeric: bands and a colour bar in
+    its shown unit; categorical: a colour each, named in words in a key under the title), the
+    others grey crosses."""
+    xlabel, xscale = labels.quantity(parameter)
+    x = np.asarray(table[parameter], dtype=float) * xscale
     ok = np.asarray(table["status"]) == "ok"
     fig, axes = plt.subplots(3, 4, figsize=(15, 9.5))
     colouring = _colours(table, color_by, ok)
     bar = colouring.norm is not None
     # a fixed layout, with room for the labels of these panels: constrained layout measured
     # every tick label of the 12 panels, 0.35-0.4 s of a figure's 1.2 s
-    rows = _key(fig, colouring.key)  # a key to categories goes in rows under the title
+    key = dict(colouring.key or {})
+    if key and not ok.all():
+        key[NOT_OK] = "0.7"
+    rows = _key(fig, key)  # a key to categories goes in rows under the title
     top = max(0.5, 0.935 - 0.03 * rows)
     fig.subplots_adjust(left=0.05, right=0.895 if bar else 0.985, bottom=0.06, top=top, wspace=0.32, hspace=0.3)
     for ax, (name, label, scale) in zip(axes.flat, PLOTTED):
         y = np.asarray(table[name], dtype=float) * scale
-        ax.plot(x[~ok], y[~ok], "x", markersize=3.2, markeredgewidth=0.8, color="0.7", label="not ok")
+        ax.plot(x[~ok], y[~ok], "x", markersize=3.2, markeredgewidth=0.8, color="0.7", label=NOT_OK)
         _spots(ax, x[ok], y[ok], colouring.groups)
-        ax.set_xlabel(parameter)
+        ax.set_xlabel(xlabel)
         ax.set_ylabel(label)
         ax.locator_params(nbins=TICKS)
         ax.grid(True, alpha=0.3)
     if bar:
         bar_axes = fig.add_axes((0.915, 0.25, 0.012, 0.5))
-        colouring.colour_bar(fig, color_by, cax=bar_axes)
-    fig.suptitle(
-        f"Design metrics against {parameter}: {int(ok.sum())} ok designs coloured"
-        + (f" by {color_by}" if color_by else "")
-        + f", {int((~ok).sum())} others (x)"
+        colouring.colour_bar(fig, labels.quantity(color_by).label if color_by else None, cax=bar_axes)
+    coloured = f" coloured by {_words(color_by)}" if color_by else ""
+    title = fig.suptitle(
+        f"Design metrics against {_words(parameter)}: {int(ok.sum())} ok designs{coloured}, "
+        f"{int((~ok).sum())} not ok (x)"
     )
-    _save(fig, path)
-    plt.close(fig)
+    layout.fit_title(fig, title)
+    return fig
+
+
+#: The key's name for the designs that did not run ok (grey crosses).
+NOT_OK = "not ok (incomplete or failed)"
+
+
+def _words(column: str) -> str:
+    """A column's name in words, without its unit (labels.quantity)."""
+    label = labels.quantity(column).label
+    return label[: label.rfind(" [")] if label.endswith("]") else label
 
 
 def _key(fig, key: Mapping[Any, Any] | None) -> int:
@@ -114,7 +138,10 @@ def _key(fig, key: Mapping[Any, Any] | None) -> int:
     title, in as many columns as fit the figure's width (at most KEY_COLUMNS); its rows."""
     if not key:
         return 0
-    spots = [Line2D([], [], linestyle="", marker="o", color=c, label=str(name)) for name, c in key.items()]
+    spots = [
+        Line2D([], [], linestyle="", marker="x" if name == NOT_OK else "o", color=c, label=str(name))
+        for name, c in key.items()
+    ]
     renderer = fig.canvas.get_renderer()
     for columns in range(min(len(spots), KEY_COLUMNS), 0, -1):
         legend = fig.legend(handles=spots, loc="upper center", bbox_to_anchor=(0.5, 0.96), ncols=columns)
@@ -127,7 +154,7 @@ def _key(fig, key: Mapping[Any, Any] | None) -> int:
 class Colouring(NamedTuple):
     """How a figure colours its ok designs: ``groups``, [(their rows among the ok designs, a
     colour)]; for numbers, the colour bar's ``norm`` (a BoundaryNorm of the bands) and
-    ``ticks`` (None: at the bands' edges); for categories, ``key``, {category: colour}."""
+    ``ticks`` (None: at the bands' edges); for categories, ``key``, {category in words: colour}."""
 
     groups: list[tuple[np.ndarray, Any]]
     norm: matplotlib.colors.BoundaryNorm | None = None
@@ -148,11 +175,22 @@ def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarr
         return Colouring([(everyone, "tab:blue")])
     values = np.asarray(table[color_by])[ok]
     if _numeric(values):
-        return banded(values.astype(float))
-    categories = sorted(set(values.tolist()))
+        return banded(values.astype(float) * labels.quantity(color_by).scale)
+    categories = _in_order(color_by, values)
     palette = plt.get_cmap("tab10" if len(categories) <= 10 else "tab20")  # (beyond 20, colours repeat)
-    key = {category: palette(k % palette.N) for k, category in enumerate(categories)}
-    return Colouring([(everyone[values == category], key[category]) for category in categories], key=key)
+    colours = {category: palette(k % palette.N) for k, category in enumerate(categories)}
+    key = {labels.value_words(color_by, category): colours[category] for category in categories}
+    return Colouring([(everyone[values == category], colours[category]) for category in categories], key=key)
+
+
+def _in_order(column: str, values: np.ndarray) -> list[Any]:
+    """The categories of ``values``: drives in parameters.DRIVES' order (each its colour in
+    every plot of a sweep), others sorted."""
+    present = set(values.tolist())
+    if column == "drive":
+        known = [d for d in labels.DRIVE_WORDS if d in present]
+        return known + sorted(present - set(known))
+    return sorted(present)
 
 
 def bands(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -205,80 +243,142 @@ def _spots(ax, x: np.ndarray, y: np.ndarray, groups: Sequence[tuple[np.ndarray, 
 
 
 def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], path: Path) -> None:
-    """Lift time against lift energy and against peak pressure; the front of all three ringed."""
+    """:func:`trade_off_figure` as a PNG at ``path``."""
+    fig = trade_off_figure(table, label_columns)
+    _save(fig, path)
+    plt.close(fig)
+
+
+def trade_off_figure(table: Mapping[str, np.ndarray], label_columns: Sequence[str]):
+    """Lift time against lift energy and against peak pressure; the front of all three ringed.
+    With a categorical column among ``label_columns`` (a drive, a config) the designs are
+    coloured by it, with a key in words; else each panel by the third metric, in bands. A few
+    front designs are named by their other values, with units, where the names do not
+    overlap."""
     ok = np.asarray(table["status"]) == "ok"
     front = trade_off_front(table)
     time_s, energy_kj, pressure_mpa = (
         np.asarray(table[m], dtype=float) * s for m, s in zip(TRADE_OFF, (1.0, 1e-3, 1e-6))
     )
+    categories = [c for c in label_columns if not _numeric(table[c]) and len(np.unique(table[c])) > 1]
+    by = categories[0] if categories else None
     fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
     # a fixed layout (constrained layout drew the figure twice: 0.27 s of its 0.75 s)
-    fig.subplots_adjust(left=0.055, right=0.985, bottom=0.1, top=0.86, wspace=0.2)
+    fig.subplots_adjust(left=0.055, right=0.985, bottom=0.1, top=0.86 if by is None else 0.8, wspace=0.2)
     panels = ((left, energy_kj, "lift energy [kJ]", pressure_mpa, "peak pressure [MPa]"),
               (right, pressure_mpa, "peak pressure [MPa]", energy_kj, "lift energy [kJ]"))  # fmt: skip
     for ax, y, ylabel, colour, clabel in panels:
-        colouring = banded(colour[ok])
+        colouring = _colours(table, by, ok) if by is not None else banded(colour[ok])
         _spots(ax, time_s[ok], y[ok], colouring.groups)
         ax.scatter(time_s[front], y[front], s=70, facecolors="none", edgecolors="tab:red", label="non-dominated")
-        colouring.colour_bar(fig, clabel, ax=ax)
+        if colouring.norm is not None:
+            colouring.colour_bar(fig, clabel, ax=ax)
         ax.set_xlabel("lift time [s]")
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")
-    if label_columns:  # name a few front designs by their parameter values
+    if by is not None:
+        fig.legend(
+            handles=[Line2D([], [], linestyle="", marker="o", color=c, label=n) for n, c in colouring.key.items()],
+            loc="upper center",
+            bbox_to_anchor=(0.5, 0.935),
+            ncols=len(colouring.key),
+        )
+    named = [c for c in label_columns if c != "operator" and c != by and len(np.unique(table[c])) > 1]
+    if named:  # name a few front designs by their values, where the names leave each other room
+        texts = []
         for row in np.nonzero(front)[0][:12]:
-            text = ", ".join(format_value(table[c][row]) for c in label_columns)
-            left.annotate(text, (time_s[row], energy_kj[row]), fontsize=6, xytext=(4, 4), textcoords="offset points")
-        left.set_title(f"front designs labelled ({', '.join(label_columns)})", fontsize="small")
-    fig.suptitle(
+            text = ", ".join(labels.value_with_unit(c, table[c][row]) for c in named)
+            texts.append(
+                left.annotate(
+                    text, (time_s[row], energy_kj[row]), fontsize=7, xytext=(4, 4), textcoords="offset points"
+                )
+            )
+        _apart(fig, texts)
+        left.set_title(f"front designs named by {', '.join(_words(c) for c in named)}", fontsize="small")
+    title = fig.suptitle(
         f"Trade-off: {int(front.sum())} non-dominated of {int(ok.sum())} ok designs "
         "(lower lift time, energy and peak pressure are better)"
     )
-    _save(fig, path)
-    plt.close(fig)
+    layout.fit_title(fig, title)
+    return fig
+
+
+def _apart(fig, texts: Sequence[Any]) -> None:
+    """Of ``texts`` (annotations), those that overlap one before them removed."""
+    renderer = fig.canvas.get_renderer()
+    kept: list[Any] = []
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        if any(box.overlaps(other) for other in kept):
+            text.remove()
+        else:
+            kept.append(box)
 
 
 def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) -> None:
-    """Battery energy per cycle against ``parameter``, one line per drive (the median over the
-    operators' cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`."""
-    x = np.asarray(bands[parameter], dtype=float)
-    drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(x)
+    """:func:`battery_energy_figure` as a PNG at ``path``."""
+    fig = battery_energy_figure(bands, parameter)
+    _save(fig, path)
+    plt.close(fig)
+
+
+def battery_energy_figure(bands: Mapping[str, np.ndarray], parameter: str):
+    """Battery energy per cycle against ``parameter`` (in its shown unit), one line per drive
+    named in words, each in its colour of the metrics plots (the median over the operators'
+    cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`."""
+    xlabel, xscale = labels.quantity(parameter)
+    x = np.asarray(bands[parameter], dtype=float) * xscale
+    drives = np.asarray(bands["drive"]) if "drive" in bands else np.array([""] * len(x))
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    fig.subplots_adjust(left=0.09, right=0.97, bottom=0.1, top=0.92)  # (a fixed layout: drawn once)
-    for drive in dict.fromkeys(drives):
-        rows = np.array([i for i, d in enumerate(drives) if d == drive])
+    fig.subplots_adjust(left=0.09, right=0.97, bottom=0.1, top=0.88)  # (a fixed layout: drawn once)
+    colouring = _colours({"drive": drives}, "drive", np.ones(len(x), bool))
+    for (rows, colour), name in zip(colouring.groups, colouring.key or {}):
         rows = rows[np.argsort(x[rows], kind="stable")]
         low, mid, high = (np.asarray(bands[f"battery_energy_j_p{q}"], float)[rows] * 1e-3 for q in PERCENTILES)
-        (line,) = ax.plot(x[rows], mid, marker="o", markersize=3, label=drive or "battery energy")
-        ax.fill_between(x[rows], low, high, color=line.get_color(), alpha=0.2)
-    ax.set_xlabel(parameter)
+        ax.plot(x[rows], mid, marker="o", markersize=3, color=colour, label=name or "battery energy")
+        ax.fill_between(x[rows], low, high, color=colour, alpha=0.2)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("battery energy per cycle [kJ]")
     ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    ax.legend(loc="best", fontsize="small", title="drive" if "drive" in bands else None)
     cycles = int(np.max(bands["cycles"])) if len(bands["cycles"]) else 0
-    title = f"Battery energy per cycle: median and 10th-90th percentile over {cycles} cycle(s) per design"
-    ax.set_title(title, fontsize="medium")
-    _save(fig, path)
-    plt.close(fig)
+    band = f"median of {cycles} cycles, 10th-90th percentile shaded" if cycles > 1 else "one cycle per design"
+    title = fig.suptitle(f"Battery energy per cycle: {band}")
+    layout.fit_title(fig, title)
+    return fig
 
 
 def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[str], path: Path) -> None:
     """Where the battery's energy goes, a stacked bar for each drive at its best design (the
     least median battery energy per cycle): the lift's work and every loss and work term of
-    the ledger, averaged over its cycles; the energy it took back is drawn below zero."""
+    the ledger (in words), averaged over its cycles; the energy it took back is drawn below
+    zero. Each bar is named by its drive in words and its design's values with units."""
+    fig = energy_breakdown_figure(_breakdown_bars(bands, design_columns), BREAKDOWN_TITLE)
+    _save(fig, path)
+    plt.close(fig)
+
+
+#: The breakdown's title.
+BREAKDOWN_TITLE = (
+    "Where the battery's energy goes, each drive at its best design (mean over its cycles; "
+    "above each bar the median battery energy per cycle)"
+)
+
+
+def _breakdown_bars(
+    bands: Mapping[str, np.ndarray], design_columns: Sequence[str]
+) -> list[tuple[str, dict[str, float], float]]:
+    """The bars of :func:`energy_breakdown`: (name, energies J by the ledger's names, median
+    battery energy J) for each drive's best design."""
     bars = []
     for drive, row in best_per_drive(bands).items():
         energies = {name.removesuffix("_j"): float(bands[name][row]) for name in BREAKDOWN}
-        where = ", ".join(format_value(bands[c][row]) for c in design_columns if c != "drive")
-        text = f"{drive}\n{where}" if where else drive or "best design"
-        bars.append((text, energies, float(bands["battery_energy_j_p50"][row])))
-    title = (
-        "Where the battery's energy goes, each drive at its best design (mean over its cycles;\n"
-        "above each bar the median battery energy per cycle)"
-    )
-    with atomic_path(path, suffix=".png") as tmp:
-        breakdown(bars, title, tmp)
+        where = "\n".join(labels.value_with_unit(c, bands[c][row]) for c in design_columns if c != "drive")
+        name = labels.drive_words(drive) if drive else "best design"
+        bars.append((f"{name}\n{where}" if where else name, energies, float(bands["battery_energy_j_p50"][row])))
+    return bars
 
 
 def plot_all(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Path]:
@@ -343,6 +443,19 @@ def _draw(plots: Sequence[Plot]) -> None:
         plot.draw()
 
 
+def colour_column(table: Mapping[str, np.ndarray], others: Sequence[str]) -> str | None:
+    """What a metrics plot colours its designs by, of the varied columns ``others`` (all but
+    its x axis): the drive, else another category (a config), else the first axis the user
+    varied, the operators' seed last (it tells cycles apart, not designs); None without any."""
+    categorical = [c for c in others if not _numeric(table[c])]
+    if "drive" in others:
+        return "drive"
+    if categorical:
+        return categorical[0]
+    designs = [c for c in others if c != "operator"]
+    return (designs or list(others) or [None])[0]
+
+
 def _plots(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder: Path) -> list[Plot]:
     """The plots of :func:`plot_all`, in their order."""
 
@@ -354,7 +467,7 @@ def _plots(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder
     varied = [c for c in point_columns if _numeric(table[c]) and len(np.unique(table[c])) > 1]
     for parameter in varied:
         others = [c for c in point_columns if c != parameter and len(np.unique(table[c])) > 1]
-        colour = others[0] if others else None
+        colour = colour_column(table, others)
         plots.append(plot(f"metrics_vs_{parameter}.png", 0.4, metrics_against, table, parameter, colour))
     plots.append(plot("trade_off.png", 0.2, trade_off, table, point_columns))
     ok = np.asarray(table["status"]) == "ok"
