@@ -51,7 +51,9 @@ def _start(context, *_args, **_kwargs):
         )
     ]
     if p.state_publisher:
-        description = urdf(config.load(p.params_file))
+        # its ros2_control tag names boom_sim's topics in the namespace (as the node's own description does)
+        prefix = f"/{p.namespace}" if p.namespace else ""
+        description = urdf(config.load(p.params_file), f"{prefix}/joint_commands", f"{prefix}/joint_states")
         actions.append(
             Node(
                 package="robot_state_publisher",

@@ -11,6 +11,12 @@ The closed chain is cut open into a tree (see :mod:`kinematics`):
 With the joint values the node publishes, ``rod_eye`` lands on ``boom_rod_mount``.
 ``boom-sim urdf`` writes it; the node publishes it on robot_description; the package ships
 ``urdf/boom_crane.urdf`` for config/default.yaml (a test keeps the two equal).
+
+A ``<ros2_control>`` tag makes the node the hardware behind ros2_control: ros-controls'
+JointState topic hardware interface (:data:`HARDWARE_PLUGIN`) publishes ``boom_joint``'s
+position and velocity commands on the node's ``joint_commands`` and reads its state from
+the node's ``joint_states``; the topic names are those the node resolves (its namespace and
+remappings), by default :data:`JOINT_COMMANDS_TOPIC` and :data:`JOINT_STATES_TOPIC`.
 """
 
 from __future__ import annotations
@@ -18,12 +24,18 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
-from .geometry import stroke_angles_rad
+from .geometry import boom_angle_rad, stroke_angles_rad
 from .kinematics import base_xz, chain, pivot_height_m
 
 ROBOT_NAME = "boom_crane"
 BASE_FRAME = "base_link"
 JOINTS = ("boom_joint", "cylinder_barrel_joint", "cylinder_joint")
+#: ros2_control's hardware interface for JointState topics (package
+#: joint_state_topic_hardware_interface of ros-controls/topic_based_hardware_interfaces).
+HARDWARE_PLUGIN = "joint_state_topic_hardware_interface/JointStateTopicSystem"
+#: The node's command and state topics as a node in the root namespace resolves them.
+JOINT_COMMANDS_TOPIC = "/joint_commands"
+JOINT_STATES_TOPIC = "/joint_states"
 
 _STEEL = "0.55 0.57 0.6 1"
 _YELLOW = "0.95 0.7 0.1 1"
@@ -88,8 +100,36 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, limits: tupl
     return text + "  </joint>\n"
 
 
-def urdf(p: Any) -> str:
-    """The URDF of the crane with the dimensions of Parameters ``p``."""
+def ros2_control(p: Any, commands_topic: str = JOINT_COMMANDS_TOPIC, states_topic: str = JOINT_STATES_TOPIC) -> str:
+    """The ``<ros2_control>`` tag of the crane: the JointState topic hardware interface on the
+    node's ``commands_topic`` and ``states_topic``, and ``boom_joint`` with position and velocity
+    command and state interfaces (its position starts at the angle of ``initial_length_m``).
+    The hardware interface publishes every update (threshold -1), so that a velocity command
+    is renewed before the node's command_timeout_s ends it."""
+    alpha0 = boom_angle_rad(p.initial_length_m, p.a_m, p.b_m, p.support_height_m)
+    return (
+        f'  <ros2_control name="{ROBOT_NAME}" type="system">\n'
+        "    <hardware>\n"
+        f"      <plugin>{HARDWARE_PLUGIN}</plugin>\n"
+        f'      <param name="joint_commands_topic">{commands_topic}</param>\n'
+        f'      <param name="joint_states_topic">{states_topic}</param>\n'
+        '      <param name="trigger_joint_command_threshold">-1</param>\n'
+        "    </hardware>\n"
+        f'    <joint name="{JOINTS[0]}">\n'
+        '      <command_interface name="position"/>\n'
+        '      <command_interface name="velocity"/>\n'
+        '      <state_interface name="position">\n'
+        f'        <param name="initial_value">{_num(alpha0)}</param>\n'
+        "      </state_interface>\n"
+        '      <state_interface name="velocity"/>\n'
+        "    </joint>\n"
+        "  </ros2_control>\n"
+    )
+
+
+def urdf(p: Any, commands_topic: str = JOINT_COMMANDS_TOPIC, states_topic: str = JOINT_STATES_TOPIC) -> str:
+    """The URDF of the crane with the dimensions of Parameters ``p``, with the ros2_control tag
+    of a node whose joint commands and states are on ``commands_topic`` and ``states_topic``."""
     q_min, q_max = p.cylinder_min_length_m, p.cylinder_max_length_m
     alpha_min, alpha_max = stroke_angles_rad(p)
     beta_min, beta_max = sorted((chain(p, q_min, 0.0).barrel_rad, chain(p, q_max, 0.0).barrel_rad))
@@ -157,6 +197,7 @@ def urdf(p: Any) -> str:
         ),
         _joint("rod_eye_joint", "fixed", "cylinder_rod", "rod_eye", "0 0 0"),
         _link("rod_eye"),
+        ros2_control(p, commands_topic, states_topic),
         "</robot>\n",
     ]
     return "".join(parts)
