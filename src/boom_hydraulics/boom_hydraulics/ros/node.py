@@ -16,8 +16,10 @@ services and parameters; a lock keeps the two threads from touching the simulati
 once. Commands are applied by their stamps (see :mod:`command_queue`), which makes a run
 depend only on the commands and their times, not on wall-clock jitter. Position goals
 (MoveBoom, ~/joint_trajectory; see :mod:`motion`) hand the valve to the model core's
-position controller. Simulated time never runs backwards: a reset puts the drive back to
-rest and time goes on. The node publishes its URDF on robot_description and the crane as
+position controller; so do joint commands on joint_commands, as ros2_control's JointState
+topic hardware interface sends them (see :mod:`joint_commands`). Simulated time never runs
+backwards: a reset puts the drive back to rest and time goes on. The node publishes its
+URDF (with a ros2_control tag naming those topics) on robot_description and the crane as
 markers. Topics, services, the action and parameters: docs/ros-api.md.
 """
 
@@ -38,6 +40,7 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
@@ -63,6 +66,7 @@ from ..solve.simulation import Simulator
 from . import node_parameters as ros_parameters
 from .clock import ClockMode, Follow, NodeClock
 from .commands import CommandIntake
+from .joint_commands import JointCommands
 from .motion import Motion, Plant
 from .publishers import PublisherWatch
 from .recording import NodeRecording
@@ -156,11 +160,12 @@ class BoomSimNode(Node):
             self.resolve_topic_name("valve_command"): ValveCommand,
             self.resolve_topic_name("commands"): Float64MultiArray,
         }
+        self.joint_commands_topic = self.resolve_topic_name("joint_commands")
         self.publisher_watch = PublisherWatch(self, self.topics_as_given)
         self.recording = NodeRecording(
             self,
             self.clock.now_ns,
-            command_topics,
+            {**command_topics, self.joint_commands_topic: JointState},
             self.publisher_watch.reaching,
             record=bool(self.get_parameter("record").value),
             folder=self.get_parameter("record_folder").value,
@@ -195,6 +200,8 @@ class BoomSimNode(Node):
         )
         self.motion = Motion(plant, self.get_name(), self.get_namespace())
         self.drive.on_override = self.motion.on_override
+        self.joint_commands = JointCommands(plant, self.clock, self.motion.stop)
+        self.create_subscription(JointState, "joint_commands", self.on_joint_command, qos_profile_sensor_data, raw=True)
         self.create_subscription(
             JointTrajectory,
             "~/joint_trajectory",
@@ -414,6 +421,12 @@ class BoomSimNode(Node):
     def on_command_array(self, data: bytes, info: dict) -> None:
         self.commands.on_command_array(data, info)
 
+    @_locked
+    def on_joint_command(self, data: bytes, info: dict) -> None:
+        """A JointState on joint_commands: recorded as received, then taken (:mod:`.joint_commands`)."""
+        self.recording.received(self.joint_commands_topic, data, info)
+        self.joint_commands.on_message(deserialize_message(data, JointState))
+
     # --- services -------------------------------------------------------------------------
     @_locked
     def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
@@ -597,9 +610,11 @@ class BoomSimNode(Node):
         self.recording.publish(tick, log_ns)
 
     def publish_description(self) -> None:
-        """The URDF of the current parameters on robot_description (transient local)."""
+        """The URDF of the current parameters on robot_description (transient local), its
+        ros2_control tag naming this node's joint command and state topics as resolved."""
         if self.description_pub is not None:
-            self.recording.publish([(self.description_pub, String(data=urdf(self.sim.params)))], self.clock.now_ns())
+            description = urdf(self.sim.params, self.joint_commands_topic, self.joint_pub.topic_name)
+            self.recording.publish([(self.description_pub, String(data=description))], self.clock.now_ns())
 
     def on_second(self) -> None:
         """Once a second: diagnostics, the command topics' publishers for the bag, and a
