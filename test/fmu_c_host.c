@@ -1,7 +1,7 @@
 /* A host for the FMU that is no Python (as OMSimulator, Simulink and fmi_adapter are):
  * it loads the binary of an extracted FMU, lifts for 1 s at 10 ms steps, prints q1, tries a
- * step the FMU must refuse, and exits. The FMU's Python comes from the environment
- * (docs/fmu.md): LD_PRELOAD of libpython, PYTHONHOME and PYTHONPATH.
+ * step the FMU must refuse, and exits. The FMU needs nothing from its environment: no
+ * Python, no variable set.
  *
  *   fmu_c_host EXTRACTED_FMU_FOLDER   ->  "q1 <metres after 1 s>" and "refused <status>"
  */

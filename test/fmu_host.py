@@ -1,7 +1,13 @@
 """An FMI host for the tests: runs an exported FMU through fmpy in a process of its own and
 prints what it saw as one JSON document on stdout.
 
-    python test/fmu_host.py FMU [--set NAME=VALUE ...]
+    python test/fmu_host.py FMU [--set NAME=VALUE ...] [--path FOLDER]
+
+``--path`` puts FOLDER first on the module search path before fmpy is imported: run as
+``python -I -S test/fmu_host.py FMU --path FOLDER`` with FOLDER holding fmpy and what it
+needs alone (test/fmpy_alone.py), the FMU runs in a Python with nothing else installed, as
+a host that has never seen boom_hydraulics has it; ``isolated`` tells which of numba,
+boom_hydraulics and yaml that Python could import.
 
 Scenarios, each on fresh instances of the FMU: ``validate`` (fmpy's check of the model
 description), ``cycle`` (lift 3 s, hold 2 s, lower 3 s, hold 1 s at communication steps
@@ -10,18 +16,24 @@ before initialization), ``cycle_force`` (the same with the external rod force in
 at FORCE_CYCLE_N), ``payload`` (a payload taken on while the boom holds), ``external_force``
 (an external rod force put on the rod while the boom holds),
 ``tunable`` (a parameter set between two steps), ``refusals`` (steps the FMU must refuse,
-and what it logged) and ``lifecycle`` (reset and terminate).
+and what it logged), ``lifecycle`` (reset and terminate) and ``speed`` (the wall time of
+10 s of lift in steps of STEP_S).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import sys
+import time
 from collections.abc import Callable
 from ctypes import byref, c_char_p, c_int, c_void_p
 from typing import Any
+
+if __name__ == "__main__" and "--path" in sys.argv:  # before fmpy is imported (see the docstring)
+    sys.path.insert(0, sys.argv[sys.argv.index("--path") + 1])
 
 from fmpy import calloc, extract, free, read_model_description
 from fmpy.fmi1 import FMICallException
@@ -88,9 +100,7 @@ class Host:
 
     def set(self, fmu: FMU2Slave, name: str, value: Any) -> None:
         ref = [self.refs[name]]
-        {"Real": fmu.setReal, "Integer": fmu.setInteger, "String": fmu.setString}[self.types[name]](
-            ref, [value.encode() if isinstance(value, str) else value]
-        )
+        {"Real": fmu.setReal, "Integer": fmu.setInteger, "String": fmu.setString}[self.types[name]](ref, [value])
 
     def outputs(self, fmu: FMU2Slave) -> list[float]:
         return fmu.getReal([self.refs[name] for name in OUTPUTS])
@@ -187,6 +197,22 @@ def refusals(host: Host) -> dict[str, Any]:
     result["after_refusals"] = host.outputs(fmu)
     host.set(fmu, "time_step_s", 0.001)
     result["drifted"] = host.refused(lambda: fmu.doStep(0.5 + 2e-8, STEP_S))  # a host's sum of steps
+    before_drive = host.outputs(fmu)
+    host.set(fmu, "drive", "fixed_pump")
+    result["drive"] = host.refused(lambda: fmu.doStep(0.51, STEP_S))
+    result["drive"]["after"] = host.outputs(fmu)
+    result["drive"]["before"] = before_drive
+    fmu.terminate()
+    fmu.freeInstance()
+    # a time step so small that no step size is a number of them the FMU takes
+    fmu = host.instance({"time_step_s": 1e-300})
+    result["tiny_time_step"] = host.refused(lambda: fmu.doStep(0.0, STEP_S))
+    fmu.terminate()
+    fmu.freeInstance()
+    # a drive chosen before initialization is the one that runs
+    fmu = host.instance({"drive": "fixed_pump"})
+    host.run(fmu, 0.5, lambda t: 1.0)
+    result["fixed_pump"] = host.outputs(fmu)
     fmu.terminate()
     fmu.freeInstance()
     # a step the simulation cannot finish: end stops this stiff need more substeps than it takes
@@ -225,10 +251,22 @@ def lifecycle(host: Host) -> dict[str, Any]:
     }
 
 
+def speed(host: Host) -> float:
+    """Seconds of wall time that 10 s of lift at steps of STEP_S take, outputs read after each."""
+    fmu = host.instance()
+    start = time.perf_counter()
+    host.run(fmu, 10.0, lambda t: 1.0 if t < 3.0 else 0.0)
+    seconds = time.perf_counter() - start
+    fmu.terminate()
+    fmu.freeInstance()
+    return seconds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("fmu")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--path", help="a folder to import fmpy from, first on the search path")
     args = parser.parse_args()
     parameters = {}
     for assignment in args.set:
@@ -236,6 +274,7 @@ def main() -> None:
         parameters[name] = float(value)
     host = Host(args.fmu)
     report = {
+        "isolated": {name: importlib.util.find_spec(name) is not None for name in ("numba", "boom_hydraulics", "yaml")},
         "validate": validate_fmu(args.fmu),
         "cycle": cycle(host, {}),
         "cycle_set": cycle(host, parameters),
@@ -245,6 +284,7 @@ def main() -> None:
         "tunable": tunable(host),
         "refusals": refusals(host),
         "lifecycle": lifecycle(host),
+        "speed": speed(host),
     }
     json.dump(report, sys.stdout)
 

@@ -1,5 +1,6 @@
-"""boom-sim fmu: the physical drive as an FMI 2.0 co-simulation FMU, run by fmpy in a
-process of its own (test/fmu_host.py) and held to boom-sim's own runs."""
+"""boom-sim fmu: the physical drive as an FMI 2.0 co-simulation FMU that needs no Python,
+run by fmpy in a Python that has fmpy alone (test/fmu_host.py, test/fmpy_alone.py) and by a
+C host with no Python at all (test/fmu_c_host.c), and held to boom-sim's own runs."""
 
 from __future__ import annotations
 
@@ -9,13 +10,13 @@ import os
 import shutil
 import subprocess
 import sys
-import sysconfig
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import CONFIG
+from fmpy_alone import fmpy_alone
 
 from boom_hydraulics.model.geometry import static_rod_force_of
 from boom_hydraulics.model.parameters import Parameters, with_updates
@@ -52,16 +53,34 @@ def fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def report(fmu: Path) -> dict:
-    """What the host saw, in a process of its own: fmpy loads the FMU's binary there."""
+def report(fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """What the host saw, in a Python of its own that has fmpy and its requirements alone
+    (isolated, no site-packages): fmpy loads the FMU's binary there."""
+    alone = fmpy_alone(tmp_path_factory.mktemp("fmpy_alone"))
     result = subprocess.run(
-        [sys.executable, HOST, fmu, "--set", f"supply_pressure_pa={SUPPLY_PA!r}"],
+        [sys.executable, "-I", "-S", HOST, fmu, "--set", f"supply_pressure_pa={SUPPLY_PA!r}", "--path", alone],
         capture_output=True,
         text=True,
         timeout=600,
+        env=_without_python(),
     )
     assert result.returncode == 0, result.stderr  # also: the host exits cleanly
     return json.loads(result.stdout)
+
+
+def _without_python() -> dict[str, str]:
+    """This environment without the variables that tell a Python or a loader where to look."""
+    return {
+        key: value
+        for key, value in os.environ.items()
+        if not key.startswith("PYTHON") and key not in ("LD_PRELOAD", "LD_LIBRARY_PATH", "VIRTUAL_ENV")
+    }
+
+
+def test_the_host_runs_it_in_a_python_that_has_fmpy_alone(report: dict) -> None:
+    """The host's Python imports none of what boom-sim runs on: the FMU carries the drive."""
+    assert report["isolated"] == {"numba": False, "boom_hydraulics": False, "yaml": False}
+    assert len(report["cycle"]["rows"]) == 901  # ... and ran it
 
 
 def _cycle_csv(folder: Path, *sets: str) -> dict[str, np.ndarray]:
@@ -113,8 +132,22 @@ def test_the_model_description_validates_and_names_units(fmu: Path, report: dict
     assert (volt.kg, volt.m, volt.s, volt.A) == (1, 2, -3, -1)
     assert variables["bulk_modulus_pa"].variability == "tunable"
     assert variables["initial_length_m"].variability == "fixed"
+    assert (variables["drive"].variability, variables["drive"].start) == ("fixed", "pressure_compensated")
     assert float(variables["supply_pressure_pa"].start) == 16.0e6  # the config's value
     assert "mode" not in variables  # the physical drive only
+
+
+def test_the_model_description_offers_the_units_a_fluid_power_engineer_reads(fmu: Path) -> None:
+    from fmpy import read_model_description
+
+    description = read_model_description(str(fmu))
+    variables = {v.name: v for v in description.modelVariables}
+    shown = {name: variables[name].displayUnit for name in ("p1", "q1", "alpha")}
+    assert shown == {"p1": "bar", "q1": "mm", "alpha": "deg"}
+    assert variables["pump_max_flow_m3_s"].displayUnit == "L/min"
+    factors = {(u.name, d.name): d.factor for u in description.unitDefinitions for d in u.displayUnits}
+    assert factors[("Pa", "bar")] == 1e-5 and factors[("m3/s", "L/min")] == 6e4
+    assert factors[("m", "mm")] == 1e3 and factors[("rad", "deg")] == pytest.approx(57.29577951308232)
 
 
 def test_a_lift_hold_lower_cycle_equals_boom_sims_run(report: dict, tmp_path: Path) -> None:
@@ -188,7 +221,7 @@ def test_an_external_force_on_the_held_boom_is_taken_off_the_hydraulic_force(rep
 def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
     refused = report["refusals"]
     odd = refused["odd_step"]
-    assert odd["status"] == DISCARD and odd["terminated"]
+    assert odd["status"] == DISCARD and not odd["terminated"]  # a shorter step from there may go on
     assert odd["last_successful_s"] == 0.5 and odd["after"] == refused["before"]
     assert "0.0015 s" in odd["message"] and "time_step_s" in odd["message"]
     reasons = {
@@ -207,6 +240,20 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
     assert refused["drifted"]["status"] == 0  # a host's time a little off the FMU's is taken as it
 
 
+def test_the_drive_is_fixed_once_the_run_has_started(report: dict) -> None:
+    refused = report["refusals"]
+    drive = refused["drive"]
+    assert drive["status"] == DISCARD and "drive can only be set before initialization" in drive["message"]
+    assert drive["after"] == drive["before"]
+    assert refused["fixed_pump"][1] != report["tunable"]["before"][1]  # chosen before: the paper's circuit runs
+
+
+def test_a_time_step_too_small_for_any_step_is_refused_not_fatal(report: dict) -> None:
+    tiny = report["refusals"]["tiny_time_step"]
+    assert tiny["status"] == DISCARD and "not a whole number" in tiny["message"]
+    assert "\n" not in tiny["message"]
+
+
 def test_a_step_the_simulation_cannot_finish_is_not_taken(report: dict) -> None:
     stiff = report["refusals"]["too_stiff"]
     assert stiff["status"] == DISCARD and "too stiff at t = " in stiff["message"]
@@ -223,18 +270,13 @@ def test_reset_and_terminate(report: dict) -> None:
     assert "terminated" in life["after_terminate"]["message"]
 
 
-def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
-    fmu: Path, report: dict, tmp_path: Path
-) -> None:
-    """A C host, as OMSimulator, Simulink and fmi_adapter are, with the environment
-    docs/fmu.md gives (fmu.host_environment: libpython preloaded, PYTHONHOME, PYTHONPATH):
-    the same lift as fmpy's, a refused step, and a clean exit."""
+def test_a_host_that_is_no_python_runs_it_with_nothing_set(fmu: Path, report: dict, tmp_path: Path) -> None:
+    """A C host, as OMSimulator, Simulink and fmi_adapter are, with no Python variable in its
+    environment: the same lift as fmpy's, a refused step, and a clean exit."""
     compiler = shutil.which("cc")
-    if compiler is None or not sysconfig.get_config_var("Py_ENABLE_SHARED"):
-        pytest.skip("needs a C compiler and a Python built with a shared libpython")
+    if compiler is None:
+        pytest.skip("needs a C compiler")
     import fmpy
-
-    from boom_hydraulics.fmu.host_environment import environment
 
     host = tmp_path / "host"
     headers = Path(fmpy.__file__).parent / "c-code"  # fmpy ships the FMI 2.0 headers
@@ -242,49 +284,23 @@ def test_a_host_that_is_no_python_runs_it_in_the_documented_environment(
     folder = tmp_path / "boom_drive"
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(folder)
-    env = dict(os.environ, **environment(sys.path))
-    result = subprocess.run([host, folder], env=env, capture_output=True, text=True, timeout=300)
+    result = subprocess.run([host, folder], env=_without_python(), capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr  # 0: it also exits cleanly
     said = dict(line.split(" ", 1) for line in result.stdout.splitlines() if line.startswith(("q1 ", "refused ")))
     assert float(said["q1"]) == report["lifecycle"]["default"][1]  # 1 s of lift, as in fmpy
     assert said["refused"] == str(DISCARD) and "not a whole number of the drive's time steps" in result.stdout
+    linked = subprocess.run(["ldd", folder / "binaries" / "linux64" / "boom_drive.so"], capture_output=True, text=True)
+    assert "python" not in linked.stdout.lower()  # no libpython: nothing of Python's is needed
 
 
 # --- the command line ---------------------------------------------------------------------
-
-
-def test_an_fmu_of_other_variables_than_the_installed_package_refuses_to_start(fmu: Path, tmp_path: Path) -> None:
-    from boom_hydraulics.errors import ConfigError
-    from boom_hydraulics.fmu.slave import BoomDrive
-
-    with zipfile.ZipFile(fmu) as archive:
-        archive.extractall(tmp_path)
-    resources = tmp_path / "resources"
-    assert BoomDrive(instance_name="as exported", resources=str(resources)).params == Parameters()
-    names = (resources / "variables.txt").read_text().split()
-    (resources / "variables.txt").write_text("".join(f"{name}\n" for name in names[:-1]))  # an older FMU
-    with pytest.raises(ConfigError, match="export it again with this installation's boom-sim fmu"):
-        BoomDrive(instance_name="older", resources=str(resources))
-
-
-def test_the_host_environment_prints_shell_exports() -> None:
-    result = subprocess.run(
-        [sys.executable, "-m", "boom_hydraulics.fmu.host_environment"], capture_output=True, text=True, timeout=60
-    )
-    if result.returncode == 1:  # a Python without a shared libpython: said in one line
-        assert result.stderr.startswith("host_environment: error: ") and result.stderr.count("\n") == 1
-        return
-    assert result.returncode == 0, result.stderr
-    exported = dict(line.removeprefix("export ").split("=", 1) for line in result.stdout.splitlines())
-    assert set(exported) == {"LD_PRELOAD", "PYTHONHOME", "PYTHONPATH"}
-    assert Path(exported["LD_PRELOAD"]).is_file() and exported["PYTHONHOME"] == sys.base_prefix
 
 
 def test_fmu_holds_the_drive_its_parameters_and_the_binaries(fmu: Path) -> None:
     with zipfile.ZipFile(fmu) as archive:
         names = set(archive.namelist())
         parameters = archive.read("resources/boom_drive.yaml").decode()
-    assert {"modelDescription.xml", "binaries/linux64/boom_drive.so", "resources/boom_drive_fmu.py"} <= names
+    assert names == {"modelDescription.xml", "binaries/linux64/boom_drive.so", "resources/boom_drive.yaml"}
     assert "    supply_pressure_pa: 16000000.0\n" in parameters
 
 
@@ -292,7 +308,8 @@ def test_fmu_holds_the_drive_its_parameters_and_the_binaries(fmu: Path) -> None:
     ("args", "message"),
     [
         (("--config", CONFIG / "paper_fig8.yaml"), "the FMU is the physical drive; mode is 'paper'"),
-        (("--config", CONFIG / "default.yaml", "--set", "method=rk45"), "method 'rk45' has no fixed step"),
+        (("--config", CONFIG / "default.yaml", "--set", "method=rk45"), "method 'rk45' has no explicit fixed step"),
+        (("--config", CONFIG / "default.yaml", "--set", "method=ros2"), "method 'ros2' has no explicit fixed step"),
         (("--config", CONFIG / "default.yaml", "--set", "piston_diameter_m=-1"), "piston_diameter_m"),
     ],
 )
@@ -318,12 +335,22 @@ def test_fmu_refuses_an_output_that_is_or_holds_its_config(tmp_path: Path) -> No
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.yaml"]
 
 
+def test_fmu_without_a_c_compiler_says_so_in_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "boom_drive.fmu"
+    env = dict(os.environ, CC=str(tmp_path / "no-such-cc"))
+    result = subprocess.run([BOOM_SIM, "fmu", "--config", CONFIG / "default.yaml", "--out", out],
+                            capture_output=True, text=True, timeout=300, env=env)  # fmt: skip
+    assert result.returncode == 2
+    assert result.stderr.startswith("boom-sim: error: no C compiler") and result.stderr.count("\n") == 1
+    assert not out.exists()
+
+
 def test_nothing_of_the_build_is_left_in_the_exporting_process(tmp_path: Path) -> None:
     from boom_hydraulics.fmu.export import write_fmu
 
-    path_before, modules_before = list(sys.path), set(sys.modules)
+    path_before = list(sys.path)
     write_fmu(Parameters(), tmp_path / "boom_drive.fmu")
     assert sys.path == path_before
-    assert "boom_drive_fmu" not in set(sys.modules) - modules_before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["boom_drive.fmu"]
     with zipfile.ZipFile(tmp_path / "boom_drive.fmu") as archive:
         assert archive.testzip() is None

@@ -23,7 +23,7 @@ def register(
 
 
 def run(args: argparse.Namespace, load: Callable[[argparse.Namespace], Parameters]) -> int:
-    from ..fmu.export import write_fmu  # pythonfmu: only for this subcommand
+    from ..fmu.export import write_fmu  # numba and the C compiler: only for this subcommand
 
     params = load(args)
     write_fmu(params, Path(args.out))

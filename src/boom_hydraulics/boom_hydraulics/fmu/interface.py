@@ -4,9 +4,9 @@
   communication step).
 - Outputs: rod position, velocity and force, both chamber pressures, boom angle, supply
   power and energy, under the names boom-sim's CSV columns have (model.outputs).
-- Parameters: every numeric plant parameter the solvers read, with its unit (tunable: a new
-  value applies from the next communication step on), and the solver's method, time step
-  and substeps and the initial rod state (fixed: set before initialization).
+- Parameters: every plant parameter the solvers read, with its unit (tunable: a new value
+  applies from the next communication step on), and the solver's method, time step and
+  substeps, the drive and the initial rod state (fixed: set before initialization).
 
 The mode is physical (the corrected drive), and the payload and the external rod force
 (``f_ext``, the model's ``external_rod_force_n``) are inputs, so none of them is a
@@ -21,15 +21,13 @@ from dataclasses import dataclass
 
 from ..model.outputs import OUTPUTS as MODEL_OUTPUTS
 from ..model.parameters import UNSOLVED, Parameters, describe, names_in
-from ..solve.integrators import FIXED_STEP
+from ..solve.integrators import FIXED_STEP, METHODS
 
 #: The FMU's model identifier: the name of its binary and of its model.
 MODEL_IDENTIFIER = "boom_drive"
-#: Files the FMU carries in its resources folder: the exported parameters (a ROS 2 params
-#: YAML, read back by model.config) and the names of its variables in the order of their
-#: value references (what the installed package must still offer at run time).
+#: The file the FMU carries in its resources folder: the parameters it was exported with (a
+#: ROS 2 params YAML, as boom-sim reads it), for a person to read; the binary holds them too.
 PARAMETERS_FILE = "boom_drive.yaml"
-VARIABLES_FILE = "variables.txt"
 
 VALVE_COMMAND = "valve_command"
 PAYLOAD = "payload_mass_kg"
@@ -91,8 +89,9 @@ OUTPUT_NAMES = ("q1", "v", "f_hyd", "p1", "p2", "alpha", "power", "supply_energy
 _MODEL_OUTPUTS = {name: (unit, description) for name, unit, description in MODEL_OUTPUTS}
 OUTPUTS = tuple(Variable(name, "output", "float", *_MODEL_OUTPUTS[name]) for name in OUTPUT_NAMES)
 
-#: Parameters that only take effect at initialization: the solver's and the initial rod state.
-FIXED = ("method", "time_step_s", "substeps", "initial_length_m", "initial_velocity_m_s")
+#: Parameters that only take effect at initialization: the solver's, the drive (the circuit, and
+#: with it the meaning of the drive's state) and the initial rod state.
+FIXED = ("method", "time_step_s", "substeps", "drive", "initial_length_m", "initial_velocity_m_s")
 #: Plant parameters that are not FMU parameters: the mode is physical, the payload and the
 #: external rod force inputs, and the drives' parameters that no solver reads yet (as the
 #: node does not declare them).
@@ -122,11 +121,19 @@ PARAMETERS = tuple(
 VARIABLES = (*INPUTS, *OUTPUTS, *PARAMETERS)
 
 
+#: The methods the native FMU steps with: the explicit ones (ros2's stages are arrays, which
+#: need numba's runtime, which the FMU does not carry).
+NATIVE_METHODS = tuple(name for name in FIXED_STEP if not METHODS[name].halving)
+
+
 def unsupported(params: Parameters) -> str | None:
     """Why the FMU cannot run ``params`` (None: it can): it is the physical drive, stepped by
-    the compiled fixed-step kernel."""
+    the compiled fixed-step loop of an explicit method."""
     if params.mode != "physical":
         return f"the FMU is the physical drive; mode is {params.mode!r}: set mode: physical"
-    if params.method not in FIXED_STEP:
-        return f"method {params.method!r} has no fixed step for the FMU to take; choose one of {', '.join(FIXED_STEP)}"
+    if params.method not in NATIVE_METHODS:
+        return (
+            f"method {params.method!r} has no explicit fixed step for the FMU to take; "
+            f"choose one of {', '.join(NATIVE_METHODS)}"
+        )
     return None

@@ -9,6 +9,8 @@ which those tools read.
 
 from __future__ import annotations
 
+import math
+
 #: The base units of FMI 2.0's BaseUnit element, in its order.
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
@@ -62,3 +64,26 @@ def base_factor(unit: str) -> float:
             symbol, _, power = item.partition("^")
             factor *= FACTORS.get(symbol, 1.0) ** (sign * int(power or 1))
     return factor
+
+
+#: The units a fluid-power engineer reads beside the SI ones, by the SI unit's name (as
+#: :func:`unit_name` writes it): (name, factor) with display value = factor x SI value, the
+#: first the one a tool shows by default (the variables' ``displayUnit``).
+DISPLAY_UNITS: dict[str, tuple[tuple[str, float], ...]] = {
+    "Pa": (("bar", 1.0e-5), ("MPa", 1.0e-6)),
+    "m3/s": (("L/min", 6.0e4),),
+    "m": (("mm", 1.0e3),),
+    "m/s": (("mm/s", 1.0e3),),
+    "rad": (("deg", 180.0 / math.pi),),
+    "rad/s": (("deg/s", 180.0 / math.pi), ("rpm", 30.0 / math.pi)),
+    "m3": (("L", 1.0e3), ("cm3", 1.0e6)),
+    "N": (("kN", 1.0e-3),),
+    "W": (("kW", 1.0e-3),),
+    "J": (("kJ", 1.0e-3),),
+    "m3/(s.Pa)": (("L/(min.bar)", 6.0e9),),
+}
+
+
+def display_units(unit: str) -> tuple[tuple[str, float], ...]:
+    """The display units of a model unit (``'Pa'`` -> bar and MPa); none for most."""
+    return DISPLAY_UNITS.get(unit_name(unit), ())

@@ -1,0 +1,178 @@
+"""The drive's compiled code as one object file that C links: the model's own functions, compiled by numba.
+
+The native FMU (docs/fmu.md) steps the same code boom-sim steps: one ``numba.cfunc``,
+:func:`entry`, with a C signature over pointers to doubles, calls the functions the
+Simulator's kernel calls (:func:`stepping.advance` with the method's step and the model's
+``derivative``, ``stiffness_rate`` and ``energy``; the model's ``outputs``; the geometry's
+``within_triangle``), and the parameters' derivations that the Simulator runs in Python when
+it starts or changes parameters: the model's ``constants`` and ``initial_state``. Those two
+are written for Python, not for numba; :mod:`.rewrite` hands numba their own source with the
+few constructs it cannot compile spelled otherwise (the same expressions, in the same order).
+
+A parameter set is a row of doubles in the order of :data:`ROW` (every scalar field of
+Parameters; a string field as the index of its value among its choices). numba's code
+library hands back the object file it compiled (a private API, used by numba's own cache:
+``_get_compiled_object``, checked against numba 0.68, pinned in requirements.txt). The
+object's C-ABI wrapper is renamed ``boom_native``; on an error it calls a few Python C-API
+and numba runtime functions, which the C wrapper (native/fmi2_slave.c) defines as stubs
+that flag the error.
+
+``boom_native(op, a, b, c, d) -> int32``, ``op`` one of :data:`OPERATIONS`; it returns 1 +
+the operation's result (0: the compiled code raised).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import namedtuple
+from typing import Any
+
+from ..model import geometry
+from ..model import physical as model
+from ..model.outputs import OUTPUT_NAMES
+from ..model.parameters import Parameters, describe
+from ..solve import integrators, stepping
+from ..solve.physical_kernel import constants_of, state_of
+from . import rewrite
+
+#: The C name of the entry point.
+SYMBOL = "boom_native"
+#: The operations of :func:`entry` (its first argument).
+CONSTANTS, INITIAL_STATE, STEP, OUTPUTS, ENERGY, WITHIN = range(6)
+OPERATIONS = {
+    "CONSTANTS": CONSTANTS,
+    "INITIAL_STATE": INITIAL_STATE,
+    "STEP": STEP,
+    "OUTPUTS": OUTPUTS,
+    "ENERGY": ENERGY,
+    "WITHIN": WITHIN,
+}
+#: What the model's state, its Constants and its outputs hold.
+N_STATE = len(model.STATE_NAMES)
+N_CONSTANTS = len(model.Constants._fields)
+N_OUTPUTS = len(OUTPUT_NAMES)
+#: The arguments of a STEP: t, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base.
+STEP_ARGUMENTS = 9
+
+
+def _scalar_fields() -> tuple[dataclasses.Field, ...]:
+    defaults = Parameters()
+    return tuple(f for f in dataclasses.fields(Parameters) if not isinstance(getattr(defaults, f.name), list))
+
+
+#: The row of a parameter set: every scalar field of Parameters, in their order.
+ROW = tuple(f.name for f in _scalar_fields())
+
+
+def kind_of(name: str) -> str:
+    """'str', 'int' or 'float': how a row's entry is read."""
+    return describe(name)["type"]
+
+
+def choices_of(name: str) -> tuple[str, ...]:
+    """The values a string parameter takes, in the order of their codes in a row."""
+    return tuple(describe(name)["choices"])
+
+
+def row_of(params: Parameters) -> list[float]:
+    """``params`` as a row (strings as the indices of their values)."""
+    row = []
+    for name in ROW:
+        value = getattr(params, name)
+        row.append(float(choices_of(name).index(value)) if kind_of(name) == "str" else float(value))
+    return row
+
+
+#: A stand-in for Parameters that compiled code builds from a row: a NamedTuple of the same fields.
+Surrogate = namedtuple("Surrogate", ROW)  # type: ignore[misc]
+
+
+def _surrogate_builder() -> Any:
+    """A jitable ``surrogate_of(row)``: the Surrogate of a row, its strings the literals of their choices."""
+    lines = ["def surrogate_of(row):"]
+    arguments = []
+    for k, name in enumerate(ROW):
+        kind = kind_of(name)
+        if kind == "str":
+            lines.append(f"    code{k} = row[{k}]")
+            lines.append(f"    s{k} = {choices_of(name)[-1]!r}")
+            for j, choice in enumerate(choices_of(name)[:-1]):
+                lines.append(f"    if code{k} == {float(j)!r}:")
+                lines.append(f"        s{k} = {choice!r}")
+            arguments.append(f"s{k}")
+        elif kind == "int":
+            arguments.append(f"int(row[{k}])")
+        else:
+            arguments.append(f"row[{k}]")
+    lines.append(f"    return Surrogate({', '.join(arguments)})")
+    namespace: dict[str, Any] = {"Surrogate": Surrogate}
+    exec(compile("\n".join(lines), "<fmu.native.surrogate_of>", "exec"), namespace)
+    return rewrite.jitable_copy(namespace["surrogate_of"])
+
+
+def entry(method: str) -> Any:
+    """The compiled ``boom_native`` of the physical model stepped by ``method`` (euler or rk4)."""
+    import numba
+    from numba import carray, types
+
+    step = integrators.METHODS[method].step
+    surrogate_of = _surrogate_builder()
+    constants = rewrite.model_constants()
+    initial_state = rewrite.model_initial_state()
+    derivative, stiffness_rate, energy, outputs = model.derivative, model.stiffness_rate, model.energy, model.outputs
+    within_triangle = geometry.within_triangle
+    n_row, n_state, n_constants, n_outputs = len(ROW), N_STATE, N_CONSTANTS, len(OUTPUT_NAMES)
+    double_p = types.CPointer(types.float64)
+    signature = types.int32(types.int32, double_p, double_p, double_p, double_p)
+
+    @numba.cfunc(signature, error_model="numpy")
+    def boom_native(op: int, a: Any, b: Any, c: Any, d: Any) -> int:
+        if op == CONSTANTS:  # a: row -> b: constants
+            values = constants(surrogate_of(carray(a, (n_row,))))
+            out = carray(b, (n_constants,))
+            for i in range(n_constants):
+                out[i] = values[i]
+            return 1
+        if op == INITIAL_STATE:  # a: row -> b: state
+            y0 = initial_state(surrogate_of(carray(a, (n_row,))))
+            out = carray(b, (n_state,))
+            for i in range(n_state):
+                out[i] = y0[i]
+            return 1
+        if op == STEP:  # a: state (in and out), b: constants, c: STEP_ARGUMENTS, d: (steps taken, most substeps)
+            y = carray(a, (n_state,))
+            r = carray(c, (STEP_ARGUMENTS,))
+            info = carray(d, (2,))
+            done, outcome, most, y_new = stepping.advance(
+                step, derivative, stiffness_rate, energy, r[0], state_of(y), constants_of(carray(b, (n_constants,))),
+                r[1], r[2], int(r[3]), r[4], int(r[5]), int(r[6]), int(r[7]), r[8],
+            )  # fmt: skip
+            for i in range(n_state):
+                y[i] = y_new[i]
+            info[0] = done
+            info[1] = most
+            return 1 + outcome
+        if op == OUTPUTS:  # a: state, b: constants, c: (t, u) -> d: outputs
+            r = carray(c, (2,))
+            values = outputs(r[0], state_of(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))), r[1])
+            out = carray(d, (n_outputs,))
+            for i in range(n_outputs):
+                out[i] = values[i]
+            return 1
+        if op == ENERGY:  # a: state, b: constants -> d: the stored energy H, J
+            out = carray(d, (1,))
+            out[0] = energy(state_of(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))))
+            return 1
+        if op == WITHIN:  # a: (q1, a, b) -> whether q1 lies in the triangle of eq. 1
+            r = carray(a, (3,))
+            return 2 if within_triangle(r[0], r[1], r[2]) else 1
+        return 0
+
+    return boom_native
+
+
+def object_code(method: str) -> tuple[bytes, str]:
+    """The ELF object file numba compiled :func:`entry` of ``method`` into, and the name of its C-ABI wrapper."""
+    compiled = entry(method)
+    library = compiled._library
+    return library._get_compiled_object(), compiled.native_name
