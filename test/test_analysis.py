@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 
+import figure_checks
 import numpy as np
 import pytest
 from conftest import run_tool
@@ -183,3 +184,55 @@ def test_a_full_disk_names_the_result_file_and_leaves_no_staging_folder(tmp_path
         assert list(disk.iterdir()) == []  # neither the staging folder nor the results folder it made
     finally:
         subprocess.run(["umount", str(disk)], check=True)
+
+
+@pytest.fixture
+def written_figures(monkeypatch):
+    """The figures boom-analyze's plots write, kept where they close them (as written)."""
+    from boom_hydraulics.analysis import plots
+
+    kept: list = []
+    close = plots.plt.close
+    monkeypatch.setattr(
+        plots.plt, "close", lambda fig=None: kept.append(fig) if hasattr(fig, "savefig") else close(fig)
+    )
+    yield kept
+    for fig in kept:
+        close(fig)
+
+
+#: Names of three bags, as boom-analyze labels them: a recording and two re-simulations.
+BAGS = ("20261206-200849_boom_sim", "20261206-200849_boom_sim-63mm", "20261206-200849_boom_sim-pump_controlled")
+
+
+def test_the_energy_plot_of_compared_runs_names_its_terms_in_words_and_fits(tmp_path, written_figures):
+    from boom_hydraulics.analysis import labels, plots
+
+    energies = {name: 1e3 * (k + 1) for k, name in enumerate(plots.BREAKDOWN_TERMS)} | {"battery_returned": 2e3}
+    title = "Where the battery's energy went over each run (above each bar: drawn less returned)"
+    for bags in (BAGS[:1], BAGS):
+        plots.energy_breakdown([(bag, energies, 3e4) for bag in bags], title, tmp_path / "energy.png")
+        fig = written_figures[-1]
+        assert figure_checks.cut_titles(fig) == []  # the title whole, on one figure
+        assert figure_checks.overlapping_tick_labels(fig) == []  # each run's name readable
+        key = figure_checks.legend_texts(fig)
+        assert key == [labels.term_words(n) for n in (*plots.BREAKDOWN_TERMS, "battery_returned")]
+        assert figure_checks.code_names(key) == []  # in words: "motor and inverter", not motor_loss
+        assert [t.get_text().replace("\n", "") for t in fig.axes[0].get_xticklabels()] == list(bags)
+
+
+def test_the_runs_of_figs_8_to_10_are_named_where_they_cover_no_curve(tmp_path, trajectory, written_figures):
+    from boom_hydraulics.analysis import plots
+
+    plots.dynamics([(bag, trajectory.columns) for bag in BAGS], tmp_path / "dynamics.png")
+    plots.drive([(bag, trajectory.columns) for bag in BAGS], tmp_path / "drive.png")
+    for fig in written_figures:
+        renderer = figure_checks.drawn(fig)
+        key = [legend for ax in fig.axes if (legend := ax.get_legend()) is not None] + list(fig.legends)
+        assert [t.get_text() for legend in key for t in legend.get_texts()] == list(BAGS)
+        (box,) = [legend.get_window_extent(renderer) for legend in key]
+        assert not any(box.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)  # over no panel
+        assert figure_checks.cut_titles(fig) == []
+        assert figure_checks.overlapping_axis_labels(fig) == []  # each panel's quantity readable
+        for ax in fig.axes:
+            assert ax.get_ylabel().endswith("]")  # with its unit
