@@ -97,6 +97,41 @@ def test_the_shipped_urdf_is_that_of_config_default_yaml_and_follows_its_dimensi
     assert limits["boom_joint"][0] < 0.0 < math.radians(30) < limits["boom_joint"][1]
 
 
+def test_the_ros2_control_tag_drives_boom_joint_through_the_node_s_joint_topics():
+    """The tag ros2_control reads: the JointState topic hardware interface on the node's topics
+    (a namespaced node's when asked), boom_joint (the URDF's revolute boom joint) with position
+    and velocity interfaces, its position starting at the angle of the initial cylinder length."""
+    import xml.etree.ElementTree as ElementTree
+
+    from boom_hydraulics.model.geometry import boom_angle_rad
+
+    p = config.load(ROOT / "config" / "default.yaml")
+    for robot, topics in (
+        (
+            ElementTree.fromstring((PACKAGE / "urdf" / "boom_crane.urdf").read_text()),
+            ("/joint_commands", "/joint_states"),
+        ),
+        (
+            ElementTree.fromstring(urdf(p, "/crane1/joint_commands", "/crane1/joint_states")),
+            ("/crane1/joint_commands", "/crane1/joint_states"),
+        ),
+    ):
+        (control,) = robot.findall("ros2_control")
+        assert control.get("type") == "system"
+        hardware = control.find("hardware")
+        assert hardware.findtext("plugin") == "joint_state_topic_hardware_interface/JointStateTopicSystem"
+        params = {e.get("name"): e.text for e in hardware.findall("param")}
+        assert (params["joint_commands_topic"], params["joint_states_topic"]) == topics
+        assert float(params["trigger_joint_command_threshold"]) < 0.0  # every update is published
+        (joint,) = control.findall("joint")
+        urdf_joints = {j.get("name"): j for j in robot.findall("joint")}
+        assert urdf_joints[joint.get("name")].get("type") == "revolute" and joint.get("name") == "boom_joint"
+        assert [c.get("name") for c in joint.findall("command_interface")] == ["position", "velocity"]
+        assert [c.get("name") for c in joint.findall("state_interface")] == ["position", "velocity"]
+        initial = float(joint.find("state_interface/param[@name='initial_value']").text)
+        assert initial == pytest.approx(boom_angle_rad(p.initial_length_m, p.a_m, p.b_m, p.support_height_m), abs=1e-5)
+
+
 def _distinct(p: Parameters, **flags) -> dict:
     out = {"q1": 1.5, "p1": 8.0e6, "p2": 1.0e5, "void1": 0.0, "void2": 0.0}
     out.update(flags)
