@@ -222,6 +222,9 @@ def test_an_interrupted_sweep_keeps_its_finished_batches_and_says_how_to_resume(
         (["--scenario", "hover"], "unknown scenario 'hover'"),
         (["--require", "peak<=1"], "unknown metric 'peak'"),
         (["--duration", "nan"], "--duration must be a finite number"),
+        # it blamed the config's command_times_s, which the user never set
+        (["--duration", "1e12"], "--duration 1e+12 s is longer than a scenario's commands can span"),
+        (["--duration", "1000000.5"], "choose a duration of at most 1e+06 s"),
         (["--vary", "payload=0,100", "--across", "bulk_modulus"], "--across bulk_modulus_pa: not a varied parameter"),
         (["--workers", "2", "--scheduler", "tcp://localhost:8786"], "not allowed with argument"),
     ],

@@ -178,9 +178,16 @@ def _extreme(configs: Sequence[tuple[str, Parameters]], axes: Sequence[Axis], na
 
 
 def check_duration(duration_s: float) -> None:
-    """Raise ConfigError unless ``duration_s`` is a positive, finite number of seconds."""
+    """Raise ConfigError unless ``duration_s`` is a positive, finite number of seconds that a
+    scenario's commands can span: a command's time is at most command_times_s's upper bound."""
     if not (duration_s > 0 and math.isfinite(duration_s)):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s}")
+    longest = describe("command_times_s")["high"]
+    if duration_s > longest:
+        raise ConfigError(
+            f"--duration {duration_s:g} s is longer than a scenario's commands can span (a command's time is at "
+            f"most {longest:g} s); choose a duration of at most {longest:g} s"
+        )
 
 
 def estimate(
