@@ -354,3 +354,39 @@ def test_nothing_of_the_build_is_left_in_the_exporting_process(tmp_path: Path) -
     assert sorted(p.name for p in tmp_path.iterdir()) == ["boom_drive.fmu"]
     with zipfile.ZipFile(tmp_path / "boom_drive.fmu") as archive:
         assert archive.testzip() is None
+
+
+# --- the model's own code, compiled for the FMU ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {},
+        {"drive": "fixed_pump", "load_holding_valve": "none", "spool_time_constant_s": 0.0},
+        {"drive": "load_sensing", "payload_mass_kg": 321.0, "external_rod_force_n": -1500.0},
+        {"drive": "pump_controlled", "motor_time_constant_s": 0.0, "static_friction_n": 0.0, "coulomb_friction_n": 0.0},
+        {"initial_length_m": 1.6, "initial_velocity_m_s": 0.1, "supply_pressure_pa": 12.0e6},
+    ],
+)
+def test_the_fmus_parameter_derivations_are_the_models_to_the_bit(changes: dict) -> None:
+    """The constants and the state at rest the FMU derives in compiled code when a host sets a
+    parameter are model.physical's own (fmu.rewrite compiles their source), for every drive."""
+    import numba
+
+    from boom_hydraulics.fmu import native, rewrite
+    from boom_hydraulics.model import physical
+
+    surrogate_of, constants, initial_state = (
+        native._surrogate_builder(), rewrite.model_constants(), rewrite.model_initial_state()
+    )  # fmt: skip
+
+    @numba.njit(error_model="numpy")
+    def derive(row: np.ndarray) -> tuple:
+        p = surrogate_of(row)
+        return constants(p), initial_state(p)
+
+    params = with_updates(Parameters(), **changes)
+    c, y = derive(np.array(native.row_of(params)))
+    assert tuple(c) == tuple(physical.constants(params))
+    assert list(y) == physical.initial_state(params)

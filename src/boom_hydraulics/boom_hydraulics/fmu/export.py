@@ -170,7 +170,7 @@ def build_binary(params: Parameters, guid: str, folder: Path) -> Path:
     args = [
         *command, "-std=c11", "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-I", str(folder),
         "-o", str(binary), str(WRAPPER), str(folder / "boom_native.o"),
-        "-Wl,-z,notext", f"-Wl,--version-script={folder / 'exports.map'}", "-lm",
+        "-Wl,-z,notext", "-Wl,--no-undefined", f"-Wl,--version-script={folder / 'exports.map'}", "-lm",
     ]  # fmt: skip
     result = subprocess.run(args, capture_output=True, text=True, check=False)
     if result.returncode != 0:

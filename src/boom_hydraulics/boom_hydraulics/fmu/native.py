@@ -27,6 +27,7 @@ import dataclasses
 from collections import namedtuple
 from typing import Any
 
+from ..errors import ConfigError
 from ..model import geometry
 from ..model import physical as model
 from ..model.outputs import OUTPUT_NAMES
@@ -171,8 +172,25 @@ def entry(method: str) -> Any:
     return boom_native
 
 
+#: The numba whose code library hands back its object file as this module reads it.
+NUMBA_VERSION = "0.68.1"
+
+
 def object_code(method: str) -> tuple[bytes, str]:
-    """The ELF object file numba compiled :func:`entry` of ``method`` into, and the name of its C-ABI wrapper."""
+    """The ELF object file numba compiled :func:`entry` of ``method`` into, and the name of
+    its C-ABI wrapper; ConfigError where numba is missing or cannot hand the object back."""
+    from .. import jit
+
+    if jit.numba is None:
+        raise ConfigError(
+            "boom-sim fmu compiles the model with numba, which this Python lacks; install requirements.txt"
+        )
     compiled = entry(method)
-    library = compiled._library
-    return library._get_compiled_object(), compiled.native_name
+    try:
+        code = compiled._library._get_compiled_object()
+    except (AttributeError, RuntimeError) as exc:  # a private API: another numba may lay it out otherwise
+        raise ConfigError(
+            f"numba {jit.numba.__version__} does not hand back the compiled object file ({exc}); "
+            f"boom-sim fmu needs numba {NUMBA_VERSION} (requirements.txt)"
+        ) from None
+    return code, compiled.native_name
