@@ -45,7 +45,7 @@ $(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
 # the package's modules byte-compiled beside their sources (src/**/__pycache__, which the
 # symlinked install imports): where Python may not write them itself (PYTHONDONTWRITEBYTECODE,
 # set in many containers and CI images), each program would compile every module it imports
-# again at its start, 0.16 s of a boom-sweep's 0.84 s (docs/performance.md). Only what changed
+# again at its start, 0.16 s of a boom-sweep's 0.84 s (bench/results/history.md). Only what changed
 # is compiled again; a module edited since is compiled afresh at import, as always.
 $(BYTECODE_STAMP): $(BUILD_STAMP) $(PY_SOURCES)
 	$(VENV)/bin/python -m compileall -q src
