@@ -168,6 +168,29 @@ class TestJointCommandsOnOneNode:
         # not before the step that starts within half a step of its stamp (a state is stamped at its tick's end)
         assert moved and _stamp_s(moved[0]) >= at_s - 0.001
 
+    def test_a_joint_command_preempts_a_goal_and_a_valve_command_overrides_it(self, commander, client):
+        from action_msgs.msg import GoalStatus
+        from rclpy.action import ActionClient
+
+        from boom_hydraulics_msgs.action import MoveBoom
+
+        action = ActionClient(client.node, MoveBoom, "/boom_sim/move_boom")
+        assert action.wait_for_server(timeout_sec=GUARD_S), "no MoveBoom action server"
+        sent = action.send_goal_async(MoveBoom.Goal(target_angle_rad=math.radians(60.0), max_speed_rad_s=0.05))
+        assert client.spin_until(sent.done) and sent.result().accepted
+        assert client.spin_until(lambda: client.last().boom_rate_rad_s > 0.02)  # the slow goal moves the boom
+        result = sent.result().get_result_async()
+        target = math.radians(5.0)
+        assert commander.sending(joint_command(position=target), result.done)
+        answer = result.result()
+        assert answer.status == GoalStatus.STATUS_ABORTED
+        assert answer.result.message == "preempted by a joint command on joint_commands"
+        assert commander.sending(joint_command(position=target), lambda: _settled(client, target))
+        # a valve command takes the valve from the joint commands, which no longer drive after it
+        assert client.spin_until(lambda: client.last().valve_command == 0.3, opening=0.3)
+        assert client.spin_until(lambda: client.last().boom_angle_rad > target + 0.05, opening=0.3)
+        action.destroy()
+
 
 def test_remapped_to_the_interface_defaults_it_is_driven_there_and_describes_it(nodes, client):
     """Remapped to joint_state_topic_hardware_interface's default topics, the node takes its commands
