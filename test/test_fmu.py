@@ -230,6 +230,7 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
         "nan_command": "valve_command must be a finite opening",
         "nan_force": "'external_rod_force_n' must be finite",
         "bad_parameter": "piston_diameter_m",
+        "mismatched_parameters": "rod_diameter_m (0.05 m) must be smaller than piston_diameter_m (0.04 m)",
         "fixed_parameter": "time_step_s can only be set before initialization",
     }
     for case, reason in reasons.items():
