@@ -13,9 +13,10 @@ A parameter set is a row of doubles in the order of :data:`ROW` (every scalar fi
 Parameters; a string field as the index of its value among its choices). numba's code
 library hands back the object file it compiled (a private API, used by numba's own cache:
 ``_get_compiled_object``, checked against numba 0.68, pinned in requirements.txt). The
-object's C-ABI wrapper is renamed ``boom_native``; on an error it calls a few Python C-API
-and numba runtime functions, which the C wrapper (native/fmi2_slave.c) defines as stubs
-that flag the error.
+C wrapper (native/fmi2_slave.c) calls the object's C-ABI wrapper (``cfunc.<mangled name>``)
+as ``boom_native``, by an assembler label that export.py writes. Compiled code that raises
+calls a few Python C-API and numba runtime functions on its way out; the C wrapper defines
+them as stubs that flag the error. Nothing here allocates, so numba's runtime is not needed.
 
 ``boom_native(op, a, b, c, d) -> int32``, ``op`` one of :data:`OPERATIONS`; it returns 1 +
 the operation's result (0: the compiled code raised).

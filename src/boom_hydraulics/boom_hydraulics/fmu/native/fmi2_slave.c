@@ -118,7 +118,7 @@ typedef struct {
     double u; /* the command of the last step */
     double start_s;
     int initialized;
-    char stopped[512]; /* why no step can be taken ("" when one can) */
+    char stopped[2048]; /* why no step can be taken ("" when one can) */
     double outputs[N_OUTPUTS];
     char text[N_ROW][64]; /* the strings fmi2GetString hands out */
 } Instance;
