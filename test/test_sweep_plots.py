@@ -194,7 +194,7 @@ def test_a_breakdown_of_many_drives_or_long_names_keeps_its_bar_names_apart():
     energies = {"valve_loss": 2e4, "motor_loss": 1e4, "lift_work": 1e3, "battery_returned": 500.0}
     long = "pressure compensated\npiston diameter 43.7 mm\npayload mass 150 kg\nrod diameter 22 mm"
     for names in ([long] * 4, [f"20261206-200849_boom_sim-resimulated-{k}" for k in range(6)]):
-        fig = analysis_plots.energy_breakdown_figure([(n, energies, 3e4) for n in names], plots.BREAKDOWN_TITLE)
+        fig = analysis_plots.energy_breakdown_figure([(n, energies, 3e4) for n in names], plots.breakdown_title(True))
         assert figure_checks.overlapping_tick_labels(fig) == []
         assert figure_checks.cut_titles(fig) == []
         plots.plt.close(fig)
@@ -223,3 +223,21 @@ def test_a_metrics_plot_is_coloured_by_the_drive_else_by_a_design_axis_before_th
     assert plots.colour_column(table, ["operator", "piston_diameter_m"]) == "piston_diameter_m"
     assert plots.colour_column(table, ["operator"]) == "operator"
     assert plots.colour_column(table, []) is None
+
+
+def test_battery_energy_has_a_line_for_each_value_of_another_design_axis_named_with_its_unit():
+    """A sweep of pistons and payloads (sweeps.md's): a line per payload, not one line
+    zigzagging through them."""
+    piston = np.repeat(np.linspace(0.032, 0.076, 4), 2)
+    payload = np.tile([0.0, 150.0], 4)
+    energy = 1e4 + 1e5 * piston + 10.0 * payload
+    bands = {"piston_diameter_m": piston, "payload_mass_kg": payload, "cycles": np.ones(8, int)}
+    bands |= {f"battery_energy_j_p{q}": energy for q in (10, 50, 90)}
+    fig = plots.battery_energy_figure(bands, "piston_diameter_m", ["piston_diameter_m", "payload_mass_kg"])
+    (ax,) = fig.axes
+    assert [line.get_label() for line in ax.get_lines()] == ["0 kg", "150 kg"]
+    for line, mass in zip(ax.get_lines(), (0.0, 150.0)):
+        assert line.get_xdata().tolist() == pytest.approx([32, 46.67, 61.33, 76], abs=0.01)  # mm
+        assert line.get_ydata() == pytest.approx((1e4 + 1e5 * np.linspace(0.032, 0.076, 4) + 10 * mass) * 1e-3)
+    assert figure_checks.legend_texts(fig) == ["0 kg", "150 kg"] and figure_checks.cut_titles(fig) == []
+    plots.plt.close(fig)

@@ -16,7 +16,7 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from ..analysis import labels, layout
 from ..analysis.plots import energy_breakdown_figure
@@ -316,33 +316,61 @@ def _apart(fig, texts: Sequence[Any]) -> None:
             kept.append(box)
 
 
-def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, path: Path) -> None:
+def battery_energy(bands: Mapping[str, np.ndarray], parameter: str, design_columns: Sequence[str], path: Path) -> None:
     """:func:`battery_energy_figure` as a PNG at ``path``."""
-    fig = battery_energy_figure(bands, parameter)
+    fig = battery_energy_figure(bands, parameter, design_columns)
     _save(fig, path)
     plt.close(fig)
 
 
-def battery_energy_figure(bands: Mapping[str, np.ndarray], parameter: str):
-    """Battery energy per cycle against ``parameter`` (in its shown unit), one line per drive
-    named in words, each in its colour of the metrics plots (the median over the operators'
-    cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`."""
+#: Line styles that tell apart the lines of one drive (one per value of the other design axes).
+LINE_STYLES = ("-", "--", ":", "-.")
+
+
+def battery_energy_figure(bands: Mapping[str, np.ndarray], parameter: str, design_columns: Sequence[str] = ()):
+    """Battery energy per cycle against ``parameter`` (in its shown unit): a line per drive and
+    value of the other design axes, named in words with units (the median over the operators'
+    cycles, their 10th-90th percentile shaded), from :func:`energy.operator_bands`. Each drive
+    in its colour of the metrics plots, its lines told apart by their style; without a drive,
+    a colour per line. The energy axis is logarithmic where it spans more than a decade,
+    labelled at 1, 2 and 5 of each."""
     xlabel, xscale = labels.quantity(parameter)
     x = np.asarray(bands[parameter], dtype=float) * xscale
-    drives = np.asarray(bands["drive"]) if "drive" in bands else np.array([""] * len(x))
+    n = len(x)
+    drives = np.asarray(bands["drive"]) if "drive" in bands else np.array([""] * n)
+    others = [c for c in design_columns if c not in (parameter, "drive") and len(np.unique(bands[c])) > 1]
     fig, ax = plt.subplots(figsize=(8, 5.5))
     fig.subplots_adjust(left=0.09, right=0.97, bottom=0.1, top=0.88)  # (a fixed layout: drawn once)
-    colouring = _colours({"drive": drives}, "drive", np.ones(len(x), bool))
-    for (rows, colour), name in zip(colouring.groups, colouring.key or {}):
-        rows = rows[np.argsort(x[rows], kind="stable")]
+    lines: dict[tuple[Any, ...], list[int]] = {}
+    for row in range(n):
+        lines.setdefault((drives[row], *(bands[c][row] for c in others)), []).append(row)
+    if "drive" in bands:
+        key = _colours({"drive": drives}, "drive", np.ones(n, bool)).key or {}
+        colours = [key[labels.drive_words(line[0])] for line in lines]
+    else:
+        palette = plt.get_cmap("tab10" if len(lines) <= 10 else "viridis")
+        colours = [palette(k if len(lines) <= 10 else k / max(len(lines) - 1, 1)) for k in range(len(lines))]
+    styles: dict[Any, int] = {}
+    for (line, rows), colour in zip(lines.items(), colours):
+        rows = np.array(rows)[np.argsort(x[rows], kind="stable")]
+        nth = styles.setdefault(line[0], 0)  # (the drive's nth line)
+        styles[line[0]] += 1
+        style = LINE_STYLES[nth % len(LINE_STYLES)] if "drive" in bands else "-"
+        words = [labels.drive_words(line[0])] if line[0] else []
+        words += [labels.value_with_unit(c, v) for c, v in zip(others, line[1:])]
         low, mid, high = (np.asarray(bands[f"battery_energy_j_p{q}"], float)[rows] * 1e-3 for q in PERCENTILES)
-        ax.plot(x[rows], mid, marker="o", markersize=3, color=colour, label=name or "battery energy")
+        label = ", ".join(words) or "battery energy"
+        ax.plot(x[rows], mid, style, marker="o", markersize=3, color=colour, label=label)
         ax.fill_between(x[rows], low, high, color=colour, alpha=0.2)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("battery energy per cycle [kJ]")
-    ax.set_yscale("log")
+    low, high = ax.get_ylim()
+    if low > 0 and high > 10 * low:  # (within a decade a logarithmic axis has too few ticks to read)
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FuncFormatter(_log_label))
+        ax.yaxis.set_minor_formatter(FuncFormatter(_log_label))
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize="small", title="drive" if "drive" in bands else None)
+    ax.legend(loc="best", fontsize="small", title="drive" if "drive" in bands and not others else None)
     cycles = int(np.max(bands["cycles"])) if len(bands["cycles"]) else 0
     band = f"median of {cycles} cycles, 10th-90th percentile shaded" if cycles > 1 else "one cycle per design"
     title = fig.suptitle(f"Battery energy per cycle: {band}")
@@ -350,21 +378,31 @@ def battery_energy_figure(bands: Mapping[str, np.ndarray], parameter: str):
     return fig
 
 
+def _log_label(value: float, _: Any = None) -> str:
+    """A logarithmic axis' tick label at 1, 2 and 5 of each decade ("20", "0.5"), none between."""
+    if value <= 0:
+        return ""
+    mantissa = value / 10 ** np.floor(np.log10(value) + 1e-9)
+    return f"{value:g}" if any(abs(mantissa - m) < 1e-6 for m in (1.0, 2.0, 5.0)) else ""
+
+
 def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[str], path: Path) -> None:
     """Where the battery's energy goes, a stacked bar for each drive at its best design (the
     least median battery energy per cycle): the lift's work and every loss and work term of
     the ledger (in words), averaged over its cycles; the energy it took back is drawn below
     zero. Each bar is named by its drive in words and its design's values with units."""
-    fig = energy_breakdown_figure(_breakdown_bars(bands, design_columns), BREAKDOWN_TITLE)
+    fig = energy_breakdown_figure(_breakdown_bars(bands, design_columns), breakdown_title("drive" in bands))
     _save(fig, path)
     plt.close(fig)
 
 
-#: The breakdown's title.
-BREAKDOWN_TITLE = (
-    "Where the battery's energy goes, each drive at its best design (mean over its cycles; "
-    "above each bar the median battery energy per cycle)"
-)
+def breakdown_title(drives: bool) -> str:
+    """The breakdown's title, of a sweep with a drive axis or without one."""
+    which = "each drive at its best design" if drives else "the best design"
+    return (
+        f"Where the battery's energy goes, {which} (mean over its cycles; "
+        "above each bar the median battery energy per cycle)"
+    )
 
 
 def _breakdown_bars(
@@ -477,6 +515,6 @@ def _plots(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder
         axes = [c for c in designs if c in varied]
         if axes:
             parameter = "piston_diameter_m" if "piston_diameter_m" in axes else axes[0]
-            plots.append(plot("battery_energy.png", 0.1, battery_energy, bands, parameter))
+            plots.append(plot("battery_energy.png", 0.1, battery_energy, bands, parameter, designs))
         plots.append(plot("energy_breakdown.png", 0.13, energy_breakdown, bands, designs))
     return plots
