@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 from conftest import CONFIG, run_tool
 
+from boom_hydraulics.model import config
+
 BOOM_SIM = shutil.which("boom-sim")
 pytestmark = pytest.mark.skipif(BOOM_SIM is None, reason="boom-sim not on PATH (run through tools/with-env)")
 
@@ -124,6 +126,20 @@ def test_statics_covers_the_open_stroke_for_each_diameter(tmp_path):
         (["run", "--duration", "1", "--config", "/nonexistent.yaml"], "/nonexistent.yaml: no such file"),
         (["run", "--duration", "1", "--method", "heun"], "invalid choice: 'heun'"),
         (["statics", "--diameters", "0.04,x"], "--diameters expects comma-separated metres"),
+        # a value given on the command line is named as given there, not blamed on the config file
+        (
+            ["run", "--duration", "1", "--config", CONFIG / "default.yaml", "--set", "bulk_modulus_pa=inf"],
+            "boom-sim: error: bulk_modulus_pa on the command line: parameter 'bulk_modulus_pa' must be a finite "
+            "number, got 'inf'",
+        ),
+        (
+            ["run", "--duration", "1", "--config", CONFIG / "default.yaml", "--set", "bulk_modulus_pa=-1"],
+            "bulk_modulus_pa on the command line: parameter 'bulk_modulus_pa'",
+        ),
+        (
+            ["run", "--duration", "1", "--config", CONFIG / "default.yaml", "--set", "rod_diameter_m=0.05"],
+            f"{CONFIG / 'default.yaml'} with rod_diameter_m on the command line: rod_diameter_m (0.05 m) must be",
+        ),
     ],
 )
 def test_bad_input_gives_one_line_and_no_file(tmp_path, args, message):
@@ -149,3 +165,35 @@ def test_malformed_yaml_is_one_line(tmp_path):
     result = _run("run", "--config", bad, "--duration", "1", "--out", tmp_path / "x.csv")
     assert result.returncode == 2 and "malformed YAML at line" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        # PyYAML took the last of two equal keys without a word
+        (
+            "/**:\n  ros__parameters:\n    payload_mass_kg: 10.0\n    payload_mass_kg: 20.0\n",
+            "malformed YAML at line 4, column 5: key 'payload_mass_kg' is given twice (lines 3 and 4); keep one",
+        ),
+        # a RecursionError traceback
+        ("a: " + "[" * 100_000 + "]" * 100_000 + "\n", "malformed YAML: it is nested deeper than can be read"),
+        # read for minutes into gigabytes before its line; one byte past the limit is refused at once
+        (" " * (config.MAX_FILE_BYTES + 1), "is larger than a params file may be (1 MiB)"),
+    ],
+)
+def test_a_params_file_that_cannot_be_one_is_one_line(tmp_path, text, message):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text)
+    result = _run("run", "--config", bad, "--duration", "1", "--out", tmp_path / "x.csv")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_params_file_at_the_size_limit_is_read(tmp_path):
+    text = "/**:\n  ros__parameters:\n    payload_mass_kg: 20.0\n"
+    padded = tmp_path / "padded.yaml"
+    padded.write_text(text + "#" * (config.MAX_FILE_BYTES - len(text) - 1) + "\n")
+    assert padded.stat().st_size == config.MAX_FILE_BYTES
+    assert config.load(padded).payload_mass_kg == 20.0

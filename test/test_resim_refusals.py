@@ -208,6 +208,8 @@ def test_a_bag_written_by_boom_resim_is_re_simulated(tmp_path):
         (b"rosbag2_bagfile_information: [unclosed\n", "is not valid YAML at line 2"),
         (b"- just\n- a list\n", "no rosbag2_bagfile_information mapping"),
         (b"rosbag2_bagfile_information:\n  version: nine\n", "version is missing or not an int"),
+        # a RecursionError traceback
+        (b"rosbag2_bagfile_information: " + b"[" * 100_000 + b"]" * 100_000 + b"\n", "nested deeper than can be read"),
     ],
 )
 @pytest.mark.parametrize("tool", ["boom-resim", "boom-replay"])

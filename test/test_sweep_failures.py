@@ -57,7 +57,10 @@ def copy(finished, tmp_path) -> Path:
     return target
 
 
-@pytest.mark.parametrize("text", ["garbage{", "[1, 2]", "null", '{"format": 1, "request": [1]}', '{"format": 1}'])
+@pytest.mark.parametrize(
+    "text",
+    ["garbage{", "[1, 2]", "null", '{"format": 1, "request": [1]}', '{"format": 1}', "[" * 100_000 + "]" * 100_000],
+)
 def test_a_damaged_sweep_description_is_one_line_and_changes_nothing(copy, text):
     (copy / "sweep.json").write_text(text)
     before = _contents(copy)

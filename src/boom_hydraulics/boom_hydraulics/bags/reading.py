@@ -98,6 +98,8 @@ def check_metadata(file: Path, mcaps: list[Path]) -> None:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
         raise BagError(f"{file}: is not valid YAML{where}; {fix}") from None
+    except RecursionError:
+        raise BagError(f"{file}: is nested deeper than can be read, so it is no rosbag2 metadata; {fix}") from None
     problem = _metadata_problem(content)
     if problem:
         raise BagError(f"{file}: is not rosbag2 bag metadata ({problem}); {fix}")
@@ -142,6 +144,8 @@ def read_run_description(bag: Path) -> RunDescription:
         return RunDescription.from_custom_data(custom)
     except (KeyError, ValueError, yaml.YAMLError) as exc:
         raise BagError(f"{bag}: the recorded run description is unreadable ({exc})") from None
+    except RecursionError:
+        raise BagError(f"{bag}: the recorded run description is unreadable (nested deeper than can be read)") from None
 
 
 def _custom_data(bag: Path) -> dict[str, str] | None:

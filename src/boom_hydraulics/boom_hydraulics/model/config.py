@@ -16,6 +16,10 @@ Reading is lenient (``1e-06`` is a number, as rcl reads it); writing (:func:`dum
 one (``1.0e-06``, ``16000000.0``), the form YAML 1.1 reads as a float too. The ROS tools'
 Python side (``ros2 param load``, rclpy's ``parameter_dict_from_yaml_file``, launch) reads
 params files with PyYAML, which is YAML 1.1: there ``1e-06`` and ``16.0e6`` are strings.
+
+A key given twice in one mapping is refused (YAML says keys are unique; PyYAML would take
+the last without a word), as is a file over :data:`MAX_FILE_BYTES` or nested deeper than
+Python can follow.
 """
 
 from __future__ import annotations
@@ -28,9 +32,13 @@ from typing import Any
 import yaml
 
 from ..errors import ConfigError
-from .parameters import UNSOLVED, Parameters, as_dict, describe, from_mapping
+from .parameters import UNSOLVED, Parameters, as_dict, check_value, describe, from_mapping
 
 NODE_NAME = "boom_sim"
+
+#: The largest params file read, bytes: the shipped ones are a few KiB; PyYAML reads about
+#: 0.1 MB/s into much memory, so a file of tens of MB would take minutes and gigabytes.
+MAX_FILE_BYTES = 1 << 20
 
 
 class _Loader(yaml.SafeLoader):
@@ -38,8 +46,25 @@ class _Loader(yaml.SafeLoader):
 
     PyYAML follows YAML 1.1, where a float needs a dot and a signed exponent; ROS 2's
     parameter parser reads any unquoted number. Without this, the node and the CLI
-    would read the same file differently.
+    would read the same file differently. A key twice in one mapping is an error.
     """
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, yaml.Node] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, (str, int, float, bool)):
+                continue
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    f"in the mapping at line {node.start_mark.line + 1}",
+                    node.start_mark,
+                    f"key {key!r} is given twice (lines {seen[key].start_mark.line + 1} and "
+                    f"{key_node.start_mark.line + 1}); keep one",
+                    key_node.start_mark,
+                )
+            seen[key] = key_node
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.add_implicit_resolver(
@@ -52,8 +77,12 @@ _Loader.add_implicit_resolver(
 
 
 def load_yaml(text: str) -> Any:
-    """Parse YAML text with ROS 2 number typing (see :class:`_Loader`)."""
-    return yaml.load(text, Loader=_Loader)
+    """Parse YAML text with ROS 2 number typing (see :class:`_Loader`); a yaml.YAMLError also
+    for text nested deeper than Python's recursion can follow."""
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except RecursionError:
+        raise yaml.YAMLError("it is nested deeper than can be read; a params file nests a few levels") from None
 
 
 def flatten(mapping: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -90,11 +119,18 @@ def read_document(path: str | Path) -> Any:
     unreadable file, or where its YAML is malformed."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as handle:
+            data = handle.read(MAX_FILE_BYTES + 1)
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read ({exc})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise ConfigError(
+            f"{path}: is larger than a params file may be ({MAX_FILE_BYTES >> 20} MiB); name the params YAML "
+            "(the shipped ones are a few KiB)"
+        )
     try:
         document = load_yaml(text)
     except yaml.YAMLError as exc:
@@ -110,15 +146,24 @@ def read_values(path: str | Path) -> dict[str, Any]:
     return parameters_section(read_document(path), str(path))
 
 
-def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Parameters:
-    """Validated parameters from a params YAML file, with optional overrides on top."""
+def load(
+    path: str | Path, overrides: Mapping[str, Any] | None = None, given_by: str = "on the command line"
+) -> Parameters:
+    """Validated parameters from a params YAML file, with optional overrides on top. An error
+    names where it lies: an override on its own (``bulk_modulus_pa on the command line``),
+    the file, or the file with the overrides (a combination across parameters)."""
     values = read_values(path)
-    if overrides:
-        values.update(overrides)
+    for key, value in (overrides or {}).items():
+        try:
+            check_value(key, value)
+        except ConfigError as exc:
+            raise ConfigError(f"{key} {given_by}: {exc}") from None
+    values.update(overrides or {})
     try:
         return from_mapping(values)
     except ConfigError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+        where = f"{path} with {', '.join(overrides)} {given_by}" if overrides else str(path)
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def scalar_text(value: Any) -> str:

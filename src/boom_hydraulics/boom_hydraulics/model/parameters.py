@@ -591,8 +591,17 @@ def _coerce(name: str, value: Any) -> Any:
             raise ConfigError(f"parameter '{name}' must be a list of numbers, got {value!r}")
         return [float(v) for v in value]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"parameter '{name}' must be a number, got {value!r}")
+        raise ConfigError(f"parameter '{name}' must be {_a_number(value)}, got {value!r}")
     return float(value)
+
+
+def _a_number(value: Any) -> str:
+    """What a number parameter must be, said for ``value`` (text that reads as inf or nan is not finite)."""
+    try:
+        number = float(value) if isinstance(value, str) else 0.0
+    except ValueError:
+        number = 0.0
+    return "a finite number" if not math.isfinite(number) else "a number"
 
 
 #: What each field's check reads, once: name, choices, low, high, low_inclusive (a sweep
@@ -612,16 +621,38 @@ def _check_fields(p: Parameters, names: Collection[str] | None = None) -> None:
     """Each field of ``p`` (of ``names`` only, if given) of its type's choices or range, finite;
     in the order of NAMES, so that the first field at fault is named whatever ``names``' order."""
     checks = _CHECKS if names is None else [_CHECK_OF[name] for name in sorted(names, key=_PLACE.__getitem__)]
-    for name, choices, low, high, low_inclusive in checks:
-        value = getattr(p, name)
-        if choices is not None:
-            if value not in choices:
-                raise ConfigError(f"parameter '{name}' is {value!r}; choose one of {', '.join(choices)}")
-            continue
-        for v in value if isinstance(value, list) else (value,):
-            inside = (low is None or (v >= low if low_inclusive else v > low)) and (high is None or v <= high)
-            if not (inside and math.isfinite(v)):
-                _refuse_value(name, v)
+    for check in checks:
+        _check_field(check, getattr(p, check[0]))
+
+
+def _check_field(check: tuple, value: Any) -> None:
+    """``value`` (coerced) of one field among its choices or in its range, finite."""
+    name, choices, low, high, low_inclusive = check
+    if choices is not None:
+        if value not in choices:
+            raise ConfigError(f"parameter '{name}' is {value!r}; choose one of {', '.join(choices)}")
+        return
+    for v in value if isinstance(value, list) else (value,):
+        inside = (low is None or (v >= low if low_inclusive else v > low)) and (high is None or v <= high)
+        if not (inside and math.isfinite(v)):
+            _refuse_value(name, v)
+
+
+def check_value(name: str, value: Any) -> Any:
+    """``value`` as parameter ``name``'s type, checked on its own (its type, choices, range):
+    ConfigError naming what is wrong. The checks across fields need a whole set (from_mapping)."""
+    _known(name)
+    coerced = _coerce(name, value)
+    _check_field(_CHECK_OF[name], coerced)
+    return coerced
+
+
+def _known(key: str) -> None:
+    """ConfigError naming an unknown parameter with the closest valid names."""
+    if key not in _FIELDS:
+        close = difflib.get_close_matches(key, NAMES, n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ConfigError(f"unknown parameter '{key}'{hint} Valid parameters: {', '.join(NAMES)}")
 
 
 def _refuse_value(name: str, v: float) -> None:
@@ -768,10 +799,7 @@ def from_mapping(values: Mapping[str, Any], base: Parameters | None = None) -> P
     """
     updates: dict[str, Any] = {}
     for key, value in values.items():
-        if key not in _FIELDS:
-            close = difflib.get_close_matches(key, NAMES, n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise ConfigError(f"unknown parameter '{key}'{hint} Valid parameters: {', '.join(NAMES)}")
+        _known(key)
         updates[key] = _coerce(key, value)
     if base is None:
         return Parameters(**updates)

@@ -81,6 +81,8 @@ def read_manifest(folder: Path) -> dict[str, Any] | None:
             problem = "it has no request with a batch_size"
     except (OSError, ValueError) as exc:
         problem = str(exc)
+    except RecursionError:
+        problem = "it is nested deeper than can be read"
     if problem:
         batches = len(_batch_files(folder / BATCHES))
         raise BoomHydraulicsError(
