@@ -215,7 +215,7 @@ def test_every_term_a_breakdown_stacks_has_words_and_every_parameter_a_label_wit
             assert label.endswith("]"), label
 
 
-def test_a_metrics_plot_is_coloured_by_the_drive_else_by_a_design_axis_before_the_operators_seed():
+def test_a_plot_is_coloured_by_the_drive_else_by_a_design_axis_before_the_operators_seed():
     table, _ = _drives_table()
     table["config"] = np.array(["a", "b"] * (len(table["drive"]) // 2))
     assert plots.colour_column(table, ["operator", "config", "drive"]) == "drive"
@@ -223,6 +223,10 @@ def test_a_metrics_plot_is_coloured_by_the_drive_else_by_a_design_axis_before_th
     assert plots.colour_column(table, ["operator", "piston_diameter_m"]) == "piston_diameter_m"
     assert plots.colour_column(table, ["operator"]) == "operator"
     assert plots.colour_column(table, []) is None
+    fig = plots.trade_off_figure(table, ["config", "operator", "drive", "piston_diameter_m"])
+    key = [t for t in figure_checks.legend_texts(fig) if t != "non-dominated"]
+    assert key == [labels.DRIVE_WORDS[d] for d in DRIVES]  # the drive's, not the config's
+    plots.plt.close(fig)
 
 
 def test_battery_energy_has_a_line_for_each_value_of_another_design_axis_named_with_its_unit():

@@ -251,8 +251,8 @@ def trade_off(table: Mapping[str, np.ndarray], label_columns: Sequence[str], pat
 
 def trade_off_figure(table: Mapping[str, np.ndarray], label_columns: Sequence[str]):
     """Lift time against lift energy and against peak pressure; the front of all three ringed.
-    With a categorical column among ``label_columns`` (a drive, a config) the designs are
-    coloured by it, with a key in words; else each panel by the third metric, in bands. A few
+    With a categorical column among ``label_columns`` (the drive, else a config) the designs
+    are coloured by it, with a key in words; else each panel by the third metric, in bands. A few
     front designs are named by their other values, with units, where the names do not
     overlap."""
     ok = np.asarray(table["status"]) == "ok"
@@ -261,7 +261,7 @@ def trade_off_figure(table: Mapping[str, np.ndarray], label_columns: Sequence[st
         np.asarray(table[m], dtype=float) * s for m, s in zip(TRADE_OFF, (1.0, 1e-3, 1e-6))
     )
     categories = [c for c in label_columns if not _numeric(table[c]) and len(np.unique(table[c])) > 1]
-    by = categories[0] if categories else None
+    by = "drive" if "drive" in categories else (categories[0] if categories else None)
     fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
     # a fixed layout (constrained layout drew the figure twice: 0.27 s of its 0.75 s)
     fig.subplots_adjust(left=0.055, right=0.985, bottom=0.1, top=0.86 if by is None else 0.8, wspace=0.2)
