@@ -162,9 +162,16 @@ class Colouring(NamedTuple):
     key: Mapping[Any, Any] | None = None
 
     def colour_bar(self, fig, label: str | None, **where: Any) -> None:
-        """The bands' colour bar in ``fig``, placed by ``where`` (colorbar's ``cax`` or ``ax``)."""
+        """The bands' colour bar in ``fig``, placed by ``where`` (colorbar's ``cax`` or ``ax``);
+        ticks at the values to 3 significant digits (36.9, not 36.86)."""
         mapper = plt.cm.ScalarMappable(norm=self.norm, cmap=COLOUR_MAP)
-        fig.colorbar(mapper, label=label, ticks=self.ticks, **where)
+        short = None if self.ticks is None else FuncFormatter(lambda v, _: _three_digits(v))
+        fig.colorbar(mapper, label=label, ticks=self.ticks, format=short, **where)
+
+
+def _three_digits(value: float) -> str:
+    """A number to 3 significant digits, a whole number of 4 or more digits whole (1500)."""
+    return f"{value:.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
 def _colours(table: Mapping[str, np.ndarray], color_by: str | None, ok: np.ndarray) -> Colouring:
