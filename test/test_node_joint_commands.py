@@ -132,6 +132,21 @@ class TestJointCommandsOnOneNode:
         assert abs(client.last().boom_angle_rad - held) < 2e-3 and client.last().valve_command == 0.0
         assert held > first.boom_angle_rad + 0.1
 
+    def test_a_velocity_beyond_the_drive_leaves_the_setpoint_at_most_0_05_rad_ahead(self, commander, client):
+        """2 rad/s, more than a fully open valve gives (about 0.6 rad/s here): the boom runs at
+        what it can, and once the velocity is 0 it stops within 0.05 rad of where it was, not
+        where a setpoint running at 2 rad/s would have got to (0.7 rad ahead after 0.5 s)."""
+        assert client.set_parameter("command_timeout_s", 5.0).successful  # (see the test above)
+        assert commander.sending(joint_command(velocity=2.0), lambda: client.last().boom_rate_rad_s > 0.3)
+        began = client.sim_s()
+        assert commander.sending(joint_command(velocity=2.0), lambda: client.sim_s() > began + 0.5)
+        assert client.last().valve_command == 1.0 and client.last().boom_rate_rad_s < 1.0  # wide open: its most
+        seen = client.last().boom_angle_rad  # (the node's boom is a little further by now)
+        assert commander.sending(joint_command(velocity=0.0), lambda: client.last().valve_command == 0.0)
+        stopped = client.sim_s()
+        assert commander.sending(joint_command(velocity=0.0), lambda: client.sim_s() > stopped + 1.0)
+        assert seen < client.last().boom_angle_rad < seen + 0.05 + 0.03  # (+ what it ran after this client saw it)
+
     def test_a_velocity_after_a_position_goes_on_from_the_setpoint(self, commander, client):
         """The hardware interface with both command interfaces: a position and the rate from it."""
         target = math.radians(20.0)
