@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from ..model.outputs import OUTPUTS as MODEL_OUTPUTS
 from ..model.parameters import UNSOLVED, Parameters, describe, names_in
-from ..solve.integrators import FIXED_STEP, METHODS
+from ..solve.integrators import FIXED_STEP
 
 #: The FMU's model identifier: the name of its binary and of its model.
 MODEL_IDENTIFIER = "boom_drive"
@@ -121,19 +121,11 @@ PARAMETERS = tuple(
 VARIABLES = (*INPUTS, *OUTPUTS, *PARAMETERS)
 
 
-#: The methods the native FMU steps with: the explicit ones (ros2's stages are arrays, which
-#: need numba's runtime, which the FMU does not carry).
-NATIVE_METHODS = tuple(name for name in FIXED_STEP if not METHODS[name].halving)
-
-
 def unsupported(params: Parameters) -> str | None:
     """Why the FMU cannot run ``params`` (None: it can): it is the physical drive, stepped by
-    the compiled fixed-step loop of an explicit method."""
+    the compiled fixed-step loop."""
     if params.mode != "physical":
         return f"the FMU is the physical drive; mode is {params.mode!r}: set mode: physical"
-    if params.method not in NATIVE_METHODS:
-        return (
-            f"method {params.method!r} has no explicit fixed step for the FMU to take; "
-            f"choose one of {', '.join(NATIVE_METHODS)}"
-        )
+    if params.method not in FIXED_STEP:
+        return f"method {params.method!r} has no fixed step for the FMU to take; choose one of {', '.join(FIXED_STEP)}"
     return None

@@ -16,7 +16,9 @@ library hands back the object file it compiled (a private API, used by numba's o
 C wrapper (native/fmi2_slave.c) calls the object's C-ABI wrapper (``cfunc.<mangled name>``)
 as ``boom_native``, by an assembler label that export.py writes. Compiled code that raises
 calls a few Python C-API and numba runtime functions on its way out; the C wrapper defines
-them as stubs that flag the error. Nothing here allocates, so numba's runtime is not needed.
+them as stubs that flag the error. ros2's step allocates (its stages are arrays, its state a list): the
+C wrapper holds the few functions of numba's runtime (NRT) that such code calls, on
+malloc and free.
 
 ``boom_native(op, a, b, c, d) -> int32``, ``op`` one of :data:`OPERATIONS`; it returns 1 +
 the operation's result (0: the compiled code raised).
@@ -34,7 +36,7 @@ from ..model import physical as model
 from ..model.outputs import OUTPUT_NAMES
 from ..model.parameters import Parameters, describe
 from ..solve import integrators, stepping
-from ..solve.physical_kernel import constants_of, state_of
+from ..solve.physical_kernel import constants_of, list_of, state_of
 from . import rewrite
 
 #: The C name of the entry point.
@@ -113,11 +115,16 @@ def _surrogate_builder() -> Any:
 
 
 def entry(method: str) -> Any:
-    """The compiled ``boom_native`` of the physical model stepped by ``method`` (euler or rk4)."""
+    """The compiled ``boom_native`` of the physical model stepped by ``method`` (a fixed-step
+    one: euler, rk4, or ros2 with the loop that takes a failed step again in halves, as the
+    Simulator steps each)."""
     import numba
     from numba import carray, types
 
     step = integrators.METHODS[method].step
+    halving = integrators.METHODS[method].halving  # ros2: its stages are arrays, its state a list
+    loop = stepping.advance_halving if halving else stepping.advance
+    state = list_of if halving else state_of
     surrogate_of = _surrogate_builder()
     constants = rewrite.model_constants()
     initial_state = rewrite.model_initial_state()
@@ -145,8 +152,8 @@ def entry(method: str) -> Any:
             y = carray(a, (n_state,))
             r = carray(c, (STEP_ARGUMENTS,))
             info = carray(d, (2,))
-            done, outcome, most, y_new = stepping.advance(
-                step, derivative, stiffness_rate, energy, r[0], state_of(y), constants_of(carray(b, (n_constants,))),
+            done, outcome, most, y_new = loop(
+                step, derivative, stiffness_rate, energy, r[0], state(y), constants_of(carray(b, (n_constants,))),
                 r[1], r[2], int(r[3]), r[4], int(r[5]), int(r[6]), int(r[7]), r[8],
             )  # fmt: skip
             for i in range(n_state):

@@ -71,9 +71,83 @@ void numba_gil_release(void *state) { (void)state; }
 void *numba_unpickle(const char *data, int n, const char *hashed) { (void)data; (void)n; (void)hashed; raised = 1; return NULL; }
 void *numba_runtime_build_excinfo_struct(void *a, void *b) { (void)a; (void)b; raised = 1; return NULL; }
 int numba_do_raise(void *exc) { (void)exc; raised = 1; return 0; }
-void NRT_Free(void *p) { free(p); }
-typedef struct { size_t refct; void (*dtor)(void *, size_t, void *); void *dtor_info; void *data; size_t size; } MemInfo;
-void NRT_MemInfo_call_dtor(MemInfo *mi) { if (mi && mi->dtor) mi->dtor(mi->data, mi->size, mi->dtor_info); free(mi); }
+
+/* numba's runtime (NRT), as much of it as the compiled model calls: ros2's stages are arrays
+ * and its state a list, which it allocates and releases through these (the layout and the
+ * behaviour of numba's nrt.cpp, on malloc and free). The others allocate nothing. */
+typedef void (*NRT_dtor_function)(void *ptr, size_t size, void *info);
+typedef struct {
+    size_t refct; /* compiled code counts references on this first field */
+    NRT_dtor_function dtor;
+    void *dtor_info;
+    void *data;
+    size_t size;
+    void *external_allocator;
+} NRT_MemInfo;
+
+void *NRT_Allocate(size_t size) { return malloc(size); }
+void *NRT_Reallocate(void *ptr, size_t size) { return realloc(ptr, size); }
+void NRT_Free(void *ptr) { free(ptr); }
+
+static void nrt_init(NRT_MemInfo *mi, void *data, size_t size, NRT_dtor_function dtor, void *dtor_info) {
+    mi->refct = 1;
+    mi->dtor = dtor;
+    mi->dtor_info = dtor_info;
+    mi->data = data;
+    mi->size = size;
+    mi->external_allocator = NULL;
+}
+
+NRT_MemInfo *NRT_MemInfo_alloc_aligned(size_t size, unsigned align) {
+    char *base = (char *)malloc(sizeof(NRT_MemInfo) + size + 2 * (size_t)align);
+    if (!base) return NULL;
+    char *data = base + sizeof(NRT_MemInfo);
+    size_t remainder = align ? (size_t)data % align : 0;
+    if (remainder) data += align - remainder;
+    nrt_init((NRT_MemInfo *)base, data, size, NULL, NULL);
+    return (NRT_MemInfo *)base;
+}
+
+static void nrt_varsize_dtor(void *ptr, size_t size, void *info) {
+    (void)size;
+    if (info) ((void (*)(void *))info)(ptr); /* the elements' destructor */
+    free(ptr);
+}
+
+NRT_MemInfo *NRT_MemInfo_new_varsize_dtor(size_t size, NRT_dtor_function dtor) {
+    NRT_MemInfo *mi = (NRT_MemInfo *)malloc(sizeof(NRT_MemInfo));
+    void *data = malloc(size);
+    if (!mi || !data) {
+        free(mi);
+        free(data);
+        return NULL;
+    }
+    nrt_init(mi, data, size, nrt_varsize_dtor, (void *)dtor);
+    return mi;
+}
+
+void *NRT_MemInfo_varsize_alloc(NRT_MemInfo *mi, size_t size) {
+    mi->data = malloc(size);
+    if (mi->data) mi->size = size;
+    return mi->data;
+}
+
+void *NRT_MemInfo_varsize_realloc(NRT_MemInfo *mi, size_t size) {
+    mi->data = realloc(mi->data, size);
+    if (mi->data) mi->size = size;
+    return mi->data;
+}
+
+void NRT_MemInfo_varsize_free(NRT_MemInfo *mi, void *ptr) {
+    free(ptr);
+    if (ptr == mi->data) mi->data = NULL;
+}
+
+void NRT_MemInfo_call_dtor(NRT_MemInfo *mi) {
+    if (mi->dtor) mi->dtor(mi->data, mi->size, mi->dtor_info);
+    free(mi); /* the MemInfo, and with it the data allocated after it */
+}
+
 void *PyBytes_FromStringAndSize(const char *s, ptrdiff_t n) { (void)s; (void)n; return NULL; }
 void PyErr_Clear(void) {}
 void PyErr_SetNone(void *type) { (void)type; raised = 1; }
