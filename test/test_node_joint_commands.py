@@ -26,6 +26,8 @@ DEADBAND = 0.002
 #: What the hardware interface publishes with: reliable, keep-last 1 (rclcpp::QoS(1)).
 HARDWARE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: /rosout as the node's log keeps it.
+LOGS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def _stamp_s(msg) -> float:
@@ -53,13 +55,14 @@ def joint_command(
 
 class Commander:
     """The test's stand-in for the hardware interface: JointState on joint_commands, sent at every
-    spin (about 50 Hz) as the interface sends at every update; and the node's log."""
+    spin of the test's node (each message it takes, or every 20 ms) as the interface sends at
+    every update; and the node's log."""
 
     def __init__(self, client, topic: str = "joint_commands") -> None:
         self.client = client
         self.pub = client.node.create_publisher(JointState, topic, HARDWARE_QOS)
         self.logs: list[Log] = []
-        client.node.create_subscription(Log, "/rosout", self.logs.append, QoSProfile(depth=1000, **_LOG_QOS))
+        client.node.create_subscription(Log, "/rosout", self.logs.append, LOGS)
         self.since = client.node.get_clock().now().to_msg()  # (/rosout is transient local: older logs come too)
 
     def sending(self, msg: JointState, until, timeout: float = GUARD_S) -> bool:
@@ -76,9 +79,6 @@ class Commander:
         """Whether the node logged a line with each of ``texts`` since this Commander was made."""
         since = (self.since.sec, self.since.nanosec)
         return any(all(t in e.msg for t in texts) and (e.stamp.sec, e.stamp.nanosec) >= since for e in self.logs)
-
-
-_LOG_QOS = {"reliability": ReliabilityPolicy.RELIABLE, "durability": DurabilityPolicy.TRANSIENT_LOCAL}
 
 
 @pytest.fixture
