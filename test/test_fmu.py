@@ -230,7 +230,6 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
         "nan_command": "valve_command must be a finite opening",
         "nan_force": "'external_rod_force_n' must be finite",
         "bad_parameter": "piston_diameter_m",
-        "mismatched_parameters": "rod_diameter_m (0.05 m) must be smaller than piston_diameter_m (0.04 m)",
         "fixed_parameter": "time_step_s can only be set before initialization",
     }
     for case, reason in reasons.items():
@@ -239,6 +238,26 @@ def test_refused_steps_leave_the_fmu_where_it_was(report: dict) -> None:
         assert "\n" not in refused[case]["message"]
     assert refused["after_refusals"] == refused["before"]  # none of them moved the drive
     assert refused["drifted"]["status"] == 0  # a host's time a little off the FMU's is taken as it
+
+
+def test_what_the_model_refuses_the_fmu_refuses_in_the_models_words(report: dict) -> None:
+    """Each value the model's parameters refuse (on its own: its range, its choices; with the
+    others: the stroke, the pressures, the friction) set between two steps is refused by the FMU,
+    with the line a boom-sim run gives, and leaves the drive where it was."""
+    from fmu_host import MODEL_REFUSALS
+
+    from boom_hydraulics.errors import ConfigError
+    from boom_hydraulics.model import config
+
+    exported = config.load(CONFIG / "default.yaml")
+    refused = report["refusals"]["model"]
+    assert set(refused) == set(MODEL_REFUSALS)
+    for case, values in MODEL_REFUSALS.items():
+        with pytest.raises(ConfigError) as said:
+            with_updates(exported, **values)
+        assert refused[case]["status"] == DISCARD, case
+        assert refused[case]["message"].endswith(f"refused: {said.value}"), (case, refused[case]["message"])
+    assert report["refusals"]["after_refusals"] == report["refusals"]["before"]
 
 
 def test_the_drive_is_fixed_once_the_run_has_started(report: dict) -> None:

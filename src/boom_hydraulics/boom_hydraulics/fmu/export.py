@@ -108,9 +108,9 @@ def header(params: Parameters, guid: str) -> str:
         "enum { ROLE_VALVE, ROLE_ROW, ROLE_OUTPUT };",
         "typedef struct { int kind; int role; int index; const char *name; } Variable;",
         "typedef struct {",
-        "    int n_choices; const char *const *choices; const char *choice_list;",
+        "    int n_choices; const char *const *choices; const char *choice_list; int is_int;",
         "    int has_low; double low; int low_inclusive; int has_high; double high;",
-        "    const char *unit; const char *description;",
+        "    const char *low_text; const char *high_text; const char *unit; const char *description;",
         "} RowCheck;",
         f"static const double EXPORTED_ROW[N_ROW] = {{{', '.join(_c_double(v) for v in row)}}};",
         f"static const char *const ROW_NAMES[N_ROW] = {{{', '.join(_c_string(n) for n in names)}}};",
@@ -130,12 +130,15 @@ def header(params: Parameters, guid: str) -> str:
                     str(len(choices)),
                     f"CHOICES_{k}" if choices else "NULL",
                     _c_string(", ".join(choices)),
+                    "1" if meta["type"] == "int" else "0",
                     "1" if low is not None else "0",
                     _c_double(low if low is not None else 0.0),
                     "1" if meta["low_inclusive"] else "0",
                     "1" if high is not None else "0",
                     _c_double(high if high is not None else 0.0),
-                    _c_string(meta["unit"]),
+                    _c_string(repr(low)),
+                    _c_string(repr(high)),
+                    _c_string(f" {meta['unit']}" if meta["unit"] else ""),  # as parameters.py writes a value
                     _c_string(meta["description"]),
                 )
             )

@@ -164,14 +164,30 @@ static int native(int op, double *a, double *b, double *c, double *d) {
     return (raised || result == 0) ? -1 : result - 1;
 }
 
-/* ``value`` in the fewest digits that read back as the same double (as Python's repr). */
-typedef struct { char text[32]; } Number;
+/* ``value`` as Python's repr writes a float: the fewest digits that read back as the same
+ * double, positional from 1e-4 to 1e16 (with ".0" where it is whole), else with an exponent. */
+typedef struct { char text[40]; } Number;
 static Number number(double value) {
     Number n;
-    for (int digits = 1; digits <= 17; digits++) {
-        snprintf(n.text, sizeof n.text, "%.*g", digits, value);
-        if (strtod(n.text, NULL) == value || value != value) break;
+    if (isnan(value) || isinf(value)) {
+        snprintf(n.text, sizeof n.text, "%s", isnan(value) ? "nan" : value > 0 ? "inf" : "-inf");
+        return n;
     }
+    char e[40];
+    int digits = 1;
+    for (; digits < 17; digits++) {
+        snprintf(e, sizeof e, "%.*e", digits - 1, value);
+        if (strtod(e, NULL) == value) break;
+    }
+    snprintf(e, sizeof e, "%.*e", digits - 1, value);
+    int exponent = atoi(strchr(e, 'e') + 1);
+    if (exponent < -4 || exponent >= 16) {
+        snprintf(n.text, sizeof n.text, "%s", e);
+        return n;
+    }
+    int decimals = digits - 1 - exponent;
+    snprintf(n.text, sizeof n.text, "%.*f", decimals > 0 ? decimals : 0, value);
+    if (!strchr(n.text, '.')) strncat(n.text, ".0", sizeof n.text - strlen(n.text) - 1);
     return n;
 }
 #define NUM(x) (number(x).text)
@@ -238,7 +254,9 @@ static int cross_check(const double *row, char *why, size_t size) {
         snprintf(why, size, "support_height_m (%s m) must be smaller than b_m (%s m): eq. 3 takes arccos(h / b)", NUM(support), NUM(b));
     else if (!(low <= q_min && q_min < q_max && q_max <= high))
         snprintf(why, size, "stroke [%s, %s] m must be an increasing interval inside [%.4g, %.4g] m: the triangle of eq. 1 "
-                 "degenerates at its ends; set cylinder_min_length_m / cylinder_max_length_m", NUM(q_min), NUM(q_max), low, high);
+                 "degenerates at q1 = |b - a| = %.4g m and q1 = a + b = %.4g m (sin(phi) = 0, infinite rod force); keep %s m "
+                 "clear for the end stops; set cylinder_min_length_m / cylinder_max_length_m", NUM(q_min), NUM(q_max), low,
+                 high, fabs(b - a), a + b, NUM(GEOMETRY_CLEARANCE_M));
     else if (!(q_min <= q0 && q0 <= q_max))
         snprintf(why, size, "initial_length_m (%s m) lies outside the stroke [cylinder_min_length_m, cylinder_max_length_m] = "
                  "[%.4g, %.4g] m", NUM(q0), q_min, q_max);
@@ -259,30 +277,35 @@ static int cross_check(const double *row, char *why, size_t size) {
 }
 
 /* Why the row ``row`` cannot run (written to ``why``), or 0 where it can: every entry in its
- * range (parameters.py's), the strings among their choices; the model's cross checks. */
-static int refused_row(const double *row, char *why, size_t size) {
+ * range (parameters.py's), the strings among their choices (``texts``: the strings set);
+ * the model's cross checks. In parameters.py's words. */
+static int refused_row(const double *row, const char (*texts)[64], char *why, size_t size) {
     for (int k = 0; k < N_ROW; k++) {
         const RowCheck *r = &ROW_CHECKS[k];
         double v = row[k];
         if (r->n_choices > 0) {
             if (!(v >= 0.0 && v < r->n_choices && v == floor(v))) {
-                snprintf(why, size, "parameter '%s' is not one of its values; choose one of %s", ROW_NAMES[k], r->choice_list);
+                snprintf(why, size, "parameter '%s' is '%s'; choose one of %s", ROW_NAMES[k], texts[k], r->choice_list);
                 return 1;
             }
             continue;
         }
+        char text[48];
+        if (r->is_int)
+            snprintf(text, sizeof text, "%.0f", v);
+        else
+            snprintf(text, sizeof text, "%s", NUM(v));
         if (!isfinite(v)) {
-            snprintf(why, size, "parameter '%s' must be finite, got %s", ROW_NAMES[k], isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf"));
+            snprintf(why, size, "parameter '%s' must be finite, got %s", ROW_NAMES[k], text);
             return 1;
         }
         if (r->has_low && (r->low_inclusive ? v < r->low : v <= r->low)) {
-            snprintf(why, size, "parameter '%s' (%s) is %s %s; it must be %s %s", ROW_NAMES[k], r->description, NUM(v),
-                     r->unit, r->low_inclusive ? ">=" : ">", NUM(r->low));
+            snprintf(why, size, "parameter '%s' (%s) is %s%s; it must be %s %s", ROW_NAMES[k], r->description, text, r->unit,
+                     r->low_inclusive ? ">=" : ">", r->low_text);
             return 1;
         }
         if (r->has_high && v > r->high) {
-            snprintf(why, size, "parameter '%s' (%s) is %s %s; it must be <= %s", ROW_NAMES[k], r->description, NUM(v),
-                     r->unit, NUM(r->high));
+            snprintf(why, size, "parameter '%s' is %s%s; it must be <= %s", ROW_NAMES[k], text, r->unit, r->high_text);
             return 1;
         }
     }
@@ -368,7 +391,7 @@ EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Instance *m = (Instance *)c;
     char why[1024];
-    if (refused_row(m->next, why, sizeof why)) {
+    if (refused_row(m->next, (const char (*)[64])m->text, why, sizeof why)) {
         snprintf(m->stopped, sizeof m->stopped, "initialization refused: %s", why);
         say(m, fmi2Error, "logStatusError", "%s", m->stopped);
         return fmi2Error;
@@ -522,7 +545,7 @@ static int refused_changes(Instance *m, char *why, size_t size) {
         snprintf(why + used, size - used, " can only be set before initialization (variability fixed); reset the FMU to change it");
         return 1;
     }
-    return refused_row(m->next, why, size);
+    return refused_row(m->next, (const char (*)[64])m->text, why, size);
 }
 
 static fmi2Status refuse(Instance *m, fmi2Real t, fmi2Real h, const char *why) {
