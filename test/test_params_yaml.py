@@ -18,7 +18,7 @@ from rclpy.parameter import Parameter, parameter_dict_from_yaml_file  # noqa: E4
 
 from boom_hydraulics.ros import node_parameters  # noqa: E402
 
-SHIPPED = sorted(CONFIG.glob("*.yaml"))
+SHIPPED = sorted(p for p in CONFIG.glob("*.yaml") if p.name != "ros2_controllers.yaml")  # the controller manager's
 TYPES = {
     "float": Parameter.Type.DOUBLE,
     "int": Parameter.Type.INTEGER,

@@ -52,6 +52,9 @@ def test_boom_study_paper_writes_every_figure(tmp_path):
         "fig10.png",
         "solver_study.png",
         "statics.csv",
+        "fig8.csv",
+        "fig9.csv",
+        "fig10.csv",
         "solver_study.csv",
     }
     assert all((out / n).read_bytes()[:4] == b"\x89PNG" for n in names if n.endswith(".png"))
