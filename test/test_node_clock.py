@@ -169,3 +169,43 @@ def test_a_run_on_the_shared_clock_is_recorded_from_its_first_clock(nodes, clien
     assert 203.4 < origin_s + states["t"][-1] <= 203.5 + 1e-3  # and ran to where the clock stopped
     assert states["u"][0] == 0.6 and states["q1"][-1] > states["q1"][0] + 0.05
     assert "boom_sim: bag" in log
+
+
+def test_a_reset_on_the_shared_clock_keeps_the_node_on_the_clock(nodes, client):
+    """~/reset takes no simulated time: under use_sim_time the node goes on at the clock's
+    pace from where it was, its states never stamped ahead of the /clock it follows (it ran
+    ahead by the simulated time since the start)."""
+    from rosgraph_msgs.msg import Clock
+
+    from boom_hydraulics_msgs.srv import Reset
+
+    clock_s: list[float] = []
+    client.node.create_subscription(
+        Clock,
+        "/clock",
+        lambda m: clock_s.append(m.clock.sec + m.clock.nanosec * 1e-9),
+        rclpy.qos.qos_profile_sensor_data,  # (the clock source's is best effort)
+    )
+    node = nodes.start("use_sim_time:=true", "command_timeout_s:=0")
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    source = _clock_source("100.0", "1.0:30")
+    try:
+        # simulated time far beyond what one tick could hide
+        assert client.spin_until(lambda: bool(client.states) and _stamp_s(client.last()) > 102.0, timeout=60)
+        assert client.call(client.reset, Reset.Request()).success
+        ahead: list[float] = []
+        seen = len(client.states)
+
+        def taken() -> bool:
+            nonlocal seen
+            ahead.extend(_stamp_s(s) - clock_s[-1] for s in client.states[seen:])
+            seen = len(client.states)
+            return len(ahead) >= 250  # 2.5 s of the clock
+
+        assert client.spin_until(taken, timeout=60)
+    finally:
+        stop_process(source)
+        log = stop_process(node)
+    # a state is stamped with a clock time the node has seen; this client sees the same /clock,
+    # a little later or earlier (it takes both topics in turn): well within a tenth of a second
+    assert max(ahead) < 0.1, (max(ahead), log)

@@ -87,6 +87,74 @@ def test_a_command_stamped_ahead_acts_at_its_stamp_and_the_bag_resimulates(nodes
     assert max(abs(a - b) for a, b in common) < 1e-6
 
 
+def _stamps_ahead_of_the_clock(client, states: int) -> list[float]:
+    """How far each of the next ``states`` drive states' stamps lie ahead of the system clock
+    (the node's clock) when this client takes them, s: a stamp is the node-clock time of a
+    simulated instant the node has reached, so never ahead of it."""
+    ahead: list[float] = []
+    seen = len(client.states)
+
+    def taken() -> bool:
+        nonlocal seen
+        now_ns = time.time_ns()
+        ahead.extend((_ns(s.header.stamp) - now_ns) * 1e-9 for s in client.states[seen:])
+        seen = len(client.states)
+        return len(ahead) >= states
+
+    assert client.spin_until(taken), f"{len(ahead)} states"
+    return ahead
+
+
+def _acts_at_its_stamp(client, opening: float, ahead_s: float) -> None:
+    """A command stamped ``ahead_s`` ahead of the node's clock acts at the step that starts
+    within half a step of its stamp: between the two states around it."""
+    stamp_ns = time.time_ns() + round(ahead_s * 1e9)
+    sent = len(client.states)
+    client.command(opening, stamp_s=stamp_ns * 1e-9)
+    assert client.spin_until(lambda: client.last().valve_command == opening, timeout=30), "it never acted"
+    states = client.states[sent - 1 :]
+    first = next(i for i, s in enumerate(states) if s.valve_command == opening)
+    before, after = _ns(states[first - 1].header.stamp), _ns(states[first].header.stamp)
+    assert before <= stamp_ns + DT_S * 0.5e9, ((before - stamp_ns) * 1e-9, "acted before its stamp")
+    assert after >= stamp_ns + DT_S * 0.5e9, ((after - stamp_ns) * 1e-9, "the state it first shows in")
+
+
+def test_a_reset_keeps_the_stamps_on_the_clock(nodes, client):
+    """~/reset takes no simulated time: the states' stamps stay the node clock's (they ran
+    ahead of it by the time since the start), and a command stamped ahead acts at its stamp
+    after a reset as before it."""
+    from boom_hydraulics_msgs.srv import Reset
+
+    proc = nodes.start("command_timeout_s:=0.0")
+    try:
+        client.handshake()
+        client.spin_sim(1.5)  # simulated time far beyond what one tick could hide
+        _acts_at_its_stamp(client, 0.3, 0.5)
+        for k in range(2):
+            assert client.call(client.reset, Reset.Request()).success
+            ahead = _stamps_ahead_of_the_clock(client, 30)
+            assert max(ahead) <= 1e-3, (f"after reset {k + 1}", max(ahead))
+            _acts_at_its_stamp(client, 0.2 + 0.1 * k, 0.5)
+    finally:
+        stop_process(proc)
+
+
+def test_a_new_mode_keeps_the_stamps_on_the_clock(nodes, client):
+    """A change of mode resets the state (another state vector) and takes no simulated time,
+    as ~/reset: the stamps stay the node clock's."""
+    proc = nodes.start("command_timeout_s:=0.0")
+    try:
+        client.handshake()
+        client.spin_sim(1.5)
+        paper = Parameter(name="mode", value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="paper"))
+        assert client.call(client.set_params, SetParameters.Request(parameters=[paper])).results[0].successful
+        ahead = _stamps_ahead_of_the_clock(client, 30)
+        assert max(ahead) <= 1e-3, ("after mode paper", max(ahead))
+        _acts_at_its_stamp(client, 0.6, 0.5)
+    finally:
+        stop_process(proc)
+
+
 def test_a_stale_command_is_refused_with_the_reason_and_counted(nodes, client, tmp_path):
     proc = nodes.start("command_timeout_s:=1.0", f"record_folder:={tmp_path / 'bags'}", record=True)
     try:

@@ -121,9 +121,11 @@ class NodeClock:
         self.origin_ns = 0 if self.publishes else now_ns - round(self.sim.t * 1e9)
         self.seen_s = now_ns * 1e-9
 
-    def rebase(self, dt_before: float) -> None:
-        """Time runs on from here, tied to the clock as before (a change that takes no simulated time)."""
-        self.pacer.rebase(self.sim.step_count, dt_before)
+    def rebase(self, dt_before: float, steps_before: int) -> None:
+        """Time runs on from here, tied to the clock as before (a change that takes no simulated
+        time): ``steps_before`` steps of ``dt_before`` had been counted when it came, and the
+        simulator counts on from its step count now (0 after a reset)."""
+        self.pacer.rebase(steps_before, dt_before, self.sim.step_count)
 
     def follow(self) -> Follow:
         """FOLLOWED: whether the loop may step now, and what the ROS clock did."""

@@ -384,7 +384,7 @@ class BoomSimNode(Node):
     def _apply_changes(self, changes: list[Parameter], new_params: Any) -> None:
         """Apply a checked change (the caller holds the lock)."""
         node_changes = {p.name: p.value for p in changes if p.name in ros_parameters.NODE_PARAMETERS}
-        dt_before = self.sim.params.time_step_s
+        dt_before, steps_before = self.sim.params.time_step_s, self.sim.step_count
         if new_params is not None:
             if new_params.mode != "physical":
                 self.motion.stop("mode changed to paper, which has no position control")
@@ -408,7 +408,8 @@ class BoomSimNode(Node):
         if "real_time_factor" in node_changes:
             self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
         elif new_params is not None or node_changes:
-            self.clock.rebase(dt_before)  # the time origin stays: the change takes no simulated time
+            # the time origin stays: the change takes no simulated time (a new mode resets the state)
+            self.clock.rebase(dt_before, steps_before)
         # the node-clock time of the simulated instant the change takes effect at
         self._changed_at_ns = self.clock.sim_instant_ns()
 
@@ -485,14 +486,15 @@ class BoomSimNode(Node):
         """The drive at rest (at ``rod_position_m``, default q1(0)), valve closed, goals ended
         with ``why``; simulated time runs on. Raises SimulationError for a position outside the stroke."""
         stopped = self.failure is not None
+        dt_before, steps_before = self.sim.params.time_step_s, self.sim.step_count
         self.sim.reset(rod_position_m, keep_time=True)
         self.motion.stop(why)
         self.drive.reset()
         self.failure = None
         if stopped:  # a stopped simulation stood still, as a paused one does: it goes on from now
             self.clock.restart()
-        else:  # time runs on from here, tied to the clock as before
-            self.clock.rebase(self.sim.params.time_step_s)
+        else:  # time runs on from here, tied to the clock as before (the reset counts steps from 0)
+            self.clock.rebase(dt_before, steps_before)
 
     def _follow_ros_clock(self) -> bool:
         """use_sim_time: whether the loop may step now. No /clock yet: wait. The first /clock

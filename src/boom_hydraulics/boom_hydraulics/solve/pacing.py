@@ -14,7 +14,8 @@ worth of steps, and the rest waits for the next ticks.
 :meth:`Pacer.restart` ties the clock afresh to the state as it is: at start, at a resume
 and at a new real-time factor. :meth:`Pacer.rebase` keeps the tie and only counts steps
 afresh, after a reset or another parameter change (a new time step changes what a step
-count means, not where simulated time is due).
+count means, not where simulated time is due; a reset counts steps from 0 again, so it
+gives the count before it and the count after).
 """
 
 from __future__ import annotations
@@ -52,13 +53,15 @@ class Pacer:
         self.wall_origin_s = wall_s
         self.origin_steps = step_count
 
-    def rebase(self, step_count: int, dt_s: float) -> None:
-        """Count steps from ``step_count`` on without moving the tie between the clock and
-        simulated time (the steps so far were of ``dt_s``): after a reset or a parameter
-        change, which take no simulated time, simulated time is due where it was."""
+    def rebase(self, step_count: int, dt_s: float, counted_from: int | None = None) -> None:
+        """Count steps afresh without moving the tie between the clock and simulated time:
+        ``step_count`` steps of ``dt_s`` were taken when the change came, and the step count
+        goes on from ``counted_from`` (default ``step_count``; 0 after a reset, which counts
+        steps from 0 again). After a reset or a parameter change, which take no simulated
+        time, simulated time is due where it was."""
         if self.real_time_factor > 0:
             self.wall_origin_s += (step_count - self.origin_steps) * dt_s / self.real_time_factor
-        self.origin_steps = step_count
+        self.origin_steps = step_count if counted_from is None else counted_from
 
     def per_tick(self, dt_s: float) -> int:
         """Steps in one tick of simulated time at time step ``dt_s``."""
