@@ -223,6 +223,8 @@ def refusals(host: Host) -> dict[str, Any]:
     result["after_refusals"] = host.outputs(fmu)
     host.set(fmu, "time_step_s", 0.001)
     result["drifted"] = host.refused(lambda: fmu.doStep(0.5 + 2e-8, STEP_S))  # a host's sum of steps
+    result["set_method"] = host.refused(lambda: host.set(fmu, "method", "euler"))
+    result["set_method"]["method"] = host.get(fmu, "method")
     before_drive = host.outputs(fmu)
     host.set(fmu, "drive", "fixed_pump")
     result["drive"] = host.refused(lambda: fmu.doStep(0.51, STEP_S))

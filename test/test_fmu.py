@@ -133,6 +133,7 @@ def test_the_model_description_validates_and_names_units(fmu: Path, report: dict
     assert variables["bulk_modulus_pa"].variability == "tunable"
     assert variables["initial_length_m"].variability == "fixed"
     assert (variables["drive"].variability, variables["drive"].start) == ("fixed", "pressure_compensated")
+    assert (variables["method"].causality, variables["method"].variability) == ("calculatedParameter", "fixed")
     assert float(variables["supply_pressure_pa"].start) == 16.0e6  # the config's value
     assert "mode" not in variables  # the physical drive only
 
@@ -260,6 +261,13 @@ def test_what_the_model_refuses_the_fmu_refuses_in_the_models_words(report: dict
     assert report["refusals"]["after_refusals"] == report["refusals"]["before"]
 
 
+def test_the_method_is_the_exported_ones(report: dict) -> None:
+    """Its step is compiled into the binary: a host reads it and cannot set it (fmi2Error, not Fatal)."""
+    refused = report["refusals"]["set_method"]
+    assert refused["status"] == 3 and "export the FMU again with boom-sim fmu --set method=" in refused["message"]
+    assert refused["method"] == "rk4"
+
+
 def test_the_drive_is_fixed_once_the_run_has_started(report: dict) -> None:
     refused = report["refusals"]
     drive = refused["drive"]
@@ -275,8 +283,16 @@ def test_a_time_step_too_small_for_any_step_is_refused_not_fatal(report: dict) -
 
 
 def test_a_step_the_simulation_cannot_finish_is_not_taken(report: dict) -> None:
+    """Refused with boom-sim's line for the same run, and the FMU stays where the step began."""
+    from boom_hydraulics.errors import SimulationError
+    from boom_hydraulics.model import config
+
     stiff = report["refusals"]["too_stiff"]
-    assert stiff["status"] == DISCARD and "too stiff at t = " in stiff["message"]
+    params = with_updates(config.load(CONFIG / "default.yaml"), time_step_s=0.01, end_stop_damping_n_s_m2=1.0e15)
+    with pytest.raises(SimulationError) as said:
+        Simulator(params).step(1.0, 300)
+    assert stiff["status"] == DISCARD and stiff["message"].endswith(f"refused: {said.value}")
+    assert "too stiff at t = " in stiff["message"]
     assert stiff["last_successful_s"] == 0.0 and stiff["after"] == stiff["start"]
     assert stiff["shorter"][0] > stiff["start"][0] + 0.1  # a shorter step from there lifts the boom
 

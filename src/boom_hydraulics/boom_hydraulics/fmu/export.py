@@ -26,8 +26,10 @@ from ..files import atomic_path
 from ..model import config
 from ..model import physical as model
 from ..model.parameters import GEOMETRY_CLEARANCE_M, Parameters, as_dict, describe
+from ..solve import integrators
 from ..solve.batch import stability_limit
 from ..solve.outcomes import MAX_SUBSTEPS
+from ..solve.stepping import HALVED_MOST
 from . import native
 from .interface import (
     EXTERNAL_FORCE,
@@ -103,9 +105,11 @@ def header(params: Parameters, guid: str) -> str:
         f"#define CONSTANT_B {model.Constants._fields.index('b')}",
         f"#define ROW_TIME_STEP {names.index('time_step_s')}",
         f"#define ROW_SUBSTEPS {names.index('substeps')}",
+        f"#define HALVING {1 if integrators.METHODS[params.method].halving else 0}",
+        f"#define HALVED_MOST {HALVED_MOST}",
         *(f"#define ROW_{name} {k}" for k, name in enumerate(names)),
         "enum { KIND_REAL, KIND_INTEGER, KIND_STRING };",
-        "enum { ROLE_VALVE, ROLE_ROW, ROLE_OUTPUT };",
+        "enum { ROLE_VALVE, ROLE_ROW, ROLE_OUTPUT, ROLE_CALCULATED };",
         "typedef struct { int kind; int role; int index; const char *name; } Variable;",
         "typedef struct {",
         "    int n_choices; const char *const *choices; const char *choice_list; int is_int;",
@@ -153,7 +157,7 @@ def header(params: Parameters, guid: str) -> str:
         elif variable.causality == "output":
             role, index = "ROLE_OUTPUT", native.OUTPUT_NAMES.index(variable.name)
         else:
-            role = "ROLE_ROW"
+            role = "ROLE_CALCULATED" if variable.causality == "calculatedParameter" else "ROLE_ROW"
             index = names.index(EXTERNAL_FORCE_PARAMETER if variable.name == EXTERNAL_FORCE else variable.name)
         variables.append(f"{{{kind}, {role}, {index}, {_c_string(variable.name)}}}")
     lines.append(f"static const Variable VARIABLES[N_VARIABLES] = {{{', '.join(variables)}}};")

@@ -5,8 +5,9 @@
 - Outputs: rod position, velocity and force, both chamber pressures, boom angle, supply
   power and energy, under the names boom-sim's CSV columns have (model.outputs).
 - Parameters: every plant parameter the solvers read, with its unit (tunable: a new value
-  applies from the next communication step on), and the solver's method, time step and
-  substeps, the drive and the initial rod state (fixed: set before initialization).
+  applies from the next communication step on), and the solver's time step and substeps,
+  the drive and the initial rod state (fixed: set before initialization); the method, which
+  the host reads but cannot set (its step is compiled in at export).
 
 The mode is physical (the corrected drive), and the payload and the external rod force
 (``f_ext``, the model's ``external_rod_force_n``) are inputs, so none of them is a
@@ -42,7 +43,7 @@ class Variable:
     dimensionless), description, variability and inclusive range."""
 
     name: str
-    causality: str  # "input", "output" or "parameter"
+    causality: str  # "input", "output", "parameter" or "calculatedParameter"
     kind: str  # "float", "int" or "str"
     unit: str
     description: str
@@ -98,12 +99,17 @@ FIXED = ("method", "time_step_s", "substeps", "drive", "initial_length_m", "init
 NOT_PARAMETERS = ("mode", PAYLOAD, EXTERNAL_FORCE_PARAMETER, *UNSOLVED)
 
 
+#: Parameters the FMU shows but a host cannot set (causality calculatedParameter): the method,
+#: whose step is compiled into the binary at export.
+CALCULATED = ("method",)
+
+
 def _parameter(name: str) -> Variable:
     meta = describe(name)
     low = meta["low"] if meta["low_inclusive"] else None
     return Variable(
         name,
-        "parameter",
+        "calculatedParameter" if name in CALCULATED else "parameter",
         meta["type"],
         meta["unit"],
         meta["description"],

@@ -30,7 +30,7 @@ LOG_CATEGORIES = (
 
 def start_of(variable: Variable, params: Parameters) -> Any:
     """The start value of ``variable`` in an FMU exported with ``params`` (None: an output)."""
-    if variable.causality == "output":
+    if variable.causality in ("output", "calculatedParameter"):
         return None
     if variable.name == "valve_command":
         return 0.0
@@ -65,10 +65,12 @@ def _variable(parent: Element, reference: int, variable: Variable, params: Param
         "valueReference": str(reference),
         "description": variable.description,
         "causality": variable.causality,
-        "variability": variable.variability if variable.causality == "parameter" else "continuous",
+        "variability": variable.variability if "arameter" in variable.causality else "continuous",
     }
     if variable.causality == "parameter":
         attributes["initial"] = "exact"
+    if variable.causality == "calculatedParameter":
+        attributes["initial"] = "calculated"
     if variable.kind == "str":
         attributes["variability"] = variable.variability
     node = SubElement(parent, "ScalarVariable", attributes)
@@ -135,6 +137,8 @@ def model_description(params: Parameters) -> bytes:
     for index, variable in enumerate(VARIABLES, start=1):
         if variable.causality == "output":
             SubElement(outputs, "Unknown", index=str(index))
+    for index, variable in enumerate(VARIABLES, start=1):
+        if variable.causality in ("output", "calculatedParameter"):  # in the order of their indices
             SubElement(initial, "Unknown", index=str(index))
     indent(root)
     text = tostring(root, encoding="unicode")

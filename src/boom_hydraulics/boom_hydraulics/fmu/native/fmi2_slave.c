@@ -61,7 +61,7 @@ typedef struct {
 extern int32_t boom_native(int32_t op, double *a, double *b, double *c, double *d) __asm__(BOOM_NATIVE_SYMBOL);
 enum { OP_CONSTANTS, OP_INITIAL_STATE, OP_STEP, OP_OUTPUTS, OP_ENERGY, OP_WITHIN };
 /* The stepping's outcomes (solve/stepping.py, solve/outcomes.py). */
-enum { OUTCOME_OK, OUTCOME_NONFINITE, OUTCOME_ENERGY, OUTCOME_TOO_STIFF };
+enum { OUTCOME_OK, OUTCOME_NONFINITE, OUTCOME_ENERGY, OUTCOME_TOO_STIFF, OUTCOME_GEOMETRY };
 
 /* The compiled code calls these only where it raised (its error path, which would hand a
  * Python exception to Python): here they note that it did, and do nothing else. */
@@ -428,6 +428,13 @@ static const Variable *variable(Instance *m, fmi2ValueReference vr, int kind) {
     return &VARIABLES[vr];
 }
 
+/* The value of string entry ``k`` of ``row``, among its choices ("" for none). */
+static const char *text_of(int k, const double *row) {
+    const RowCheck *r = &ROW_CHECKS[k];
+    double code = row[k];
+    return (code >= 0 && code < r->n_choices) ? r->choices[(int)code] : "";
+}
+
 EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     Instance *m = (Instance *)c;
     for (size_t i = 0; i < n; i++) {
@@ -477,6 +484,11 @@ static fmi2Status set_row(Instance *m, const Variable *v, double value) {
         say(m, fmi2Error, "logStatusError", "%s is an output: it cannot be set", v->name);
         return fmi2Error;
     }
+    if (v->role == ROLE_CALCULATED) {
+        say(m, fmi2Error, "logStatusError", "%s is the one this FMU was exported with (%s): its step is compiled in; "
+            "export the FMU again with boom-sim fmu --set %s=... for another", v->name, text_of(v->index, m->active), v->name);
+        return fmi2Error;
+    }
     if (v->role == ROLE_VALVE)
         m->valve = value;
     else
@@ -520,15 +532,48 @@ EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], 
         double code = NAN; /* a value that is none of the choices: refused at the next step */
         for (int j = 0; j < r->n_choices; j++)
             if (value[i] && strcmp(value[i], r->choices[j]) == 0) code = j;
+        if (set_row(m, v, code) != fmi2OK) return fmi2Error;
         snprintf(m->text[v->index], sizeof m->text[v->index], "%s", value[i] ? value[i] : "");
-        set_row(m, v, code);
     }
     return fmi2OK;
 }
 
 /* --- FMI: stepping ------------------------------------------------------------------------ */
-static void describe_state(const double *y, char *text, size_t size) {
-    snprintf(text, size, "q1 = %.6g, v = %.6g, p1 = %.6g, p2 = %.6g, x_v = %.6g", y[0], y[1], y[2], y[3], y[4]);
+/* What to change where the integration diverged (solve/outcomes.py, step_advice). */
+static void step_advice(const Instance *m, char *text, size_t size) {
+    const char *method = text_of(ROW_method, m->active);
+    double dt = m->active[ROW_TIME_STEP];
+    if (HALVING)
+        snprintf(text, size, "the integration diverged: the step of %g s (%s, taken again in up to %d substeps) is too large "
+                 "for these parameters; try a smaller time_step_s, or method rk4 (its stability bound sizes its substeps)",
+                 dt, method, HALVED_MOST);
+    else
+        snprintf(text, size, "the integration diverged: the step of %g s (%s, at least %.0f substeps) is too large for these "
+                 "parameters; try a smaller time_step_s or more substeps, or method ros2", dt, method, m->active[ROW_SUBSTEPS]);
+}
+
+/* Why a run stopped: ``outcome`` of the step after ``t_s`` from the last good state ``y``, in
+ * the words of solve/outcomes.py (message), as boom-sim says it. */
+static void failure(const Instance *m, int outcome, double t_s, const double *y, double needed, char *why, size_t size) {
+    char state[256], advice[512];
+    snprintf(state, sizeof state, "q1 = %.6g, v = %.6g, p1 = %.6g, p2 = %.6g, x_v = %.6g", y[0], y[1], y[2], y[3], y[4]);
+    step_advice(m, advice, sizeof advice);
+    double a = m->c[CONSTANT_A], b = m->c[CONSTANT_B];
+    if (outcome == OUTCOME_NONFINITE)
+        snprintf(why, size, "state became non-finite after t = %.6g s (the next step; last finite state %s); %s", t_s, state, advice);
+    else if (outcome == OUTCOME_ENERGY)
+        snprintf(why, size, "energy balance broken after t = %.6g s: the change of the stored energy no longer matches the energy "
+                 "that flowed, by more than 1%% (%s); %s", t_s, state, advice);
+    else if (outcome == OUTCOME_TOO_STIFF)
+        snprintf(why, size, "too stiff at t = %.6g s: a stable %s step of %g s needs %.0f substeps, more than %d (%s); use method "
+                 "ros2 (implicit) or larger dead volumes%s, a lower bulk_modulus_pa or a smaller orifice", t_s,
+                 text_of(ROW_method, m->active), m->active[ROW_TIME_STEP], needed, MAX_SUBSTEPS, state,
+                 strcmp(text_of(ROW_drive, m->active), "fixed_pump") == 0 ? ", a larger supply_line_volume_m3" : "");
+    else if (outcome == OUTCOME_GEOMETRY)
+        snprintf(why, size, "rod left the valid geometry after t = %.6g s (%s): the next step takes q1 outside (%.4g, %.4g) m "
+                 "where the triangle of eq. 1 degenerates; %s", t_s, state, fabs(b - a), a + b, advice);
+    else
+        snprintf(why, size, "the model cannot be evaluated near t = %.6g s (%s); %s", t_s, state, advice);
 }
 
 /* Why the parameters the host set cannot take effect at the next step, or 0: a fixed
@@ -558,7 +603,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
     (void)noSetFMUStatePriorToCurrentPoint;
     Instance *m = (Instance *)c;
     double t = currentCommunicationPoint, h = communicationStepSize;
-    char why[2048], state[256];
+    char why[2048];
     if (!m->initialized) return refuse(m, t, h, m->stopped);
     double dt = m->active[ROW_TIME_STEP];
     double offset = t - m->start_s;
@@ -605,23 +650,26 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
     double geometry[3] = {m->y[0], m->c[CONSTANT_A], m->c[CONSTANT_B]};
     int within = native(OP_WITHIN, geometry, NULL, NULL, NULL);
     if (outcome != OUTCOME_OK || within != 1) {
-        double y_last[N_STATE]; /* the last good state of the failed step, for the message */
+        double y_last[N_STATE]; /* the last good state of the failed step */
         memcpy(y_last, m->y, sizeof y_last);
         memcpy(m->y, y0, sizeof y0); /* the step is not taken */
-        describe_state(outcome == OUTCOME_OK ? y0 : y_last, state, sizeof state);
-        if (outcome < 0)
-            snprintf(why, sizeof why, "the model cannot be evaluated in this step (%s)", state);
-        else if (outcome == OUTCOME_TOO_STIFF)
-            snprintf(why, sizeof why, "too stiff at t = %.6g s: a stable step of %g s needs %.0f substeps, more than %d (%s); "
-                     "use larger dead volumes, a lower bulk_modulus_pa or a smaller orifice", t_end, dt, info[1], MAX_SUBSTEPS, state);
-        else if (outcome == OUTCOME_ENERGY)
-            snprintf(why, sizeof why, "energy balance broken after t = %.6g s: the change of the stored energy no longer matches "
-                     "the energy that flowed, by more than 1%% (%s); try a smaller time_step_s or more substeps", t_end, state);
-        else if (outcome == OUTCOME_NONFINITE)
-            snprintf(why, sizeof why, "state became non-finite after t = %.6g s (the next step; last finite state %s); "
-                     "try a smaller time_step_s or more substeps", t_end, state);
-        else
-            snprintf(why, sizeof why, "rod left the valid geometry in this step (%s): the triangle of eq. 1 degenerates", state);
+        double t_last = t_end;
+        if (within != 1 && outcome >= 0) { /* which step left the geometry: the steps again, one at a time (bit for bit) */
+            memcpy(y_last, y0, sizeof y_last);
+            for (long long k = 0; k < (long long)info[0]; k++) {
+                double y_next[N_STATE], one[9], taken[2];
+                memcpy(y_next, y_last, sizeof y_next);
+                memcpy(one, args, sizeof one);
+                one[0] = m->t + (double)k * dt;
+                one[6] = 1.0;
+                native(OP_STEP, y_next, m->c, one, taken);
+                double q[3] = {y_next[0], m->c[CONSTANT_A], m->c[CONSTANT_B]};
+                t_last = m->t_base + (double)(m->count + k - m->n_base) * dt;
+                if (native(OP_WITHIN, q, NULL, NULL, NULL) != 1) break;
+                memcpy(y_last, y_next, sizeof y_last);
+            }
+        }
+        failure(m, within != 1 && outcome >= 0 ? OUTCOME_GEOMETRY : outcome, t_last, y_last, info[1], why, sizeof why);
         return refuse(m, t, h, why);
     }
     m->count += (long long)info[0];
