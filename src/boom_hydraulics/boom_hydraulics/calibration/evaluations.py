@@ -20,8 +20,8 @@ import numpy as np
 _PROBLEM: Any = None
 
 
-def _residual(theta: np.ndarray, window_s: float) -> np.ndarray:
-    return _PROBLEM.residual(_PROBLEM.simulate(theta), window_s)
+def _residual(theta: np.ndarray, window_s: float, weighted: bool) -> np.ndarray:
+    return _PROBLEM.residual(_PROBLEM.simulate(theta), window_s, weighted)
 
 
 def cores() -> int:
@@ -39,7 +39,8 @@ class Evaluations:
         self.pool = None
         if workers > 1:
             self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
-        self._memo: dict[tuple[bytes, float], np.ndarray] = {}
+        self._memo: dict[tuple[bytes, float, bool], np.ndarray] = {}
+        self.last_jacobian: np.ndarray | None = None  # the one :meth:`jacobian` gave last
 
     def __enter__(self) -> Evaluations:
         return self
@@ -48,34 +49,39 @@ class Evaluations:
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
 
-    def residuals(self, thetas: Sequence[np.ndarray], window_s: float) -> list[np.ndarray]:
-        """The residual at each of ``thetas``, averaged over ``window_s`` (0: raw)."""
+    def residuals(self, thetas: Sequence[np.ndarray], window_s: float, weighted: bool = False) -> list[np.ndarray]:
+        """The residual at each of ``thetas``: averaged over ``window_s`` (0: raw), or ``weighted``
+        by the signals' noise (the problem's :meth:`residual`)."""
         if self.pool is None or len(thetas) == 1:
-            return [self.problem.residual(self.problem.simulate(th), window_s) for th in thetas]
+            return [self.problem.residual(self.problem.simulate(th), window_s, weighted) for th in thetas]
         self.problem.evaluations += len(thetas)
-        return list(self.pool.map(_residual, thetas, [window_s] * len(thetas)))
+        n = len(thetas)
+        return list(self.pool.map(_residual, thetas, [window_s] * n, [weighted] * n))
 
-    def function(self, window_s: float) -> Callable[[np.ndarray], np.ndarray]:
+    def function(self, window_s: float, weighted: bool = False) -> Callable[[np.ndarray], np.ndarray]:
         """f(theta) for least_squares, remembering its last values for :meth:`jacobian`."""
 
         def f(theta: np.ndarray) -> np.ndarray:
-            (r,) = self.residuals([theta], window_s)
-            self._memo = {(theta.tobytes(), window_s): r}
+            (r,) = self.residuals([theta], window_s, weighted)
+            self._memo = {(theta.tobytes(), window_s, weighted): r}
             return r
 
         return f
 
-    def jacobian(self, window_s: float, step: float, high: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    def jacobian(
+        self, window_s: float, step: float, high: np.ndarray, weighted: bool = False
+    ) -> Callable[[np.ndarray], np.ndarray]:
         """J(theta) by forward differences of ``step`` (relative, at least ``step``), all columns at
         once; a step that would cross the upper bound ``high`` goes the other way."""
 
         def jac(theta: np.ndarray) -> np.ndarray:
-            key = (theta.tobytes(), window_s)
-            f0 = self._memo[key] if key in self._memo else self.residuals([theta], window_s)[0]
+            key = (theta.tobytes(), window_s, weighted)
+            f0 = self._memo[key] if key in self._memo else self.residuals([theta], window_s, weighted)[0]
             h = step * np.maximum(1.0, np.abs(theta))
             h = np.where(theta + h > high, -h, h)
             points = [theta + h[k] * np.eye(len(theta))[k] for k in range(len(theta))]
-            columns = self.residuals(points, window_s)
-            return np.column_stack([(c - f0) / hk for c, hk in zip(columns, h)])
+            columns = self.residuals(points, window_s, weighted)
+            self.last_jacobian = np.column_stack([(c - f0) / hk for c, hk in zip(columns, h)])
+            return self.last_jacobian
 
         return jac

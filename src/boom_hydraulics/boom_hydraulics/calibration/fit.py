@@ -5,11 +5,17 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
   they are the start, changed by ``--config`` and ``--set``. A bag without one (a real
   machine's) needs ``--config``; its run starts at rest at ``initial_length_m`` at the bag's
   first message, and the simulation is sampled every time step. A bag without commands (valve
-  commands or the controller's setpoints) is refused: there is nothing to re-simulate.
-- **The residual.** Each recorded sample is compared at its own log time with the simulation
-  there (linear between the simulated instants), in units of the recorded signal's range and
-  weighted ``w / sqrt(n)`` (n its samples), so that each signal counts by its weight, whatever
-  its rate. A parameter set whose run fails (it diverged) costs a residual far above any fit.
+  commands or the controller's setpoints) is refused: there is nothing to re-simulate; so is
+  a run that was reset (:mod:`.resets`, which tells a reset from sensor noise).
+- **The samples.** Each recorded sample is compared at the instant it shows (its stamp, where
+  on the run's clock; see :mod:`.signals`) with the simulation there (linear between the
+  simulated instants).
+- **The residual.** Each sample's difference over its signal's noise, told from the recording
+  itself (:mod:`.noise`), times the signal's weight (``--weight``, 1 by default): signals of
+  any unit and rate count by what they tell, a fast precise sensor more than a slow noisy
+  one. (The coarse stages below, which only find the valley, measure each signal in units of
+  its range, weighted ``w / sqrt(n)``, so that each counts alike.) A parameter set whose run
+  fails (it diverged) costs a residual far above any fit.
 - **The fit.** Trust-region reflective least squares on each parameter over its start value,
   within the bounds of :func:`.fittable.bounds`; the Jacobian by forward differences of 1e-3
   of each value (the stability substeps change in steps, so a finer difference would see them),
@@ -26,16 +32,21 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
      through 0.91 to 1.09 times the best in steps of 3 %, on the raw residual: a search along
      each parameter for the ringing's phase (the averaged residual above hardly sees the
      bulk modulus), and
-  4. least squares on the raw residual from there.
+  4. least squares on the noise-weighted residual from there.
   The first least squares stops at 0.1 % (it only has to reach the valley), the last at 1e-6.
-- **The confidence intervals.** From the Jacobian at the solution: covariance s^2 (J^T J)^-1,
-  s^2 the residual's sum of squares over its degrees of freedom, times Student's t at 95 %.
-  They hold where the residual is the recordings' noise, independent from sample to sample;
-  a model that does not fit the machine makes them too narrow.
+- **The starts.** All of this from the given start and from ``starts - 1`` more spread over
+  a decade beyond the start and the model's default of each parameter (:mod:`.starts`); the
+  best end is kept, and where each start ended is reported.
+- **The confidence intervals.** From the Jacobian and the residual at the solution, each
+  signal's noise as its residual shows it, and residuals correlated from sample to sample
+  counted as such (:mod:`.uncertainty`).
+- **The verdict.** A fit that did not converge, or cannot tell a parameter, says so
+  (:mod:`.verdict`).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -44,7 +55,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 from scipy.optimize import least_squares
 
 from ..analysis.linear_model import mid_stroke_modes
@@ -52,12 +62,17 @@ from ..bags.reading import read_custom_data
 from ..bags.run_description import RunDescription
 from ..errors import ConfigError, SimulationError
 from ..model import config
-from ..model.parameters import Parameters, from_mapping
+from ..model.parameters import Parameters, describe, from_mapping
 from ..resim.recorded import RecordedRun
-from ..resim.resimulation import Replay, read_recorded
+from ..resim.resimulation import Replay
+from . import verdict
 from .evaluations import Evaluations, cores
 from .fittable import bounds, check_fit
-from .signals import Signal, read_signals, start_ns
+from .noise import noise_level
+from .resets import read_recorded
+from .signals import UNITS, Signal, read_signals, start_ns
+from .starts import starts as spread_starts
+from .uncertainty import half_widths
 
 PROG = "boom-calibrate"
 DEFAULT_SIGNALS = ("q1", "p1", "p2")
@@ -65,8 +80,10 @@ DEFAULT_SIGNALS = ("q1", "p1", "p2")
 DIFF_STEP = 1e-3
 #: The residual of a sample whose run failed, in units of its signal's range.
 FAILED_RESIDUAL = 10.0
-#: Confidence level of the intervals.
-LEVEL = 0.95
+#: A signal's noise is taken as at least this fraction of its range (a recording without noise).
+NOISE_FLOOR = 1e-6
+#: The starts of a fit: the given one and this many less one more (see starts).
+STARTS = 4
 #: The coarse stages average the residual over this many periods of the hydraulic mode ...
 SMOOTHING_PERIODS = 4.0
 #: ... of this one where the start values' linear model has no oscillating mode, Hz.
@@ -79,6 +96,12 @@ WIDE_FACTORS = tuple(float(f) for f in 1.1 ** np.arange(-9, 10) if f != 1.0)
 NEAR_FACTORS = tuple(float(f) for f in 1.03 ** np.arange(-3, 4) if f != 1.0)
 #: Relative tolerances (ftol, xtol) of the smoothed and of the final least squares.
 COARSE_TOLERANCE, FINE_TOLERANCE = 1e-3, 1e-6
+#: The final least squares also stops where a step moves each parameter by less than this
+#: fraction of its standard error (what it could still gain is far inside the interval) ...
+STOP_WITHIN_ERROR = 1e-3
+#: ... or where every signal's RMS residual is below this fraction of its noise (a recording
+#: without noise, which the fit would otherwise follow ever closer to the last step).
+STOP_BELOW_NOISE = 0.1
 
 
 @dataclass
@@ -99,8 +122,12 @@ class Problem:
         self.start = from_mapping(self.values | self.overrides)
         self.scales = {n: abs(getattr(self.start, n)) or 1.0 for n in self.names}
         self.ranges = {s: _range(sig.values) for s, sig in self.signals.items()}
+        self.noise = {
+            s: max(noise_level(sig.values, sig.time_ns - sig.time_ns[0]), NOISE_FLOOR * self.ranges[s])
+            for s, sig in self.signals.items()
+        }
         origin = self.run.clock_origin_ns
-        self.times_s = {s: (sig.log_ns - origin).astype(float) * 1e-9 for s, sig in self.signals.items()}
+        self.times_s = {s: (sig.time_ns - origin).astype(float) * 1e-9 for s, sig in self.signals.items()}
         self.evaluations = 0
 
     def fitted_values(self, theta: Sequence[float]) -> dict[str, float]:
@@ -110,7 +137,7 @@ class Problem:
         """The simulated signals at the recorded log times with the fitted parameters at ``theta``
         (nan outside the simulated span), or None where the run fails."""
         self.evaluations += 1
-        last_ns = max(int(sig.log_ns[-1]) for sig in self.signals.values())
+        last_ns = max(int(sig.time_ns[-1]) for sig in self.signals.values())
         try:
             replay = Replay(self.run, self.values, self.overrides | self.fitted_values(theta))
             t_ns, columns = [], {s: [] for s in self.signals}
@@ -125,9 +152,12 @@ class Problem:
         t = (np.array(t_ns, dtype=np.int64) - self.run.clock_origin_ns).astype(float) * 1e-9
         return {s: np.interp(self.times_s[s], t, columns[s], left=np.nan, right=np.nan) for s in self.signals}
 
-    def residual(self, simulated: Mapping[str, np.ndarray] | None, window_s: float = 0.0) -> np.ndarray:
-        """The weighted residual of every recorded sample (see the module docstring), averaged
-        over ``window_s`` (a moving mean over the samples within it; 0: raw)."""
+    def residual(
+        self, simulated: Mapping[str, np.ndarray] | None, window_s: float = 0.0, weighted: bool = False
+    ) -> np.ndarray:
+        """The residual of every recorded sample (see the module docstring): ``weighted`` by the
+        signals' noise and weights, else in units of their ranges, averaged over ``window_s`` (a
+        moving mean over the samples within it; 0: raw)."""
         parts = []
         for s, sig in self.signals.items():
             inside = self.inside[s]
@@ -135,12 +165,20 @@ class Problem:
                 difference = np.full(inside.sum(), FAILED_RESIDUAL * self.ranges[s])
             else:
                 difference = simulated[s][inside] - sig.values[inside]
+            if weighted:
+                parts.append(self.weights[s] / self.noise[s] * difference)
+                continue
             if window_s > 0.0:
                 spacing = float(np.median(np.diff(self.times_s[s][inside])))
                 width = min(len(difference), max(1, round(window_s / spacing)))
                 difference = np.convolve(difference, np.full(width, 1.0 / width), mode="valid")
             parts.append(self.weights[s] / (self.ranges[s] * math.sqrt(len(difference))) * difference)
         return np.concatenate(parts)
+
+    def segments(self) -> list[slice]:
+        """Where each signal's samples lie in :meth:`residual` (raw)."""
+        ends = np.cumsum([0] + [int(self.inside[s].sum()) for s in self.signals])
+        return [slice(int(a), int(b)) for a, b in itertools.pairwise(ends)]
 
     def rms(self, simulated: Mapping[str, np.ndarray] | None) -> dict[str, float]:
         """The RMS difference of each signal, in its own unit (nan where the run failed)."""
@@ -175,7 +213,6 @@ def prepare(
         raise ConfigError(f"--weight {unknown[0]}: not one of the signals fitted ({', '.join(signal_names)})")
     if any(not (w > 0 and math.isfinite(w)) for w in weights.values()):
         raise ConfigError(f"--weight must be positive and finite, got {weights}")
-    signals = read_signals(bag, signal_names)
     description = None
     if read_custom_data(bag) is None:
         if config_file is None:
@@ -187,6 +224,7 @@ def prepare(
         dt = from_mapping(values | dict(overrides)).time_step_s
         description = RunDescription(values, start_ns(bag), 1.0 / dt, command_timeout_s)
     run, values = read_recorded(bag, config_file, PROG, description)
+    signals = read_signals(bag, signal_names, (run.clock_origin_ns, run.end_ns))
     if not run.commands and not run.setpoints:
         raise ConfigError(
             f"{bag}: holds no valve commands (ValveCommand, or Float64MultiArray on a commands topic) and no "
@@ -209,24 +247,33 @@ class Fit:
     at_bound: dict[str, bool]
     rms_before: dict[str, float]  # per signal, its unit
     rms_after: dict[str, float]
-    cost_before: float  # sum of squares of the weighted residual
+    cost_before: float  # sum of squares of the noise-weighted residual
     cost_after: float
     initial: dict[str, np.ndarray] | None  # the simulated signals at the recorded times
     final: dict[str, np.ndarray] | None
     evaluations: int
     seconds: float
     message: str
+    correlation: np.ndarray = field(default_factory=lambda: np.eye(0))  # of the fitted values
+    ends: list[verdict.End] = field(default_factory=list)  # where each start ended, the best first
+    findings: list[verdict.Finding] = field(default_factory=list)  # why it cannot be trusted (none: it can)
+
+    @property
+    def exit_status(self) -> int:
+        """0, or verdict.NOT_CONVERGED (3), or verdict.NOT_IDENTIFIABLE (4)."""
+        return verdict.exit_status(self.findings)
 
 
-def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None = None) -> Fit:
-    """Fit the problem's parameters (see the module docstring), re-simulating on ``workers``
-    processes at a time (default: every core)."""
+def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None = None, starts: int = STARTS) -> Fit:
+    """Fit the problem's parameters (see the module docstring) from ``starts`` starts,
+    re-simulating on ``workers`` processes at a time (default: every core)."""
     began = time.perf_counter()
     names = problem.names
-    low, high = zip(*(bounds(n, problem.start, names) for n in names))
-    low = np.array(low) / [problem.scales[n] for n in names]
-    high = np.array(high) / [problem.scales[n] for n in names]
-    theta0 = np.array([getattr(problem.start, n) / problem.scales[n] for n in names])
+    scales = np.array([problem.scales[n] for n in names])
+    bound = {n: bounds(n, problem.start, names) for n in names}
+    low = np.array([bound[n][0] for n in names]) / scales
+    high = np.array([bound[n][1] for n in names]) / scales
+    theta0 = np.array([getattr(problem.start, n) for n in names]) / scales
     theta0 = np.clip(theta0, low, high)
     initial = problem.simulate(theta0)
     if initial is None:
@@ -235,39 +282,80 @@ def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None 
     for s, inside in problem.inside.items():
         if inside.sum() < 2:
             raise ConfigError(f"{problem.bag}: no recorded {s} sample falls within the re-simulated run")
-    r0 = problem.residual(initial)
+    r0 = problem.residual(initial, weighted=True)
     frequency = float(mid_stroke_modes([problem.start])[0][0])
     period_s = 1.0 / (frequency if math.isfinite(frequency) else DEFAULT_FREQUENCY_HZ)
     window_s = SMOOTHING_PERIODS * period_s
+    default = np.array([getattr(Parameters(), n) for n in names]) / scales
+    points = spread_starts(theta0, default, low, high, starts)
     with Evaluations(problem, cores() if workers is None else workers) as evaluations:
 
-        def fit_from(theta: np.ndarray, window: float, tolerance: float) -> Any:
+        def within_error(segments: list[slice]) -> Any:
+            """A callback that stops the least squares where its step is far inside the interval."""
+            last = {}
+
+            def stop(intermediate_result: Any) -> None:
+                x, jac = intermediate_result.x, evaluations.last_jacobian
+                fun = intermediate_result.fun
+                weights = [problem.weights[s] for s in problem.signals]
+                if all(np.sqrt(np.mean((fun[seg] / w) ** 2)) < STOP_BELOW_NOISE for seg, w in zip(segments, weights)):
+                    raise StopIteration
+                if "x" in last and jac is not None and jac.shape[0] == len(intermediate_result.fun):
+                    half, _ = half_widths(jac, intermediate_result.fun, segments)
+                    error = half / 1.96
+                    if np.all(np.abs(x - last["x"]) < STOP_WITHIN_ERROR * error):
+                        raise StopIteration
+                last["x"] = x.copy()
+
+            return stop
+
+        def fit_from(theta: np.ndarray, window: float, tolerance: float, weighted: bool = False) -> Any:
             return least_squares(
-                evaluations.function(window),
+                evaluations.function(window, weighted),
                 theta,
-                jac=evaluations.jacobian(window, DIFF_STEP, high),
+                jac=evaluations.jacobian(window, DIFF_STEP, high, weighted),
                 bounds=(low, high),
                 method="trf",
                 x_scale=1.0,
                 ftol=tolerance,
                 xtol=tolerance,
                 max_nfev=max_evaluations,
+                callback=within_error(problem.segments()) if weighted else None,
             )
 
-        theta = _scan(evaluations, theta0, low, high, window_s, COARSE_FACTORS)
-        theta = fit_from(theta, window_s, COARSE_TOLERANCE).x
-        theta = _scan(
-            evaluations, _scan(evaluations, theta, low, high, 0.0, WIDE_FACTORS), low, high, 0.0, NEAR_FACTORS
-        )
-        result = fit_from(theta, 0.0, FINE_TOLERANCE)
+        def descend(theta: np.ndarray) -> Any:
+            theta = _scan(evaluations, theta, low, high, window_s, COARSE_FACTORS)
+            theta = fit_from(theta, window_s, COARSE_TOLERANCE).x
+            theta = _scan(
+                evaluations, _scan(evaluations, theta, low, high, 0.0, WIDE_FACTORS), low, high, 0.0, NEAR_FACTORS
+            )
+            return fit_from(theta, 0.0, FINE_TOLERANCE, weighted=True)
+
+        results = [descend(point) for point in points]
+    order = sorted(range(len(results)), key=lambda k: 2.0 * results[k].cost)
+    result = results[order[0]]
     final = problem.simulate(result.x)
     fitted = problem.fitted_values(result.x)
-    half = _half_widths(result.jac, result.fun, len(names))
+    half, correlation = half_widths(result.jac, result.fun, problem.segments())
     interval = {n: (fitted[n] - h * problem.scales[n], fitted[n] + h * problem.scales[n]) for n, h in zip(names, half)}
     tight = 1e-9 * np.maximum(1.0, np.abs(result.x))
     at_bound = {
         n: bool(abs(x - lo) <= t or abs(hi - x) <= t) for n, x, lo, hi, t in zip(names, result.x, low, high, tight)
     }
+    ends = [
+        verdict.End(problem.fitted_values(points[k]), problem.fitted_values(results[k].x), 2.0 * results[k].cost)
+        for k in order
+    ]
+    rms_after = problem.rms(final)
+    units = {n: describe(n)["unit"] for n in names} | {s: UNITS[s] for s in problem.signals}
+    findings = verdict.identifiability(
+        names, fitted, interval, bound, correlation, ends[1:], ends[0].cost, len(result.fun) - len(names), units
+    )
+    findings += verdict.convergence(
+        result.status == 0, at_bound, fitted, rms_after, problem.noise, problem.ranges, units
+    )
+    unique = {(f.kind, f.subject): f for f in reversed(findings)}  # the first of each
+    findings = [f for f in findings if unique[(f.kind, f.subject)] is f]
     return Fit(
         problem,
         {n: getattr(problem.start, n) for n in names},
@@ -275,14 +363,17 @@ def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None 
         interval,
         at_bound,
         problem.rms(initial),
-        problem.rms(final),
+        rms_after,
         float(r0 @ r0),
-        float(result.fun @ result.fun),
+        ends[0].cost,
         initial,
         final,
         problem.evaluations,
         time.perf_counter() - began,
         str(result.message),
+        correlation,
+        ends,
+        findings,
     )
 
 
@@ -311,19 +402,3 @@ def _scan(
             if float(r @ r) < best_cost:
                 best, best_cost = trial, float(r @ r)
     return best
-
-
-def _half_widths(jac: np.ndarray, residual: np.ndarray, n: int) -> np.ndarray:
-    """The LEVEL interval's half-width of each parameter (in its fit units) from the Jacobian at
-    the solution: t sqrt(diag(s^2 (J^T J)^-1)), by the singular values of J; inf for a parameter
-    in a direction that J does not see (a singular value below 1e-9 of the largest: the signals
-    do not tell it)."""
-    dof = len(residual) - n
-    if dof <= 0:
-        return np.full(n, math.inf)
-    s2 = float(residual @ residual) / dof
-    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
-    seen = singular > 1e-9 * singular[0]
-    variance = (vt[seen].T ** 2) @ (1.0 / singular[seen] ** 2) * s2
-    blind = (vt[~seen].T ** 2).sum(axis=1) > 1e-6
-    return np.where(blind, math.inf, stats.t.ppf(0.5 + LEVEL / 2, dof) * np.sqrt(variance))

@@ -4,7 +4,9 @@
     boom-calibrate machine.mcap --config config/default.yaml --fit bulk_modulus_pa --weight p2=0.5 --out out/fit
 
 The arguments only; what a calibration does, and what it refuses, is told in
-:mod:`boom_hydraulics.calibration.fit`.
+:mod:`boom_hydraulics.calibration.fit`. Exit status 0 for a fit to trust, 3 for one that did
+not converge, 4 for one that cannot tell a fitted parameter (its files written all the same,
+marked; :mod:`boom_hydraulics.calibration.verdict`), 2 for what it refuses, 1 for a failure.
 """
 
 from __future__ import annotations
@@ -49,12 +51,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                             help="a bag without run description: the valve closes S s after the last command "
                             "(0: never)")  # fmt: skip
         parser.add_argument("--max-evaluations", type=int, default=200, metavar="N", help="re-simulations per stage")
+        parser.add_argument("--starts", type=int, default=4, metavar="N", help="starts of the fit: the given one and "
+                            "N - 1 spread over a decade around it and the default")  # fmt: skip
         parser.add_argument("--workers", type=int, metavar="N", help="processes that re-simulate side by side "
                             "(default: one per core)")  # fmt: skip
         parser.add_argument("--out", type=Path, required=True, help="folder for the results")
         args = parser.parse_args(argv)
         if args.max_evaluations < 1:
             raise ConfigError(f"--max-evaluations must be >= 1, got {args.max_evaluations}")
+        if args.starts < 1:
+            raise ConfigError(f"--starts must be >= 1, got {args.starts}")
         if args.workers is not None and args.workers < 1:
             raise ConfigError(f"--workers must be >= 1, got {args.workers}")
         if not (args.command_timeout >= 0 and math.isfinite(args.command_timeout)):
@@ -67,12 +73,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.bag, _names(args.fit), args.config, overrides, _names(args.signals), _weights(args.weight),
             args.command_timeout,
         )  # fmt: skip
-        result = fit.calibrate(problem, args.max_evaluations, args.workers)
+        result = fit.calibrate(problem, args.max_evaluations, args.workers, args.starts)
         for line in report.summary(result):
             print(line)
         names = report.write(result, args.out)
-        print(f"boom-calibrate: {', '.join(names)} in {args.out}")
-        return 0
+        marked = " (marked: do not use as they are)" if result.findings else ""
+        print(f"boom-calibrate: {', '.join(names)} in {args.out}{marked}")
+        for line in report.verdict_lines(result):
+            print(f"boom-calibrate: {line}", file=sys.stderr)
+        return result.exit_status
 
     return run_main("boom-calibrate", body)
 

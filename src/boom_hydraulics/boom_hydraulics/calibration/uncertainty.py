@@ -1,0 +1,75 @@
+"""The confidence intervals of a fit, from the Jacobian and the residual at its solution.
+
+The residual a fit minimises is each recorded sample's difference from the simulation over
+its signal's noise (:mod:`.noise`, times the signal's ``--weight``). Its covariance is the
+sandwich A^-1 B A^-1 with A = J^T J and B the covariance of J^T r, summed signal by signal
+(the signals' noises are independent of each other) as Newey and West's estimator sums it:
+the products J_i r_i of every sample with those up to L samples away (L = n^(1/3) of the
+signal's n samples), weighted 1 - l/(L+1), times n/(n-p). So the intervals take
+
+- each signal's own noise, as its residual shows it (not the noise estimate the weights
+  came from, nor a level shared by signals of different units),
+- residuals correlated from sample to sample (a signal sampled faster than its noise
+  changes, or a misfit that lasts), which an estimate for independent samples counts as
+  independent evidence, and
+- the weights, whatever they are.
+
+The half-width is Student's t at LEVEL on n - p degrees of freedom times the standard error.
+A direction J does not see (a singular value below 1e-9 of the largest) gives an infinite
+half-width.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy import stats
+
+#: Confidence level of the intervals.
+LEVEL = 0.95
+#: A singular value of J below this fraction of the largest is a direction the signals do not see.
+BLIND = 1e-9
+
+
+def _lag_sum(g: np.ndarray, lags: int) -> np.ndarray:
+    """Newey-West's sum of g_i g_j^T over |i - j| <= lags (Bartlett weights)."""
+    total = g.T @ g
+    for lag in range(1, min(lags, len(g) - 1) + 1):
+        cross = g[lag:].T @ g[:-lag]
+        total += (1.0 - lag / (lags + 1.0)) * (cross + cross.T)
+    return total
+
+
+def covariance(jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice]) -> tuple[np.ndarray, np.ndarray]:
+    """(covariance of the fitted values in fit units, whether each value lies in a direction J
+    does not see), see the module docstring."""
+    n, p = jac.shape
+    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
+    seen = singular > BLIND * singular[0] if len(singular) and singular[0] > 0 else np.zeros(p, bool)
+    blind = (vt[~seen].T ** 2).sum(axis=1) > 1e-6
+    inverse = (vt[seen].T / singular[seen] ** 2) @ vt[seen]  # (J^T J)^-1 on the seen directions
+    meat = np.zeros((p, p))
+    for segment in segments:
+        g = jac[segment] * residual[segment][:, None]
+        meat += _lag_sum(g, math.ceil(len(g) ** (1.0 / 3.0)))
+    meat *= n / max(n - p, 1)
+    return inverse @ meat @ inverse, blind
+
+
+def half_widths(jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice]) -> tuple[np.ndarray, np.ndarray]:
+    """(the LEVEL interval's half-width of each fitted value in fit units, inf where J does not
+    see it; the correlation matrix of the values)."""
+    n, p = jac.shape
+    dof = n - p
+    if dof <= 0:
+        return np.full(p, math.inf), np.eye(p)
+    cov, blind = covariance(jac, residual, segments)
+    deviation = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        correlation = cov / np.outer(deviation, deviation)
+    correlation = np.where(np.isfinite(correlation), correlation, 0.0)
+    np.fill_diagonal(correlation, 1.0)
+    half = stats.t.ppf(0.5 + LEVEL / 2, dof) * deviation
+    return np.where(blind, math.inf, half), correlation
