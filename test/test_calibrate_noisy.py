@@ -10,7 +10,6 @@ import numpy as np
 from machine_bags import params_file, record_machine, record_node
 
 from boom_hydraulics.calibration import fit
-from boom_hydraulics.calibration.resets import break_in_states
 from boom_hydraulics.cli import calibrate as cli
 
 NOISE = {"q1": 1e-3, "p1": 2e5, "p2": 2e5}  # 1 mm, 0.2 MPa: a real machine's sensors
@@ -44,6 +43,8 @@ def test_a_real_reset_is_still_refused_under_noise(tmp_path, capsys):
 
 def test_a_rod_jump_is_told_from_its_noise():
     """A jump of 3 cm in a rod position with 1 mm of noise is a reset; the noise is not."""
+    from boom_hydraulics.calibration.resets import break_in_states
+
     rng = np.random.default_rng(3)
     n = 500
     stamps = np.arange(n) * 10_000_000
