@@ -344,9 +344,10 @@ def _settle(client, seconds_of_states: int) -> None:
 
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="run through tools/with-env")
-def test_a_reset_node_run_is_refused_as_a_user_meets_it(tmp_path, nodes, client):
+def test_a_reset_node_run_is_reproduced_as_a_user_meets_it(tmp_path, nodes, client):
     """Record a default-clock run, lift, reset it twice through ~/reset, stop it with Ctrl-C,
-    and re-simulate: refused in one line naming the resets."""
+    and re-simulate: the node recorded its resets among its run events, and the re-simulation
+    resets where it did (it refused such runs before the node recorded them)."""
     proc = nodes.start(f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True)
     assert client.spin_until(lambda: len(client.states) > 3)
     client.command(1.0)
@@ -357,9 +358,72 @@ def test_a_reset_node_run_is_refused_as_a_user_meets_it(tmp_path, nodes, client)
     stop_process(proc)
     (bag,) = list((tmp_path / "bags").iterdir())
     result = resim(bag, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    original, again = read_drive_states(bag), read_drive_states(tmp_path / "out")
+    assert len(again["q1"]) == len(original["q1"])
+    assert np.max(np.abs(original["q1"] - again["q1"])) < 1e-9
+
+
+def _events_bag(folder: Path, events: list[dict], diagnostics: dict[str, str]) -> Path:
+    """A bag as the node records it with its run events (the description names their topic)
+    and its "boom_sim: run" diagnostics (the counts given), at rest for a second."""
+    import json
+
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from std_msgs.msg import String
+
+    custom = run_description(
+        from_mapping({}), ROS_TIME_NS, 100.0, 0.5, node="/boom_sim", events_topic="/boom_sim/events"
+    )
+    topics = [
+        Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState"),
+        Topic("/boom_sim/events", "std_msgs/msg/String"),
+    ]
+    topics.append(Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"))
+    with BagRecorder(folder, topics, custom_data=custom) as rec:
+        for k in range(1, 101):
+            stamp = ROS_TIME_NS + k * 10_000_000
+            msg = DriveState(rod_position_m=1.37)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            rec.write("/drive_state", stamp, serialize_message(msg))
+            for event in [e for e in events if e.get("states_before") == k]:
+                rec.write("/boom_sim/events", stamp + 1, serialize_message(String(data=json.dumps(event))))
+        status = DiagnosticStatus(
+            name="boom_sim: run", values=[KeyValue(key=k, value=v) for k, v in diagnostics.items()]
+        )
+        rec.write("/diagnostics", ROS_TIME_NS + 1_000_000_001, serialize_message(DiagnosticArray(status=[status])))
+    return folder
+
+
+def _reset_event(states_before: int) -> dict:
+    return {
+        "event": "reset", "sim_time_s": states_before * 0.01, "states_before": states_before,
+        "clock_origin_ns": ROS_TIME_NS, "origin_moved_ns": 0, "cause": "~/reset", "rod_position_m": None,
+        "stopped": False, "state": [],
+    }  # fmt: skip
+
+
+def test_a_bag_with_fewer_events_than_the_node_counted_is_refused_as_not_whole(tmp_path):
+    bag = _events_bag(tmp_path / "run", [_reset_event(40)], {"resets": "2", "pauses": "0", "step_calls": "0"})
+    result = resim(bag, "--out", tmp_path / "out")
     assert result.returncode == 2
     err = one_line(result)
-    assert "reset twice (~/reset" in err  # from the recorded calls, or the node's diagnostics
+    assert "count 2 resets and the bag holds 1 of them on /boom_sim/events" in err and "not whole" in err
+    assert not (tmp_path / "out").exists()
+    # with the events the node counted, the same run is re-simulated
+    whole = _events_bag(tmp_path / "whole", [_reset_event(40), _reset_event(70)], {"resets": "2"})
+    result = resim(whole, "--out", tmp_path / "out")
+    assert result.returncode == 0, result.stderr
+    assert len(read_drive_states(tmp_path / "out")["q1"]) == 100
+
+
+def test_a_run_event_that_does_not_read_is_refused_in_one_line(tmp_path):
+    bad = {**_reset_event(40), "sim_time_s": "soon"}
+    bag = _events_bag(tmp_path / "run", [bad], {})
+    result = resim(bag, "--out", tmp_path / "out")
+    assert result.returncode != 0
+    err = one_line(result)
+    assert "a run event on /boom_sim/events does not read ('sim_time_s' is 'soon', not a float)" in err
 
 
 @pytest.mark.skipif(BOOM_SIM is None, reason="run through tools/with-env")

@@ -159,12 +159,19 @@ def run_description(
     *,
     node: str | None = None,
     resimulated_from: str | None = None,
+    events_topic: str | None = None,
 ) -> dict[str, str]:
     """The custom data a bag carries so that its run can be simulated again (boom-resim):
     :class:`~.run_description.RunDescription` of the parameters, the stamp of simulated
-    time 0, the publish rate and the command timeout."""
+    time 0, the publish rate, the command timeout and where the run's events are."""
     description = RunDescription.of(
-        params, clock_origin_ns, publish_rate_hz, command_timeout_s, node=node, resimulated_from=resimulated_from
+        params,
+        clock_origin_ns,
+        publish_rate_hz,
+        command_timeout_s,
+        node=node,
+        resimulated_from=resimulated_from,
+        events_topic=events_topic,
     )
     return description.to_custom_data()
 

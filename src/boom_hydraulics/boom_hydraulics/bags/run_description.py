@@ -11,6 +11,8 @@ their text are fixed, so that every bag recorded so far keeps re-simulating:
   publish_clock, whose stamps are simulated time), a decimal integer;
 - ``publish_rate_hz`` and ``command_timeout_s``: Python float ``repr``;
 - ``node``: the recording node's fully qualified name (bags of the node);
+- ``events_topic``: the topic of the node's run events (bags.run_events), all of which the
+  bag holds (bags of the node since it records them; boom-resim's copy them);
 - ``resimulated_from``: the bag a boom-resim bag was re-simulated from.
 """
 
@@ -35,6 +37,7 @@ class RunDescription:
     command_timeout_s: float
     node: str | None = None
     resimulated_from: str | None = None
+    events_topic: str | None = None
 
     @classmethod
     def of(
@@ -46,9 +49,12 @@ class RunDescription:
         *,
         node: str | None = None,
         resimulated_from: str | None = None,
+        events_topic: str | None = None,
     ) -> RunDescription:
         """The description of a run with ``params``."""
-        return cls(as_dict(params), clock_origin_ns, publish_rate_hz, command_timeout_s, node, resimulated_from)
+        return cls(
+            as_dict(params), clock_origin_ns, publish_rate_hz, command_timeout_s, node, resimulated_from, events_topic
+        )
 
     def to_custom_data(self) -> dict[str, str]:
         """The bag's custom data (the keys and texts above, in this order)."""
@@ -62,6 +68,8 @@ class RunDescription:
             custom["node"] = self.node
         if self.resimulated_from is not None:
             custom["resimulated_from"] = self.resimulated_from
+        if self.events_topic is not None:
+            custom["events_topic"] = self.events_topic
         return custom
 
     @classmethod
@@ -75,6 +83,7 @@ class RunDescription:
             command_timeout_s=float(custom["command_timeout_s"]),
             node=custom.get("node"),
             resimulated_from=custom.get("resimulated_from"),
+            events_topic=custom.get("events_topic"),
         )
 
     @staticmethod

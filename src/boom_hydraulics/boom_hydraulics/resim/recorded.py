@@ -1,6 +1,7 @@
 """A boom_sim bag read as a run to simulate again: its description, the valve commands and
 parameter changes with the instants they act at, the setpoints of the position controller,
-the published state instants, and the node's own counts of what breaks the time line."""
+the published state instants, the node's run events (resets, pauses, steps, dropped
+backlogs: bags.run_events) and its own counts of them."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER
 from ..bags.recording import Topic, offered_qos
 from ..bags.run_description import RunDescription
+from ..bags.run_events import RunEvent, origin_at, parse
 from ..errors import BagError
 
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
@@ -54,6 +56,8 @@ class Recorded:
     # commands: the node's simulated instant (a stamp on its clock) when it took the command,
     # known from the drive states logged before it; None in a bag without them
     taken_ns: int | None = None
+    taken_after: int = 0  # commands: how many drive states the node had published when it took it
+    origin_ns: int = 0  # the node's time origin when it logged the message (its stamps map through it)
 
 
 @dataclass
@@ -63,7 +67,9 @@ class RecordedRun:
     description: RunDescription  # the parameters, time origin, publish rate, command timeout, node
     end_ns: int
     state_topic: str
-    state_ns: list[int]  # the instants the node published DriveState at
+    # the instants the node published DriveState at (their stamps): in the order it published
+    # them where the bag holds its run events, else by stamp
+    state_ns: list[int]
     state_log_ns: list[int]  # when it published each (its log time), in the order of state_ns
     topics: list[Topic]  # of the commands and parameter events, with their recorded offers
     commands: list[Recorded]
@@ -74,6 +80,23 @@ class RecordedRun:
     # the recorded drive states' q1, v, a and valve loss energy, in stamp order (reset detection)
     state_signals: tuple[list[float], ...] = ((), (), (), ())
     energy_topic: str | None = None  # where the node published its energy ledger (None: it did not)
+    # the node's run events in the order it recorded them, and each as recorded (log ns, raw)
+    # (none where the bag has no events_topic: recorded before the node recorded them)
+    events: list[RunEvent] = field(default_factory=list)
+    event_messages: list[tuple[int, bytes]] = field(default_factory=list)
+
+    @property
+    def has_events(self) -> bool:
+        """Whether the bag holds every run event of its node (its description names their topic)."""
+        return self.description.events_topic is not None
+
+    def state_origin_ns(self, index: int) -> int:
+        """The time origin the state at ``index`` (of :attr:`state_ns`) was stamped with."""
+        return origin_at(self.events, self.clock_origin_ns, index)
+
+    def state_sim_s(self, index: int) -> float:
+        """The simulated time of the state at ``index``."""
+        return (self.state_ns[index] - self.state_origin_ns(index)) * 1e-9
 
     @property
     def parameters(self) -> dict[str, Any]:
@@ -135,6 +158,22 @@ class NodeInstants:
         k = self._after(self.log_ns, log_ns)
         return self.stamp_ns[k - 1] if k else self.origin_ns
 
+    def count(self, log_ns: int) -> int:
+        """How many states the node had published when it took a message logged at ``log_ns``."""
+        return self._after(self.log_ns, log_ns)
+
+
+def _origins(description: RunDescription, events: Sequence[tuple[int, RunEvent]]):
+    """The node's time origin at a log time: that of the last event logged at or before it."""
+    log_times = [log for log, _ in events]
+    origins = [event.clock_origin_ns for _, event in events]
+
+    def at(log_ns: int) -> int:
+        k = bisect.bisect_right(log_times, log_ns)
+        return origins[k - 1] if k else description.clock_origin_ns
+
+    return at
+
 
 def _parameter_value(value: Any) -> Any:
     field_name = _VALUE_FIELDS.get(value.type)
@@ -168,7 +207,12 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                 (log_ns, _stamp_ns(msg), *(float(getattr(msg, name)) for name in _CONTINUITY_FIELDS))
                 for _, log_ns, _, msg in _messages(reader, states[:1])
             ]
-            recorded_states = sorted(logged_states, key=lambda row: row[1])
+            # with the run's events, in the order published (a reset at an instant publishes it
+            # again; a ROS clock that jumped back stamps later states earlier)
+            has_events = description.events_topic is not None
+            recorded_states = logged_states if has_events else sorted(logged_states, key=lambda row: row[1])
+            events = _events(bag, reader, description.events_topic) if has_events else []
+            origin_of = _origins(description, [(log, event) for log, _, event in events])
             node_instants = NodeInstants(description.clock_origin_ns, [row[:2] for row in logged_states])
             wanted = [c for c in reader.connections if c.msgtype in (VALVE_COMMAND, ARRAY_COMMAND, PARAMETER_EVENT)]
             topics = [
@@ -195,7 +239,11 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                         continue
                     values = {p.name: _parameter_value(p.value) for p in msg.changed_parameters}
                     at_ns = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec
-                    changes.append(Recorded(at_ns, log_ns, connection.topic, bytes(raw), changes=values))
+                    changes.append(
+                        Recorded(
+                            at_ns, log_ns, connection.topic, bytes(raw), changes=values, origin_ns=origin_of(log_ns)
+                        )
+                    )
                     continue
                 # the node's rule: at its stamp, or at the node's instant when it took the command
                 # if unstamped or already passed (without drive states: when it was logged)
@@ -214,6 +262,8 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                         float(opening),
                         stamp_ns=stamp_ns,
                         taken_ns=taken_ns,
+                        taken_after=node_instants.count(log_ns),
+                        origin_ns=origin_of(log_ns),
                     )
                 )
             end_ns = reader.end_time
@@ -236,4 +286,20 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
         run_counts=run_counts,
         state_signals=tuple(list(column) for column in zip(*recorded_states))[2:] or ((), (), (), ()),
         energy_topic=energy_topic or (f"{node_name}/energy" if node_name else None),
+        events=[event for _, _, event in events],
+        event_messages=[(log, raw) for log, raw, _ in events],
     )
+
+
+def _events(bag: Path, reader: AnyReader, topic: str) -> list[tuple[int, bytes, RunEvent]]:
+    """The run events recorded on ``topic``: (log ns, raw, event), in the order recorded.
+    Raises BagError for one that does not read (the bag is not whole)."""
+    connections = [c for c in reader.connections if c.topic == topic]
+    out = []
+    for _, log_ns, raw, msg in _messages(reader, connections):
+        try:
+            event = parse(msg.data)
+        except ValueError as exc:
+            raise BagError(f"{bag}: a run event on {topic} does not read ({exc}); the bag is not whole") from None
+        out.append((log_ns, bytes(raw), event))
+    return out

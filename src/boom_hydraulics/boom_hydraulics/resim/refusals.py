@@ -1,6 +1,13 @@
-"""The recorded runs a re-simulation refuses: those whose time line is not one continuous
-line from the run's origin (a reset; on ROS-time stamps also a pause, a resume or a step),
-found in the recorded service calls, the node's diagnostics or the drive states."""
+"""The recorded runs a re-simulation refuses.
+
+A bag that holds its node's run events (its description names their topic,
+bags.run_events) is re-simulated whatever the node did to its time line (resets, pauses,
+steps, dropped backlogs): it is refused only where it is not whole, where the node's own
+counts in its diagnostics name more events than the bag holds, or an event comes after
+states the bag does not have. A bag recorded before the node recorded its events is refused
+where its time line is not one continuous line from the run's origin (a reset; on ROS-time
+stamps also a pause, a resume, a step or a dropped backlog), found in the recorded service
+calls, the node's diagnostics or the drive states."""
 
 from __future__ import annotations
 
@@ -19,7 +26,10 @@ def check_calls(bag: Path, description: RunDescription) -> None:
     run's time line: a reset jumps the state; on ROS-time stamps (a node without publish_clock)
     a pause, resume or step also moved the node's time origin. With publish_clock the stamps
     are simulated time itself, which pauses and steps do not break: those runs are re-simulated.
-    Read before the rest of the bag, from its run description and the events alone."""
+    Read before the rest of the bag, from its run description and the events alone. Nothing
+    to refuse in a bag that holds the node's run events (those calls are among them)."""
+    if description.events_topic is not None:
+        return
     origin_ns = description.clock_origin_ns
     sim_time = origin_ns == 0  # publish_clock: simulated time 0 is stamp 0
     calls = continuity.recorded_calls(bag, description.node, origin_ns)
@@ -35,7 +45,11 @@ def check_calls(bag: Path, description: RunDescription) -> None:
 
 def check_counts(bag: Path, run: RecordedRun) -> None:
     """Raise ConfigError if the node's own diagnostics count resets, or, on ROS-time stamps,
-    pauses, steps or a moved time origin (a resume, a dropped backlog)."""
+    pauses, steps or a moved time origin (a resume, a dropped backlog); in a bag with the
+    node's run events, if those counts name more events than the bag holds (:func:`check_whole`)."""
+    if run.has_events:
+        check_whole(bag, run)
+        return
     counts = run.run_counts
     sim_time = run.clock_origin_ns == 0
     found = continuity.Calls()
@@ -56,9 +70,10 @@ def check_counts(bag: Path, run: RecordedRun) -> None:
 
 def check_states(bag: Path, run: RecordedRun) -> None:
     """Raise ConfigError if the recorded drive states show a reset (for bags from before the
-    node recorded its service calls, and for a reset by a ROS clock that jumped back)."""
+    node recorded its service calls, and for a reset by a ROS clock that jumped back); in a bag
+    with the node's run events, whether it is whole (:func:`check_whole`)."""
     check_counts(bag, run)
-    if not run.state_ns:
+    if not run.state_ns or run.has_events:
         return
     k = continuity.reset_from_states(run.state_ns, *run.state_signals)
     if k is not None:
@@ -67,4 +82,37 @@ def check_states(bag: Path, run: RecordedRun) -> None:
             f"{bag}: the run appears to have been reset at t = {t:.3f} s (the energy dissipated in its valve, "
             f"counted since start or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it "
             "cannot reproduce this run. Record the run without resets"
+        )
+
+
+#: The node's diagnostics count -> the run event it counts (and how a count reads).
+_COUNTED = {"resets": ("reset", "resets"), "pauses": ("pause", "pauses"), "step_calls": ("step", "~/step calls")}
+
+
+def check_whole(bag: Path, run: RecordedRun) -> None:
+    """Raise ConfigError if a bag with the node's run events lacks some of them: its
+    diagnostics (the latest the bag holds) count more resets, pauses or steps, or a larger
+    move of the time origin by dropped backlogs, than its events, or an event comes after
+    drive states the bag does not hold (it was cut)."""
+    counts, events = run.run_counts, run.events
+    for key, (kind, what) in _COUNTED.items():
+        held = sum(1 for e in events if e.event == kind)
+        if int(counts.get(key, 0)) > held:
+            raise ConfigError(
+                f"{bag}: the node's diagnostics count {int(counts[key])} {what} and the bag holds {held} of "
+                f"them on {run.description.events_topic}; the bag is not whole, so a re-simulation cannot "
+                "reproduce its run"
+            )
+    dropped_s = sum(e.dropped_s for e in events if e.event == "backlog_dropped")
+    if counts.get("clock_origin_shift_s", 0.0) > dropped_s + 1e-6:  # (counted to 1e-6 s)
+        raise ConfigError(
+            f"{bag}: the node's diagnostics count {counts['clock_origin_shift_s']:.6f} s of dropped backlog and "
+            f"the bag's events {dropped_s:.6f} s; the bag is not whole, so a re-simulation cannot reproduce its run"
+        )
+    beyond = [e for e in events if e.states_before > len(run.state_ns)]
+    if beyond and run.state_ns:
+        raise ConfigError(
+            f"{bag}: a run event ({beyond[0].event} at t = {beyond[0].sim_time_s:.3f} s) comes after "
+            f"{beyond[0].states_before} drive states and the bag holds {len(run.state_ns)}; the bag is not whole, "
+            "so a re-simulation cannot reproduce its run"
         )

@@ -29,6 +29,7 @@ not to the last bit.
 
 from __future__ import annotations
 
+import math
 import shutil
 import sys
 import tempfile
@@ -42,7 +43,8 @@ from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
 from ..bags.run_description import RunDescription
-from ..errors import ConfigError, RecordingError
+from ..bags.run_events import EVENTS_TYPE, RunEvent
+from ..errors import ConfigError, RecordingError, SimulationError
 from ..files import check_apart
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
@@ -66,14 +68,15 @@ class _Resimulation:
         # commands wait here for the instant the node took them (see take); without drive states
         # they are queued at once, each for when it was logged or stamped
         taken = [c for c in run.commands if c.taken_ns is not None]
-        self.waiting = deque(sorted(taken, key=lambda c: (c.taken_ns, c.log_ns)))
+        self.waiting = deque(sorted(taken, key=lambda c: (c.taken_after, c.log_ns)))
         for command in run.commands:
             if command.taken_ns is None:
-                self._push(command, self.seconds(command.at_ns))
+                self._push(command, self.seconds(command.at_ns, command.origin_ns))
 
-    def seconds(self, at_ns: int) -> float:
-        """Simulated time of a time on the node's clock."""
-        return (at_ns - self.run.clock_origin_ns) * 1e-9
+    def seconds(self, at_ns: int, origin_ns: int | None = None) -> float:
+        """Simulated time of a time on the node's clock, through the time origin ``origin_ns``
+        (default the run's first)."""
+        return (at_ns - (self.run.clock_origin_ns if origin_ns is None else origin_ns)) * 1e-9
 
     def _timeout_at(self, log_ns: int) -> float:
         """The command timeout in effect when a message logged at ``log_ns`` arrived (the
@@ -88,19 +91,46 @@ class _Resimulation:
         u = valve_opening(command.opening, self.sim.params.mode)
         if u is None:
             return
+        origin = command.origin_ns
         if command.stamp_ns and stale(
-            self.seconds(command.stamp_ns), self.seconds(command.log_ns), self._timeout_at(command.log_ns)
+            self.seconds(command.stamp_ns, origin),
+            self.seconds(command.log_ns, origin),
+            self._timeout_at(command.log_ns),
         ):
             return  # the node refused it as stale when it arrived
         self.drive.push(at_s, u)
 
-    def take(self, now_ns: int) -> None:
-        """The commands the node took at the state instant ``now_ns`` (or before), queued as the
-        node queued them (ros.commands): at their stamp, or now if unstamped; a passed stamp
-        acts at the next step, and the command timeout counts from it."""
-        while self.waiting and self.waiting[0].taken_ns <= now_ns:
+    def take(self, states: int, logged_before: float = math.inf) -> None:
+        """The commands the node took after publishing ``states`` drive states (or before),
+        those logged before ``logged_before``, queued as the node queued them (ros.commands):
+        at their stamp, or now if unstamped; a passed stamp acts at the next step, and the
+        command timeout counts from it."""
+        while self.waiting and self.waiting[0].taken_after <= states and self.waiting[0].log_ns < logged_before:
             command = self.waiting.popleft()
-            self._push(command, self.seconds(command.stamp_ns) if command.stamp_ns else self.sim.t)
+            at_s = self.seconds(command.stamp_ns, command.origin_ns) if command.stamp_ns else self.sim.t
+            self._push(command, at_s)
+
+    def to(self, t_s: float, stopped: bool = False) -> None:
+        """Step on to simulated time ``t_s``; ``stopped``: the node's simulation stopped on a
+        failure before it got there, and stood still (a failure here stops it as well)."""
+        steps = round((t_s - self.sim.t) / self.sim.params.time_step_s)
+        if steps <= 0:
+            return
+        try:
+            self.drive.advance(steps)
+        except SimulationError:
+            if not stopped:
+                raise
+
+    def event(self, event: RunEvent) -> None:
+        """A run event of the node: a reset puts the drive back to rest (at the recorded rod
+        position; the state of these parameters there) where the node reset it; the others
+        move the time origin or stop the clock, which the recorded stamps already tell."""
+        if event.event != "reset":
+            return
+        self.to(event.sim_time_s, event.stopped)
+        self.sim.reset(event.rod_position_m, keep_time=True)
+        self.drive.reset()
 
     def take_over(self, control: Control) -> None:
         """The controller drives from now along the recorded setpoints (from where the boom is)."""
@@ -113,7 +143,7 @@ class _Resimulation:
     def apply_changes(self) -> None:
         """Parameter changes due by now (the node applies them between ticks)."""
         half_step = 0.5 * self.sim.params.time_step_s
-        while self.pending and self.seconds(self.pending[0].at_ns) <= self.sim.t + half_step:
+        while self.pending and self.seconds(self.pending[0].at_ns, self.pending[0].origin_ns) <= self.sim.t + half_step:
             changes = self.pending.popleft().changes
             model = {k: v for k, v in changes.items() if k in NAMES and k not in self.overrides}
             if model:
@@ -185,9 +215,14 @@ class Replay:
         self._resim = _Resimulation(run, dict(values) | dict(overrides), overrides)
         self.params = self._resim.sim.params
         self.instants = run.state_ns or _grid(run, self.params.time_step_s)
-        # when the node published the state of each instant (the grid's: at its instant)
-        self.log_ns = dict(zip(run.state_ns, run.state_log_ns))
+        # the time origin each instant is stamped with, and when the node published its state
+        # (the grid's: at its instant)
+        self.origins = [run.state_origin_ns(k) for k in range(len(run.state_ns))] or [run.clock_origin_ns] * len(
+            self.instants
+        )
+        self.state_log_ns = run.state_log_ns or self.instants
         self.instant_ns = run.clock_origin_ns  # the instant of the state just given
+        self.index = 0  # its index in instants
         self.done = 0
 
     @property
@@ -200,22 +235,36 @@ class Replay:
         stretches = control_stretches(run.setpoints, self.instants)
         starts = {c.start_ns: c for c in stretches}
         releases = {c.release_ns for c in stretches if c.release_ns != self.instants[-1]}
+        events = deque(zip(run.events, (log for log, _ in run.event_messages)))
         now_ns = run.clock_origin_ns
-        for at_ns in self.instants:
+        for index, at_ns in enumerate(self.instants):
             self.done += 1  # the recorded run's state instants: runs overlay sample for sample
             resim.apply_changes()  # the node changes parameters between ticks, at a state instant
-            resim.take(now_ns)  # and takes commands between ticks
+            # and takes commands and makes its events between ticks, in the order it logged them
+            happened = False
+            while events and events[0][0].states_before <= index:
+                event, log_ns = events.popleft()
+                resim.take(index, log_ns)
+                resim.event(event)
+                happened = True
+            resim.take(index)
             if now_ns in starts:  # a goal or trajectory was taken between these instants
                 resim.take_over(starts[now_ns])
-            steps = round((resim.seconds(at_ns) - resim.sim.t) / resim.sim.params.time_step_s)
-            if steps <= 0:  # rounds onto the last instant (a longer time_step_s): what comes there acts from here
+            origin = self.origins[index]
+            steps = round((resim.seconds(at_ns, origin) - resim.sim.t) / resim.sim.params.time_step_s)
+            # an instant that rounds onto the last one (a longer time_step_s): what comes there acts
+            # from here; where the run has events, it is given again, so that the new bag has a
+            # state for each recorded one (a reset publishes the instant again)
+            if steps <= 0 and not (happened or run.has_events):
                 now_ns = at_ns
                 continue
-            resim.drive.advance(steps)  # a SimulationError ends it
+            if steps > 0:
+                resim.drive.advance(steps)  # a SimulationError ends it
             if at_ns in releases and resim.drive.loop is not None:  # let go at the end of this tick
                 resim.drive.let_go()
             now_ns = self.instant_ns = at_ns
-            yield run.clock_origin_ns + round(resim.sim.t * 1e9), resim.sim.outputs()
+            self.index = index
+            yield origin + round(resim.sim.t * 1e9), resim.sim.outputs()
 
 
 def resimulate(
@@ -231,10 +280,19 @@ def resimulate(
         print(f"boom-resim: note: removed {folder}, left by an earlier run to {out} that was killed", file=sys.stderr)
     run, values = read_recorded(bag, config_file)
     replay = Replay(run, values, overrides)
+    events_topic = run.description.events_topic
     custom = RunDescription.of(
-        replay.params, run.clock_origin_ns, run.publish_rate_hz, run.command_timeout_s, resimulated_from=str(bag)
+        replay.params,
+        run.clock_origin_ns,
+        run.publish_rate_hz,
+        run.command_timeout_s,
+        resimulated_from=str(bag),
+        events_topic=events_topic,
     ).to_custom_data()
-    recorded = deque(sorted(run.commands + run.parameter_changes, key=lambda r: r.log_ns))
+    # the commands, parameter changes and run events as recorded: a re-simulation of the new bag
+    # finds them as in this one
+    events = [Recorded(0, log_ns, events_topic, raw) for log_ns, raw in run.event_messages] if events_topic else []
+    recorded = deque(sorted(run.commands + run.parameter_changes + events, key=lambda r: r.log_ns))
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
@@ -242,6 +300,7 @@ def resimulate(
         energy_topic = run.energy_topic if replay.params.mode == "physical" else None
         energy_every = max(1, round(run.publish_rate_hz / ENERGY_HZ))
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
+        topics += [Topic(events_topic, EVENTS_TYPE)] if events_topic else []
         topics += [Topic(energy_topic, ENERGY_LEDGER)] if energy_topic else []
         with (
             BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
@@ -251,7 +310,7 @@ def resimulate(
                 progress.update(replay.done - progress.n)
                 # logged when the node published the state of this instant, so that a re-simulation
                 # of this bag finds the node's instants as in the recorded run (NodeInstants)
-                log_ns = replay.log_ns.get(replay.instant_ns, stamp_ns)
+                log_ns = replay.state_log_ns[replay.index]
                 while recorded and recorded[0].log_ns <= log_ns:  # the recorded messages, in log order
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)

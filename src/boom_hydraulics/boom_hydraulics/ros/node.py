@@ -57,6 +57,7 @@ from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
 from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.recording import run_description
+from ..bags.run_events import RunEvent
 from ..errors import ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
@@ -136,6 +137,10 @@ class BoomSimNode(Node):
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
         self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
         self.energy_pub = self.create_publisher(EnergyLedger, "~/energy", state_qos)
+        # what the node did to its own time line (resets, pauses, steps, dropped backlogs): JSON lines
+        self.events_pub = self.create_publisher(
+            String, "~/events", QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        )
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -272,7 +277,7 @@ class BoomSimNode(Node):
     def _begin_recording(self) -> None:
         """Open the bag, if asked for, at the time origin: every topic this node publishes."""
         pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
-        pubs += [self.markers_pub, self.setpoint_pub, self.energy_pub]
+        pubs += [self.markers_pub, self.setpoint_pub, self.energy_pub, self.events_pub]
         pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
         if self.recording.pending:
             description = run_description(
@@ -281,6 +286,7 @@ class BoomSimNode(Node):
                 self.clock.rate_hz,
                 self.drive.timeout_s,
                 node=self.get_fully_qualified_name(),
+                events_topic=self.events_pub.topic_name,
             )
             self.recording.begin(pubs, description)
 
@@ -406,7 +412,9 @@ class BoomSimNode(Node):
             self._markers_every = max(1, round(clock.rate_hz / MARKERS_HZ))
             self._energy_every = max(1, round(clock.rate_hz / ENERGY_HZ))
         if "real_time_factor" in node_changes:
+            origin_before = self.clock.origin_ns
             self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
+            self._record_event("pace", origin_before)
         elif new_params is not None or node_changes:
             # the time origin stays: the change takes no simulated time (a new mode resets the state)
             self.clock.rebase(dt_before, steps_before)
@@ -431,11 +439,14 @@ class BoomSimNode(Node):
     # --- services -------------------------------------------------------------------------
     @_locked
     def on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        origin_before, stopped = self.clock.origin_ns, self.failure is not None
+        rod_position_m = request.rod_position_m if request.use_rod_position else None
         try:
-            self._back_to_rest("reset (~/reset)", request.rod_position_m if request.use_rod_position else None)
+            self._back_to_rest("reset (~/reset)", rod_position_m)
         except SimulationError as exc:
             response.success, response.message = False, str(exc)
             return response
+        self._record_reset("~/reset", origin_before, rod_position_m, stopped)
         response.success, response.message = True, f"reset to q1 = {self.sim.y[0]:.4f} m"
         self.run_counts.resets += 1
         self.publish_state()
@@ -448,10 +459,12 @@ class BoomSimNode(Node):
             response.success, response.message = True, "already paused" if self.paused else "already running"
             return response
         self.paused = request.data
+        origin_before = self.clock.origin_ns
         if self.paused:
             self.run_counts.pauses += 1
         else:
             self.clock.restart()
+        self._record_event("pause" if self.paused else "resume", origin_before)
         response.success, response.message = True, "paused" if self.paused else "resumed"
         self.publish_diagnostics()  # the bag keeps the count at once: boom-resim reads it
         return response
@@ -473,6 +486,7 @@ class BoomSimNode(Node):
                 )
                 response.sim_time_s = self.sim.t
                 return response
+            self._record_event("step", self.clock.origin_ns, steps=steps)
             self.advance(steps)
             self.run_counts.step_calls += 1
             response.success, response.message = self.failure is None, self.failure or "ok"
@@ -496,6 +510,22 @@ class BoomSimNode(Node):
         else:  # time runs on from here, tied to the clock as before (the reset counts steps from 0)
             self.clock.rebase(dt_before, steps_before)
 
+    def _record_event(self, kind: str, origin_before_ns: int, **details: Any) -> None:
+        """Publish and record what the node did to its own time line (:mod:`..bags.run_events`),
+        now: at this simulated time, after the states published so far, with the time origin
+        as it is now and how far the event moved it from ``origin_before_ns``."""
+        clock = self.clock
+        moved = clock.origin_ns - origin_before_ns
+        event = RunEvent(kind, self.sim.t, self._ticks, clock.origin_ns, moved, **details)
+        self.recording.publish([(self.events_pub, String(data=event.to_json()))], clock.now_ns())
+
+    def _record_reset(self, cause: str, origin_before_ns: int, rod_position_m: float | None, stopped: bool) -> None:
+        """A reset's event: its cause, where it put the rod, whether the simulation had stopped, the state after it."""
+        state = [float(x) for x in self.sim.y]
+        self._record_event(
+            "reset", origin_before_ns, cause=cause, rod_position_m=rod_position_m, stopped=stopped, state=state
+        )
+
     def _follow_ros_clock(self) -> bool:
         """use_sim_time: whether the loop may step now. No /clock yet: wait. The first /clock
         starts the bag. A jump back (a world reset): the drive goes back to rest, as ~/reset
@@ -512,9 +542,11 @@ class BoomSimNode(Node):
                 f"the ROS clock jumped back from {seen_s:.3f} s to {self.clock.read_s:.3f} s: "
                 "the drive is reset to rest, as ~/reset does (simulated time runs on)"
             )
+            origin_before = self.clock.origin_ns
             self._back_to_rest("the ROS clock jumped back")
             self.run_counts.resets += 1  # a reset as ~/reset's: boom-resim must know of it
             self.clock.restart()
+            self._record_reset("the ROS clock jumped back", origin_before, None, False)
         return True
 
     def advance(self, steps: int) -> None:
@@ -557,8 +589,10 @@ class BoomSimNode(Node):
         if clock.follows and not self._follow_ros_clock():
             return
         dt = self.sim.params.time_step_s
+        origin_before = clock.origin_ns
         tick = clock.due()
         if tick.dropped_s:  # cannot keep up: the pacer gave up the backlog beyond max_catch_up_s
+            self._record_event("backlog_dropped", origin_before, dropped_s=tick.dropped_s)
             behind_s = tick.steps * dt / clock.pacer.real_time_factor + tick.dropped_s
             self.get_logger().warning(
                 f"{behind_s:.3f} s behind {'the ROS clock' if clock.follows else 'real time'}; dropping the backlog",
