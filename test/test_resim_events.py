@@ -122,3 +122,64 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
     result = run_tool("boom-resim", tmp_path / "again", "--out", tmp_path / "once_more")
     assert result.returncode == 0, result.stderr
     assert max(abs(a[1] - b[1]) for a, b in zip(again, _states(tmp_path / "once_more"))) < 1e-12
+
+
+def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exactly(nodes, client, tmp_path):
+    """Under use_sim_time (a /clock from another process), with commands stamped ahead on that
+    clock: a pause with ~/step calls, a resume (which moves the time origin on by the pause)
+    and a reset, re-simulated to 1e-9 m at every recorded state."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from rosgraph_msgs.msg import Clock
+
+    clock_s: list[float] = []
+    client.node.create_subscription(
+        Clock,
+        "/clock",
+        lambda m: clock_s.append(m.clock.sec + m.clock.nanosec * 1e-9),
+        rclpy.qos.qos_profile_sensor_data,
+    )
+    proc = nodes.start(
+        "use_sim_time:=true", f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True
+    )
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    source = subprocess.Popen(
+        [sys.executable, str(Path(__file__).with_name("clock_source.py")), "100.0", "1.0:60"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+
+    def command_ahead(opening: float) -> None:
+        """``opening``, stamped 0.3 s ahead of the /clock this client has seen last: it acts at its stamp."""
+        client.command(opening, stamp_s=clock_s[-1] + 0.3)
+        assert client.spin_until(lambda: client.last().valve_command == opening), f"{opening} never acted"
+
+    try:
+        assert client.spin_until(lambda: bool(client.states) and client.sim_s() > 100.2 and bool(clock_s), timeout=60)
+        command_ahead(1.0)
+        client.spin_sim(0.3)
+        assert client.call(client.pause, SetBool.Request(data=True)).success
+        for _ in range(3):
+            assert client.call(client.step, Step.Request(steps=7)).success
+        assert client.call(client.pause, SetBool.Request(data=False)).success
+        client.spin_sim(0.3)
+        assert client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.45)).success
+        client.spin_sim(0.1)
+        command_ahead(0.7)
+        client.spin_sim(0.3)
+        command_ahead(0.0)
+    finally:
+        stop_process(source)
+        log = stop_process(proc)
+    (bag,) = (tmp_path / "bags").iterdir()
+    kinds = [e["event"] for e in _recorded_events(bag)]
+    assert kinds == ["pause", "step", "step", "step", "resume", "reset"], kinds
+    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
+    assert result.returncode == 0, result.stderr + log
+    original, again = _states(bag), _states(tmp_path / "again")
+    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
+    assert [s[2] for s in again] == [s[2] for s in original]
+    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9

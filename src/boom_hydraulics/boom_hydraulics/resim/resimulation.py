@@ -13,9 +13,13 @@ namespaced run stays namespaced), and the original commands and parameter events
 runs overlay sample for sample; its states are logged at the times the node published
 them, so that a re-simulation of it finds the same instants. Exact for runs on the node's
 own clock at real time or with publish_clock; on use_sim_time, where a tick can end between
-two states, a command's time is known to within one publish period. A run whose drive was
-reset, or, on ROS-time stamps, paused, resumed or stepped, is refused (exit 2): its time
-line is not one continuous line from its origin (see bags.continuity). A run that cannot be
+two states, a command's time is known to within one publish period. What the node did to
+its own time line (resets, pauses, steps, resumes, dropped backlogs) it recorded as run
+events (bags.run_events): each state, command and parameter change maps to simulated time
+through the time origin it was stamped with, and the drive is reset where the node reset
+it. A bag from before the node recorded its events is refused (exit 2) where its drive was
+reset or, on ROS-time stamps, it was paused, resumed or stepped (see refusals and
+bags.continuity); a bag with its events only where it is not whole. A run that cannot be
 simulated to its end writes nothing; an interrupted one (Ctrl-C: exit 130, SIGTERM: 143)
 neither, and a killed one's temporary folder is removed by the next run to the same --out.
 
@@ -272,7 +276,7 @@ def resimulate(
 ) -> tuple[Path, int]:
     """Write a new bag of the recorded commands through the model with the new parameters;
     returns the bag and its DriveState count. Raises SimulationError if the run stops early,
-    ConfigError if the run cannot be re-simulated (reset, or paused on ROS-time stamps)."""
+    ConfigError if the run cannot be re-simulated (see refusals)."""
     check_apart(out, [bag] + ([config_file] if config_file else []))
     if out.exists():
         raise ConfigError(f"--out {out} exists already; name a new bag folder")
