@@ -364,7 +364,7 @@ def test_a_reset_node_run_is_reproduced_as_a_user_meets_it(tmp_path, nodes, clie
     assert np.max(np.abs(original["q1"] - again["q1"])) < 1e-9
 
 
-def _events_bag(folder: Path, events: list[dict], diagnostics: dict[str, str]) -> Path:
+def _events_bag(folder: Path, events: list[dict], diagnostics: dict[str, str], **description) -> Path:
     """A bag as the node records it with its run events (the description names their topic)
     and its "boom_sim: run" diagnostics (the counts given), at rest for a second."""
     import json
@@ -373,7 +373,7 @@ def _events_bag(folder: Path, events: list[dict], diagnostics: dict[str, str]) -
     from std_msgs.msg import String
 
     custom = run_description(
-        from_mapping({}), ROS_TIME_NS, 100.0, 0.5, node="/boom_sim", events_topic="/boom_sim/events"
+        from_mapping({}), ROS_TIME_NS, 100.0, 0.5, node="/boom_sim", events_topic="/boom_sim/events", **description
     )
     topics = [
         Topic("/drive_state", "boom_hydraulics_msgs/msg/DriveState"),
@@ -415,6 +415,23 @@ def test_a_bag_with_fewer_events_than_the_node_counted_is_refused_as_not_whole(t
     result = resim(whole, "--out", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     assert len(read_drive_states(tmp_path / "out")["q1"]) == 100
+
+
+@pytest.mark.parametrize("pace", ["at the start", "changed"])
+def test_a_run_at_another_pace_on_the_nodes_own_clock_is_refused_naming_publish_clock(tmp_path, pace):
+    """There the node stamps a state with the time it published it, not its simulated instant."""
+    start, events = (
+        (2.0, []) if pace == "at the start" else (1.0, [{**_reset_event(40), "event": "pace", "real_time_factor": 0.0}])
+    )
+    bag = _events_bag(tmp_path / "run", events, {}, clock="system", real_time_factor=start)
+    result = resim(bag, "--out", tmp_path / "out")
+    assert result.returncode == 2
+    err = one_line(result)
+    assert f"ran at real_time_factor {start if pace == 'at the start' else 0:g} on its own clock" in err
+    assert "publish_clock:=true" in err
+    # with publish_clock the same pace is re-simulated
+    bag = _events_bag(tmp_path / "published", events, {}, clock="published", real_time_factor=start)
+    assert resim(bag, "--out", tmp_path / "out").returncode == 0
 
 
 def test_a_run_event_that_does_not_read_is_refused_in_one_line(tmp_path):

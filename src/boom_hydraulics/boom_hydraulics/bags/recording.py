@@ -160,10 +160,12 @@ def run_description(
     node: str | None = None,
     resimulated_from: str | None = None,
     events_topic: str | None = None,
+    clock: str | None = None,
+    real_time_factor: float | None = None,
 ) -> dict[str, str]:
     """The custom data a bag carries so that its run can be simulated again (boom-resim):
     :class:`~.run_description.RunDescription` of the parameters, the stamp of simulated
-    time 0, the publish rate, the command timeout and where the run's events are."""
+    time 0, the publish rate, the command timeout, where the run's events are and its clock."""
     description = RunDescription.of(
         params,
         clock_origin_ns,
@@ -172,6 +174,8 @@ def run_description(
         node=node,
         resimulated_from=resimulated_from,
         events_topic=events_topic,
+        clock=clock,
+        real_time_factor=real_time_factor,
     )
     return description.to_custom_data()
 

@@ -13,6 +13,9 @@ their text are fixed, so that every bag recorded so far keeps re-simulating:
 - ``node``: the recording node's fully qualified name (bags of the node);
 - ``events_topic``: the topic of the node's run events (bags.run_events), all of which the
   bag holds (bags of the node since it records them; boom-resim's copy them);
+- ``clock`` and ``real_time_factor``: the clock the node followed (``system``, ``published``
+  or ``followed``: its ClockMode) and its real-time factor at the start (Python float repr);
+  with ``system`` at a factor other than 1 a state is stamped with the time it was published;
 - ``resimulated_from``: the bag a boom-resim bag was re-simulated from.
 """
 
@@ -38,6 +41,8 @@ class RunDescription:
     node: str | None = None
     resimulated_from: str | None = None
     events_topic: str | None = None
+    clock: str | None = None
+    real_time_factor: float | None = None
 
     @classmethod
     def of(
@@ -50,10 +55,20 @@ class RunDescription:
         node: str | None = None,
         resimulated_from: str | None = None,
         events_topic: str | None = None,
+        clock: str | None = None,
+        real_time_factor: float | None = None,
     ) -> RunDescription:
         """The description of a run with ``params``."""
         return cls(
-            as_dict(params), clock_origin_ns, publish_rate_hz, command_timeout_s, node, resimulated_from, events_topic
+            as_dict(params),
+            clock_origin_ns,
+            publish_rate_hz,
+            command_timeout_s,
+            node,
+            resimulated_from,
+            events_topic,
+            clock,
+            real_time_factor,
         )
 
     def to_custom_data(self) -> dict[str, str]:
@@ -70,6 +85,10 @@ class RunDescription:
             custom["resimulated_from"] = self.resimulated_from
         if self.events_topic is not None:
             custom["events_topic"] = self.events_topic
+        if self.clock is not None:
+            custom["clock"] = self.clock
+        if self.real_time_factor is not None:
+            custom["real_time_factor"] = repr(self.real_time_factor)
         return custom
 
     @classmethod
@@ -84,6 +103,8 @@ class RunDescription:
             node=custom.get("node"),
             resimulated_from=custom.get("resimulated_from"),
             events_topic=custom.get("events_topic"),
+            clock=custom.get("clock"),
+            real_time_factor=float(custom["real_time_factor"]) if "real_time_factor" in custom else None,
         )
 
     @staticmethod

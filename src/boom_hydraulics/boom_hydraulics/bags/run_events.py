@@ -17,7 +17,8 @@ the topic (``events_topic``), which says that every event of the run is in the b
   back through it), and ``origin_moved_ns``, how far the event moved it;
 - for a reset: ``cause``, ``rod_position_m`` (null: the start length), ``stopped`` (the
   simulation had stopped on a failure, and stood still, before it) and ``state``, the state
-  vector after it; for a step: ``steps``; for a dropped backlog: ``dropped_s``.
+  vector after it; for a step: ``steps``; for a dropped backlog: ``dropped_s``; for a new
+  pace: ``real_time_factor``.
 
 A JSON string, not a message type of its own: every bag reader (rosbag2, rosbags, mcap,
 Foxglove) shows it without this workspace's messages, and a field can be added without
@@ -52,12 +53,14 @@ class RunEvent:
     state: list[float] = field(default_factory=list)  # reset: the state after it
     steps: int = 0  # step
     dropped_s: float = 0.0  # backlog_dropped
+    real_time_factor: float = 1.0  # pace: the new one
 
     def to_json(self) -> str:
         """The event as the node publishes it: only the fields of its kind."""
         keep = {"event", "sim_time_s", "states_before", "clock_origin_ns", "origin_moved_ns"}
         keep |= {"reset": {"cause", "rod_position_m", "stopped", "state"}, "step": {"steps"}}.get(self.event, set())
         keep |= {"dropped_s"} if self.event == "backlog_dropped" else set()
+        keep |= {"real_time_factor"} if self.event == "pace" else set()
         return json.dumps({k: v for k, v in asdict(self).items() if k in keep}, allow_nan=False)
 
 
@@ -98,6 +101,7 @@ def parse(text: str) -> RunEvent:
         state=[float(x) for x in state],
         steps=_number(record, "steps", int) if kind == "step" else 0,
         dropped_s=_number(record, "dropped_s", float) if kind == "backlog_dropped" else 0.0,
+        real_time_factor=_number(record, "real_time_factor", float) if kind == "pace" else 1.0,
     )
 
 

@@ -49,6 +49,7 @@ def check_counts(bag: Path, run: RecordedRun) -> None:
     node's run events, if those counts name more events than the bag holds (:func:`check_whole`)."""
     if run.has_events:
         check_whole(bag, run)
+        check_stamps(bag, run)
         return
     counts = run.run_counts
     sim_time = run.clock_origin_ns == 0
@@ -115,4 +116,21 @@ def check_whole(bag: Path, run: RecordedRun) -> None:
             f"{bag}: a run event ({beyond[0].event} at t = {beyond[0].sim_time_s:.3f} s) comes after "
             f"{beyond[0].states_before} drive states and the bag holds {len(run.state_ns)}; the bag is not whole, "
             "so a re-simulation cannot reproduce its run"
+        )
+
+
+def check_stamps(bag: Path, run: RecordedRun) -> None:
+    """Raise ConfigError for a run on the node's own clock (no publish_clock) at a real-time
+    factor other than 1 at any time: there a state is stamped with the time it was published,
+    not with its simulated instant, which a re-simulation then cannot know."""
+    description = run.description
+    if description.clock != "system":
+        return
+    factors = [description.real_time_factor or 1.0] + [e.real_time_factor for e in run.events if e.event == "pace"]
+    other = next((f for f in factors if f != 1.0), None)
+    if other is not None:
+        raise ConfigError(
+            f"{bag}: the node ran at real_time_factor {other:g} on its own clock, where it stamps a state with the "
+            "time it was published, not with its simulated instant, so a re-simulation cannot place its states. "
+            "Record such runs with publish_clock:=true, whose stamps are simulated time"
         )

@@ -287,6 +287,8 @@ class BoomSimNode(Node):
                 self.drive.timeout_s,
                 node=self.get_fully_qualified_name(),
                 events_topic=self.events_pub.topic_name,
+                clock=self.clock.mode.value,
+                real_time_factor=self.clock.rtf,
             )
             self.recording.begin(pubs, description)
 
@@ -414,7 +416,7 @@ class BoomSimNode(Node):
         if "real_time_factor" in node_changes:
             origin_before = self.clock.origin_ns
             self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
-            self._record_event("pace", origin_before)
+            self._record_event("pace", origin_before, real_time_factor=self.clock.rtf)
         elif new_params is not None or node_changes:
             # the time origin stays: the change takes no simulated time (a new mode resets the state)
             self.clock.rebase(dt_before, steps_before)
