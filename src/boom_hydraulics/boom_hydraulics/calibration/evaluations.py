@@ -69,19 +69,30 @@ class Evaluations:
         return f
 
     def jacobian(
-        self, window_s: float, step: float, high: np.ndarray, weighted: bool = False
+        self, window_s: float, step: float, low: np.ndarray, high: np.ndarray, weighted: bool = False
     ) -> Callable[[np.ndarray], np.ndarray]:
-        """J(theta) by forward differences of ``step`` (relative, at least ``step``), all columns at
-        once; a step that would cross the upper bound ``high`` goes the other way."""
+        """J(theta) by differences of ``step`` (relative, at least ``step``), all columns at once:
+        ``weighted``, central differences (their error is of the step squared, where a forward
+        difference's is of the step: the final stage walks valleys narrower than 1e-3), else
+        forward ones; a step that would cross a bound (``low``, ``high``) goes the other way
+        only."""
 
         def jac(theta: np.ndarray) -> np.ndarray:
             key = (theta.tobytes(), window_s, weighted)
             f0 = self._memo[key] if key in self._memo else self.residuals([theta], window_s, weighted)[0]
             h = step * np.maximum(1.0, np.abs(theta))
             h = np.where(theta + h > high, -h, h)
-            points = [theta + h[k] * np.eye(len(theta))[k] for k in range(len(theta))]
-            columns = self.residuals(points, window_s, weighted)
-            self.last_jacobian = np.column_stack([(c - f0) / hk for c, hk in zip(columns, h)])
+            unit = np.eye(len(theta))
+            points = [theta + h[k] * unit[k] for k in range(len(theta))]
+            back = [k for k in range(len(theta)) if weighted and low[k] <= theta[k] - h[k] <= high[k]]
+            columns = self.residuals(points + [theta - h[k] * unit[k] for k in back], window_s, weighted)
+            behind = dict(zip(back, columns[len(theta) :]))
+            self.last_jacobian = np.column_stack(
+                [
+                    (c - behind[k]) / (2.0 * h[k]) if k in behind else (c - f0) / h[k]
+                    for k, c in enumerate(columns[: len(theta)])
+                ]
+            )
             return self.last_jacobian
 
         return jac

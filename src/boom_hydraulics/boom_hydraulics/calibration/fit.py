@@ -52,6 +52,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -80,8 +81,10 @@ DEFAULT_SIGNALS = ("q1", "p1", "p2")
 DIFF_STEP = 1e-3
 #: The residual of a sample whose run failed, in units of its signal's range.
 FAILED_RESIDUAL = 10.0
-#: A signal's noise is taken as at least this fraction of its range (a recording without noise).
-NOISE_FLOOR = 1e-6
+#: A signal's noise is taken as at least this fraction of its range: the rounding of a 16-bit
+#: reading over it (1/(2^16 sqrt(12))), the finest a sensor's is (a recording without noise,
+#: such as the node's, would otherwise be held to the fit's own resolution).
+NOISE_FLOOR = 2.0**-16 / math.sqrt(12.0)
 #: The starts of a fit: the given one and this many less one more (see starts).
 STARTS = 4
 #: The coarse stages average the residual over this many periods of the hydraulic mode ...
@@ -94,14 +97,17 @@ COARSE_FACTORS = (0.5, 0.7, 1.4, 2.0)
 WIDE_FACTORS = tuple(float(f) for f in 1.1 ** np.arange(-9, 10) if f != 1.0)
 #: ... and the near one's around its best: 0.91 to 1.09 in steps of 3 %.
 NEAR_FACTORS = tuple(float(f) for f in 1.03 ** np.arange(-3, 4) if f != 1.0)
+#: Stage 4 runs from each start whose stage 3 ended within this factor of the best's raw cost ...
+REFINE_WITHIN = 2.0
+#: ... and not within this fraction of every value of a start already refined (the same valley).
+SAME_VALLEY = 0.01
 #: Relative tolerances (ftol, xtol) of the smoothed and of the final least squares.
 COARSE_TOLERANCE, FINE_TOLERANCE = 1e-3, 1e-6
 #: The final least squares also stops where a step moves each parameter by less than this
-#: fraction of its standard error (what it could still gain is far inside the interval) ...
+#: fraction of its standard error for the signals' estimated noise: what it could still gain
+#: is far inside the interval (a recording without noise, which it would otherwise follow
+#: ever closer, to its limit of evaluations).
 STOP_WITHIN_ERROR = 1e-3
-#: ... or where every signal's RMS residual is below this fraction of its noise (a recording
-#: without noise, which the fit would otherwise follow ever closer to the last step).
-STOP_BELOW_NOISE = 0.1
 
 
 @dataclass
@@ -174,6 +180,10 @@ class Problem:
                 difference = np.convolve(difference, np.full(width, 1.0 / width), mode="valid")
             parts.append(self.weights[s] / (self.ranges[s] * math.sqrt(len(difference))) * difference)
         return np.concatenate(parts)
+
+    def signal_weights(self) -> list[float]:
+        """Each signal's ``--weight``, in the order of :meth:`segments`."""
+        return [self.weights[s] for s in self.signals]
 
     def segments(self) -> list[slice]:
         """Where each signal's samples lie in :meth:`residual` (raw)."""
@@ -290,19 +300,15 @@ def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None 
     points = spread_starts(theta0, default, low, high, starts)
     with Evaluations(problem, cores() if workers is None else workers) as evaluations:
 
-        def within_error(segments: list[slice]) -> Any:
-            """A callback that stops the least squares where its step is far inside the interval."""
+        def within_error() -> Any:
+            """A callback that stops the least squares where its step is far inside the interval:
+            below STOP_WITHIN_ERROR of each standard error (J^T J)^-1, J weighted by the noise."""
             last = {}
 
             def stop(intermediate_result: Any) -> None:
                 x, jac = intermediate_result.x, evaluations.last_jacobian
-                fun = intermediate_result.fun
-                weights = [problem.weights[s] for s in problem.signals]
-                if all(np.sqrt(np.mean((fun[seg] / w) ** 2)) < STOP_BELOW_NOISE for seg, w in zip(segments, weights)):
-                    raise StopIteration
-                if "x" in last and jac is not None and jac.shape[0] == len(intermediate_result.fun):
-                    half, _ = half_widths(jac, intermediate_result.fun, segments)
-                    error = half / 1.96
+                if "x" in last and jac is not None:
+                    error = np.sqrt(np.abs(np.diag(np.linalg.pinv(jac.T @ jac))))
                     if np.all(np.abs(x - last["x"]) < STOP_WITHIN_ERROR * error):
                         raise StopIteration
                 last["x"] = x.copy()
@@ -313,30 +319,43 @@ def calibrate(problem: Problem, max_evaluations: int = 200, workers: int | None 
             return least_squares(
                 evaluations.function(window, weighted),
                 theta,
-                jac=evaluations.jacobian(window, DIFF_STEP, high, weighted),
+                jac=evaluations.jacobian(window, DIFF_STEP, low, high, weighted),
                 bounds=(low, high),
                 method="trf",
                 x_scale=1.0,
                 ftol=tolerance,
                 xtol=tolerance,
                 max_nfev=max_evaluations,
-                callback=within_error(problem.segments()) if weighted else None,
+                callback=within_error() if weighted else None,
             )
 
-        def descend(theta: np.ndarray) -> Any:
-            theta = _scan(evaluations, theta, low, high, window_s, COARSE_FACTORS)
+        def approach(theta: np.ndarray) -> tuple[np.ndarray, float]:
+            """Stages 1 to 3 from ``theta``: (where they end, the raw residual's cost there)."""
+            theta, _ = _scan(evaluations, theta, low, high, window_s, COARSE_FACTORS)
             theta = fit_from(theta, window_s, COARSE_TOLERANCE).x
-            theta = _scan(
-                evaluations, _scan(evaluations, theta, low, high, 0.0, WIDE_FACTORS), low, high, 0.0, NEAR_FACTORS
-            )
-            return fit_from(theta, 0.0, FINE_TOLERANCE, weighted=True)
+            theta, _ = _scan(evaluations, theta, low, high, 0.0, WIDE_FACTORS)
+            return _scan(evaluations, theta, low, high, 0.0, NEAR_FACTORS)
 
-        results = [descend(point) for point in points]
-    order = sorted(range(len(results)), key=lambda k: 2.0 * results[k].cost)
+        approached = [approach(point) for point in points]
+        results: list[Any] = []
+        refined: list[np.ndarray] = []
+        best_cost = min(cost for _, cost in approached)
+        for theta, cost in sorted(approached, key=lambda a: a[1]):
+            # stage 4 from each valley worth it: the best, and others as good within REFINE_WITHIN
+            same = any(np.all(np.abs(theta - r) <= SAME_VALLEY * np.maximum(np.abs(r), 1e-12)) for r in refined)
+            if cost <= REFINE_WITHIN * best_cost and not same:
+                refined.append(theta)
+                results.append(fit_from(theta, 0.0, FINE_TOLERANCE, weighted=True))
+            else:
+                (r,) = evaluations.residuals([theta], 0.0, weighted=True)
+                results.append(SimpleNamespace(x=theta, cost=0.5 * float(r @ r)))
+        points = [points[k] for k, _ in sorted(enumerate(approached), key=lambda a: a[1][1])]
+    # the refined ends first (the best of them is the fit), each group by its cost
+    order = sorted(range(len(results)), key=lambda k: (not hasattr(results[k], "jac"), results[k].cost))
     result = results[order[0]]
     final = problem.simulate(result.x)
     fitted = problem.fitted_values(result.x)
-    half, correlation = half_widths(result.jac, result.fun, problem.segments())
+    half, correlation = half_widths(result.jac, result.fun, problem.segments(), problem.signal_weights())
     interval = {n: (fitted[n] - h * problem.scales[n], fitted[n] + h * problem.scales[n]) for n, h in zip(names, half)}
     tight = 1e-9 * np.maximum(1.0, np.abs(result.x))
     at_bound = {
@@ -384,10 +403,10 @@ def _scan(
     high: np.ndarray,
     window_s: float,
     factors: Sequence[float],
-) -> np.ndarray:
+) -> tuple[np.ndarray, float]:
     """Each parameter in turn through ``factors`` times its value (within its bounds; the trials
     of one parameter side by side), keeping the best of each on the residual averaged over
-    ``window_s`` (0: raw)."""
+    ``window_s`` (0: raw): (the best, its cost)."""
     best = theta.copy()
     (r,) = evaluations.residuals([best], window_s)
     best_cost = float(r @ r)
@@ -401,4 +420,4 @@ def _scan(
         for trial, r in zip(trials, evaluations.residuals(trials, window_s)):
             if float(r @ r) < best_cost:
                 best, best_cost = trial, float(r @ r)
-    return best
+    return best, best_cost

@@ -14,6 +14,10 @@ signal's n samples), weighted 1 - l/(L+1), times n/(n-p). So the intervals take
   independent evidence, and
 - the weights, whatever they are.
 
+A signal whose residual is below half its estimated noise (a recording without noise, where
+what is left is the fit's own resolution) counts as if it were at half its noise: a residual
+of zero would give an interval of zero width around wherever the fit stopped.
+
 The half-width is Student's t at LEVEL on n - p degrees of freedom times the standard error.
 A direction J does not see (a singular value below 1e-9 of the largest) gives an infinite
 half-width.
@@ -31,6 +35,8 @@ from scipy import stats
 LEVEL = 0.95
 #: A singular value of J below this fraction of the largest is a direction the signals do not see.
 BLIND = 1e-9
+#: A signal's residual counts as at least this fraction of its estimated noise.
+LEAST_NOISE = 0.5
 
 
 def _lag_sum(g: np.ndarray, lags: int) -> np.ndarray:
@@ -42,30 +48,39 @@ def _lag_sum(g: np.ndarray, lags: int) -> np.ndarray:
     return total
 
 
-def covariance(jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice]) -> tuple[np.ndarray, np.ndarray]:
+def covariance(
+    jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice], weights: Sequence[float]
+) -> tuple[np.ndarray, np.ndarray]:
     """(covariance of the fitted values in fit units, whether each value lies in a direction J
-    does not see), see the module docstring."""
+    does not see), see the module docstring; ``residual`` each sample's difference over its
+    signal's noise times its signal's weight (``weights``, one per segment)."""
     n, p = jac.shape
     _, singular, vt = np.linalg.svd(jac, full_matrices=False)
     seen = singular > BLIND * singular[0] if len(singular) and singular[0] > 0 else np.zeros(p, bool)
     blind = (vt[~seen].T ** 2).sum(axis=1) > 1e-6
     inverse = (vt[seen].T / singular[seen] ** 2) @ vt[seen]  # (J^T J)^-1 on the seen directions
     meat = np.zeros((p, p))
-    for segment in segments:
-        g = jac[segment] * residual[segment][:, None]
+    for segment, weight in zip(segments, weights):
+        r = residual[segment]
+        rms = float(np.sqrt(np.mean((r / weight) ** 2))) if len(r) else 0.0
+        if rms < LEAST_NOISE:  # in units of the noise
+            r = r * (LEAST_NOISE / rms) if rms > 0 else np.full(len(r), LEAST_NOISE * weight)
+        g = jac[segment] * r[:, None]
         meat += _lag_sum(g, math.ceil(len(g) ** (1.0 / 3.0)))
     meat *= n / max(n - p, 1)
     return inverse @ meat @ inverse, blind
 
 
-def half_widths(jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice]) -> tuple[np.ndarray, np.ndarray]:
+def half_widths(
+    jac: np.ndarray, residual: np.ndarray, segments: Sequence[slice], weights: Sequence[float]
+) -> tuple[np.ndarray, np.ndarray]:
     """(the LEVEL interval's half-width of each fitted value in fit units, inf where J does not
-    see it; the correlation matrix of the values)."""
+    see it; the correlation matrix of the values), see :func:`covariance`."""
     n, p = jac.shape
     dof = n - p
     if dof <= 0:
         return np.full(p, math.inf), np.eye(p)
-    cov, blind = covariance(jac, residual, segments)
+    cov, blind = covariance(jac, residual, segments, weights)
     deviation = np.sqrt(np.maximum(np.diag(cov), 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         correlation = cov / np.outer(deviation, deviation)

@@ -176,6 +176,7 @@ class BoomSimNode(Node):
             folder=self.get_parameter("record_folder").value,
             chunk_kib=self.get_parameter("record_chunk_kib").value,
             flush_s=float(self.get_parameter("record_flush_s").value),
+            ordered=mode is ClockMode.FOLLOWED,  # (a shared clock stands still between its ticks)
         )
         self.commands = CommandIntake(
             command_topics, self.drive, self.clock, self.get_logger(), self.recording.received
@@ -603,7 +604,10 @@ class BoomSimNode(Node):
         if tick.steps <= 0:
             return
         if clock.follows:
-            self._advance_publishing(tick.steps, clock.pacer.per_tick(dt))
+            # up to the last publishing instant due: between ticks the drive is at a state it
+            # published, where it takes commands (so the bag tells where it took each)
+            per_tick, taken = clock.pacer.per_tick(dt), self.sim.step_count
+            self._advance_publishing((taken + tick.steps) // per_tick * per_tick - taken, per_tick)
         else:
             self.advance(tick.steps)
             if self.failure is None:
