@@ -198,6 +198,8 @@ def test_a_reset_on_the_shared_clock_keeps_the_node_on_the_clock(nodes, client):
 
         def taken() -> bool:
             nonlocal seen
+            if not clock_s:  # (this client has yet to find the clock's publisher)
+                return False
             ahead.extend(_stamp_s(s) - clock_s[-1] for s in client.states[seen:])
             seen = len(client.states)
             return len(ahead) >= 250  # 2.5 s of the clock

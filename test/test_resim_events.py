@@ -126,8 +126,9 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
 
 def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exactly(nodes, client, tmp_path):
     """Under use_sim_time (a /clock from another process), with commands stamped ahead on that
-    clock: a pause with ~/step calls, a resume (which moves the time origin on by the pause)
-    and a reset, re-simulated to 1e-9 m at every recorded state."""
+    clock and unstamped ones (acting where the node took them: it takes commands at the states
+    it published), a pause with a command and ~/step calls in it, a resume (which moves the
+    time origin on by the pause) and a reset, re-simulated to 1e-9 m at every recorded state."""
     import subprocess
     import sys
     from pathlib import Path
@@ -161,7 +162,11 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
         assert client.spin_until(lambda: bool(client.states) and client.sim_s() > 100.2 and bool(clock_s), timeout=60)
         command_ahead(1.0)
         client.spin_sim(0.3)
+        client.command(0.4)  # unstamped: acts where the node takes it
+        assert client.spin_until(lambda: client.last().valve_command == 0.4)
+        client.spin_sim(0.2)
         assert client.call(client.pause, SetBool.Request(data=True)).success
+        client.command(-0.5)  # received while paused: acts at the next step
         for _ in range(3):
             assert client.call(client.step, Step.Request(steps=7)).success
         assert client.call(client.pause, SetBool.Request(data=False)).success

@@ -145,8 +145,10 @@ class NodeInstants:
     the node keeps up; when it falls behind (a loaded machine, a stall it catches up on), only
     this says when a command that was unstamped or already passed took effect. A state and a
     message logged at the same time: with publish_clock (log times are simulated time) the
-    tick came first, so the state counts; on a shared clock (use_sim_time) the clock had not
-    moved since the tick before, so it does not."""
+    tick came first, so the state counts; on a shared clock (use_sim_time) the node now logs
+    what it handles at one clock reading 1 ns apart, in order, so there are no such ties; in
+    its bags from before, the clock had not moved since the tick before, so the state does not
+    count."""
 
     def __init__(self, origin_ns: int, logged: Sequence[tuple[int, int]]) -> None:
         self.origin_ns = origin_ns

@@ -12,12 +12,13 @@ published one (rounded to the steps of a changed time_step_s), on the recorded t
 namespaced run stays namespaced), and the original commands and parameter events, so both
 runs overlay sample for sample; its states are logged at the times the node published
 them, so that a re-simulation of it finds the same instants. Exact for runs on the node's
-own clock at real time or with publish_clock; on use_sim_time, where a tick can end between
-two states, a command's time is known to within one publish period. What the node did to
-its own time line (resets, pauses, steps, resumes, dropped backlogs) it recorded as run
-events (bags.run_events): each state, command and parameter change maps to simulated time
-through the time origin it was stamped with, and the drive is reset where the node reset
-it. A bag from before the node recorded its events is refused (exit 2) where its drive was
+own clock at real time, with publish_clock, and on use_sim_time (where the node takes
+commands at the states it published, and logs what it handles at one clock reading 1 ns
+apart, in order; before it did, a command's time was known to within one publish period).
+What the node did to its own time line (resets, pauses, steps, resumes, dropped backlogs)
+it recorded as run events (bags.run_events): each state, command and parameter change
+maps to simulated time through the time origin it was stamped with, and the drive is reset
+where the node reset it. A bag from before the node recorded its events is refused (exit 2) where its drive was
 reset or, on ROS-time stamps, it was paused, resumed or stepped (see refusals and
 bags.continuity); a bag with its events only where it is not whole. A run that cannot be
 simulated to its end writes nothing; an interrupted one (Ctrl-C: exit 130, SIGTERM: 143)

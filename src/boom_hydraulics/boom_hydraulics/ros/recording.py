@@ -3,7 +3,10 @@
 The bag starts with the stepping (its time origin, simulated time 0): at start on the node's
 own clock, at the first /clock on a shared one. Commands received before it are kept for it.
 Messages are serialised once: the bytes published are the bytes recorded. A recording that
-fails (a full disk) stops with one error line; the run goes on.
+fails (a full disk) stops with one error line; the run goes on. On a shared clock (``ordered``),
+which stands still between its ticks, what the node handles at one clock reading is logged
+1 ns apart, in the order it handled it: the bag then tells whether a command came before or
+after a tick's states (boom-resim needs it).
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ class NodeRecording:
         folder: str,
         chunk_kib: float,
         flush_s: float,
+        ordered: bool = False,
     ) -> None:
         self.node = node
         self.now_ns = now_ns
@@ -79,6 +83,15 @@ class NodeRecording:
         self._folder, self._chunk_kib, self._flush_s = folder, chunk_kib, flush_s
         self._early_commands: list[tuple[str, bytes, dict]] = []
         self._topic_names: dict[Any, str] = {}  # publisher -> its topic (rclpy asks rcl at each read)
+        self._ordered = ordered
+        self._last_log_ns = -1  # the last log time given (ordered)
+
+    def _log_time(self, now_ns: int) -> int:
+        """The log time of what the node handles now: ``now_ns``, or, ``ordered``, 1 ns after the
+        last one given where the clock has not moved since."""
+        if self._ordered:
+            now_ns = self._last_log_ns = max(now_ns, self._last_log_ns + 1)
+        return now_ns
 
     def begin(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> None:
         """Open the bag, if asked for, at the time origin, with the commands received before it."""
@@ -119,6 +132,7 @@ class NodeRecording:
         serialised = [
             (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
         ]
+        log_ns = self._log_time(log_ns)
         names = self._topic_names
         for publisher, data in serialised:
             name = names.get(publisher)
@@ -134,7 +148,7 @@ class NodeRecording:
         if self.recorder is None:
             return
         data = parameter_event_cdr(self.node.get_fully_qualified_name(), changed_at_ns, changed)
-        self.recorder.write(PARAMETER_EVENTS, self.now_ns(), data)
+        self.recorder.write(PARAMETER_EVENTS, self._log_time(self.now_ns()), data)
 
     def watch_command_topics(self, publishers: Mapping[str, Sequence[Any]]) -> None:
         """Once a second, with the publishers (TopicEndpointInfo) that reach each command topic:
@@ -158,7 +172,7 @@ class NodeRecording:
         if topic not in self.recorder.topics:
             offers = _offers(self.publishers_of(topic)) or (offered_qos(),)
             self.recorder.add_topic(Topic(topic, type_name(self.command_topics[topic]), offers))
-        received = self.now_ns()
+        received = self._log_time(self.now_ns())
         self.recorder.write(topic, received, data, info.get("source_timestamp") or received)
 
     def watch(self) -> None:
