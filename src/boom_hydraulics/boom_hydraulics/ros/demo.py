@@ -5,20 +5,32 @@ under ``bags/``, which this command then analyses (boom-analyze: signals, metric
 The scenario (``--scenario``) reaches the node the way a user's would:
 
 - ``cycle`` (the default): lift, hold, lower, hold (9 s), as ValveCommand openings on the
-  node's ``valve_command`` topic, the path of a user's ``ros2 topic pub``;
+  node's ``valve_command`` topic, the path of a user's ``ros2 topic pub``. Each is stamped on
+  the node's clock (the stamps of its DriveStates: ROS time, or simulated time with
+  ``publish_clock``) at its instant of the cycle, and sent a little ahead of it: the node
+  applies each at its stamp (docs/ros-api.md, "Command stamps"), so the drive follows the
+  same trajectory on any machine, however late a message arrives;
 - ``loader`` or ``loader:SEED``: the loader crane's work cycle of ``boom-sim --profile`` and
   ``boom-sweep --scenario`` (18.5 s; SEED an operator's variation): MoveBoom goals to the
   cycle's angles on ``/boom_sim/move_boom`` at its times, and the payload released by
   setting the node's ``payload_mass_kg`` (to that share of the params file's) at the
   release. It needs ``mode: physical``.
 
+The scenario starts half a second of the node's clock after its first state and lasts until
+the node's clock has passed its end; the analysis covers that window of the node's clock
+alone (the node runs longer around it: its start, its stop). A cycle whose commands the node
+received but none of which acted is one line and exit status 1.
+
+The node runs in a ROS domain of boom-demo's own (:mod:`.domains`), unless ROS_DOMAIN_ID is
+set, so that two demos on one machine do not take each other's commands.
+
 Stopping: Ctrl-C or SIGTERM ends the scenario; each is passed on to the node as one SIGINT
 (the node runs in its own process group, so a terminal's Ctrl-C reaches it once, through
-here), and boom-demo waits for the node to finish its bag, then exits 130 naming the bag.
-If boom-demo is killed, the node gets SIGINT from the kernel (Linux: PR_SET_PDEATHSIG) and
-still finishes its bag. boom-demo waits for the node to start for as long as it runs: a
-start that finds no compiled model in the cache (``make setup`` fills it) compiles it, which
-takes long on a busy machine.
+here), and boom-demo waits for the node to finish its bag, then exits 130 (SIGINT) or 143
+(SIGTERM) naming the bag. If boom-demo is killed, the node gets SIGINT from the kernel
+(Linux: PR_SET_PDEATHSIG) and still finishes its bag. boom-demo waits for the node to start
+for as long as it runs: a start that finds no compiled model in the cache (``make setup``
+fills it) compiles it, which takes long on a busy machine.
 """
 
 from __future__ import annotations
@@ -31,30 +43,37 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
+import numpy as np
 import rclpy
+from rcl_interfaces.msg import Log
 from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
 
 from boom_hydraulics_msgs.action import MoveBoom
 from boom_hydraulics_msgs.msg import DriveState, ValveCommand
 
-from ..analysis.recordings import analyze, default_results_folder, report
+from ..analysis import windows
+from ..analysis.recordings import default_results_folder, report
 from ..errors import ConfigError
 from ..model import config
 from ..model.parameters import Parameters
 from ..programs import RaisingParser, run_main, summary
 from ..solve import commands, duty_cycles
+from ..solve.command_queue import valve_opening
 from ..solve.commands import CYCLE
+from . import domains
 from .shutdown import shut_down
 
 #: The scenarios by name (``--scenario``; ``loader:SEED`` too).
@@ -102,16 +121,54 @@ def plan(text: str, params_file: str | None) -> tuple[tuple[tuple[float, float],
     return cycle, cycle.duration_s
 
 
-class ScenarioDriver(Node):
-    """Drives the node through the scenario and keeps the latest DriveState: a cycle's
-    openings at 50 Hz, or a work cycle's goals and payload changes, each once at its time."""
+#: How far ahead of the node's clock each of the cycle's commands is sent, ns, and sent again:
+#: a delivery later than this makes no difference (each waits for its stamp), and one would be
+#: stale (refused) only if the node's clock went on by this and the command timeout before it
+#: arrived. The node's subscription is best effort (the last 5 kept): a command lost on a busy
+#: machine is lost twice only if its copy, sent a fifth of a second later, is lost too. Less
+#: than :data:`LEAD_NS`: the first commands are not sent in one burst.
+AHEAD_NS = (300_000_000, 100_000_000)
+#: The most commands sent at one turn of boom-demo's loop (which turns at every state, 100 Hz).
+BURST = 2
+#: The cycle's command periods, ns, longest first: the cycle's openings change on tenths of a
+#: second, and the valve holds an opening until the next command, for command_timeout_s; the
+#: longest period within a third of the params file's command_timeout_s is taken (10 Hz for
+#: the default 0.5 s).
+PERIODS_NS = (100_000_000, 50_000_000, 20_000_000, 10_000_000)
+#: How long after the node's first state the scenario starts on its clock, ns.
+LEAD_NS = 500_000_000
 
-    def __init__(self, scenario: tuple[tuple[float, float], ...] | WorkCycle) -> None:
+
+class ScenarioDriver(Node):
+    """Drives the node through the scenario and keeps the latest DriveState and the node's
+    clock (its stamps): a cycle's openings at 50 Hz, each stamped at its instant of the cycle
+    on the node's clock and sent :data:`AHEAD_NS` ahead of it, or a work cycle's goals and
+    payload changes, each once at its time of the node's clock."""
+
+    def __init__(
+        self, scenario: tuple[tuple[float, float], ...] | WorkCycle, serve_clock: bool, period_ns: int
+    ) -> None:
         super().__init__("boom_demo")
         self.scenario = scenario
+        self.period_ns = period_ns
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        # the node's clock, where boom-demo serves it: real time from now, as a simulator's /clock
+        self.clock_pub = (
+            self.create_publisher(Clock, "/clock", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+            if serve_clock
+            else None
+        )
+        self._clock_origin = (time.time_ns(), time.monotonic_ns())
         self.create_subscription(DriveState, "drive_state", self.on_state, qos)
+        logs = QoSProfile(
+            depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        self.create_subscription(Log, "/rosout", self.on_log, logs)
+        self.node_error: str | None = None  # the first error the node logged: it stopped stepping
         self.state: DriveState | None = None
+        self.now_ns = 0  # the node's clock: the latest stamp of its states
+        self.start_ns = 0  # the scenario's start on the node's clock (set by begin())
+        self.sent = [0, 0]  # cycle commands sent, and sent again
         self.refused: list[str] = []  # what the node refused, one line each
         if isinstance(scenario, WorkCycle):
             self.moves = ActionClient(self, MoveBoom, f"{NODE}/move_boom")
@@ -120,8 +177,21 @@ class ScenarioDriver(Node):
         else:
             self.pub = self.create_publisher(ValveCommand, "valve_command", qos)
 
+    def tick_clock(self) -> None:
+        """Publish /clock (where boom-demo serves it): real time since boom-demo started it."""
+        if self.clock_pub is not None:
+            wall_ns, steady_ns = self._clock_origin
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = divmod(wall_ns + time.monotonic_ns() - steady_ns, 1_000_000_000)
+            self.clock_pub.publish(msg)
+
+    def on_log(self, msg: Log) -> None:
+        if msg.name == NODE and msg.level >= Log.ERROR and self.node_error is None:
+            self.node_error = msg.msg
+
     def on_state(self, msg: DriveState) -> None:
         self.state = msg
+        self.now_ns = max(self.now_ns, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
 
     def ready(self) -> bool:
         """Whether the node has published its state (and serves its goals and parameters)."""
@@ -131,22 +201,34 @@ class ScenarioDriver(Node):
             return self.moves.server_is_ready() and self.payload.services_are_ready()
         return True
 
-    def opening_at(self, t: float) -> float:
-        u = 0.0
-        for start, value in self.scenario:
-            if t >= start:
-                u = value
-        return u
+    def begin(self) -> None:
+        """The scenario starts :data:`LEAD_NS` after the node's clock now."""
+        self.start_ns = self.now_ns + LEAD_NS
 
-    def act(self, t: float) -> float:
-        """What the scenario does at ``t`` s from its start; the opening sent, or the node's
-        valve command where its controller drives the valve."""
+    def elapsed_s(self) -> float:
+        """The node's clock since the scenario's start, s."""
+        return (self.now_ns - self.start_ns) * 1e-9
+
+    def opening_at(self, t: float) -> float:
+        return _opening(self.scenario, t)
+
+    def act(self, end_ns: int) -> float:
+        """What the scenario does up to the node's clock now (the scenario ends at ``end_ns``);
+        the opening at the node's clock now, or the node's valve command where its controller
+        drives the valve."""
+        t = self.elapsed_s()
         if not isinstance(self.scenario, WorkCycle):
-            msg = ValveCommand()
-            msg.header.stamp = self.get_clock().now().to_msg()
-            msg.opening = self.opening_at(t)
-            self.pub.publish(msg)
-            return msg.opening
+            for copy, ahead_ns in enumerate(AHEAD_NS):
+                for _ in range(BURST):
+                    stamp_ns = self.start_ns + self.sent[copy] * self.period_ns
+                    if stamp_ns > min(self.now_ns + ahead_ns, end_ns):
+                        break
+                    msg = ValveCommand()
+                    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+                    msg.opening = self.opening_at(self.sent[copy] * self.period_ns / 1e9)
+                    self.pub.publish(msg)
+                    self.sent[copy] += 1
+            return self.opening_at(t) if t >= 0 else 0.0
         cycle = self.scenario
         while self._goals_sent < len(cycle.goal_times_s) and t >= cycle.goal_times_s[self._goals_sent]:
             goal = MoveBoom.Goal(target_angle_rad=cycle.goal_angles_rad[self._goals_sent])  # node's speed
@@ -166,6 +248,15 @@ class ScenarioDriver(Node):
         for result in future.result().results:
             if not result.successful:
                 self.refused.append(f"boom_sim refused the payload change: {result.reason}")
+
+
+def _opening(cycle: tuple[tuple[float, float], ...], t: float) -> float:
+    """The opening of ``cycle`` ((time s, opening) from each time on) at ``t`` s; 0 before it."""
+    u = 0.0
+    for start, value in cycle:
+        if t >= start:
+            u = value
+    return u
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -221,6 +312,12 @@ def main(argv: list[str] | None = None) -> int:
     return run_main("boom-demo", lambda: demo(argv))
 
 
+#: boom-demo's exit status when stopped by each signal (docs/cli.md, "Exit statuses").
+STOPPED_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143}
+#: How long the node's clock may stand still while the scenario runs, s of wall time.
+STILL_CLOCK_S = 30.0
+
+
 def _ended(status: int) -> str:
     return f"was killed by {signal.Signals(-status).name}" if status < 0 else f"exited with status {status}"
 
@@ -232,6 +329,25 @@ def _node_failed(status: int, when: str) -> int:
         return status
     print(f"boom-demo: error: boom_sim {_ended(status)} {when}", file=sys.stderr)
     return 1
+
+
+def _node_stopped(error: str) -> int:
+    """The exit status for a node that logged an error and stopped stepping (it waits for a
+    ~/reset that nobody sends): its error in one line, and 1."""
+    print(f"boom-demo: error: boom_sim: {error}", file=sys.stderr)
+    return 1
+
+
+@dataclass
+class Driven:
+    """How driving the node ended: an exit status (None: the scenario ran, or was stopped), the
+    scenario's window on the node's clock (ns) and the cycle's commands sent."""
+
+    status: int | None
+    start_ns: int = 0
+    end_ns: int = 0
+    sent: int = 0
+    period_ns: int = PERIODS_NS[0]
 
 
 def demo(argv: list[str] | None) -> int:
@@ -255,50 +371,115 @@ def demo(argv: list[str] | None) -> int:
     node_exe = shutil.which("boom_sim")
     if node_exe is None:
         raise ConfigError("the boom_sim executable is not on PATH (run through tools/with-env)")
+    domain, own, lock = domains.claim(os.environ)  # this process's rclpy and the node's both read it
+    if own:
+        print(
+            f"boom-demo: boom_sim runs in a ROS domain of its own on this machine, ROS_DOMAIN_ID={domain} "
+            "(set ROS_DOMAIN_ID to run it in yours)",
+            file=sys.stderr,
+        )
     cmd = [node_exe, "--ros-args", "-p", f"record_folder:={args.bags}"]
     if args.params_file:
         cmd += ["--params-file", args.params_file]
-    # its own process group: a terminal's Ctrl-C reaches the node once, passed on by Stopper
-    node_proc = subprocess.Popen(cmd, env=os.environ.copy(), process_group=0, preexec_fn=_die_with_parent())
+    given = _node_values(args.params_file)
+    serve_clock = given.get("publish_clock") is not True
+    period_ns = command_period_ns(given.get("command_timeout_s"))
+    if serve_clock:  # (after the file: the last word)
+        cmd += ["-p", "use_sim_time:=true"]
+    # its own process group: a terminal's Ctrl-C reaches the node once, passed on by Stopper;
+    # it holds the domain's lock too, for as long as it runs
+    node_proc = subprocess.Popen(
+        cmd, env=os.environ.copy(), process_group=0, preexec_fn=_die_with_parent(), pass_fds=(lock.fileno(),)
+    )
     stopper = Stopper(node_proc)
     try:
-        status = _drive(node_proc, stopper, scenario, duration_s)
+        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns)
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
         stopper.restore()
-    if status is not None:
-        return status
+        lock.close()
+    if driven.status is not None:
+        return driven.status
     new_bags = sorted(set(args.bags.glob("*_boom_sim")) - before)
     if stopper.stopped:
         name = signal.Signals(stopper.received[0]).name
         where = f"the run so far is in {new_bags[-1]} (boom-analyze analyses it)" if new_bags else "no bag was recorded"
         print(f"boom-demo: error: stopped by {name}; {where}", file=sys.stderr)
-        return 130
+        return STOPPED_STATUS[signal.Signals(stopper.received[0])]
     if node_status not in (0, 130, -signal.SIGINT):
         return _node_failed(node_status, "while it stopped")
     if not new_bags:
         print(f"boom-demo: error: boom_sim recorded no bag in {args.bags}", file=sys.stderr)
         return 1
-    return run_main("boom-analyze", lambda: _analyze(new_bags[-1]))
+    cycle = None if isinstance(scenario, WorkCycle) else scenario
+    mode = str(given.get("mode", "physical"))
+    return run_main("boom-analyze", lambda: _analyze(new_bags[-1], driven, cycle, mode))
 
 
-def _analyze(bag: Path) -> int:
-    """The new bag analysed as ``boom-analyze BAG`` does it (its output and its errors' lines)."""
+def _node_values(params_file: str | None) -> dict[str, Any]:
+    """The values the params file gives the node (none for a file that does not read: the
+    node refuses it, in its own words)."""
+    if params_file is None:
+        return {}
+    try:
+        return config.read_values(params_file)
+    except ConfigError:
+        return {}
+
+
+def command_period_ns(timeout_s: Any) -> int:
+    """The cycle's command period for the node's ``command_timeout_s`` (see :data:`PERIODS_NS`)."""
+    if not isinstance(timeout_s, (int, float)) or isinstance(timeout_s, bool) or not timeout_s > 0:
+        return PERIODS_NS[0]  # the default, or never (0)
+    return next((p for p in PERIODS_NS if p * 3 <= timeout_s * 1e9), PERIODS_NS[-1])
+
+
+def followed_share(signals: Mapping[str, np.ndarray], opening_at: Callable[[float], float]) -> float:
+    """The share of the window's states (``t`` from the cycle's start) whose valve command is
+    ``opening_at`` their time: a state shows the command of the step that ends at its stamp, so
+    the opening just before it (0.1 us: a step is longer)."""
+    t, u = np.asarray(signals["t"]), np.asarray(signals["u"])
+    expected = np.array([opening_at(x - 1e-7) for x in t])
+    return float(np.mean(u == expected))
+
+
+def _analyze(bag: Path, driven: Driven, cycle: tuple[tuple[float, float], ...] | None, mode: str) -> int:
+    """The scenario's window of the new bag analysed as ``boom-analyze BAG`` analyses a bag
+    (its output and its errors' lines); a ``cycle`` whose commands the valve did not follow
+    (as the node applies them in ``mode``), or not throughout, is one line and 1."""
+    signals = windows.drive_states_in(bag, driven.start_ns, driven.end_ns)
+    if (
+        cycle is not None
+        and (share := followed_share(signals, lambda t: valve_opening(_opening(cycle, t), mode))) < 1.0
+    ):
+        what = (
+            "none of them acted (the valve command stayed 0)"
+            if not windows.valve_acted(signals)
+            else f"the valve followed them in only {100 * share:.0f} % of the cycle"
+        )
+        print(
+            f"boom-demo: error: boom_sim received the cycle's commands ({driven.sent} sent) but {what}: its log says "
+            f"why (a stamp stale on arrival: a clock faster than real time; a command_timeout_s shorter than the "
+            f"commands' period, {driven.period_ns / 1e9:g} s); the run is in {bag}",
+            file=sys.stderr,
+        )
+        return 1
     out = default_results_folder(bag)
-    print(report(analyze([bag], out), out))
+    print(report(windows.analyze_window(bag, out, driven.start_ns, driven.end_ns, signals), out))
     return 0
 
 
 def _drive(
     node_proc: subprocess.Popen, stopper: Stopper, scenario: tuple[tuple[float, float], ...] | WorkCycle,
-    duration_s: float,
-) -> int | None:  # fmt: skip
-    """Wait for the node's first state, then drive it through ``scenario`` for ``duration_s``,
-    printing the state twice a second. None when done or stopped; an exit status when the
-    node ended or refused a step of the scenario."""
+    duration_s: float, serve_clock: bool, period_ns: int,
+) -> Driven:  # fmt: skip
+    """Wait for the node's first state, then drive it through ``scenario`` until its clock has
+    passed ``duration_s`` from the scenario's start, printing the state every half second of
+    it. The status is None when done or stopped; an exit status when the node ended, refused
+    a step of the scenario, or its clock stood still."""
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Stopper handles the signals
-    driver = ScenarioDriver(scenario)
+    driver = ScenarioDriver(scenario, serve_clock, period_ns)
     try:
         print(
             "boom-demo: starting boom_sim (a start without the compiled model in the cache compiles it: a minute "
@@ -306,22 +487,42 @@ def _drive(
             file=sys.stderr,
         )
         while not driver.ready() and not stopper.stopped:  # as long as the node runs: no deadline
-            rclpy.spin_once(driver, timeout_sec=0.1)
+            driver.tick_clock()
+            rclpy.spin_once(driver, timeout_sec=0.02)
             if (status := node_proc.poll()) is not None:
-                return _node_failed(status, "before it started")
+                return Driven(_node_failed(status, "before it started"))
+            if driver.node_error is not None:
+                return Driven(_node_stopped(driver.node_error))
         if stopper.stopped:
-            return None
+            return Driven(None)
+        driver.begin()
+        end_ns = driver.start_ns + round(duration_s * 1e9)
+        driven = Driven(None, driver.start_ns, end_ns, period_ns=period_ns)
         print(" t [s]  opening  q1 [m]  alpha [deg]  p1 [MPa]  p2 [MPa]  energy [kJ]", flush=True)
-        start = time.monotonic()
         next_print = 0.0
-        while (t := time.monotonic() - start) < duration_s and not stopper.stopped:
+        clock_seen, clock_moved = driver.now_ns, time.monotonic()
+        while driver.now_ns < end_ns and not stopper.stopped:
             if (status := node_proc.poll()) is not None:
-                return _node_failed(status, "during the scenario")
-            u = driver.act(t)
+                return Driven(_node_failed(status, "during the scenario"))
+            driver.tick_clock()
+            u = driver.act(end_ns)
+            driven.sent = driver.sent[0]
             rclpy.spin_once(driver, timeout_sec=0.02)
             if driver.refused:
                 print(f"boom-demo: error: {driver.refused[0]}", file=sys.stderr)
-                return 1
+                return Driven(1)
+            if driver.node_error is not None:
+                return Driven(_node_stopped(driver.node_error))
+            if driver.now_ns != clock_seen:
+                clock_seen, clock_moved = driver.now_ns, time.monotonic()
+            elif time.monotonic() - clock_moved > STILL_CLOCK_S:
+                print(
+                    f"boom-demo: error: boom_sim's clock stood still for {STILL_CLOCK_S:g} s (is it paused: "
+                    "start_paused, or following a /clock that nobody publishes: use_sim_time?)",
+                    file=sys.stderr,
+                )
+                return Driven(1)
+            t = driver.elapsed_s()
             if t >= next_print and driver.state is not None:
                 s = driver.state
                 print(
@@ -331,7 +532,7 @@ def _drive(
                     flush=True,
                 )
                 next_print += 0.5
-        return None
+        return driven
     finally:
         driver.destroy_node()
         shut_down()

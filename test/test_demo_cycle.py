@@ -1,0 +1,140 @@
+"""boom-demo's cycle as make run gives it: the same figures on a quiet and on a busy machine,
+commands that act on the node's clock (its own or /clock), and two demos at once each on
+its own. Each test runs boom-demo whole (the node, the 9 s cycle, the analysis)."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from bag_checks import check_bag
+from conftest import CONFIG
+
+DEMO = shutil.which("boom-demo")
+pytestmark = pytest.mark.skipif(DEMO is None, reason="boom-demo not on PATH (run through tools/with-env)")
+#: The cycle's commands one boom-demo sends (10 Hz over 9 s, each sent twice).
+CYCLE_COMMANDS = 2 * 91
+
+
+def _start(bags: Path, params_file: Path = CONFIG / "default.yaml", env: dict | None = None) -> subprocess.Popen:
+    return subprocess.Popen(
+        [DEMO, "--params-file", str(params_file), "--bags", str(bags)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def _finish(demo: subprocess.Popen) -> subprocess.CompletedProcess:
+    stdout, stderr = demo.communicate(timeout=300)
+    return subprocess.CompletedProcess(demo.args, demo.returncode, stdout, stderr)
+
+
+def _run(bags: Path, params_file: Path = CONFIG / "default.yaml") -> subprocess.CompletedProcess:
+    return _finish(_start(bags, params_file))
+
+
+def _figures(result: subprocess.CompletedProcess) -> str:
+    """The analysis line without the bag's name: 'lift ... m, 90 % in ... s, ...'."""
+    assert result.returncode == 0, result.stderr
+    (line,) = [line for line in result.stdout.splitlines() if ": lift " in line]
+    return line.split(": ", 1)[1]
+
+
+def _only_bag(bags: Path) -> Path:
+    (bag,) = bags.glob("*_boom_sim")
+    return bag
+
+
+@pytest.fixture
+def busy_machine() -> Iterator[None]:
+    """Every core busy with a process that spins."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+def test_the_cycle_gives_the_same_figures_on_a_busy_machine(tmp_path, request):
+    quiet = _run(tmp_path / "quiet")
+    request.getfixturevalue("busy_machine")
+    busy = _run(tmp_path / "busy")
+    assert _figures(busy) == _figures(quiet)
+    lift = float(re.search(r"lift ([0-9.]+) m", _figures(quiet)).group(1))
+    assert lift == pytest.approx(0.382, abs=0.002)  # the cylinder's stroke from rest to its end stop
+
+
+def _params(tmp_path: Path, **values: object) -> Path:
+    """config/default.yaml with node parameters added."""
+    text = (CONFIG / "default.yaml").read_text()
+    added = "".join(f"\n    {name}: {str(value).lower()}" for name, value in values.items())
+    path = tmp_path / "params.yaml"
+    path.write_text(re.sub(r"ros__parameters:", "ros__parameters:" + added, text, count=1))
+    return path
+
+
+def test_on_the_nodes_own_simulated_clock_the_commands_act(tmp_path):
+    """publish_clock: the node's clock is its simulated time, and the commands are stamped on it
+    (stamped with the wall clock, they waited for ever: lift 0.000 m, exit 0)."""
+    result = _run(tmp_path / "bags", _params(tmp_path, publish_clock=True))
+    lift = float(re.search(r"lift ([0-9.]+) m", _figures(result)).group(1))
+    assert lift == pytest.approx(0.382, abs=0.002)
+
+
+def test_commands_that_arrive_but_do_not_act_are_one_line_and_exit_1(tmp_path):
+    """A command timeout shorter than the commands' period: the valve springs back before each
+    state; the cycle never ran, and boom-demo says so instead of analysing a boom at rest."""
+    result = _run(tmp_path / "bags", _params(tmp_path, command_timeout_s=0.001))
+    assert result.returncode == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    errors = [line for line in result.stderr.splitlines() if "error:" in line]
+    assert len(errors) == 1 and "none of them acted" in errors[0], result.stderr
+    assert ": lift " not in result.stdout
+    assert check_bag(_only_bag(tmp_path / "bags"))["/valve_command"] > 0  # they arrived
+
+
+def test_two_demos_at_once_each_run_their_own_cycle(tmp_path):
+    """Without ROS_DOMAIN_ID each demo takes a domain of its own: each node takes only its own
+    demo's commands (in one domain, one bag held 2769 commands and a lift of 0.200 m)."""
+    env = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}
+    demos = [_start(tmp_path / name, env=env) for name in ("a", "b")]
+    results = [_finish(demo) for demo in demos]
+    first, second = (_figures(result) for result in results)
+    assert first == second
+    assert re.search(r"lift 0\.38\d m", first), first
+    domains = {re.search(r"ROS_DOMAIN_ID=(\d+)", result.stderr).group(1) for result in results}
+    assert len(domains) == 2
+    for name in ("a", "b"):
+        assert check_bag(_only_bag(tmp_path / name))["/valve_command"] <= CYCLE_COMMANDS
+
+
+def test_a_second_demo_in_the_same_given_domain_is_refused_in_one_line(tmp_path):
+    """With ROS_DOMAIN_ID given, a second demo there would mix with the first: one line, exit 2,
+    no node started; the first runs on."""
+    first = _start(tmp_path / "a")
+    try:
+        for line in first.stdout:  # the table's header: the first demo runs its cycle
+            if line.startswith(" t [s]"):
+                break
+        second = _run(tmp_path / "b")
+        assert second.returncode == 2, second.stderr
+        (error,) = [line for line in second.stderr.splitlines() if "error:" in line]
+        assert f"another boom-demo runs in ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}" in error
+        assert not (tmp_path / "b").exists()
+        stdout, stderr = first.communicate(timeout=300)
+        assert first.returncode == 0, stderr
+        assert re.search(r"lift 0\.38\d m", stdout), stdout
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.communicate()
