@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import select
 import shutil
 import subprocess
 import sys
@@ -257,3 +259,42 @@ def test_paper_mode_goes_live_too_without_a_battery():
         status, _, err = live.wait()
     assert math.isfinite(state.rod_position_m) and state.rod_pressure_pa == 0.0
     assert status == 0, err
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 300 KiB file system: a live run's bag fills it within its first seconds."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs (a disk that fills up) needs root")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(disk)], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
+    yield disk
+    subprocess.run(["umount", "-l", str(disk)], check=False)
+
+
+def test_a_full_disk_is_said_at_once_in_one_line_and_the_run_goes_on(small_disk):
+    """As the node does: the moment the disk fills, one error line on stderr (it said nothing
+    until Ctrl-C), the run goes on publishing, and Ctrl-C ends it with status 1 and the bag left
+    for boom-bag-recover."""
+    bag = small_disk / "live_bag"
+    live = LiveServer("--record", str(bag))
+    try:
+        # the first thing it says after 'serving': the disk is full (the guard: it said nothing until Ctrl-C)
+        ready, _, _ = select.select([live.proc.stderr], [], [], 120.0)
+        assert ready, "boom-sim live said nothing of the full disk"
+        said = live.proc.stderr.readline()
+        assert said.startswith("boom-sim live: error: recording stopped: ") and "No space left on device" in said
+        assert said.rstrip().endswith("the simulation goes on"), said
+        with FoxgloveClient(live.port) as client:
+            client.subscribe("/drive_state")
+            client.next_message("/drive_state")  # it still publishes
+    finally:
+        live.interrupt()
+        status, _, err = live.wait()
+    assert status == 1, err
+    assert "Traceback" not in err
+    assert sum("recording stopped:" in line for line in [said, *err.splitlines()]) == 1
+    assert "boom-sim live: error: recording failed: " in err

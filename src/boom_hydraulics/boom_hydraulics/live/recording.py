@@ -31,6 +31,16 @@ class LiveRecording:
         topics = [*bag_topics(), events]
         custom = run_description(params, origin_ns, rate_hz, timeout_s, node=NODE)
         self.recorder = BagRecorder(folder, topics, custom_data=custom)
+        self._reported = False
+
+    def failed_now(self) -> str | None:
+        """The error that stopped the recording (a full disk), the first time it is asked for
+        after the disk failed; None before and after: the run says it once, at once, as the
+        node does ("recording stopped: ...; the simulation goes on")."""
+        if self._reported or self.recorder.error is None:
+            return None
+        self._reported = True
+        return self.recorder.error
 
     def write(self, topic: str, log_ns: int, data: bytes) -> None:
         self.recorder.write(topic, log_ns, data)

@@ -176,10 +176,14 @@ class LiveRun:
 
     # --- ticks ------------------------------------------------------------------------------
     def tick(self) -> None:
-        """Take the steps due now and publish the state; the diagnostics once a second."""
+        """Take the steps due now and publish the state; the diagnostics once a second; a
+        recording that failed (a full disk) said at once, in one line, as the node says it."""
         with self.lock:
             if self.failure is None:
                 self._step()
+            if self.recording is not None and (error := self.recording.failed_now()) is not None:
+                self.notice(2, "recording", f"recording stopped: {error}; the simulation goes on")
+                self.publish_diagnostics()
             if time.monotonic() - self._diagnosed_at >= DIAGNOSTICS_PERIOD_S:
                 self._diagnosed_at = time.monotonic()
                 self.publish_diagnostics()
