@@ -109,6 +109,29 @@ def test_a_full_or_read_only_disk_names_the_file_asked_for(tmp_path, args, disk)
         subprocess.run(["umount", str(mount)], check=True)
 
 
+@ROOT_ONLY
+def test_boom_resim_onto_a_read_only_disk_names_the_out_asked_for(tmp_path):
+    """The bag it would write is staged in a hidden folder beside --out: the error line named
+    that '.new.xxxxxxxx.partial', a name the user never gave."""
+    from machine_bags import record_node
+
+    bag = record_node(tmp_path / "bag", duration_s=0.5)
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(mount)], check=True)
+    try:
+        out = mount / "new"
+        result = run_tool("boom-resim", bag, "--out", out)
+        assert result.returncode == 1, result.stderr
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+        assert lines[0].startswith(f"boom-resim: error: {out}: Read-only file system"), lines
+        assert ".partial" not in lines[0]
+        assert list(mount.iterdir()) == []
+    finally:
+        subprocess.run(["umount", str(mount)], check=True)
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

@@ -148,6 +148,17 @@ def named_for(exc: OSError, target: Path, temporary: Path | None = None) -> OSEr
     return renamed
 
 
+def folder_beside(out: Path) -> Path:
+    """A fresh, empty folder beside ``out`` (``.NAME.xxxxxxxx.partial``, tempfile.mkdtemp's), for
+    a result folder written whole and renamed onto ``out``; an OSError (a read-only or full
+    disk) names ``out``, the folder the user asked for, not the temporary name."""
+    out = Path(out)
+    try:
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    except OSError as exc:
+        raise named_for(exc, out) from None
+
+
 #: The start of a staging folder's name (results_folder), and of nothing else.
 _STAGING = ".partial-"
 

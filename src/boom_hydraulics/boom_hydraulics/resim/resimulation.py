@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 import shutil
 import sys
-import tempfile
 from collections import deque
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -50,7 +49,7 @@ from ..bags.recording import BagRecorder, Topic
 from ..bags.run_description import RunDescription
 from ..bags.run_events import EVENTS_TYPE, RunEvent
 from ..errors import ConfigError, RecordingError, SimulationError
-from ..files import check_apart
+from ..files import check_apart, folder_beside
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
 from ..model.setpoints import SetpointPath
@@ -299,7 +298,7 @@ def resimulate(
     events = [Recorded(0, log_ns, events_topic, raw) for log_ns, raw in run.event_messages] if events_topic else []
     recorded = deque(sorted(run.commands + run.parameter_changes + events, key=lambda r: r.log_ns))
     out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    staging = folder_beside(out)  # (an error names --out, not the staging folder)
     try:
         # the energy ledger at ENERGY_HZ, where the run has one (physical mode, a topic to put it on)
         energy_topic = run.energy_topic if replay.params.mode == "physical" else None
