@@ -4,6 +4,8 @@ boom-resim replays the recorded commands on one time line from the run's origin.
 whose drive was reset (``~/reset``, or a ROS clock that jumped back) jumped in state, and
 on ROS-time stamps a pause, a resume or a step moved the node's time origin: such runs
 cannot be reproduced that way, and boom-resim refuses them rather than be wrong in silence.
+This is for bags recorded before the node recorded its run events (bags.run_events): with
+them, boom-resim reproduces such runs, and none of this is asked.
 
 Two kinds of evidence:
 
