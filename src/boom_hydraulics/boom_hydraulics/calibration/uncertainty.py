@@ -2,17 +2,21 @@
 
 The residual a fit minimises is each recorded sample's difference from the simulation over
 its signal's noise (:mod:`.noise`, times the signal's ``--weight``). Its covariance is the
-sandwich A^-1 B A^-1 with A = J^T J and B the covariance of J^T r, summed signal by signal
-(the signals' noises are independent of each other) as Newey and West's estimator sums it:
-the products J_i r_i of every sample with those up to L samples away (L = n^(1/3) of the
-signal's n samples), weighted 1 - l/(L+1), times n/(n-p). So the intervals take
+sandwich A^-1 B A^-1 with A = J^T J and B summed signal by signal (the signals' noises are
+independent of each other): for signal s, c_s k_s J_s^T J_s, with
 
-- each signal's own noise, as its residual shows it (not the noise estimate the weights
-  came from, nor a level shared by signals of different units),
-- residuals correlated from sample to sample (a signal sampled faster than its noise
-  changes, or a misfit that lasts), which an estimate for independent samples counts as
-  independent evidence, and
-- the weights, whatever they are.
+- c_s the mean square of its residual: each signal's own noise, as its residual shows it
+  (not the noise estimate the weights came from, nor one level shared by signals of
+  different units and rates);
+- k_s = 1 + 2 sum (1 - l/(L+1)) rho_l, at least 1, over the autocorrelations rho_l of its
+  residual up to L = n^(1/3) samples apart (Bartlett weights): n/k_s is its effective number
+  of samples, fewer than n where the residual is correlated from sample to sample (a
+  sensor sampled faster than its noise changes, a misfit that lasts), which would otherwise
+  count as independent evidence;
+
+times n/(n-p); the weights enter as they are. (Newey and West's full estimator, summing the
+products J_i r_i J_j r_j themselves, gave intervals 10 to 15 % narrower than the spread of
+blind trials' errors on runs of 300 samples; this one is within a few per cent.)
 
 A signal whose residual is below half its estimated noise (a recording without noise, where
 what is left is the fit's own resolution) counts as if it were at half its noise: a residual
@@ -39,13 +43,18 @@ BLIND = 1e-9
 LEAST_NOISE = 0.5
 
 
-def _lag_sum(g: np.ndarray, lags: int) -> np.ndarray:
-    """Newey-West's sum of g_i g_j^T over |i - j| <= lags (Bartlett weights)."""
-    total = g.T @ g
-    for lag in range(1, min(lags, len(g) - 1) + 1):
-        cross = g[lag:].T @ g[:-lag]
-        total += (1.0 - lag / (lags + 1.0)) * (cross + cross.T)
-    return total
+def inflation(r: np.ndarray) -> float:
+    """k = 1 + 2 sum (1 - l/(L+1)) rho_l over the autocorrelations of ``r`` up to L = n^(1/3)
+    apart, at least 1: how many samples count as one."""
+    lags = math.ceil(len(r) ** (1.0 / 3.0))
+    centred = r - r.mean()
+    power = float(centred @ centred)
+    if power <= 0 or len(r) < 3:
+        return 1.0
+    total = 0.0
+    for lag in range(1, min(lags, len(r) - 1) + 1):
+        total += (1.0 - lag / (lags + 1.0)) * float(centred[lag:] @ centred[:-lag]) / power
+    return max(1.0, 1.0 + 2.0 * total)
 
 
 def covariance(
@@ -65,8 +74,9 @@ def covariance(
         rms = float(np.sqrt(np.mean((r / weight) ** 2))) if len(r) else 0.0
         if rms < LEAST_NOISE:  # in units of the noise
             r = r * (LEAST_NOISE / rms) if rms > 0 else np.full(len(r), LEAST_NOISE * weight)
-        g = jac[segment] * r[:, None]
-        meat += _lag_sum(g, math.ceil(len(g) ** (1.0 / 3.0)))
+        if len(r):
+            block = jac[segment]
+            meat += float(np.mean(r * r)) * inflation(r) * (block.T @ block)
     meat *= n / max(n - p, 1)
     return inverse @ meat @ inverse, blind
 
