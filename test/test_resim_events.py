@@ -57,7 +57,9 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
     and ~/step calls in it, a resume, and a reset to another rod length with a command stamped
     ahead after it."""
     events: list[dict] = []
-    client.node.create_subscription(String, "/boom_sim/events", lambda m: events.append(json.loads(m.data)), 100)
+    subscription = client.node.create_subscription(
+        String, "/boom_sim/events", lambda m: events.append(json.loads(m.data)), 100
+    )
     extra = ("publish_clock:=true",) if clock == "publish_clock" else ()
     proc = nodes.start(
         f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", "max_catch_up_s:=0.2", *extra, record=True
@@ -68,6 +70,7 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
 
     try:
         client.handshake()
+        assert client.spin_until(lambda: subscription.get_publisher_count() > 0)  # ~/events found too
         client.command(1.0)
         client.spin_sim(0.4)
         # a stall: the node's process stopped for longer than max_catch_up_s, then it goes on
@@ -97,13 +100,15 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
         log = stop_process(proc)
     (bag,) = (tmp_path / "bags").iterdir()
     recorded = _recorded_events(bag)
-    assert [e["event"] for e in recorded] == [e["event"] for e in events], (recorded, events)
+    # what ~/events said is what the bag holds (this client may have found the topic after its first events)
+    assert events and recorded[-len(events) :] == events, (recorded, events)
     kinds = [e["event"] for e in recorded]
     assert {"backlog_dropped", "pause", "step", "resume", "reset"} <= set(kinds), kinds
-    dropped = next(parse(json.dumps(e)) for e in recorded if e["event"] == "backlog_dropped")
-    assert dropped.dropped_s > 0.2 and dropped.origin_moved_ns == (
-        0 if clock == "publish_clock" else round(dropped.dropped_s * 1e9)
-    )
+    # the stall's (a loaded machine may drop small backlogs as well): each moved the origin by its backlog
+    drops = [parse(json.dumps(e)) for e in recorded if e["event"] == "backlog_dropped"]
+    assert max(d.dropped_s for d in drops) > 0.2, drops
+    for d in drops:
+        assert d.origin_moved_ns == (0 if clock == "publish_clock" else round(d.dropped_s * 1e9)), d
     reset = next(e for e in recorded if e["event"] == "reset")
     assert reset["rod_position_m"] == 1.45 and reset["state"][0] == 1.45 and reset["cause"] == "~/reset"
     assert read_custom_data(bag)["events_topic"] == "/boom_sim/events"

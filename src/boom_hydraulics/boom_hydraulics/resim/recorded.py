@@ -94,6 +94,16 @@ class RecordedRun:
         """The time origin the state at ``index`` (of :attr:`state_ns`) was stamped with."""
         return origin_at(self.events, self.clock_origin_ns, index)
 
+    def state_origins_ns(self) -> list[int]:
+        """The time origin of each state of :attr:`state_ns`, in one pass."""
+        origins, origin, k = [], self.clock_origin_ns, 0
+        for index in range(len(self.state_ns)):
+            while k < len(self.events) and self.events[k].states_before <= index:
+                origin = self.events[k].clock_origin_ns
+                k += 1
+            origins.append(origin)
+        return origins
+
     def state_sim_s(self, index: int) -> float:
         """The simulated time of the state at ``index``."""
         return (self.state_ns[index] - self.state_origin_ns(index)) * 1e-9

@@ -221,9 +221,7 @@ class Replay:
         self.instants = run.state_ns or _grid(run, self.params.time_step_s)
         # the time origin each instant is stamped with, and when the node published its state
         # (the grid's: at its instant)
-        self.origins = [run.state_origin_ns(k) for k in range(len(run.state_ns))] or [run.clock_origin_ns] * len(
-            self.instants
-        )
+        self.origins = run.state_origins_ns() or [run.clock_origin_ns] * len(self.instants)
         self.state_log_ns = run.state_log_ns or self.instants
         self.instant_ns = run.clock_origin_ns  # the instant of the state just given
         self.index = 0  # its index in instants
