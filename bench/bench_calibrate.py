@@ -6,7 +6,8 @@ re-simulation of the same bag measured in the same run.
 
 The bag is what ``make run`` records: the node through boom-demo's lift (3 s), hold (2 s),
 lower (3 s) and hold. The fit starts from bulk_modulus_pa x 0.6, orifice_diameter_m x 1.2 and
-coulomb_friction_n x 0.5 and fits those three (boom-calibrate's own path, in this process).
+coulomb_friction_n x 0.5 and fits those three from boom-calibrate's four default starts (its
+own path, in this process), and says whether the fit can be trusted (calibration.verdict).
 Target: under 60 s on this 2-core machine. The ratio to one re-simulation says how many
 re-simulations' worth the fit took, whatever the machine's load.
 """
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from tables import table
 
-from boom_hydraulics.calibration import fit
+from boom_hydraulics.calibration import fit, report
 from boom_hydraulics.model.parameters import Parameters
 from boom_hydraulics.resim.resimulation import Replay, read_recorded
 
@@ -68,6 +69,8 @@ def main() -> None:
     table("Fitted values (recorded with the defaults)", ["parameter", "start", "fitted", "recorded with", "95 %"], rows)
     rows = [[s, f"{result.rms_before[s]:.4g}", f"{result.rms_after[s]:.4g}"] for s in result.problem.signals]
     table("RMS residual per signal (SI units)", ["signal", "start", "fitted"], rows)
+    verdict = report.verdict_lines(result) or ["the fit can be trusted (exit status 0)"]
+    print("\n".join(verdict))
 
 
 if __name__ == "__main__":
