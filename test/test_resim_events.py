@@ -193,3 +193,42 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
     assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
     assert [s[2] for s in again] == [s[2] for s in original]
     assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+
+
+def test_a_run_that_blew_up_and_was_reset_resimulates_exactly(nodes, client, tmp_path):
+    """Paper mode has no end stops: fig. 8's valve held open leaves the valid geometry after
+    2.2 s, the node stops stepping and waits for ~/reset. The reset's event says the simulation
+    had stopped; the re-simulation stops where the node did, resets there and goes on."""
+    proc = nodes.start(
+        f"record_folder:={tmp_path / 'bags'}",
+        "publish_clock:=true",
+        "real_time_factor:=4.0",
+        "command_timeout_s:=0.0",
+        config_file="paper_fig8.yaml",
+        record=True,
+    )
+
+    def stopped() -> bool:
+        return any(s.level == b"\x02" and "stopped" in s.message for d in client.diagnostics for s in d.status)
+
+    try:
+        client.handshake()
+        client.command(1.0)
+        assert client.spin_until(stopped)
+        assert client.call(client.reset, Reset.Request()).success
+        client.command(0.5)
+        assert client.spin_until(lambda: client.last().valve_command == 0.5)
+        client.spin_sim(0.3)
+        client.command(0.0)
+        assert client.spin_until(lambda: client.last().valve_command == 0.0)
+    finally:
+        log = stop_process(proc)
+    (bag,) = (tmp_path / "bags").iterdir()
+    reset = next(e for e in _recorded_events(bag) if e["event"] == "reset")
+    assert reset["stopped"] is True, reset
+    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
+    assert result.returncode == 0, result.stderr + log
+    original, again = _states(bag), _states(tmp_path / "again")
+    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
+    assert [s[2] for s in again] == [s[2] for s in original]
+    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
