@@ -232,3 +232,44 @@ def test_a_run_that_blew_up_and_was_reset_resimulates_exactly(nodes, client, tmp
     assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
     assert [s[2] for s in again] == [s[2] for s in original]
     assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+
+
+def test_a_run_whose_shared_clock_jumped_back_resimulates_exactly(nodes, client, tmp_path):
+    """Under use_sim_time a /clock that jumps back (a world reset) resets the drive: the reset's
+    event holds the time origin after it, and the re-simulation resets there and goes on."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    proc = nodes.start(
+        "use_sim_time:=true", f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True
+    )
+    assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    source = subprocess.Popen(
+        [sys.executable, str(Path(__file__).with_name("clock_source.py")), "50.0", "1.0:2", "jump:10.0", "1.0:3"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert client.spin_until(lambda: bool(client.states), timeout=60)
+        client.command(1.0)  # lift, unstamped
+        assert client.spin_until(lambda: client.last().rod_position_m > 1.4)
+        assert client.spin_until(lambda: client.sim_s() < 20.0), "no state after the jump"
+        client.command(0.5)
+        assert client.spin_until(lambda: client.last().valve_command == 0.5)
+        client.spin_sim(0.3)
+        source.communicate(timeout=60)
+    finally:
+        stop_process(source)
+        log = stop_process(proc)
+    assert "the ROS clock jumped back" in log
+    (bag,) = (tmp_path / "bags").iterdir()
+    reset = next(e for e in _recorded_events(bag) if e["event"] == "reset")
+    assert reset["cause"] == "the ROS clock jumped back" and reset["origin_moved_ns"] < -30e9, reset
+    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
+    assert result.returncode == 0, result.stderr + log
+    original, again = _states(bag), _states(tmp_path / "again")
+    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
+    assert [s[2] for s in again] == [s[2] for s in original]
+    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
