@@ -65,6 +65,7 @@ MODEL_REFUSALS = {
     "rod_wider_than_piston": {"rod_diameter_m": 0.05},
     "support_above_b": {"support_height_m": 1.45},
     "stroke_outside_triangle": {"cylinder_max_length_m": 1.8},
+    "initial_length_outside_stroke": {"cylinder_min_length_m": 1.38},
     "supply_at_tank": {"supply_pressure_pa": 1.0e5},
     "relief_below_supply": {"relief_pressure_pa": 15.0e6},
     "cavitation_at_tank": {"cavitation_pressure_pa": 1.0e5},

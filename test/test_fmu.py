@@ -428,22 +428,20 @@ def test_a_ros2_fmu_steps_as_the_simulator_and_its_export_leaves_nothing_behind(
 )
 def test_the_fmus_parameter_derivations_are_the_models_to_the_bit(changes: dict) -> None:
     """The constants and the state at rest the FMU derives in compiled code when a host sets a
-    parameter are model.physical's own (fmu.rewrite compiles their source), for every drive."""
+    parameter are model.physical's own (numba compiles the functions as written, from a row
+    read as the Surrogate of Parameters), for every drive."""
     import numba
 
-    from boom_hydraulics.fmu import native, rewrite
+    from boom_hydraulics.fmu import native
     from boom_hydraulics.model import physical
-
-    surrogate_of, constants, initial_state = (
-        native._surrogate_builder(), rewrite.model_constants(), rewrite.model_initial_state()
-    )  # fmt: skip
 
     @numba.njit(error_model="numpy")
     def derive(row: np.ndarray) -> tuple:
-        p = surrogate_of(row)
-        return constants(p), initial_state(p)
+        p = native.surrogate_of(row)
+        return physical.constants(p), physical.initial_state(p), p
 
     params = with_updates(Parameters(), **changes)
-    c, y = derive(np.array(native.row_of(params)))
+    c, y, surrogate = derive(np.array(native.row_of(params)))
     assert tuple(c) == tuple(physical.constants(params))
     assert list(y) == physical.initial_state(params)
+    assert [getattr(surrogate, name) for name in native.ROW] == [getattr(params, name) for name in native.ROW]

@@ -3,13 +3,23 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import pytest
 from conftest import CONFIG
 
 from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
-from boom_hydraulics.model.parameters import Parameters, as_dict, from_mapping, with_updates
+from boom_hydraulics.model.parameters import (
+    PLANT_FAULTS,
+    Parameters,
+    as_dict,
+    from_mapping,
+    plant_fault,
+    plant_fault_message,
+    stroke_limits_m,
+    with_updates,
+)
 from boom_hydraulics.solve.simulation import Simulator
 
 
@@ -177,3 +187,33 @@ def test_a_scenario_that_does_not_fit_the_plant_is_refused():
         from_mapping({"mode": "paper", "command_profile": "angle"})
     with pytest.raises(ConfigError, match=r"target boom angle 1.5000 rad .* outside the stroke"):
         from_mapping({"command_profile": "angle", "command_angles_rad": [1.5]})
+
+
+def test_plant_fault_numbers_the_first_check_that_fails_and_its_line_is_the_error():
+    """plant_fault (which the native FMU compiles) gives k for the k-th check that fails, the
+    first in the order written, and 0 for a set that fits; a set at fault k is refused with
+    PLANT_FAULTS[k - 1] worded for it."""
+    base = Parameters()
+    hi = stroke_limits_m(base.a_m, base.b_m)[3]
+    faults = {
+        1: {"rod_diameter_m": base.piston_diameter_m},
+        2: {"support_height_m": base.b_m},
+        3: {"cylinder_max_length_m": hi + 0.01},
+        4: {"initial_length_m": base.cylinder_max_length_m + 0.01},
+        5: {"mode": "paper", "cylinder_max_length_m": hi - 0.02, "initial_length_m": hi + 0.001},
+        6: {"supply_pressure_pa": base.tank_pressure_pa},
+        7: {"relief_pressure_pa": 0.5 * base.supply_pressure_pa},
+        8: {"cavitation_pressure_pa": base.tank_pressure_pa},
+        9: {"mode": "paper", "drive": "fixed_pump"},
+        10: {"static_friction_n": 0.5 * base.coulomb_friction_n},
+    }
+    assert plant_fault(base) == 0
+    assert set(faults) == set(range(1, len(PLANT_FAULTS) + 1))
+    for k, values in faults.items():
+        unchecked = SimpleNamespace(**{**as_dict(base), **values})
+        assert plant_fault(unchecked) == k, values
+        with pytest.raises(ConfigError) as said:
+            from_mapping(values)
+        assert str(said.value) == plant_fault_message(unchecked, k)
+    assert plant_fault(SimpleNamespace(**{**as_dict(base), **faults[7], **faults[2]})) == 2
+    assert "initial_length_m (" in plant_fault_message(SimpleNamespace(**{**as_dict(base), **faults[4]}), 4)

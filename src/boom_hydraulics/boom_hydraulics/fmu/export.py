@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import os
 import platform
+import re
 import shlex
 import shutil
+import string
 import subprocess
 import tempfile
 import zipfile
@@ -25,7 +27,7 @@ from ..errors import ConfigError
 from ..files import atomic_path
 from ..model import config
 from ..model import physical as model
-from ..model.parameters import GEOMETRY_CLEARANCE_M, Parameters, as_dict, describe
+from ..model.parameters import PLANT_FAULTS, STROKE_LIMITS, Parameters, as_dict, describe
 from ..solve import integrators
 from ..solve.batch import stability_limit
 from ..solve.outcomes import MAX_SUBSTEPS
@@ -81,9 +83,32 @@ def _c_double(value: float) -> str:
     return repr(float(value))
 
 
+def fault_pieces(template: str) -> list[str]:
+    """``template`` (a line of parameters.PLANT_FAULTS) as C initializers of Piece: each its
+    literal text, then the value it names (a row entry ``p.<name>``, or one of STROKE_LIMITS)
+    with the printf format of its format spec (NULL: as Python writes a float, or the string);
+    ValueError for a spec the FMU does not write as Python does."""
+    pieces = []
+    for text, field, spec, conversion in string.Formatter().parse(template):
+        if field is None:
+            pieces.append(f"{{{_c_string(text)}, SOURCE_NONE, 0, NULL}}")
+            continue
+        if conversion is not None or not re.fullmatch(r"(\.\d+g)?", spec or ""):
+            raise ValueError(f"{template!r}: the FMU writes a value as Python does, or in a .<n>g spec only")
+        if field.startswith("p."):
+            source, index = "SOURCE_ROW", native.ROW.index(field[2:])
+            spec = spec or (".0f" if native.kind_of(field[2:]) == "int" else "")  # an int as Python writes it
+        else:
+            source, index = "SOURCE_LIMIT", STROKE_LIMITS.index(field)
+        pieces.append(f"{{{_c_string(text)}, {source}, {index}, {_c_string('%' + spec) if spec else 'NULL'}}}")
+    return pieces
+
+
 def header(params: Parameters, guid: str) -> str:
-    """The C header of an FMU exported with ``params``: its GUID, the model's sizes, the row
-    of exported parameters with each entry's checks, and its variables by value reference."""
+    """The C header of an FMU exported with ``params``: its GUID, the model's sizes, the
+    operations of the compiled entry point, the row of exported parameters with each entry's
+    range, the lines of the plant's faults (parameters.py's, as pieces) and its variables by
+    value reference."""
     row = native.row_of(params)
     names = native.ROW
     lines = [
@@ -100,7 +125,7 @@ def header(params: Parameters, guid: str) -> str:
         f"#define GRID_TOLERANCE {_c_double(GRID_TOLERANCE)}",
         f"#define MAX_STEPS_AT_ONCE {_c_double(float(MAX_STEPS_AT_ONCE))}",
         f'#define MAX_STEPS_TEXT "{MAX_STEPS_AT_ONCE}"',
-        f"#define GEOMETRY_CLEARANCE_M {_c_double(GEOMETRY_CLEARANCE_M)}",
+        f"#define N_LIMITS {len(STROKE_LIMITS)}",
         f"#define CONSTANT_A {model.Constants._fields.index('a')}",
         f"#define CONSTANT_B {model.Constants._fields.index('b')}",
         f"#define ROW_TIME_STEP {names.index('time_step_s')}",
@@ -108,6 +133,7 @@ def header(params: Parameters, guid: str) -> str:
         f"#define HALVING {1 if integrators.METHODS[params.method].halving else 0}",
         f"#define HALVED_MOST {HALVED_MOST}",
         *(f"#define ROW_{name} {k}" for k, name in enumerate(names)),
+        f"enum {{ {', '.join(f'OP_{name} = {code}' for name, code in native.OPERATIONS.items())} }};",
         "enum { KIND_REAL, KIND_INTEGER, KIND_STRING };",
         "enum { ROLE_VALVE, ROLE_ROW, ROLE_OUTPUT, ROLE_CALCULATED };",
         "typedef struct { int kind; int role; int index; const char *name; } Variable;",
@@ -149,6 +175,17 @@ def header(params: Parameters, guid: str) -> str:
             + "}"
         )
     lines.append(f"static const RowCheck ROW_CHECKS[N_ROW] = {{{', '.join(checks)}}};")
+    lines.append("enum { SOURCE_NONE, SOURCE_ROW, SOURCE_LIMIT };")
+    lines.append("typedef struct { const char *text; int source; int index; const char *format; } Piece;")
+    counts = []
+    for k, template in enumerate(PLANT_FAULTS, start=1):
+        pieces = fault_pieces(template)
+        lines.append(f"static const Piece FAULT_{k}[] = {{{', '.join(pieces)}}};")
+        counts.append(str(len(pieces)))
+    lines.append(f"#define N_PLANT_FAULTS {len(PLANT_FAULTS)}")
+    faults = ", ".join(f"FAULT_{k}" for k in range(1, len(PLANT_FAULTS) + 1))
+    lines.append(f"static const Piece *const PLANT_FAULTS[N_PLANT_FAULTS] = {{{faults}}};")
+    lines.append(f"static const int PLANT_FAULT_PIECES[N_PLANT_FAULTS] = {{{', '.join(counts)}}};")
     variables = []
     for variable in VARIABLES:
         kind = {"float": "KIND_REAL", "int": "KIND_INTEGER", "str": "KIND_STRING"}[variable.kind]

@@ -4,21 +4,24 @@ The native FMU (docs/fmu.md) steps the same code boom-sim steps: one ``numba.cfu
 :func:`entry`, with a C signature over pointers to doubles, calls the functions the
 Simulator's kernel calls (:func:`stepping.advance` with the method's step and the model's
 ``derivative``, ``stiffness_rate`` and ``energy``; the model's ``outputs``; the geometry's
-``within_triangle``), and the parameters' derivations that the Simulator runs in Python when
-it starts or changes parameters: the model's ``constants`` and ``initial_state``. Those two
-are written for Python, not for numba; :mod:`.rewrite` hands numba their own source with the
-few constructs it cannot compile spelled otherwise (the same expressions, in the same order).
+``within_triangle``), the parameters' derivations that the Simulator runs in Python when it
+starts or changes parameters (the model's ``constants`` and ``initial_state``), and the
+checks that the plant's parameters fit together (parameters.py's ``plant_fault``). Each is
+the model's function as written, marked jitable where it is defined: numba compiles it into
+the entry point as it compiles the kernels.
 
-A parameter set is a row of doubles in the order of :data:`ROW` (every scalar field of
-Parameters; a string field as the index of its value among its choices). numba's code
+A parameter set is a row of doubles in the order of :data:`ROW`: every scalar number field
+of Parameters, then every string field as the index of its value among its choices. The
+compiled code reads a row as :class:`Surrogate`, a named tuple of the same fields that the
+model's functions read as they read Parameters (:func:`surrogate_of`). numba's code
 library hands back the object file it compiled (a private API, used by numba's own cache:
 ``_get_compiled_object``, checked against numba 0.68, pinned in requirements.txt). The
 C wrapper (native/fmi2_slave.c) calls the object's C-ABI wrapper (``cfunc.<mangled name>``)
 as ``boom_native``, by an assembler label that export.py writes. Compiled code that raises
 calls a few Python C-API and numba runtime functions on its way out; the C wrapper defines
-them as stubs that flag the error. ros2's step allocates (its stages are arrays, its state a list): the
-C wrapper holds the few functions of numba's runtime (NRT) that such code calls, on
-malloc and free.
+them as stubs that flag the error. ros2's step and the state at rest allocate (arrays, a
+list): the C wrapper holds the few functions of numba's runtime (NRT) that such code calls,
+on malloc and free.
 
 ``boom_native(op, a, b, c, d) -> int32``, ``op`` one of :data:`OPERATIONS`; it returns 1 +
 the operation's result (0: the compiled code raised).
@@ -31,18 +34,24 @@ from collections import namedtuple
 from typing import Any
 
 from ..errors import ConfigError
-from ..model import geometry
+from ..jit import jitable
+from ..model import electric_motor, geometry, pump
 from ..model import physical as model
 from ..model.outputs import OUTPUT_NAMES
-from ..model.parameters import Parameters, describe
+from ..model.parameters import STROKE_LIMITS, Parameters, describe, plant_fault, stroke_limits_m
 from ..solve import integrators, stepping
 from ..solve.physical_kernel import constants_of, list_of, state_of
-from . import rewrite
+
+try:  # numba is optional for the package; object_code says that the FMU needs it
+    from numba.cpython.unsafe.tuple import tuple_setitem
+    from numba.np.unsafe.ndarray import to_fixed_tuple
+except ImportError:  # pragma: no cover - exercised on machines without numba
+    tuple_setitem = to_fixed_tuple = None
 
 #: The C name of the entry point.
 SYMBOL = "boom_native"
 #: The operations of :func:`entry` (its first argument).
-CONSTANTS, INITIAL_STATE, STEP, OUTPUTS, ENERGY, WITHIN = range(6)
+CONSTANTS, INITIAL_STATE, STEP, OUTPUTS, ENERGY, WITHIN, PLANT_FAULT = range(7)
 OPERATIONS = {
     "CONSTANTS": CONSTANTS,
     "INITIAL_STATE": INITIAL_STATE,
@@ -50,6 +59,7 @@ OPERATIONS = {
     "OUTPUTS": OUTPUTS,
     "ENERGY": ENERGY,
     "WITHIN": WITHIN,
+    "PLANT_FAULT": PLANT_FAULT,
 }
 #: What the model's state, its Constants and its outputs hold.
 N_STATE = len(model.STATE_NAMES)
@@ -57,15 +67,6 @@ N_CONSTANTS = len(model.Constants._fields)
 N_OUTPUTS = len(OUTPUT_NAMES)
 #: The arguments of a STEP: t, u, dt, min_substeps, limit, max_substeps, n, energy_index, energy_base.
 STEP_ARGUMENTS = 9
-
-
-def _scalar_fields() -> tuple[dataclasses.Field, ...]:
-    defaults = Parameters()
-    return tuple(f for f in dataclasses.fields(Parameters) if not isinstance(getattr(defaults, f.name), list))
-
-
-#: The row of a parameter set: every scalar field of Parameters, in their order.
-ROW = tuple(f.name for f in _scalar_fields())
 
 
 def kind_of(name: str) -> str:
@@ -78,40 +79,68 @@ def choices_of(name: str) -> tuple[str, ...]:
     return tuple(describe(name)["choices"])
 
 
+def _scalar_fields() -> tuple[str, ...]:
+    defaults = Parameters()
+    return tuple(f.name for f in dataclasses.fields(Parameters) if not isinstance(getattr(defaults, f.name), list))
+
+
+#: The number fields of Parameters (float and int), then its string fields, in their order.
+NUMBERS = tuple(name for name in _scalar_fields() if kind_of(name) != "str")
+STRINGS = tuple(name for name in _scalar_fields() if kind_of(name) == "str")
+#: The row of a parameter set: every scalar field of Parameters, its numbers first.
+ROW = (*NUMBERS, *STRINGS)
+#: The choices of each string field, padded with "" to one length (numba indexes a tuple of
+#: tuples by a variable only where they are alike).
+CHOICES = tuple(
+    (*choices_of(name), *("",) * (max(len(choices_of(n)) for n in STRINGS) - len(choices_of(name)))) for name in STRINGS
+)
+_NO_STRINGS = ("",) * len(STRINGS)
+_N_NUMBERS, _N_STRINGS = len(NUMBERS), len(STRINGS)
+
+
 def row_of(params: Parameters) -> list[float]:
     """``params`` as a row (strings as the indices of their values)."""
-    row = []
-    for name in ROW:
-        value = getattr(params, name)
-        row.append(float(choices_of(name).index(value)) if kind_of(name) == "str" else float(value))
-    return row
+    return [float(getattr(params, name)) for name in NUMBERS] + [
+        float(choices_of(name).index(getattr(params, name))) for name in STRINGS
+    ]
 
 
-#: A stand-in for Parameters that compiled code builds from a row: a NamedTuple of the same fields.
+#: A stand-in for Parameters that compiled code builds from a row: a named tuple of the row's
+#: fields (the numbers as floats), which the model's functions read by the fields' names.
 Surrogate = namedtuple("Surrogate", ROW)  # type: ignore[misc]
 
 
-def _surrogate_builder() -> Any:
-    """A jitable ``surrogate_of(row)``: the Surrogate of a row, its strings the literals of their choices."""
-    lines = ["def surrogate_of(row):"]
-    arguments = []
-    for k, name in enumerate(ROW):
-        kind = kind_of(name)
-        if kind == "str":
-            lines.append(f"    code{k} = row[{k}]")
-            lines.append(f"    s{k} = {choices_of(name)[-1]!r}")
-            for j, choice in enumerate(choices_of(name)[:-1]):
-                lines.append(f"    if code{k} == {float(j)!r}:")
-                lines.append(f"        s{k} = {choice!r}")
-            arguments.append(f"s{k}")
-        elif kind == "int":
-            arguments.append(f"int(row[{k}])")
-        else:
-            arguments.append(f"row[{k}]")
-    lines.append(f"    return Surrogate({', '.join(arguments)})")
-    namespace: dict[str, Any] = {"Surrogate": Surrogate}
-    exec(compile("\n".join(lines), "<fmu.native.surrogate_of>", "exec"), namespace)
-    return rewrite.jitable_copy(namespace["surrogate_of"])
+@jitable
+def surrogate_of(row: Any) -> Any:
+    """The Surrogate of ``row`` (an array of its doubles, its string codes checked in range)."""
+    strings = _NO_STRINGS
+    for j in range(_N_STRINGS):
+        strings = tuple_setitem(strings, j, CHOICES[j][int(row[_N_NUMBERS + j])])
+    return Surrogate(*(to_fixed_tuple(row, _N_NUMBERS) + strings))
+
+
+#: The model's plain functions that constants and initial_state call but that their own
+#: modules do not mark jitable: registered as @jitable registers them, where they are not yet.
+PLAIN_CALLEES = (
+    geometry.static_rod_force_of,
+    electric_motor.loss_coefficients,
+    pump.leakage_conductance,
+    pump.torque_loss_ratio,
+)
+
+
+def _register_plain_callees() -> None:
+    if to_fixed_tuple is None:
+        return
+    from numba.core.typing.templates import builtin_registry
+
+    registered = {id(function) for function, _ in builtin_registry.globals}
+    for function in PLAIN_CALLEES:
+        if id(function) not in registered:
+            jitable(function)
+
+
+_register_plain_callees()
 
 
 def entry(method: str) -> Any:
@@ -125,12 +154,11 @@ def entry(method: str) -> Any:
     halving = integrators.METHODS[method].halving  # ros2: its stages are arrays, its state a list
     loop = stepping.advance_halving if halving else stepping.advance
     state = list_of if halving else state_of
-    surrogate_of = _surrogate_builder()
-    constants = rewrite.model_constants()
-    initial_state = rewrite.model_initial_state()
+    constants, initial_state = model.constants, model.initial_state
     derivative, stiffness_rate, energy, outputs = model.derivative, model.stiffness_rate, model.energy, model.outputs
     within_triangle = geometry.within_triangle
     n_row, n_state, n_constants, n_outputs = len(ROW), N_STATE, N_CONSTANTS, len(OUTPUT_NAMES)
+    n_limits = len(STROKE_LIMITS)
     double_p = types.CPointer(types.float64)
     signature = types.int32(types.int32, double_p, double_p, double_p, double_p)
 
@@ -175,6 +203,13 @@ def entry(method: str) -> Any:
         if op == WITHIN:  # a: (q1, a, b) -> whether q1 lies in the triangle of eq. 1
             r = carray(a, (3,))
             return 2 if within_triangle(r[0], r[1], r[2]) else 1
+        if op == PLANT_FAULT:  # a: row -> b: the stroke's limits (STROKE_LIMITS); which check failed (0: none)
+            p = surrogate_of(carray(a, (n_row,)))
+            limits = stroke_limits_m(p.a_m, p.b_m)
+            out = carray(b, (n_limits,))
+            for i in range(n_limits):
+                out[i] = limits[i]
+            return 1 + plant_fault(p)
         return 0
 
     return boom_native

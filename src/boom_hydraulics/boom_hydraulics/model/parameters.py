@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
+from ..jit import jitable
 from .geometry import outside_stroke, triangle_bounds_m
 
 MODES = ("physical", "paper")
@@ -673,63 +674,85 @@ def _check_cross_fields(p: Parameters) -> None:
     _check_scenario(p)
 
 
-def _check_plant(p: Parameters) -> None:
-    """The plant's parameters fit together: areas, the triangle of eq. 1, the stroke, pressures, friction."""
+#: Why a plant's parameters do not fit together: one line per check of :func:`plant_fault`,
+#: in its order (fault k says ``PLANT_FAULTS[k - 1]``), a ``str.format`` of the set ``p`` and
+#: of the lengths :func:`stroke_limits_m` gives, by the names of :data:`STROKE_LIMITS`. The
+#: native FMU logs the same lines (fmu/export.py reads them).
+PLANT_FAULTS = (
+    "rod_diameter_m ({p.rod_diameter_m} m) must be smaller than piston_diameter_m "
+    "({p.piston_diameter_m} m): the rod chamber would have no area",
+    "support_height_m ({p.support_height_m} m) must be smaller than b_m ({p.b_m} m): eq. 3 takes arccos(h / b)",
+    "stroke [{p.cylinder_min_length_m}, {p.cylinder_max_length_m}] m must be an "
+    "increasing interval inside [{lo:.4g}, {hi:.4g}] m: the triangle of eq. 1 "
+    "degenerates at q1 = |b - a| = {q_low:.4g} m and q1 = a + b = {q_high:.4g} m "
+    f"(sin(phi) = 0, infinite rod force); keep {GEOMETRY_CLEARANCE_M} m clear for "
+    "the end stops; set cylinder_min_length_m / cylinder_max_length_m",
+    "initial_length_m ({p.initial_length_m} m) lies outside the stroke [cylinder_min_length_m, "
+    "cylinder_max_length_m] = [{p.cylinder_min_length_m:.4g}, {p.cylinder_max_length_m:.4g}] m",
+    "initial_length_m ({p.initial_length_m} m) lies outside the open geometry interval (|b - a|, a + b) "
+    "minus its clearance = [{lo:.4g}, {hi:.4g}] m",
+    "supply_pressure_pa ({p.supply_pressure_pa} Pa) must exceed tank_pressure_pa ({p.tank_pressure_pa} Pa)",
+    "relief_pressure_pa ({p.relief_pressure_pa} Pa) must be at least supply_pressure_pa "
+    "({p.supply_pressure_pa} Pa), or the relief valves would drain the supply",
+    "cavitation_pressure_pa ({p.cavitation_pressure_pa} Pa) must be below tank_pressure_pa "
+    "({p.tank_pressure_pa} Pa); both are absolute",
+    "drive '{p.drive}' needs physical mode: the paper's model has its ideal source only; "
+    f"set mode: physical, or drive: {DRIVES[0]}",
+    "static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "
+    "({p.coulomb_friction_n} N): breakaway friction is the larger one",
+)
+#: The names PLANT_FAULTS gives the lengths of :func:`stroke_limits_m`, in its order.
+STROKE_LIMITS = ("q_low", "q_high", "lo", "hi")
+
+
+@jitable
+def stroke_limits_m(a_m: float, b_m: float) -> tuple[float, float, float, float]:
+    """(|b - a|, a + b, and the two less the end stops' clearance): where the triangle of eq. 1
+    degenerates, and the interval a stroke must lie in, m."""
+    q_low, q_high = triangle_bounds_m(a_m, b_m)
+    return q_low, q_high, q_low + GEOMETRY_CLEARANCE_M, q_high - GEOMETRY_CLEARANCE_M
+
+
+@jitable
+def plant_fault(p: Parameters) -> int:
+    """0 where the plant's parameters fit together (areas, the triangle of eq. 1, the stroke,
+    pressures, friction), else k: the first check that fails, in the order written, which
+    ``PLANT_FAULTS[k - 1]`` words. Compiled code calls it too (the native FMU)."""
     if p.rod_diameter_m >= p.piston_diameter_m:
-        raise ConfigError(
-            f"rod_diameter_m ({p.rod_diameter_m} m) must be smaller than piston_diameter_m "
-            f"({p.piston_diameter_m} m): the rod chamber would have no area"
-        )
+        return 1
     if p.support_height_m >= p.b_m:
-        raise ConfigError(
-            f"support_height_m ({p.support_height_m} m) must be smaller than b_m ({p.b_m} m): eq. 3 takes arccos(h / b)"
-        )
-    q_low, q_high = triangle_bounds_m(p.a_m, p.b_m)
-    lo, hi = q_low + GEOMETRY_CLEARANCE_M, q_high - GEOMETRY_CLEARANCE_M
+        return 2
+    _, _, lo, hi = stroke_limits_m(p.a_m, p.b_m)
     if not lo <= p.cylinder_min_length_m < p.cylinder_max_length_m <= hi:
-        raise ConfigError(
-            f"stroke [{p.cylinder_min_length_m}, {p.cylinder_max_length_m}] m must be an "
-            f"increasing interval inside [{lo:.4g}, {hi:.4g}] m: the triangle of eq. 1 "
-            f"degenerates at q1 = |b - a| = {q_low:.4g} m and q1 = a + b = {q_high:.4g} m "
-            f"(sin(phi) = 0, infinite rod force); keep {GEOMETRY_CLEARANCE_M} m clear for "
-            "the end stops; set cylinder_min_length_m / cylinder_max_length_m"
-        )
-    if p.mode == "physical":
-        low_q, high_q = p.cylinder_min_length_m, p.cylinder_max_length_m
-        where = "the stroke [cylinder_min_length_m, cylinder_max_length_m]"
-    else:
-        low_q, high_q = lo, hi
-        where = "the open geometry interval (|b - a|, a + b) minus its clearance"
-    if not low_q <= p.initial_length_m <= high_q:
-        raise ConfigError(
-            f"initial_length_m ({p.initial_length_m} m) lies outside {where} = [{low_q:.4g}, {high_q:.4g}] m"
-        )
-    if p.mode == "physical":
-        if p.supply_pressure_pa <= p.tank_pressure_pa:
-            raise ConfigError(
-                f"supply_pressure_pa ({p.supply_pressure_pa} Pa) must exceed tank_pressure_pa ({p.tank_pressure_pa} Pa)"
-            )
-        if p.relief_pressure_pa < p.supply_pressure_pa:
-            raise ConfigError(
-                f"relief_pressure_pa ({p.relief_pressure_pa} Pa) must be at least "
-                f"supply_pressure_pa ({p.supply_pressure_pa} Pa), or the relief valves "
-                "would drain the supply"
-            )
-        if p.cavitation_pressure_pa >= p.tank_pressure_pa:
-            raise ConfigError(
-                f"cavitation_pressure_pa ({p.cavitation_pressure_pa} Pa) must be below "
-                f"tank_pressure_pa ({p.tank_pressure_pa} Pa); both are absolute"
-            )
+        return 3
+    physical = p.mode == "physical"
+    if physical and not p.cylinder_min_length_m <= p.initial_length_m <= p.cylinder_max_length_m:
+        return 4
+    if not physical and not lo <= p.initial_length_m <= hi:
+        return 5
+    if physical and p.supply_pressure_pa <= p.tank_pressure_pa:
+        return 6
+    if physical and p.relief_pressure_pa < p.supply_pressure_pa:
+        return 7
+    if physical and p.cavitation_pressure_pa >= p.tank_pressure_pa:
+        return 8
     if p.mode == "paper" and p.drive != DRIVES[0]:
-        raise ConfigError(
-            f"drive '{p.drive}' needs physical mode: the paper's model has its ideal source only; "
-            f"set mode: physical, or drive: {DRIVES[0]}"
-        )
+        return 9
     if p.static_friction_n < p.coulomb_friction_n:
-        raise ConfigError(
-            f"static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "
-            f"({p.coulomb_friction_n} N): breakaway friction is the larger one"
-        )
+        return 10
+    return 0
+
+
+def plant_fault_message(p: Parameters, fault: int) -> str:
+    """What fault ``fault`` (of :func:`plant_fault`, not 0) of ``p`` is, in PLANT_FAULTS' words."""
+    return PLANT_FAULTS[fault - 1].format(p=p, **dict(zip(STROKE_LIMITS, stroke_limits_m(p.a_m, p.b_m), strict=True)))
+
+
+def _check_plant(p: Parameters) -> None:
+    """The plant's parameters fit together (:func:`plant_fault`), or ConfigError saying why."""
+    fault = plant_fault(p)
+    if fault:
+        raise ConfigError(plant_fault_message(p, fault))
 
 
 def _check_scenario(p: Parameters) -> None:

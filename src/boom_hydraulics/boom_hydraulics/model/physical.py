@@ -29,8 +29,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..jit import compiled_as, jitable
-from .drives import DRIVES, fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from .drives import constants as drive_constants
+from .drives import fixed_pump, load_sensing, pressure_compensated, pump_controlled
+from .drives import initial_state as drive_initial_state
 from .drives.constants import DriveConstants, Supply
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
@@ -190,9 +191,18 @@ class Constants(NamedTuple):
 DRIVE_FIELDS = tuple(name for name in Constants._fields if name in DriveConstants._fields)
 
 
+@jitable
 def constants(p: Parameters) -> Constants:
-    """Derived constants of one parameter set."""
+    """Derived constants of one parameter set (compiled code calls it too: the native FMU).
+    Each value that branches is computed before the call: numba compiles no keyword argument
+    that branches."""
     lag = 1.0 if p.spool_time_constant_s > 0.0 else 0.0
+    holding = 1.0 if p.load_holding_valve == "piston_side" else 0.0
+    inv_tau = lag / p.spool_time_constant_s if lag else 0.0
+    coulomb_ratio = max(p.coulomb_friction_n / p.static_friction_n, 1e-3) if p.static_friction_n > 0.0 else 1.0
+    fixed = 1.0 if p.drive == "fixed_pump" else 0.0
+    sensing = 1.0 if p.drive == "load_sensing" else 0.0
+    eha = 1.0 if p.drive == "pump_controlled" else 0.0
     d = drive_constants(p)
     k_valve = orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3)
     return Constants(
@@ -213,17 +223,17 @@ def constants(p: Parameters) -> Constants:
         transition2=p.transition_pressure_pa**2,
         k_laminar=k_valve / math.sqrt(p.transition_pressure_pa),
         leak=p.valve_leakage_m3_s_pa,
-        holding=1.0 if p.load_holding_valve == "piston_side" else 0.0,
+        holding=holding,
         seat_leak=p.load_holding_leakage_m3_s_pa,
         lag=lag,
-        inv_tau=lag / p.spool_time_constant_s if lag else 0.0,
+        inv_tau=inv_tau,
         p_set=p.supply_pressure_pa,
         p_tank=p.tank_pressure_pa,
         p_ambient=p.ambient_pressure_pa,
         max_flow=p.pump_max_flow_m3_s,
         p_relief=p.relief_pressure_pa,
         g_relief=p.relief_rated_flow_m3_s / p.relief_range_pa,
-        coulomb_ratio=max(p.coulomb_friction_n / p.static_friction_n, 1e-3) if p.static_friction_n > 0.0 else 1.0,
+        coulomb_ratio=coulomb_ratio,
         static=p.static_friction_n,
         stribeck=p.stribeck_velocity_m_s,
         presliding=p.friction_presliding_m,
@@ -234,8 +244,8 @@ def constants(p: Parameters) -> Constants:
         stop_k=p.end_stop_stiffness_n_m,
         stop_damping=p.end_stop_damping_n_s_m2,
         f_external=p.external_rod_force_n,
-        fixed=1.0 if p.drive == "fixed_pump" else 0.0,
-        sensing=1.0 if p.drive == "load_sensing" else 0.0,
+        fixed=fixed,
+        sensing=sensing,
         speed=d.speed,
         displacement=d.displacement,
         pump_leak=d.pump_leak,
@@ -249,7 +259,7 @@ def constants(p: Parameters) -> Constants:
         battery_voltage=d.battery_voltage,
         battery_resistance=d.battery_resistance,
         battery_capacity=d.battery_capacity,
-        eha=1.0 if p.drive == "pump_controlled" else 0.0,
+        eha=eha,
         motor_lag=d.motor_lag,
         motor_inv_tau=d.motor_inv_tau,
         p_reservoir=d.p_reservoir,
@@ -268,6 +278,7 @@ def with_payload(c: Constants, share: Num) -> Constants:
     return Constants(*c[:3], c.inertia - off * c.payload_inertia, c.weight_coeff - off * c.payload_weight, *c[5:])
 
 
+@jitable
 def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     """Rod at rest at ``q1_m`` (default q1(0)), valve closed, seals relaxed, rod chamber at
     tank pressure, piston chamber at the pressure that holds the boom statically (eq. 6) with
@@ -284,8 +295,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     p1 = max(p1, p.tank_pressure_pa)  # an external force that more than carries the boom: no holding pressure
     if q1 <= p.cylinder_min_length_m:
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom
-    z_d = DRIVES[p.drive].initial_state(drive_constants(p))
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d, *(0.0 for _ in INTEGRALS)]
+    z_d = drive_initial_state(p.drive, drive_constants(p))
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d] + [0.0] * len(INTEGRALS)
 
 
 class Terms(NamedTuple):

@@ -59,7 +59,6 @@ typedef struct {
 
 /* --- the compiled model (fmu/native.py) ------------------------------------------------- */
 extern int32_t boom_native(int32_t op, double *a, double *b, double *c, double *d) __asm__(BOOM_NATIVE_SYMBOL);
-enum { OP_CONSTANTS, OP_INITIAL_STATE, OP_STEP, OP_OUTPUTS, OP_ENERGY, OP_WITHIN };
 /* The stepping's outcomes (solve/stepping.py, solve/outcomes.py). */
 enum { OUTCOME_OK, OUTCOME_NONFINITE, OUTCOME_ENERGY, OUTCOME_TOO_STIFF, OUTCOME_GEOMETRY };
 
@@ -238,41 +237,38 @@ static void restart(Instance *m) {
     at_rest_outputs(m);
 }
 
-/* The checks of the plant's parameters together (model/parameters.py, _check_plant, physical
- * mode), with its wording: why ``row`` cannot run, or 0. */
+/* The value of string entry ``k`` of ``row``, among its choices ("" for none). */
+static const char *text_of(int k, const double *row) {
+    const RowCheck *r = &ROW_CHECKS[k];
+    double code = row[k];
+    return (code >= 0 && code < r->n_choices) ? r->choices[(int)code] : "";
+}
+
+/* Whether the plant's parameters in ``row`` fit together: the model's own checks, compiled
+ * (model/parameters.py, plant_fault); where one fails, its line (PLANT_FAULTS, as export.py
+ * wrote its pieces: text, and the value it names as Python writes it) in ``why``, and 1. */
 static int cross_check(const double *row, char *why, size_t size) {
-    double a = row[ROW_a_m], b = row[ROW_b_m], low = fabs(b - a) + GEOMETRY_CLEARANCE_M, high = a + b - GEOMETRY_CLEARANCE_M;
-    double q_min = row[ROW_cylinder_min_length_m], q_max = row[ROW_cylinder_max_length_m], q0 = row[ROW_initial_length_m];
-    double rod = row[ROW_rod_diameter_m], piston = row[ROW_piston_diameter_m], support = row[ROW_support_height_m];
-    double supply = row[ROW_supply_pressure_pa], tank = row[ROW_tank_pressure_pa], relief = row[ROW_relief_pressure_pa];
-    double cavitation = row[ROW_cavitation_pressure_pa];
-    double breakaway = row[ROW_static_friction_n], coulomb = row[ROW_coulomb_friction_n];
-    if (rod >= piston)
-        snprintf(why, size, "rod_diameter_m (%s m) must be smaller than piston_diameter_m (%s m): the rod chamber would have no area",
-                 NUM(rod), NUM(piston));
-    else if (support >= b)
-        snprintf(why, size, "support_height_m (%s m) must be smaller than b_m (%s m): eq. 3 takes arccos(h / b)", NUM(support), NUM(b));
-    else if (!(low <= q_min && q_min < q_max && q_max <= high))
-        snprintf(why, size, "stroke [%s, %s] m must be an increasing interval inside [%.4g, %.4g] m: the triangle of eq. 1 "
-                 "degenerates at q1 = |b - a| = %.4g m and q1 = a + b = %.4g m (sin(phi) = 0, infinite rod force); keep %s m "
-                 "clear for the end stops; set cylinder_min_length_m / cylinder_max_length_m", NUM(q_min), NUM(q_max), low,
-                 high, fabs(b - a), a + b, NUM(GEOMETRY_CLEARANCE_M));
-    else if (!(q_min <= q0 && q0 <= q_max))
-        snprintf(why, size, "initial_length_m (%s m) lies outside the stroke [cylinder_min_length_m, cylinder_max_length_m] = "
-                 "[%.4g, %.4g] m", NUM(q0), q_min, q_max);
-    else if (supply <= tank)
-        snprintf(why, size, "supply_pressure_pa (%s Pa) must exceed tank_pressure_pa (%s Pa)", NUM(supply), NUM(tank));
-    else if (relief < supply)
-        snprintf(why, size, "relief_pressure_pa (%s Pa) must be at least supply_pressure_pa (%s Pa), or the relief valves "
-                 "would drain the supply", NUM(relief), NUM(supply));
-    else if (cavitation >= tank)
-        snprintf(why, size, "cavitation_pressure_pa (%s Pa) must be below tank_pressure_pa (%s Pa); both are absolute",
-                 NUM(cavitation), NUM(tank));
-    else if (breakaway < coulomb)
-        snprintf(why, size, "static_friction_n (%s N) must be at least coulomb_friction_n (%s N): breakaway friction is the larger one",
-                 NUM(breakaway), NUM(coulomb));
-    else
-        return 0;
+    double limits[N_LIMITS];
+    int fault = native(OP_PLANT_FAULT, (double *)row, limits, NULL, NULL);
+    if (fault == 0) return 0;
+    if (fault < 0 || fault > N_PLANT_FAULTS) {
+        snprintf(why, size, "the model's checks of the parameters could not be evaluated");
+        return 1;
+    }
+    size_t used = 0;
+    why[0] = '\0';
+    for (int i = 0; i < PLANT_FAULT_PIECES[fault - 1] && used < size; i++) {
+        const Piece *piece = &PLANT_FAULTS[fault - 1][i];
+        char value[64] = "";
+        double v = piece->source == SOURCE_ROW ? row[piece->index] : piece->source == SOURCE_LIMIT ? limits[piece->index] : 0.0;
+        if (piece->source == SOURCE_ROW && ROW_CHECKS[piece->index].n_choices > 0)
+            snprintf(value, sizeof value, "%s", text_of(piece->index, row));
+        else if (piece->source != SOURCE_NONE && piece->format)
+            snprintf(value, sizeof value, piece->format, v);
+        else if (piece->source != SOURCE_NONE)
+            snprintf(value, sizeof value, "%s", NUM(v));
+        used += snprintf(why + used, size - used, "%s%s", piece->text, value);
+    }
     return 1;
 }
 
@@ -426,13 +422,6 @@ static const Variable *variable(Instance *m, fmi2ValueReference vr, int kind) {
         return NULL;
     }
     return &VARIABLES[vr];
-}
-
-/* The value of string entry ``k`` of ``row``, among its choices ("" for none). */
-static const char *text_of(int k, const double *row) {
-    const RowCheck *r = &ROW_CHECKS[k];
-    double code = row[k];
-    return (code >= 0 && code < r->n_choices) ? r->choices[(int)code] : "";
 }
 
 EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {

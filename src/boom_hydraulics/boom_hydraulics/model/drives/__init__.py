@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from types import ModuleType
 
+from ...jit import jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
 from . import fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from .constants import DriveConstants, Supply, constants
@@ -28,4 +29,20 @@ DRIVES: dict[str, ModuleType] = {
 }
 assert tuple(DRIVES) == DRIVE_CHOICES, "parameters.DRIVES must name the registered drives"
 
-__all__ = ("DRIVES", "DriveConstants", "Supply", "constants")
+
+@jitable
+def initial_state(drive: str, d: DriveConstants) -> float:
+    """``DRIVES[drive].initial_state(d)``, as compiled code can call it too (numba picks no
+    function from a dict of modules): the registered drives, in their order."""
+    if drive == "pressure_compensated":
+        return pressure_compensated.initial_state(d)
+    if drive == "fixed_pump":
+        return fixed_pump.initial_state(d)
+    if drive == "load_sensing":
+        return load_sensing.initial_state(d)
+    if drive == "pump_controlled":
+        return pump_controlled.initial_state(d)
+    raise ValueError("no drive of that name")  # parameters.DRIVES names the registered ones
+
+
+__all__ = ("DRIVES", "DriveConstants", "Supply", "constants", "initial_state")

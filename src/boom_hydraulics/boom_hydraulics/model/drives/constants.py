@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
+from ...jit import jitable
 from .. import electric_motor, pump
 from ..battery import J_PER_KWH
 from ..geometry import piston_area_m2
@@ -52,12 +53,14 @@ class DriveConstants(NamedTuple):
     pilot_full: Num  # pilot pressure above the reservoir's that opens a check fully, Pa
 
 
+@jitable
 def constants(p: Parameters) -> DriveConstants:
-    """The drive constants of one parameter set."""
+    """The drive constants of one parameter set (compiled code calls it too: the native FMU)."""
     copper, iron = electric_motor.loss_coefficients(
         p.motor_rated_torque_n_m, p.pump_speed_rad_s, p.motor_efficiency, p.motor_copper_loss_fraction
     )
     lag = 1.0 if p.motor_time_constant_s > 0.0 else 0.0
+    inv_tau = lag / p.motor_time_constant_s if lag else 0.0  # here: numba compiles no keyword argument that branches
     return DriveConstants(
         p_tank=p.tank_pressure_pa,
         p_cav=p.cavitation_pressure_pa,
@@ -75,7 +78,7 @@ def constants(p: Parameters) -> DriveConstants:
         motor_copper=copper,
         motor_iron=iron,
         motor_lag=lag,
-        motor_inv_tau=lag / p.motor_time_constant_s if lag else 0.0,
+        motor_inv_tau=inv_tau,
         battery_voltage=p.battery_voltage_v,
         battery_resistance=p.battery_resistance_ohm,
         battery_capacity=p.battery_capacity_kwh * J_PER_KWH,

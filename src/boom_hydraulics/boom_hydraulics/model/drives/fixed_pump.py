@@ -31,12 +31,14 @@ STATE_SCALES = ("pressure",)
 VALVE = True
 
 
+@jitable
 def dead_head_pressure_pa(d: DriveConstants) -> float:
     """The line's steady pressure with the valve closed (its leakage neglected), Pa (eq. D14):
     D w_n - G_p (p - p_t) = G_mr (p - p_n)."""
     return (d.displacement * d.speed + d.pump_leak * d.p_tank + d.g_main * d.p_set) / (d.pump_leak + d.g_main)
 
 
+@jitable
 def initial_state(d: DriveConstants) -> float:
     """The pump runs before the run starts: the line at its dead-heading pressure, Pa."""
     return dead_head_pressure_pa(d)

@@ -35,6 +35,7 @@ VALVE = True
 SIGNAL_FULL_OPENING = 0.05
 
 
+@jitable
 def initial_state(d: DriveConstants) -> float:
     """The pump idles at the margin over tank pressure with the spool closed, Pa."""
     return d.p_tank + d.ls_margin

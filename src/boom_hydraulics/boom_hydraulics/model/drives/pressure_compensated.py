@@ -30,6 +30,7 @@ STATE_SCALES = ("pressure",)
 VALVE = True
 
 
+@jitable
 def initial_state(d: DriveConstants) -> float:
     """The compensator's pressure p_n, Pa."""
     return d.p_set

@@ -44,6 +44,7 @@ class Ports(NamedTuple):
     q_check_b: Num  # from the reservoir into line B
 
 
+@jitable
 def initial_state(d: DriveConstants) -> float:
     """The motor at rest, rad/s."""
     return 0.0
