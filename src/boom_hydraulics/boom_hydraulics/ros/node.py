@@ -18,7 +18,9 @@ depend only on the commands and their times, not on wall-clock jitter. Position 
 (MoveBoom, ~/joint_trajectory; see :mod:`motion`) hand the valve to the model core's
 position controller; so do joint commands on joint_commands, as ros2_control's JointState
 topic hardware interface sends them (see :mod:`joint_commands`). Simulated time never runs
-backwards: a reset puts the drive back to rest and time goes on. The node publishes its
+backwards: a reset puts the drive back to rest and time goes on. What the node does to its
+own time line (resets, pauses, steps, resumes, dropped backlogs) it publishes on ~/events and
+records (bags.run_events), so that boom-resim reproduces every run. The node publishes its
 URDF (with a ros2_control tag naming those topics) on robot_description and the crane as
 markers. Topics, services, the action and parameters: docs/ros-api.md.
 """
