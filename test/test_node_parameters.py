@@ -68,12 +68,42 @@ def test_integers_for_floats_stay_doubles(crane1):
 
 def test_the_node_declares_no_scenario_parameter(crane1):
     """The command_* keys are boom-sim's headless scenario: the node, which takes its commands
-    from topics, lists none, and a set of one is refused as undeclared."""
+    from topics, lists none, and a set of one is refused naming it and why (rclpy's own reason
+    was 'Invalid access to undeclared parameter(s): []')."""
     names = crane1.call(crane1.list, ListParameters.Request()).result.names
     assert "payload_mass_kg" in names and "control_position_gain_1_rad" in names and "method" in names
     assert not [name for name in names if name in SCENARIO]
     (result,) = _set(crane1, Parameter("command_values", Parameter.Type.DOUBLE_ARRAY, [0.5]))
-    assert not result.successful and "undeclared" in result.reason
+    assert not result.successful
+    assert "no parameter 'command_values'" in result.reason and "headless scenario" in result.reason, result.reason
+    assert "did you mean '" in result.reason
+
+
+def test_a_name_the_node_does_not_have_is_refused_naming_the_closest(crane1):
+    """``ros2 param set /crane1/boom_sim payload_mass_kgg 80.0``: one reason that names the
+    typo and the parameter meant; nothing else in the request is set."""
+    request = SetParameters.Request(
+        parameters=[
+            Parameter("payload_mass_kgg", Parameter.Type.DOUBLE, 80.0).to_parameter_msg(),
+        ]
+    )
+    (result,) = crane1.call(crane1.set_params, request).results
+    assert not result.successful
+    assert "no parameter 'payload_mass_kgg'; did you mean 'payload_mass_kg'?" in result.reason, result.reason
+    (rate,) = _get(crane1, "publish_rate_hz")  # (the refusal's stand-in inside the node is not set either)
+    assert rate.double_value == 100.0
+
+
+def test_a_time_step_the_node_cannot_count_is_refused_at_run_time(crane1):
+    """A SetParameters of time_step_s 1e-20 s (inside its documented range) was accepted, then
+    stopped the simulation with an OverflowError: now refused, naming the parameter, and the
+    node steps on."""
+    (result,) = _set(crane1, Parameter("time_step_s", Parameter.Type.DOUBLE, 1e-20))
+    assert not result.successful and "'time_step_s' is 1e-20 s" in result.reason, result.reason
+    (step,) = _get(crane1, "time_step_s")
+    assert step.double_value == 0.001
+    count = len(crane1.states)
+    assert crane1.spin_until(lambda: len(crane1.states) > count + 5, timeout=30), "the node stopped stepping"
 
 
 def test_absurd_and_start_only_values_are_refused_with_the_reason(crane1):
@@ -127,7 +157,7 @@ def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
     loaded, results = _load_file(crane1, CONFIG / name)
     failed = [(p.name, r.reason) for p, r in zip(loaded, results) if not r.successful]
     assert {n for n, _ in failed} == {p.name for p in loaded if p.name in SCENARIO or p.name in START_ONLY}, failed
-    assert all(("undeclared" if n in SCENARIO else "read-only") in reason for n, reason in failed), failed
+    assert all(("headless scenario" if n in SCENARIO else "read-only") in reason for n, reason in failed), failed
     expected = {n: v for n, v in config.read_values(CONFIG / name).items() if n not in SCENARIO}
     got = _get(crane1, *expected)
     assert {n: parameter_value_to_python(v) for n, v in zip(expected, got)} == expected
@@ -144,6 +174,11 @@ def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
         (None, ["-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc"], "payload_mass_kg:=abc would not be used"),
         ("/**:\n  ros__parameters:\n    rtol: 1.0e-06\n", ["-p", "rtol:=tight"], "rtol:=tight would not be used"),
         ("/**:\n  ros__parameters:\n    command_value: 1.5\n", [], "'command_value' is 1.5"),  # checked, if ignored
+        # a step too fine to count: one line, not a traceback (1e-20 s is inside the model's range)
+        (None, ["-p", "time_step_s:=1.0e-20"], "-p time_step_s:=1.0e-20: parameter 'time_step_s' is 1e-20 s"),
+        (None, ["-p", "time_step_s:=1.0e-300"], "at least 1e-09 s"),
+        # no params file was given: the -p is named, not a params file
+        (None, ["-p", "payload_mass_kg:=.nan"], "-p payload_mass_kg:=.nan: parameter 'payload_mass_kg' must be finite"),
     ],
 )
 def test_a_bad_start_is_one_line_and_exit_2(tmp_path, params_file, extra, message):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ConfigError
+from .node_parameters import check_params_file
 
 
 def ros_home() -> str:
@@ -81,7 +82,9 @@ def plan(
     """The nodes and their parameters for the launch arguments ``values`` (strings, as given).
 
     Raises ConfigError before anything starts for a node asked for that is not installed: a
-    launch that fails to find an executable once boom_sim runs exits and leaves boom_sim running.
+    launch that fails to find an executable once boom_sim runs exits and leaves boom_sim running;
+    and for a ``params_file`` that is missing or not a params file, which launch_ros only warns
+    about (the node then ran on its defaults), where ``ros2 run`` refuses it (exit 2).
     """
     unknown = set(values) - set(NAMES)
     if unknown:
@@ -97,6 +100,11 @@ def plan(
     rviz = _flag("rviz", v["rviz"])
     if rviz and not rviz_installed:
         raise ConfigError("rviz:=true, but rviz2 is not installed; install rviz2 or leave rviz:=false")
+    if v["params_file"]:
+        try:
+            check_params_file(v["params_file"])
+        except ConfigError as exc:
+            raise ConfigError(f"launch argument params_file: {str(exc).removeprefix('--params-file ')}") from None
     return Plan(
         namespace=v["namespace"].strip("/"),
         params_file=v["params_file"] or default_params_file,

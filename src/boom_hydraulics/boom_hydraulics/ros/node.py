@@ -159,6 +159,7 @@ class BoomSimNode(Node):
         self._state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.markers_pub)
         self._description_due = False  # a parameter change asks for robot_description again
         self._checked: Any = None  # the model parameters on_set checked, for post_set to apply
+        self._undeclared_refusal: str | None = None  # before_set's refusal of a name not declared, for on_set
         self._changed_at_ns = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", state_qos)
         self.clock_pub = self.create_publisher(Clock, "/clock", state_qos) if mode is ClockMode.PUBLISHED else None
@@ -317,7 +318,9 @@ class BoomSimNode(Node):
         # the scenario (command_*) is boom-sim's: not declared, and said once to be ignored
         self._ignored_scenario = ros_parameters.ignored_scenario({n: p.value for n, p in given.items()})
         # our checks first: they name the unit and the fix, where rclpy's range check does not
-        from_mapping({name: ros_parameters.plain(p.value) for name, p in given.items() if name in NAMES})
+        ros_parameters.check_node_model(
+            from_mapping({name: ros_parameters.plain(p.value) for name, p in given.items() if name in NAMES})
+        )
         for name, p in given.items():
             if name in ros_parameters.NODE_PARAMETERS:
                 ros_parameters.check_node_parameter(name, p.value)
@@ -331,7 +334,15 @@ class BoomSimNode(Node):
             self.declare_parameter(name, value, descriptor, ignore_override=True)
 
     def before_set_parameters(self, changes: list[Parameter]) -> list[Parameter]:
-        """An integer for a float parameter becomes that float, before rclpy checks the type."""
+        """An integer for a float parameter becomes that float, before rclpy checks the type. A
+        name the node does not declare is refused by on_set with a reason that names it and the
+        closest parameter: it stands in as publish_rate_hz at its present value, so that rclpy's
+        own refusal ('Invalid access to undeclared parameter(s): []') does not come first."""
+        reasons = [reason for p in changes if (reason := ros_parameters.undeclared(p.name)) is not None]
+        self._undeclared_refusal = reasons[0] if reasons else None
+        if reasons:
+            stand_in = self.get_parameter("publish_rate_hz")
+            return [Parameter(stand_in.name, stand_in.type_, stand_in.value)]
         return [ros_parameters.typed(p) for p in changes]
 
     def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
@@ -339,6 +350,9 @@ class BoomSimNode(Node):
         A new method or mode is compiled (or loaded) here, while the loop goes on stepping,
         so that applying it (:meth:`after_set_parameters`) holds the loop up for no longer than a tick."""
         self._checked = None
+        if self._undeclared_refusal is not None:
+            reason, self._undeclared_refusal = self._undeclared_refusal, None
+            return SetParametersResult(successful=False, reason=reason)
         with self.lock:
             refusal, new_params = self._check_changes(changes)
         if refusal is not None:
@@ -375,6 +389,8 @@ class BoomSimNode(Node):
             for name, value in node_changes.items():
                 ros_parameters.check_node_parameter(name, value)
             new_params = from_mapping(model_changes, base=self.sim.params) if model_changes else None
+            if new_params is not None:
+                ros_parameters.check_node_model(new_params)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc)), None
         return None, new_params

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import array
 import difflib
+import math
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -254,6 +255,17 @@ def assignments(args: Sequence[str], node_name: str = "boom_sim") -> list[tuple[
     return found
 
 
+def on_command_line(message: str, args: Sequence[str]) -> str:
+    """A start-up refusal ``message`` that names a parameter ('NAME') given by ``-p`` in ``args``,
+    led by that ``-p NAME:=VALUE`` (the last one), so that it points at what the user typed,
+    not at a params file that may not have been given."""
+    last = {name: text for _, name, text in assignments(args)}
+    for name, text in last.items():
+        if f"'{name}'" in message and not message.startswith("-p "):
+            return f"-p {name}:={text}: {message}"
+    return message
+
+
 def _file_names(path: str) -> set[str]:
     """Every parameter name a params file sets, for any node (empty if it cannot be read)."""
     try:
@@ -268,10 +280,13 @@ def _file_names(path: str) -> set[str]:
 
 
 def _rcl_key(value: Any) -> Any:
-    """A value with its type, as rcl tells types apart (an int 50 is not the double 50.0)."""
+    """A value with its type, as rcl tells types apart (an int 50 is not the double 50.0); a NaN
+    is its text, so that it equals itself (``-p x:=.nan`` is the NaN rcl keeps)."""
     value = plain(value)
     if isinstance(value, list):
         return ("list", tuple(_rcl_key(v) for v in value))
+    if isinstance(value, float) and math.isnan(value):
+        return ("float", "nan")
     return (type(value).__name__, value)
 
 
@@ -316,6 +331,38 @@ def check_overrides(overrides: Mapping[str, Parameter], argv: Sequence[str]) -> 
                 f"-p {name}:={text} would not be used: {where} rcl keeps {plain(kept)!r}, an earlier value "
                 f"of another type; give {name} once, as {_expected(name)}"
             )
+
+
+#: The finest time step the node takes, s: it steps in real time, and a step of 1e-20 s made
+#: counts of steps per tick and per run beyond what a 64-bit integer holds (an OverflowError
+#: that stopped the simulation, or a traceback at start). boom-sim takes finer ones for a run.
+NODE_MIN_TIME_STEP_S = 1e-9
+
+
+def check_node_model(params: Any) -> None:
+    """Raise ConfigError for model parameters the node cannot step (``params``: Parameters)."""
+    if params.time_step_s < NODE_MIN_TIME_STEP_S:
+        raise ConfigError(
+            f"parameter 'time_step_s' is {params.time_step_s:g} s; boom_sim steps in real time and takes a step of "
+            f"at least {NODE_MIN_TIME_STEP_S:g} s ({1 / params.time_step_s:.3g} steps per simulated second could not "
+            "be counted); boom-sim run takes finer ones"
+        )
+
+
+def undeclared(name: str) -> str | None:
+    """Why the running node refuses to set ``name``, naming the closest parameter it has (None
+    for a parameter it declares). rclpy's own reason, 'Invalid access to undeclared parameter(s):
+    []', names neither."""
+    if name in all_names() or name in _STANDARD or name.startswith(_STANDARD_PREFIXES):
+        return None
+    close = difflib.get_close_matches(name, all_names(), n=1)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    if name in SCENARIO:
+        return (
+            f"boom_sim has no parameter '{name}': the command_* parameters are boom-sim's headless scenario, and the "
+            f"node takes its commands from topics{hint}"
+        )
+    return f"boom_sim has no parameter '{name}'{hint} (boom_sim --help lists them)"
 
 
 def check_node_parameter(name: str, value: Any) -> None:

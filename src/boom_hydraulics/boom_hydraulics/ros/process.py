@@ -118,18 +118,19 @@ def main(args: list[str] | None = None) -> None:
     # (rclpy's handler, just after), and the start and the spin end on that.
     try:
         with dropped_interrupts_unreported(lambda: True):
-            _run()
+            _run(argv)
     finally:
         ignore_stop_signals()
 
 
-def _run() -> None:
-    """Start the node, spin until a signal or a failure, then finish (rclpy initialised)."""
+def _run(argv: list[str]) -> None:
+    """Start the node, spin until a signal or a failure, then finish (rclpy initialised with
+    the command line ``argv``)."""
     try:
         node = BoomSimNode()
     except (BoomHydraulicsError, ParameterException) as exc:  # a bad params file or -p value
         shut_down()
-        _fail(str(exc))
+        _fail(ros_parameters.on_command_line(str(exc), argv))
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
         _shield_signals()
         shut_down()
