@@ -1,11 +1,13 @@
 """The recorded runs a calibration refuses because their time line broke (a reset, a clock
 that jumped back), told from sensor noise by what they are.
 
-A calibration re-simulates the recorded commands on one time line from the run's origin, as
-boom-resim does, and refuses what boom-resim refuses: the node's recorded ``~/reset`` (and,
-on ROS-time stamps, ``~/pause`` and ``~/step``) calls and the counts in its diagnostics
-(resim.refusals). Where the node recorded neither, the drive states themselves show a reset;
-here they are read as a machine's noisy signals may be:
+A calibration re-simulates the recorded commands as boom-resim does, and refuses what
+boom-resim refuses (resim.refusals): a bag that holds the node's run events is re-simulated
+through its resets, pauses and steps, and refused only where it is not whole; a bag recorded
+before the node recorded its events, where its time line breaks: the node's recorded
+``~/reset`` (and, on ROS-time stamps, ``~/pause`` and ``~/step``) calls, the counts in its
+diagnostics, or the drive states themselves; here they are read as a machine's noisy signals
+may be:
 
 - the rod jumped: it moved between two states further than their speeds and accelerations
   allow, by more than 1 mm and more than ``JUMP_SIGMAS`` times the noise of such a difference
@@ -79,9 +81,10 @@ def break_in_states(
 
 def check_states(bag: Path, run: RecordedRun) -> None:
     """ConfigError if the node's diagnostics count a reset (resim.refusals.check_counts) or its
-    drive states show one (:func:`break_in_states`)."""
+    drive states show one (:func:`break_in_states`); in a bag with the node's run events, if it
+    is not whole (check_counts: its resets are re-simulated)."""
     check_counts(bag, run)
-    if not run.state_ns:
+    if not run.state_ns or run.has_events:
         return
     found = break_in_states(run.state_ns, run.state_log_ns, *run.state_signals)
     if found is not None:
