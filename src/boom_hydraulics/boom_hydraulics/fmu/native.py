@@ -35,7 +35,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..jit import jitable
-from ..model import electric_motor, geometry, pump
+from ..model import geometry
 from ..model import physical as model
 from ..model.outputs import OUTPUT_NAMES
 from ..model.parameters import STROKE_LIMITS, Parameters, describe, plant_fault, stroke_limits_m
@@ -117,30 +117,6 @@ def surrogate_of(row: Any) -> Any:
     for j in range(_N_STRINGS):
         strings = tuple_setitem(strings, j, CHOICES[j][int(row[_N_NUMBERS + j])])
     return Surrogate(*(to_fixed_tuple(row, _N_NUMBERS) + strings))
-
-
-#: The model's plain functions that constants and initial_state call but that their own
-#: modules do not mark jitable: registered as @jitable registers them, where they are not yet.
-PLAIN_CALLEES = (
-    geometry.static_rod_force_of,
-    electric_motor.loss_coefficients,
-    pump.leakage_conductance,
-    pump.torque_loss_ratio,
-)
-
-
-def _register_plain_callees() -> None:
-    if to_fixed_tuple is None:
-        return
-    from numba.core.typing.templates import builtin_registry
-
-    registered = {id(function) for function, _ in builtin_registry.globals}
-    for function in PLAIN_CALLEES:
-        if id(function) not in registered:
-            jitable(function)
-
-
-_register_plain_callees()
 
 
 def entry(method: str) -> Any:

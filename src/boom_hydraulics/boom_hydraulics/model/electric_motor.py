@@ -18,6 +18,7 @@ from ..jit import jitable
 Num = Any  # float or numpy.ndarray
 
 
+@jitable
 def loss_coefficients(
     rated_torque_n_m: float, rated_speed_rad_s: float, efficiency: float, copper_fraction: float
 ) -> tuple[float, float]:

@@ -122,6 +122,7 @@ def static_rod_force_n(
     return moment * lever_rad_per_m(q1_m, a_m, b_m, xp)  # eq. 6 with 1/(a sin(phi)) = k
 
 
+@jitable
 def static_rod_force_of(p: Any, q1_m: Num, xp: ModuleType = math) -> Num:
     """:func:`static_rod_force_n` with geometry and masses taken from a Parameters set ``p``, N."""
     return static_rod_force_n(

@@ -26,12 +26,14 @@ Num = Any  # float or numpy.ndarray
 FRICTION_SPEED_RAD_S = 1.0
 
 
+@jitable
 def leakage_conductance(volumetric_efficiency: float, max_flow_m3_s: float, rated_dp_pa: float) -> float:
     """G_p = (1 - eta_v) Q_max / dp_n: the leakage that gives ``volumetric_efficiency`` at the
     rated pressure rise and the pump's full geometric flow, m^3/(s Pa) (eq. D1)."""
     return (1.0 - volumetric_efficiency) * max_flow_m3_s / rated_dp_pa
 
 
+@jitable
 def torque_loss_ratio(hydromechanical_efficiency: float) -> float:
     """c_f = 1 / eta_hm - 1: the friction torque over D |dp| that gives ``hydromechanical_efficiency``
     when pumping (eq. D2). As a motor the pump then gives 1 - c_f of D |dp|."""
