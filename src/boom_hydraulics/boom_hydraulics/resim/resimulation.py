@@ -136,10 +136,11 @@ class _Resimulation:
         self.sim.reset(event.rod_position_m, keep_time=True)
         self.drive.reset()
 
-    def take_over(self, control: Control) -> None:
-        """The controller drives from now along the recorded setpoints (from where the boom is)."""
+    def take_over(self, control: Control, origins: Mapping[int, int]) -> None:
+        """The controller drives from now along the recorded setpoints (from where the boom is),
+        each stamped as the state of its tick (``origins``: the time origin of a state stamp)."""
         angle, rate = self.drive.setpoint()
-        times = [self.sim.t] + [self.seconds(ns) for ns, _, _ in control.samples]
+        times = [self.sim.t] + [self.seconds(ns, origins.get(ns)) for ns, _, _ in control.samples]
         angles = [angle] + [a for _, a, _ in control.samples]
         rates = [rate] + [r for _, _, r in control.samples]
         self.drive.follow(SetpointPath.of(times, angles, rates))
@@ -238,6 +239,7 @@ class Replay:
         starts = {c.start_ns: c for c in stretches}
         releases = {c.release_ns for c in stretches if c.release_ns != self.instants[-1]}
         events = deque(zip(run.events, (log for log, _ in run.event_messages)))
+        stamp_origins = dict(zip(self.instants, self.origins))  # (the setpoints' stamps are their states')
         now_ns = run.clock_origin_ns
         for index, at_ns in enumerate(self.instants):
             self.done += 1  # the recorded run's state instants: runs overlay sample for sample
@@ -251,7 +253,7 @@ class Replay:
                 happened = True
             resim.take(index)
             if now_ns in starts:  # a goal or trajectory was taken between these instants
-                resim.take_over(starts[now_ns])
+                resim.take_over(starts[now_ns], stamp_origins)
             origin = self.origins[index]
             steps = round((resim.seconds(at_ns, origin) - resim.sim.t) / resim.sim.params.time_step_s)
             # an instant that rounds onto the last one (a longer time_step_s): what comes there acts
