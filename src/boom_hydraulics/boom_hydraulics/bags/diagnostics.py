@@ -34,7 +34,7 @@ class CommandCounts:
 
 @dataclass
 class RunCounts:
-    """Calls that change a run: boom-resim refuses a bag with resets or pauses."""
+    """Calls that change a run: boom-resim checks a bag's run events (bags.run_events) against these counts."""
 
     resets: int = 0  # ~/reset
     pauses: int = 0  # ~/pause with data: true
@@ -126,7 +126,7 @@ def diagnostics(
             refused=commands.refused,  # the queue of future commands was full
         )
     )
-    # what a re-simulation of the bag must know: boom-resim refuses a run with resets or pauses
+    # what a re-simulation of the bag must know: boom-resim checks the bag's run events against these counts
     status.append(
         _status(
             "run",
