@@ -43,7 +43,7 @@ def test_a_real_reset_is_still_refused_under_noise(tmp_path, capsys):
 
 def test_a_rod_jump_is_told_from_its_noise():
     """A jump of 3 cm in a rod position with 1 mm of noise is a reset; the noise is not."""
-    from boom_hydraulics.calibration.resets import break_in_states
+    from boom_hydraulics.resim.refusals import break_in_states
 
     rng = np.random.default_rng(3)
     n = 500

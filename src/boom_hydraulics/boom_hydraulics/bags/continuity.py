@@ -27,7 +27,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
@@ -113,25 +112,6 @@ def recorded_calls(bag: Path, node: str | None, origin_ns: int) -> Calls:
         except (McapError, OSError, ValueError, TypeError) as exc:
             raise BagError(f"{file}: cannot read the recorded service calls ({exc})") from None
     return calls
-
-
-def reset_from_states(
-    stamps_ns: Sequence[int], q1: Sequence[float], v: Sequence[float], a: Sequence[float], energy: Sequence[float]
-) -> int | None:
-    """The index of the first drive state that shows a reset, or None: ``energy``, the
-    valve's dissipated energy (counted since start or reset, never falling between), dropped,
-    or the rod moved further than its speed and acceleration allow between two states."""
-    q1, v, a, energy = (np.asarray(x, dtype=float) for x in (q1, v, a, energy))
-    if len(q1) < 2:
-        return None
-    dt = np.diff(np.asarray(stamps_ns, dtype=np.int64)).astype(float) * 1e-9
-    drop = energy[:-1] - energy[1:] > ENERGY_DROP_J
-    speed = np.maximum(np.abs(v[:-1]), np.abs(v[1:]))
-    acc = np.maximum(np.abs(a[:-1]), np.abs(a[1:]))
-    reach = 2.0 * (speed * dt + acc * dt * dt) + POSITION_SLACK_M
-    jump = np.abs(np.diff(q1)) > reach
-    found = np.nonzero(drop | jump)[0]
-    return int(found[0]) + 1 if len(found) else None
 
 
 def describe(calls: Calls, with_times: bool = True) -> str:

@@ -6,12 +6,13 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
   machine's) needs ``--config``; its run starts at rest at ``initial_length_m`` at the bag's
   first message, and the simulation is sampled every time step. A bag without commands (valve
   commands or the controller's setpoints) is refused: there is nothing to re-simulate; so is
-  a run that was reset (:mod:`.resets`, which tells a reset from sensor noise).
+  a run that was reset, as boom-resim refuses it (resim.refusals.break_in_states tells a reset
+  from sensor noise).
 - **The samples.** Each recorded sample is compared at the instant it shows (its stamp, where
   on the run's clock; see :mod:`.signals`) with the simulation there (linear between the
   simulated instants).
 - **The residual.** Each sample's difference over its signal's noise, told from the recording
-  itself (:mod:`.noise`), times the signal's weight (``--weight``, 1 by default): signals of
+  itself (analysis.noise), times the signal's weight (``--weight``, 1 by default): signals of
   any unit and rate count by what they tell, a fast precise sensor more than a slow noisy
   one. (The coarse stages below, which only find the valley, measure each signal in units of
   its range, weighted ``w / sqrt(n)``, so that each counts alike.) A parameter set whose run
@@ -59,18 +60,17 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..analysis.linear_model import mid_stroke_modes
+from ..analysis.noise import noise_level
 from ..bags.reading import read_custom_data
 from ..bags.run_description import RunDescription
 from ..errors import ConfigError, SimulationError
 from ..model import config
 from ..model.parameters import Parameters, describe, from_mapping
 from ..resim.recorded import RecordedRun
-from ..resim.resimulation import Replay
+from ..resim.resimulation import Replay, read_recorded
 from . import verdict
 from .evaluations import Evaluations, cores
 from .fittable import bounds, check_fit
-from .noise import noise_level
-from .resets import read_recorded
 from .signals import UNITS, Signal, read_signals, start_ns
 from .starts import starts as spread_starts
 from .uncertainty import half_widths

@@ -130,7 +130,7 @@ class RecordedRun:
         return self.description.node
 
 
-#: The DriveState fields the reset detection reads (bags.continuity.reset_from_states).
+#: The DriveState fields the reset detection reads (refusals.break_in_states).
 _CONTINUITY_FIELDS = ("rod_position_m", "rod_velocity_m_s", "rod_acceleration_m_s2", "valve_loss_energy_j")
 
 

@@ -11,14 +11,22 @@ calls, the node's diagnostics or the drive states."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
+from ..analysis.noise import noise_level
 from ..bags import continuity
 from ..bags.run_description import RunDescription
 from ..errors import ConfigError
 from .recorded import RecordedRun
 
 _WHY = "a re-simulation replays the commands on one continuous time line from the run's origin"
+
+#: A jump is this many times the noise of a difference of two samples, at least.
+JUMP_SIGMAS = 10.0
 
 
 def check_calls(bag: Path, description: RunDescription) -> None:
@@ -76,14 +84,59 @@ def check_states(bag: Path, run: RecordedRun) -> None:
     check_counts(bag, run)
     if not run.state_ns or run.has_events:
         return
-    k = continuity.reset_from_states(run.state_ns, *run.state_signals)
-    if k is not None:
+    found = break_in_states(run.state_ns, run.state_log_ns, *run.state_signals)
+    if found is not None:
+        k, what = found
         t = (run.state_ns[k] - run.clock_origin_ns) * 1e-9
         raise ConfigError(
-            f"{bag}: the run appears to have been reset at t = {t:.3f} s (the energy dissipated in its valve, "
-            f"counted since start or reset, dropped, or the rod jumped further than it can move); {_WHY}, so it "
-            "cannot reproduce this run. Record the run without resets"
+            f"{bag}: the run appears to have been reset at t = {t:.3f} s ({what}); {_WHY}, so it cannot reproduce "
+            "this run. Record the run without resets"
         )
+
+
+def break_in_states(
+    stamps_ns: Sequence[int],
+    log_ns: Sequence[int],
+    q1: Sequence[float],
+    v: Sequence[float],
+    a: Sequence[float],
+    energy: Sequence[float],
+) -> tuple[int, str] | None:
+    """(index, what) of the first drive state (in stamp order) that shows a reset or a clock
+    that jumped back, or None. Told from sensor noise by what each is (a machine's bag is noisy):
+
+    - the rod jumped: it moved between two states further than their speeds and accelerations
+      allow, by more than 1 mm and more than JUMP_SIGMAS times the noise of such a difference
+      (estimated from the recorded positions themselves, analysis.noise.noise_level): 1 mm of
+      sensor noise (1.4 mm on a difference) needs a jump of 14 mm, which Gaussian noise does
+      not make in any run (a reset puts the rod back at its initial length, centimetres away);
+    - the valve's dissipated energy, counted from the start or the last reset and never falling
+      between, fell by more than 1 mJ and JUMP_SIGMAS times its own noise;
+    - the stamps went back: a state logged later carries an earlier stamp (a ROS clock that
+      jumped back).
+    """
+    q1, v, a, energy = (np.asarray(x, dtype=float) for x in (q1, v, a, energy))
+    if len(q1) < 2:
+        return None
+    logged = np.asarray(log_ns, dtype=np.int64)
+    stamps = np.asarray(stamps_ns, dtype=np.int64) - int(stamps_ns[0])
+    back = np.nonzero(np.diff(logged) < 0)[0]
+    found: list[tuple[int, str]] = []
+    if len(back):
+        found.append((int(back[0]) + 1, "a state logged later carries an earlier stamp: the clock jumped back"))
+    dt = np.diff(np.asarray(stamps_ns, dtype=np.int64)).astype(float) * 1e-9
+    speed = np.maximum(np.abs(v[:-1]), np.abs(v[1:]))
+    acc = np.maximum(np.abs(a[:-1]), np.abs(a[1:]))
+    reach = 2.0 * (speed * dt + acc * dt * dt)
+    slack = max(continuity.POSITION_SLACK_M, JUMP_SIGMAS * math.sqrt(2.0) * noise_level(q1, stamps))
+    jump = np.nonzero(np.abs(np.diff(q1)) > reach + slack)[0]
+    if len(jump):
+        found.append((int(jump[0]) + 1, f"the rod jumped further than it can move (by more than {slack * 1e3:.3g} mm)"))
+    drop_least = max(continuity.ENERGY_DROP_J, JUMP_SIGMAS * math.sqrt(2.0) * noise_level(energy, stamps))
+    drop = np.nonzero(energy[:-1] - energy[1:] > drop_least)[0]
+    if len(drop):
+        found.append((int(drop[0]) + 1, "the energy dissipated in its valve, counted since start or reset, dropped"))
+    return min(found) if found else None
 
 
 #: The node's diagnostics count -> the run event it counts (and how a count reads).
