@@ -16,10 +16,11 @@ The scenario (``--scenario``) reaches the node the way a user's would:
   setting the node's ``payload_mass_kg`` (to that share of the params file's) at the
   release. It needs ``mode: physical``.
 
-The scenario starts half a second of the node's clock after its first state and lasts until
-the node's clock has passed its end; the analysis covers that window of the node's clock
-alone (the node runs longer around it: its start, its stop). A cycle whose commands the node
-received but none of which acted is one line and exit status 1.
+The scenario starts half a second of the node's clock after its first state (moved on to
+an instant of its energy ledger) and lasts until the node's clock has passed its end; the
+analysis covers that window of the node's clock alone (the node runs longer around it: its
+start, its stop). A cycle whose commands the node received but whose valve did not follow
+them throughout is one line and exit status 1.
 
 The node runs in a ROS domain of boom-demo's own (:mod:`.domains`), unless ROS_DOMAIN_ID is
 set, so that two demos on one machine do not take each other's commands.
@@ -62,10 +63,11 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from boom_hydraulics_msgs.action import MoveBoom
-from boom_hydraulics_msgs.msg import DriveState, ValveCommand
+from boom_hydraulics_msgs.msg import DriveState, EnergyLedger, ValveCommand
 
 from ..analysis import windows
 from ..analysis.recordings import default_results_folder, report
+from ..bags.energy import ENERGY_HZ
 from ..errors import ConfigError
 from ..model import config
 from ..model.parameters import Parameters
@@ -137,6 +139,11 @@ BURST = 2
 PERIODS_NS = (100_000_000, 50_000_000, 20_000_000, 10_000_000)
 #: How long after the node's first state the scenario starts on its clock, ns.
 LEAD_NS = 500_000_000
+#: How long after the node's first state the scenario's start is settled, ns: by then an energy
+#: ledger message (10 Hz) has come, and the start moves onto the instants of its messages, so
+#: that the cycle's window begins and ends at one (its figures then need no carrying on).
+#: Less than LEAD_NS - max(AHEAD_NS): no command is sent before.
+SETTLE_NS = 150_000_000
 
 
 class ScenarioDriver(Node):
@@ -167,7 +174,11 @@ class ScenarioDriver(Node):
         self.node_error: str | None = None  # the first error the node logged: it stopped stepping
         self.state: DriveState | None = None
         self.now_ns = 0  # the node's clock: the latest stamp of its states
-        self.start_ns = 0  # the scenario's start on the node's clock (set by begin())
+        self.start_ns = self.end_ns = 0  # the scenario's window on the node's clock (set by begin())
+        self.ledger_ns: int | None = None  # the stamp of the node's latest energy ledger
+        self._settle_at_ns: int | None = None  # when the start is settled (see SETTLE_NS)
+        self._duration_ns = self._ledger_period_ns = 0
+        self.create_subscription(EnergyLedger, f"{NODE}/energy", self.on_ledger, qos)
         self.sent = [0, 0]  # cycle commands sent, and sent again
         self.refused: list[str] = []  # what the node refused, one line each
         if isinstance(scenario, WorkCycle):
@@ -201,9 +212,27 @@ class ScenarioDriver(Node):
             return self.moves.server_is_ready() and self.payload.services_are_ready()
         return True
 
-    def begin(self) -> None:
-        """The scenario starts :data:`LEAD_NS` after the node's clock now."""
+    def on_ledger(self, msg: EnergyLedger) -> None:
+        self.ledger_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+    def begin(self, duration_ns: int, ledger_period_ns: int) -> None:
+        """The scenario starts :data:`LEAD_NS` after the node's clock now, moved on to the next
+        instant of the node's energy ledger (every ``ledger_period_ns``) once :data:`SETTLE_NS`
+        has passed (see :meth:`settle`), and lasts ``duration_ns``."""
+        self._settle_at_ns = self.now_ns + SETTLE_NS
+        self._duration_ns, self._ledger_period_ns = duration_ns, ledger_period_ns
         self.start_ns = self.now_ns + LEAD_NS
+        self.end_ns = self.start_ns + duration_ns
+
+    def settle(self) -> None:
+        """Move the start onto the ledger's instants, once (none in paper mode: no ledger)."""
+        if self._settle_at_ns is None or self.now_ns < self._settle_at_ns:
+            return
+        self._settle_at_ns = None
+        if self.ledger_ns is not None:
+            period = self._ledger_period_ns
+            self.start_ns = self.ledger_ns + -(-(self.start_ns - self.ledger_ns) // period) * period
+            self.end_ns = self.start_ns + self._duration_ns
 
     def elapsed_s(self) -> float:
         """The node's clock since the scenario's start, s."""
@@ -212,10 +241,11 @@ class ScenarioDriver(Node):
     def opening_at(self, t: float) -> float:
         return _opening(self.scenario, t)
 
-    def act(self, end_ns: int) -> float:
-        """What the scenario does up to the node's clock now (the scenario ends at ``end_ns``);
-        the opening at the node's clock now, or the node's valve command where its controller
-        drives the valve."""
+    def act(self) -> float:
+        """What the scenario does up to the node's clock now; the opening at the node's clock
+        now, or the node's valve command where its controller drives the valve."""
+        self.settle()
+        end_ns = self.end_ns
         t = self.elapsed_s()
         if not isinstance(self.scenario, WorkCycle):
             for copy, ahead_ns in enumerate(AHEAD_NS):
@@ -393,7 +423,7 @@ def demo(argv: list[str] | None) -> int:
     )
     stopper = Stopper(node_proc)
     try:
-        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns)
+        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns, ledger_period_ns(given))
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
@@ -426,6 +456,13 @@ def _node_values(params_file: str | None) -> dict[str, Any]:
         return config.read_values(params_file)
     except ConfigError:
         return {}
+
+
+def ledger_period_ns(given: Mapping[str, Any]) -> int:
+    """How often the node publishes its energy ledger, ns: every round(rate / ENERGY_HZ) states."""
+    rate = given.get("publish_rate_hz", 100.0)
+    rate = float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0 else 100.0
+    return round(max(1, round(rate / ENERGY_HZ)) * 1e9 / rate)
 
 
 def command_period_ns(timeout_s: Any) -> int:
@@ -472,7 +509,7 @@ def _analyze(bag: Path, driven: Driven, cycle: tuple[tuple[float, float], ...] |
 
 def _drive(
     node_proc: subprocess.Popen, stopper: Stopper, scenario: tuple[tuple[float, float], ...] | WorkCycle,
-    duration_s: float, serve_clock: bool, period_ns: int,
+    duration_s: float, serve_clock: bool, period_ns: int, ledger_period_ns: int,
 ) -> Driven:  # fmt: skip
     """Wait for the node's first state, then drive it through ``scenario`` until its clock has
     passed ``duration_s`` from the scenario's start, printing the state every half second of
@@ -495,18 +532,17 @@ def _drive(
                 return Driven(_node_stopped(driver.node_error))
         if stopper.stopped:
             return Driven(None)
-        driver.begin()
-        end_ns = driver.start_ns + round(duration_s * 1e9)
-        driven = Driven(None, driver.start_ns, end_ns, period_ns=period_ns)
+        driver.begin(round(duration_s * 1e9), ledger_period_ns)
+        driven = Driven(None, period_ns=period_ns)
         print(" t [s]  opening  q1 [m]  alpha [deg]  p1 [MPa]  p2 [MPa]  energy [kJ]", flush=True)
         next_print = 0.0
         clock_seen, clock_moved = driver.now_ns, time.monotonic()
-        while driver.now_ns < end_ns and not stopper.stopped:
+        while driver.now_ns < driver.end_ns and not stopper.stopped:
             if (status := node_proc.poll()) is not None:
                 return Driven(_node_failed(status, "during the scenario"))
             driver.tick_clock()
-            u = driver.act(end_ns)
-            driven.sent = driver.sent[0]
+            u = driver.act()
+            driven.sent, driven.start_ns, driven.end_ns = driver.sent[0], driver.start_ns, driver.end_ns
             rclpy.spin_once(driver, timeout_sec=0.02)
             if driver.refused:
                 print(f"boom-demo: error: {driver.refused[0]}", file=sys.stderr)
