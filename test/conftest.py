@@ -142,6 +142,7 @@ LONGEST_FIRST = (
     "test_node_motion.py",
     "test_stepping.py",
     "test_demo.py",
+    "test_demo_cycle.py",
     "test_studies.py",
     "test_node_parameters.py",
     "test_tool_outputs.py",
