@@ -35,9 +35,11 @@ class LiveClock:
         self.origin_ns = time.time_ns() - round(self.sim.t * 1e9)
         self._deadline = time.monotonic()
 
-    def rebase(self, dt_before_s: float) -> None:
-        """Time runs on, tied to the clock as before (a parameter change takes no simulated time)."""
-        self.pacer.rebase(self.sim.step_count, dt_before_s)
+    def rebase(self, dt_before_s: float, steps_before: int) -> None:
+        """Time runs on, tied to the clock as before (a parameter change takes no simulated time):
+        ``steps_before`` steps of ``dt_before_s`` were taken before the change, and the count goes
+        on from the simulator's now (0 after a change of mode, which resets the state)."""
+        self.pacer.rebase(steps_before, dt_before_s, self.sim.step_count)
 
     def due(self) -> Tick:
         """The steps due now; a dropped backlog moves the origin of command stamps along."""

@@ -294,10 +294,10 @@ class LiveRun:
 
     def _apply(self, new: Parameters, names: list[str]) -> None:
         """Apply checked parameters between ticks; recorded at the instant they take effect at."""
-        dt_before = self.sim.params.time_step_s
+        dt_before, steps_before = self.sim.params.time_step_s, self.sim.step_count
         self.sim.set_parameters(new)
         self.drive.parameters_changed()
-        self.clock.rebase(dt_before)
+        self.clock.rebase(dt_before, steps_before)
         if self.recording is not None:
             changed = live_parameters.events(new, names)
             self.recording.parameter_event(self.clock.now_ns(), self.clock.sim_instant_ns(), changed)
