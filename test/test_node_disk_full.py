@@ -65,3 +65,28 @@ def test_a_full_disk_stops_the_recording_not_the_run_and_the_bag_is_recoverable(
     kept = int(result.stdout.split(" messages kept")[0].split()[-1])
     assert kept > 100, result.stdout
     assert (bag / "metadata.yaml").is_file()
+
+
+def test_a_bag_that_cannot_start_on_a_shared_clock_ends_the_node_in_one_line(nodes, small_disk):
+    """Under use_sim_time the bag starts at the first /clock: on a disk without room the node
+    ends with one line and status 1, as it does on its own clock at start (it stepped on with
+    'simulation stopped, waiting for ~/reset', for ever)."""
+    import sys
+    from pathlib import Path
+
+    from conftest import stop_process
+
+    # the disk full before the node starts (dd stops at "No space left on device")
+    subprocess.run(["dd", "if=/dev/zero", f"of={small_disk / 'filler'}", "bs=4k"], capture_output=True)
+    assert shutil.disk_usage(small_disk).free < 4096
+    proc = nodes.start("use_sim_time:=true", f"record_folder:={small_disk}", record=True)
+    clock_source = Path(__file__).with_name("clock_source.py")  # /clock from a process of its own
+    source = subprocess.Popen([sys.executable, str(clock_source), "5.0", "1.0:60"], stdout=subprocess.DEVNULL)
+    try:
+        out, _ = proc.communicate(timeout=120)  # ends by itself once the clock has come
+    finally:
+        stop_process(source)
+    assert proc.returncode == 1, out
+    assert "Traceback" not in out and "waiting for ~/reset" not in out
+    (line,) = [line for line in out.splitlines() if line.startswith("boom_sim: error:")]
+    assert "No space left on device" in line, out

@@ -60,7 +60,7 @@ from ..bags.encoding import setpoint_cdr
 from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
 from ..bags.recording import run_description
 from ..bags.run_events import RunEvent
-from ..errors import ConfigError, SimulationError
+from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
 from ..solve import accelerate, outcomes
@@ -120,6 +120,8 @@ class BoomSimNode(Node):
         self.stopping = threading.Event()
         self.paused = bool(self.get_parameter("start_paused").value)
         self.failure: str | None = None
+        #: why the bag could not be started on a shared clock's first tick (the process exits 1 with it)
+        self.start_failure: str | None = None
         self._substeps_logged = self.sim.most_substeps  # the substeps the log has told about
         self.clock = NodeClock(
             mode,
@@ -556,7 +558,14 @@ class BoomSimNode(Node):
         if follow is Follow.WAIT:
             return False
         if follow is Follow.FIRST and self.recording.pending:
-            self._begin_recording()
+            try:
+                self._begin_recording()
+            except BoomHydraulicsError as exc:  # as on the node's own clock, where it starts the bag
+                # at start: the node ends with one line and status 1 (it stepped on, stopped for good)
+                self.start_failure = str(exc)
+                self.stopping.set()
+                rclpy.try_shutdown(context=self.context)  # the main thread's spin ends; it says why
+                return False
             self.publish_description()  # (transient local: published again, so the bag has it)
         elif follow is Follow.JUMPED_BACK:
             self.get_logger().warning(

@@ -172,6 +172,7 @@ def _run(argv: list[str]) -> None:
             start.finish()  # a signal came during the start: let it end, then finish what it began
         recorded = _finish(node, started)
         shut_down()
+    start_error = start_error or node.start_failure  # (on a shared clock the bag starts at its first tick)
     if start_error is not None:
         print(f"boom_sim: error: {start_error}", file=sys.stderr, flush=True)
         raise SystemExit(1)
