@@ -195,12 +195,14 @@ def test_launch_arguments_and_what_they_start(monkeypatch, tmp_path):
         "publish_robot_description": True,
     }
     assert not plain.state_publisher and not plain.rviz
+    mine = tmp_path / "my.yaml"  # (a params_file:= that is not there is refused: test_launch)
+    mine.write_text("/**:\n  ros__parameters:\n    payload_mass_kg: 80.0\n")
     stack = launch_arguments.plan(
-        {"namespace": "/crane1", "use_sim_time": "true", "params_file": "my.yaml", "record": "true"},
+        {"namespace": "/crane1", "use_sim_time": "true", "params_file": str(mine), "record": "true"},
         "/share/config/default.yaml",
         state_publisher_installed=True,
     )
-    assert (stack.namespace, stack.params_file, stack.state_publisher) == ("crane1", "my.yaml", True)
+    assert (stack.namespace, stack.params_file, stack.state_publisher) == ("crane1", str(mine), True)
     assert stack.sim_parameters["use_sim_time"] and stack.sim_parameters["record"]
     assert stack.sim_parameters["publish_robot_description"] is False  # one publisher: robot_state_publisher
     assert not launch_arguments.plan({"robot_state_publisher": "false"}, "x", True).state_publisher
