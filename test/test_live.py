@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import select
 import shutil
 import subprocess
@@ -17,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 from bag_checks import check_bag
+from conftest import small_tmpfs
 from foxglove_client import ROOT, WS_PROTOCOL_OFFER, FoxgloveClient, LiveServer
 from rosbags.typesys import Stores, get_typestore
 from websockets.exceptions import InvalidStatus
@@ -264,15 +264,8 @@ def test_paper_mode_goes_live_too_without_a_battery():
 @pytest.fixture
 def small_disk(tmp_path):
     """A 300 KiB file system: a live run's bag fills it within its first seconds."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small tmpfs (a disk that fills up) needs root")
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(disk)], capture_output=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
-    yield disk
-    subprocess.run(["umount", "-l", str(disk)], check=False)
+    with small_tmpfs(tmp_path / "disk", "300k") as disk:
+        yield disk
 
 
 def test_a_full_disk_is_said_at_once_in_one_line_and_the_run_goes_on(small_disk):

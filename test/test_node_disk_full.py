@@ -10,7 +10,7 @@ import signal
 import subprocess
 
 import pytest
-from conftest import BOOM_SIM
+from conftest import BOOM_SIM, small_tmpfs
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -26,13 +26,8 @@ ERROR = b"\x02"
 @pytest.fixture
 def small_disk(tmp_path):
     """A 300 KiB file system: a node's bag fills it within seconds."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(disk)], capture_output=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
-    yield disk
-    subprocess.run(["umount", "-l", str(disk)], check=False)
+    with small_tmpfs(tmp_path / "disk", "300k") as disk:
+        yield disk
 
 
 def _recording_status(client):

@@ -17,7 +17,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import run_tool, wait_for
+from conftest import run_tool, small_tmpfs, wait_for
 
 pytest.importorskip("rclpy")
 from bag_checks import check_bag
@@ -155,17 +155,8 @@ def test_an_fsync_error_cuts_the_file_back_to_the_last_synced_chunk(tmp_path, mo
 @pytest.fixture
 def small_disk(tmp_path):
     """A real 64 KiB tmpfs: its writes fail with ENOSPC when it is full."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small tmpfs needs root")
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", disk], capture_output=True, text=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
-    try:
+    with small_tmpfs(tmp_path / "disk", "64k") as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", disk], check=False)
 
 
 @needs_recover
