@@ -32,6 +32,7 @@ stopped simulation.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Callable
 
@@ -69,6 +70,19 @@ def read_command(msg: JointState) -> tuple[str | None, float | None, float | Non
     if position is None and velocity is None:
         return f"neither a position nor a velocity for {JOINT}", None, None
     return None, position, velocity
+
+
+def angle_before(path: SetpointPath, t_s: float) -> float:
+    """The angle of ``path`` (one set) just before ``t_s``: where the setpoint goes on as it
+    was up to a command that acts at ``t_s``. Where ``path`` steps at ``t_s`` (knots at that
+    very time: a command stamped ahead, as the hardware interface repeats it), the angle it
+    steps from, not the one it steps to: :meth:`SetpointPath.at` gives the latter there, and
+    a repeated command stamped ahead would ramp from now to its angle instead of holding."""
+    times, angles = path.times_s[:, 0].tolist(), path.angles_rad[:, 0].tolist()
+    i = bisect.bisect_left(times, t_s)
+    if i < len(times) and times[i] == t_s:
+        return angles[i]  # (a segment ends at its knot's angle; before the first knot it holds that)
+    return path.at(t_s)[0]
 
 
 class JointCommands:
@@ -141,7 +155,7 @@ class JointCommands:
         times: list[float] = []
         angles: list[float] = []
         if self.driving and self.path is not None:
-            before, _ = self.path.at(start_s)
+            before = angle_before(self.path, start_s)
             knots = zip(*(a[:, 0].tolist() for a in (self.path.times_s, self.path.angles_rad)))
             for t, angle in knots:  # (the knots still to come before the command: a command stamped ahead)
                 if sim.t < t < start_s:
