@@ -23,6 +23,11 @@ pytestmark = [
 
 #: The controller's dead-band (config/default.yaml): a settled boom is within twice it.
 DEADBAND = 0.002
+#: How far the boom sinks with the valve closed after ~/reset, rad. The reset's rest state has the
+#: rod chamber at tank pressure; the closed spool's leakage (valve_leakage_m3_s_pa) fills it, and
+#: the boom settles down by 3.1 mrad over 15 s (1.8 of it in the first 4 s), then creeps on at the
+#: load-holding valve's seat leakage (4 urad/s): default.yaml, 50 kg, as the model computes it.
+RESET_SETTLING_RAD = 0.004
 #: What the hardware interface publishes with: reliable, keep-last 1 (rclcpp::QoS(1)).
 HARDWARE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -170,10 +175,11 @@ class TestJointCommandsOnOneNode:
             (joint_command(position=math.radians(85.0)), "lies outside the stroke's"),
         ):
             assert commander.sending(msg, lambda text=text: commander.logged("joint command ignored: ", text)), text
-        # none of them moved the valve: the boom rests where it was
+        # none of them moved the valve: the boom rests where it was, never up towards a position sent,
+        # and down only by the settling after the fixture's ~/reset (see RESET_SETTLING_RAD)
         since = [s for s in client.states if _stamp_s(s) > sent_s]
         assert since and all(s.valve_command == 0.0 for s in since)
-        assert abs(client.last().boom_angle_rad - rest) < 1e-3
+        assert all(rest - RESET_SETTLING_RAD < s.boom_angle_rad <= rest for s in since)
 
     def test_a_command_stamped_ahead_acts_at_its_stamp(self, commander, client):
         target = math.radians(25.0)
