@@ -166,6 +166,8 @@ class ScenarioDriver(Node):
             else None
         )
         self._clock_origin = (time.time_ns(), time.monotonic_ns())
+        self._clock_ns = 0  # the /clock served last (it never goes back)
+        self.first_ns: int | None = None  # the stamp of the node's first state: the scenario's time base
         self.create_subscription(DriveState, "drive_state", self.on_state, qos)
         logs = QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
@@ -189,12 +191,31 @@ class ScenarioDriver(Node):
             self.pub = self.create_publisher(ValveCommand, "valve_command", qos)
 
     def tick_clock(self) -> None:
-        """Publish /clock (where boom-demo serves it): real time since boom-demo started it."""
+        """Publish /clock (where boom-demo serves it): real time since boom-demo started it, held
+        at :meth:`clock_limit_ns` while boom-demo is behind (a busy machine), so that the node
+        never reaches a command's stamp before the command was sent."""
         if self.clock_pub is not None:
             wall_ns, steady_ns = self._clock_origin
+            now_ns = wall_ns + time.monotonic_ns() - steady_ns
+            limit = self.clock_limit_ns()
+            self._clock_ns = max(self._clock_ns, now_ns if limit is None else min(now_ns, limit))
             msg = Clock()
-            msg.clock.sec, msg.clock.nanosec = divmod(wall_ns + time.monotonic_ns() - steady_ns, 1_000_000_000)
+            msg.clock.sec, msg.clock.nanosec = divmod(self._clock_ns, 1_000_000_000)
             self.clock_pub.publish(msg)
+
+    def clock_limit_ns(self) -> int | None:
+        """How far the served clock may go now (None: no limit): before the scenario begins, to
+        :data:`LEAD_NS` less the longest of :data:`AHEAD_NS` after the node's first state; while a
+        cycle's commands are sent, to the stamp of the last one sent. A work cycle's goals are not
+        stamped: no limit once it began."""
+        if self.first_ns is None:
+            return None
+        if not self.start_ns:
+            return self.first_ns + LEAD_NS - max(AHEAD_NS)
+        if isinstance(self.scenario, WorkCycle):
+            return None
+        next_ns = self.start_ns + self.sent[0] * self.period_ns
+        return None if next_ns > self.end_ns else next_ns - self.period_ns
 
     def on_log(self, msg: Log) -> None:
         if msg.name == NODE and msg.level >= Log.ERROR and self.node_error is None:
@@ -202,7 +223,10 @@ class ScenarioDriver(Node):
 
     def on_state(self, msg: DriveState) -> None:
         self.state = msg
-        self.now_ns = max(self.now_ns, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.now_ns = max(self.now_ns, stamp_ns)
+        if self.first_ns is None:
+            self.first_ns = stamp_ns
 
     def ready(self) -> bool:
         """Whether the node has published its state (and serves its goals and parameters)."""
@@ -216,12 +240,14 @@ class ScenarioDriver(Node):
         self.ledger_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
     def begin(self, duration_ns: int, ledger_period_ns: int) -> None:
-        """The scenario starts :data:`LEAD_NS` after the node's clock now, moved on to the next
-        instant of the node's energy ledger (every ``ledger_period_ns``) once :data:`SETTLE_NS`
-        has passed (see :meth:`settle`), and lasts ``duration_ns``."""
-        self._settle_at_ns = self.now_ns + SETTLE_NS
+        """The scenario starts :data:`LEAD_NS` after the node's first state (not after whenever
+        boom-demo got to it: the node's state at the start would depend on the machine's load),
+        moved on to the next instant of the node's energy ledger (every ``ledger_period_ns``)
+        once :data:`SETTLE_NS` has passed (see :meth:`settle`), and lasts ``duration_ns``."""
+        base = self.now_ns if self.first_ns is None else self.first_ns
+        self._settle_at_ns = base + SETTLE_NS
         self._duration_ns, self._ledger_period_ns = duration_ns, ledger_period_ns
-        self.start_ns = self.now_ns + LEAD_NS
+        self.start_ns = base + LEAD_NS
         self.end_ns = self.start_ns + duration_ns
 
     def settle(self) -> None:
