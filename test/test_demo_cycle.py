@@ -145,3 +145,12 @@ def test_a_second_demo_in_the_same_given_domain_is_refused_in_one_line(tmp_path)
         if first.poll() is None:
             first.kill()
             first.communicate()
+
+
+def test_a_node_that_publishes_seldom_still_runs_the_cycle(tmp_path):
+    """At 2 states a second the node's next state lies beyond where boom-demo holds the /clock it
+    serves until its next command is sent: the commands go out by the served clock, and the cycle
+    runs (it stood still until 'boom_sim's clock stood still for 30 s', exit 1)."""
+    result = _run(tmp_path / "bags", _params(tmp_path, publish_rate_hz=2.0))
+    lift = float(re.search(r"lift ([0-9.]+) m", _figures(result)).group(1))
+    assert lift == pytest.approx(0.38, abs=0.01)

@@ -210,7 +210,7 @@ class ScenarioDriver(Node):
         stamped: no limit once it began."""
         if self.first_ns is None:
             return None
-        if not self.start_ns:
+        if not self.start_ns or self._settle_at_ns is not None:  # (held until the start is settled)
             return self.first_ns + LEAD_NS - max(AHEAD_NS)
         if isinstance(self.scenario, WorkCycle):
             return None
@@ -250,12 +250,22 @@ class ScenarioDriver(Node):
         self.start_ns = base + LEAD_NS
         self.end_ns = self.start_ns + duration_ns
 
+    def clock_ns(self) -> int:
+        """The node's clock as far as boom-demo knows it: its latest state's stamp, or the /clock
+        boom-demo serves where that is further (a node that publishes its states seldom: the
+        served clock, held at :meth:`clock_limit_ns`, reaches where the next commands are due)."""
+        return max(self.now_ns, self._clock_ns)
+
     def settle(self) -> None:
-        """Move the start onto the ledger's instants, once (none in paper mode: no ledger)."""
-        if self._settle_at_ns is None or self.now_ns < self._settle_at_ns:
+        """Move the start onto the ledger's instants, once, when the first ledger message has
+        come (none in paper mode: ``ledger_period_ns`` 0); no command is sent before (their
+        stamps are the start's), and the /clock boom-demo serves waits for it."""
+        if self._settle_at_ns is None or self.clock_ns() < self._settle_at_ns:
             return
+        if self._ledger_period_ns and self.ledger_ns is None:
+            return  # (it comes with the node's first states: the clock is held before the start meanwhile)
         self._settle_at_ns = None
-        if self.ledger_ns is not None:
+        if self.ledger_ns is not None and self._ledger_period_ns:
             period = self._ledger_period_ns
             self.start_ns = self.ledger_ns + -(-(self.start_ns - self.ledger_ns) // period) * period
             self.end_ns = self.start_ns + self._duration_ns
@@ -274,10 +284,11 @@ class ScenarioDriver(Node):
         end_ns = self.end_ns
         t = self.elapsed_s()
         if not isinstance(self.scenario, WorkCycle):
-            for copy, ahead_ns in enumerate(AHEAD_NS):
+            settled = self._settle_at_ns is None  # (no command before the start is settled)
+            for copy, ahead_ns in enumerate(AHEAD_NS if settled else ()):
                 for _ in range(BURST):
                     stamp_ns = self.start_ns + self.sent[copy] * self.period_ns
-                    if stamp_ns > min(self.now_ns + ahead_ns, end_ns):
+                    if stamp_ns > min(self.clock_ns() + ahead_ns, end_ns):
                         break
                     msg = ValveCommand()
                     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
@@ -286,6 +297,8 @@ class ScenarioDriver(Node):
                     self.sent[copy] += 1
             return self.opening_at(t) if t >= 0 else 0.0
         cycle = self.scenario
+        if self._settle_at_ns is not None:
+            return float(self.state.valve_command) if self.state is not None else 0.0
         while self._goals_sent < len(cycle.goal_times_s) and t >= cycle.goal_times_s[self._goals_sent]:
             goal = MoveBoom.Goal(target_angle_rad=cycle.goal_angles_rad[self._goals_sent])  # node's speed
             self.moves.send_goal_async(goal).add_done_callback(self._on_goal_answer)
@@ -449,7 +462,8 @@ def demo(argv: list[str] | None) -> int:
     )
     stopper = Stopper(node_proc)
     try:
-        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns, ledger_period_ns(given))
+        ledger_ns = ledger_period_ns(given) if given.get("mode", "physical") != "paper" else 0  # (none in paper mode)
+        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns, ledger_ns)
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
