@@ -308,3 +308,23 @@ def test_a_cut_file_beside_its_metadata_yaml_is_recovered_and_the_old_metadata_k
     assert f"{expected} messages kept" in result.stdout and "metadata.yaml.damaged" in result.stdout
     assert (bag / "metadata.yaml.damaged").read_bytes() == old_metadata
     assert check_bag(bag) == {"/drive_state": expected}
+
+
+def test_a_full_disk_leaves_a_cut_file_and_its_metadata_yaml_as_they_were(tmp_path, big_file, monkeypatch):
+    """Nothing is renamed before both new files are written: metadata.yaml was moved aside first,
+    and a full disk then left the bag without it, though the line said nothing had changed."""
+    import errno
+
+    from boom_hydraulics.bags import recovery
+
+    bag, _ = _killed(tmp_path, big_file)
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    before = _snapshot(bag)
+
+    def full(final, fill):
+        raise OSError(errno.ENOSPC, "No space left on device", str(final))
+
+    monkeypatch.setattr(recovery, "_write_partial", full)
+    with pytest.raises(BagError, match="nothing was changed, the bag is as it was"):
+        recover(bag)
+    assert _snapshot(bag) == before

@@ -468,22 +468,21 @@ def _recover(bag: Path) -> Recovery:
     if not found.channels:
         raise BagError(f"{source}: no channel survived; nothing to recover")
     found.messages.sort(key=lambda m: m[2])  # by log time; stable, so per channel as recorded
-    old_metadata = None
-    if not resumed and metadata.exists():  # a finished bag whose file was cut since (a copy broken off)
-        old_metadata = bag / f"metadata.yaml{DAMAGED_SUFFIX}"
-        _rename(metadata, old_metadata, bag)  # kept; from here on the bag is one a rerun continues
-    _place(bag, source, target, kept, found)
+    old_metadata = bag / f"metadata.yaml{DAMAGED_SUFFIX}"
+    # a finished bag whose file was cut since (a copy broken off): its metadata.yaml is kept aside,
+    # renamed with the rest once the new files are written
+    aside = old_metadata if not resumed and metadata.exists() else None
+    _place(bag, source, target, kept, found, aside)
     return Recovery(
-        target, kept, len(found.messages), found.dropped_chunks, found.orphans, removed, resumed, old_metadata
+        target,
+        kept,
+        len(found.messages),
+        found.dropped_chunks,
+        found.orphans,
+        removed,
+        resumed,
+        old_metadata if old_metadata.exists() else None,  # (also where an interrupted run had moved it)
     )
-
-
-def _rename(source: Path, target: Path, bag: Path) -> None:
-    try:
-        os.rename(source, target)
-        _sync_folder(bag)
-    except OSError as exc:
-        raise BagError(f"{exc.filename or source}: {exc.strerror or exc}; nothing was changed") from None
 
 
 def _describe(bag: Path, file: Path, removed: list[Path]) -> Recovery:
@@ -504,8 +503,9 @@ def _describe(bag: Path, file: Path, removed: list[Path]) -> Recovery:
     return Recovery(file, None, len(found.messages), found.dropped_chunks, found.orphans, removed, False)
 
 
-def _place(bag: Path, source: Path, target: Path, kept: Path, found: Salvage) -> None:
-    """Write both files whole under temporary names, then rename them into place."""
+def _place(bag: Path, source: Path, target: Path, kept: Path, found: Salvage, metadata_aside: Path | None) -> None:
+    """Write both files whole under temporary names, then rename them into place (the bag's old
+    metadata.yaml first to ``metadata_aside``, where given)."""
     need = f"about {max(1, source.stat().st_size >> 20)} MiB"
     written: list[Path] = []
     try:
@@ -530,6 +530,8 @@ def _place(bag: Path, source: Path, target: Path, kept: Path, found: Salvage) ->
         raise
     new_mcap, new_yaml = written
     try:
+        if metadata_aside is not None:  # first: without metadata.yaml the bag is one a rerun continues
+            os.rename(bag / "metadata.yaml", metadata_aside)
         if source == target:
             os.rename(target, kept)  # the original stays, under a new name
         os.replace(new_mcap, target)
