@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from conftest import CONFIG, run_tool
 
+from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config
 
 BOOM_SIM = shutil.which("boom-sim")
@@ -140,6 +141,8 @@ def test_statics_covers_the_open_stroke_for_each_diameter(tmp_path):
             ["run", "--duration", "1", "--config", CONFIG / "default.yaml", "--set", "rod_diameter_m=0.05"],
             f"{CONFIG / 'default.yaml'} with rod_diameter_m on the command line: rod_diameter_m (0.05 m) must be",
         ),
+        # without a config file too
+        (["run", "--duration", "1", "--set", "bulk_modulus_pa=-1"], "bulk_modulus_pa on the command line: parameter"),
     ],
 )
 def test_bad_input_gives_one_line_and_no_file(tmp_path, args, message):
@@ -197,3 +200,21 @@ def test_a_params_file_at_the_size_limit_is_read(tmp_path):
     padded.write_text(text + "#" * (config.MAX_FILE_BYTES - len(text) - 1) + "\n")
     assert padded.stat().st_size == config.MAX_FILE_BYTES
     assert config.load(padded).payload_mass_kg == 20.0
+
+
+def test_a_params_file_with_a_yaml_merge_key_is_read(tmp_path):
+    """'<<: *anchor' merges a mapping's keys (not a key given twice): read as YAML reads it."""
+    merged = tmp_path / "merged.yaml"
+    merged.write_text(
+        "base: &b {payload_mass_kg: 60.0}\n/**:\n  ros__parameters:\n    <<: *b\n    boom_mass_kg: 120.0\n"
+    )
+    params = config.load(merged)
+    assert (params.payload_mass_kg, params.boom_mass_kg) == (60.0, 120.0)
+
+
+def test_a_params_file_over_the_limit_is_refused_for_its_size_whatever_its_last_bytes(tmp_path):
+    """A character of two bytes across the limit: the size is the line, not a decoding error."""
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"#" * (config.MAX_FILE_BYTES - 1) + "é".encode() + b"\n")
+    with pytest.raises(ConfigError, match="is larger than a params file may be"):
+        config.load(big)

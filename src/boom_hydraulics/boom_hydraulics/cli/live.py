@@ -14,7 +14,6 @@ from typing import Any
 from ..errors import ConfigError
 from ..files import check_apart
 from ..model import config
-from ..model.parameters import from_mapping
 
 #: --rate's range: the node's real_time_factor (0: as fast as possible).
 RATE_RANGE = (0.0, 1000.0)
@@ -40,7 +39,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port must be in [0, 65535] (0: any free port), got {args.port}")
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in args.set)
-    params = config.load(args.config, overrides) if args.config else from_mapping(overrides)
+    params = config.load(args.config, overrides) if args.config else config.from_overrides(overrides)
     return serve(
         params,
         host=args.host,

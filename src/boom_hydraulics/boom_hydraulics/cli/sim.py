@@ -55,7 +55,7 @@ def load_parameters(args: argparse.Namespace) -> Parameters:
         overrides["method"] = args.method
     if getattr(args, "dt", None) is not None:
         overrides["time_step_s"] = args.dt
-    params = config.load(args.config, overrides) if args.config else from_mapping(overrides)
+    params = config.load(args.config, overrides) if args.config else config.from_overrides(overrides)
     if cycle:  # a work cycle starts from the boom the parameters give
         params = from_mapping(commands.scenario(profile, 0.0, params), base=params)
     return params

@@ -52,6 +52,8 @@ class _Loader(yaml.SafeLoader):
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         seen: dict[Any, yaml.Node] = {}
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # '<<: *anchor': merged keys may be given again
+                continue
             key = self.construct_object(key_node, deep=deep)
             if not isinstance(key, (str, int, float, bool)):
                 continue
@@ -121,7 +123,8 @@ def read_document(path: str | Path) -> Any:
     try:
         with path.open("rb") as handle:
             data = handle.read(MAX_FILE_BYTES + 1)
-        text = data.decode("utf-8")
+        if len(data) <= MAX_FILE_BYTES:  # (a longer one is refused below, whatever its bytes)
+            text = data.decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -146,6 +149,25 @@ def read_values(path: str | Path) -> dict[str, Any]:
     return parameters_section(read_document(path), str(path))
 
 
+def from_overrides(overrides: Mapping[str, Any], given_by: str = "on the command line") -> Parameters:
+    """Validated parameters from the defaults with ``overrides``, an error naming where it lies
+    as :func:`load`'s does."""
+    _check_each(overrides, given_by)
+    try:
+        return from_mapping(overrides)
+    except ConfigError as exc:
+        raise ConfigError(f"{', '.join(overrides)} {given_by}: {exc}") from None
+
+
+def _check_each(overrides: Mapping[str, Any], given_by: str) -> None:
+    """ConfigError naming the first override that is wrong on its own (its type, choices, range)."""
+    for key, value in overrides.items():
+        try:
+            check_value(key, value)
+        except ConfigError as exc:
+            raise ConfigError(f"{key} {given_by}: {exc}") from None
+
+
 def load(
     path: str | Path, overrides: Mapping[str, Any] | None = None, given_by: str = "on the command line"
 ) -> Parameters:
@@ -153,11 +175,7 @@ def load(
     names where it lies: an override on its own (``bulk_modulus_pa on the command line``),
     the file, or the file with the overrides (a combination across parameters)."""
     values = read_values(path)
-    for key, value in (overrides or {}).items():
-        try:
-            check_value(key, value)
-        except ConfigError as exc:
-            raise ConfigError(f"{key} {given_by}: {exc}") from None
+    _check_each(overrides or {}, given_by)
     values.update(overrides or {})
     try:
         return from_mapping(values)

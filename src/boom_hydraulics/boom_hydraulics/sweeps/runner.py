@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..files import check_apart, csv_cells, write_bytes, write_csv_columns, write_csv_lines, write_npz
 from ..model import config
-from ..model.parameters import Parameters, from_mapping
+from ..model.parameters import Parameters
 from ..programs import raise_pending
 from ..solve import accelerate
 from . import energy, plotter, recommend, sweep
@@ -75,7 +75,7 @@ def load_configs(files: Sequence[str], assignments: Sequence[str]) -> list[tuple
     """(name, parameters) per config file (or the defaults), with the --set overrides."""
     overrides: dict[str, Any] = dict(config.parse_assignment(s) for s in assignments)
     if not files:
-        return [("default", from_mapping(overrides))]
+        return [("default", config.from_overrides(overrides))]
     return [(Path(f).stem, config.load(f, overrides)) for f in files]
 
 
