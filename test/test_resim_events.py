@@ -41,6 +41,19 @@ def _states(bag) -> list[tuple[int, float, float]]:
     return rows
 
 
+def _resimulates_exactly(bag, out, log: str) -> list[tuple[int, float, float]]:
+    """boom-resim of ``bag`` into ``out`` gives every recorded state again: the same stamps (time
+    origins moved as they moved), each command where it acted, the rod to 1e-9 m; the states."""
+    result = run_tool("boom-resim", bag, "--out", out)
+    assert result.returncode == 0, result.stderr + log
+    original, again = _states(bag), _states(out)
+    assert len(again) == len(original)
+    assert [s[0] for s in again] == [s[0] for s in original]
+    assert [s[2] for s in again] == [s[2] for s in original]
+    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+    return original
+
+
 def _recorded_events(bag) -> list[dict]:
     from rosbags.highlevel import AnyReader
 
@@ -113,20 +126,14 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
     assert reset["rod_position_m"] == 1.45 and reset["state"][0] == 1.45 and reset["cause"] == "~/reset"
     assert read_custom_data(bag)["events_topic"] == "/boom_sim/events"
 
-    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
-    assert result.returncode == 0, result.stderr + log
-    original, again = _states(bag), _states(tmp_path / "again")
-    assert len(again) == len(original)
-    assert [s[0] for s in again] == [s[0] for s in original]  # the same stamps, origins moved as they moved
-    assert [s[2] for s in again] == [s[2] for s in original]  # each command acted where it acted
-    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+    original = _resimulates_exactly(bag, tmp_path / "again", log)
     # the reset shows: the rod at 1.45 m after it, where it had been lifted before
     q1 = np.array([s[1] for s in original])
     assert np.any(np.abs(q1 - 1.45) < 1e-9) and q1.max() > 1.45
     # and boom-resim's own bag re-simulates the same (the events go with it)
     result = run_tool("boom-resim", tmp_path / "again", "--out", tmp_path / "once_more")
     assert result.returncode == 0, result.stderr
-    assert max(abs(a[1] - b[1]) for a, b in zip(again, _states(tmp_path / "once_more"))) < 1e-12
+    assert max(abs(a[1] - b[1]) for a, b in zip(_states(tmp_path / "again"), _states(tmp_path / "once_more"))) < 1e-12
 
 
 def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exactly(nodes, client, tmp_path):
@@ -187,12 +194,7 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
     (bag,) = (tmp_path / "bags").iterdir()
     kinds = [e["event"] for e in _recorded_events(bag)]
     assert kinds == ["pause", "step", "step", "step", "resume", "reset"], kinds
-    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
-    assert result.returncode == 0, result.stderr + log
-    original, again = _states(bag), _states(tmp_path / "again")
-    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
-    assert [s[2] for s in again] == [s[2] for s in original]
-    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+    _resimulates_exactly(bag, tmp_path / "again", log)
 
 
 def test_a_run_that_blew_up_and_was_reset_resimulates_exactly(nodes, client, tmp_path):
@@ -226,12 +228,7 @@ def test_a_run_that_blew_up_and_was_reset_resimulates_exactly(nodes, client, tmp
     (bag,) = (tmp_path / "bags").iterdir()
     reset = next(e for e in _recorded_events(bag) if e["event"] == "reset")
     assert reset["stopped"] is True, reset
-    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
-    assert result.returncode == 0, result.stderr + log
-    original, again = _states(bag), _states(tmp_path / "again")
-    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
-    assert [s[2] for s in again] == [s[2] for s in original]
-    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+    _resimulates_exactly(bag, tmp_path / "again", log)
 
 
 def test_a_run_whose_shared_clock_jumped_back_resimulates_exactly(nodes, client, tmp_path):
@@ -267,12 +264,7 @@ def test_a_run_whose_shared_clock_jumped_back_resimulates_exactly(nodes, client,
     (bag,) = (tmp_path / "bags").iterdir()
     reset = next(e for e in _recorded_events(bag) if e["event"] == "reset")
     assert reset["cause"] == "the ROS clock jumped back" and reset["origin_moved_ns"] < -30e9, reset
-    result = run_tool("boom-resim", bag, "--out", tmp_path / "again")
-    assert result.returncode == 0, result.stderr + log
-    original, again = _states(bag), _states(tmp_path / "again")
-    assert len(again) == len(original) and [s[0] for s in again] == [s[0] for s in original]
-    assert [s[2] for s in again] == [s[2] for s in original]
-    assert max(abs(a[1] - b[1]) for a, b in zip(original, again)) < 1e-9
+    _resimulates_exactly(bag, tmp_path / "again", log)
 
 
 def test_a_closed_loop_run_after_a_pause_resimulates_on_the_moved_origin(nodes, client, tmp_path):
