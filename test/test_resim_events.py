@@ -92,13 +92,7 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
         os.kill(proc.pid, signal.SIGCONT)
         assert client.spin_until(lambda: seen("backlog_dropped")), events
         client.spin_sim(0.2)
-        assert client.call(client.pause, SetBool.Request(data=True)).success
-        client.command(-0.5)  # received while paused: acts at the next step
-        for _ in range(3):
-            assert client.call(client.step, Step.Request(steps=7)).success
-        assert client.call(client.pause, SetBool.Request(data=False)).success
-        client.spin_sim(0.3)
-        assert client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.45)).success
+        _pause_step_resume_and_reset(client)
         states = len(client.states)
         assert client.spin_until(lambda: len(client.states) > states + 3)
         ahead_s = 0.25 if clock == "publish_clock" else None
@@ -134,6 +128,19 @@ def test_a_run_with_a_stall_a_pause_steps_and_a_reset_resimulates_exactly(nodes,
     result = run_tool("boom-resim", tmp_path / "again", "--out", tmp_path / "once_more")
     assert result.returncode == 0, result.stderr
     assert max(abs(a[1] - b[1]) for a, b in zip(_states(tmp_path / "again"), _states(tmp_path / "once_more"))) < 1e-12
+
+
+def _pause_step_resume_and_reset(client) -> None:
+    """What both scenarios do to the node's time line after their first moves: a pause with a
+    command received in it (it acts at the next step) and three ~/step calls, a resume, and a
+    reset to 1.45 m 0.3 s of simulated time later."""
+    assert client.call(client.pause, SetBool.Request(data=True)).success
+    client.command(-0.5)
+    for _ in range(3):
+        assert client.call(client.step, Step.Request(steps=7)).success
+    assert client.call(client.pause, SetBool.Request(data=False)).success
+    client.spin_sim(0.3)
+    assert client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.45)).success
 
 
 def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exactly(nodes, client, tmp_path):
@@ -177,13 +184,7 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
         client.command(0.4)  # unstamped: acts where the node takes it
         assert client.spin_until(lambda: client.last().valve_command == 0.4)
         client.spin_sim(0.2)
-        assert client.call(client.pause, SetBool.Request(data=True)).success
-        client.command(-0.5)  # received while paused: acts at the next step
-        for _ in range(3):
-            assert client.call(client.step, Step.Request(steps=7)).success
-        assert client.call(client.pause, SetBool.Request(data=False)).success
-        client.spin_sim(0.3)
-        assert client.call(client.reset, Reset.Request(use_rod_position=True, rod_position_m=1.45)).success
+        _pause_step_resume_and_reset(client)
         client.spin_sim(0.1)
         command_ahead(0.7)
         client.spin_sim(0.3)
