@@ -17,10 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
 
-from ..bags.encoding import ENERGY_LEDGER
-from ..bags.reading import read_custom_data, read_drive_states
+from ..bags.reading import read_custom_data, read_drive_states, read_energy_ledger_messages
 from ..bags.run_description import RunDescription
 from ..errors import BagError
 from ..files import check_apart, json_text, results_folder
@@ -44,24 +42,6 @@ def drive_states_in(bag: Path, start_ns: int, end_ns: int) -> dict[str, np.ndarr
     return window
 
 
-def _ledger_messages(bag: Path) -> list[tuple[int, Any]]:
-    """Every EnergyLedger message of ``bag`` with its stamp (ns), by stamp."""
-    try:
-        with AnyReader([bag]) as reader:
-            connections = [c for c in reader.connections if c.msgtype == ENERGY_LEDGER]
-            if not connections:  # (an empty list would read every topic)
-                return []
-            found = []
-            for connection, _, raw in reader.messages(connections=connections):
-                msg = reader.deserialize(raw, connection.msgtype)
-                found.append((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg))
-    except AnyReaderError as exc:
-        raise BagError(f"{bag}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
-    except (OSError, ValueError, KeyError) as exc:
-        raise BagError(f"{bag}: cannot read the bag ({exc})") from None
-    return sorted(found, key=lambda item: item[0])
-
-
 def _battery_at(messages: list[tuple[int, Any]], at_ns: int) -> dict[str, float] | None:
     """The battery's integrals (J) at ``at_ns``: the last message before it, carried on with its power."""
     before = [(stamp, msg) for stamp, msg in messages if stamp <= at_ns]
@@ -81,7 +61,7 @@ def _battery_at(messages: list[tuple[int, Any]], at_ns: int) -> dict[str, float]
 def battery_in(bag: Path, start_ns: int, end_ns: int) -> dict[str, float] | None:
     """The battery's figures over the window (J), as boom-analyze names them; None for a bag
     without an energy ledger (paper mode) or without one before the window."""
-    messages = _ledger_messages(bag)
+    messages = read_energy_ledger_messages(bag)
     start, end = _battery_at(messages, start_ns), _battery_at(messages, end_ns)
     if start is None or end is None:
         return None

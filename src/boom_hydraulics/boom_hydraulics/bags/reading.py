@@ -203,24 +203,29 @@ def read_energy_ledger(bag: str | Path) -> dict[str, float] | None:
     """The energy ledger of ``bag`` at its end: its last EnergyLedger message (by stamp) as the
     integrals of the ledger's terms, J (bags.energy.ledger_of_message); None for a bag without
     one (paper mode, or recorded before the node published it)."""
+    messages = read_energy_ledger_messages(bag)
+    return ledger_of_message(messages[-1][1]) if messages else None
+
+
+def read_energy_ledger_messages(bag: str | Path) -> list[tuple[int, Any]]:
+    """Every EnergyLedger message of ``bag`` with its stamp (ns), by stamp (as recorded where
+    stamps are equal); none for a bag without them."""
     path = Path(bag)
     check_bag_path(path)
-    last: tuple[int, Any] | None = None
+    found: list[tuple[int, Any]] = []
     try:
         with AnyReader([path]) as reader:
             connections = [c for c in reader.connections if c.msgtype == ENERGY_LEDGER]
             if not connections:  # (an empty list would read every topic)
-                return None
+                return []
             for connection, _, raw in reader.messages(connections=connections):
                 msg = reader.deserialize(raw, connection.msgtype)
-                stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                if last is None or stamp_ns >= last[0]:
-                    last = (stamp_ns, msg)
+                found.append((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg))
     except AnyReaderError as exc:
         raise BagError(f"{path}: cannot read the bag ({exc}); is it truncated or not a rosbag2/MCAP bag?") from None
     except (OSError, ValueError, KeyError) as exc:
         raise BagError(f"{path}: cannot read the bag ({exc})") from None
-    return None if last is None else ledger_of_message(last[1])
+    return sorted(found, key=lambda item: item[0])
 
 
 def _origin_ns(path: Path, align: str, stamp_ns: np.ndarray, u: np.ndarray) -> int:
