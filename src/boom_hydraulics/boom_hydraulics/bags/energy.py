@@ -23,6 +23,13 @@ from . import cdr
 #: simulated time.
 ENERGY_HZ = 10.0
 
+
+def ledger_every(publish_rate_hz: float) -> int:
+    """Every how many published states the node publishes its energy ledger: ENERGY_HZ, as near
+    as its publish rate allows (the node, boom-resim and boom-demo count it alike)."""
+    return max(1, round(publish_rate_hz / ENERGY_HZ))
+
+
 _PACK_LEDGER = cdr.energy_ledger_packer(tuple(ledger.TERM_NAMES))
 
 

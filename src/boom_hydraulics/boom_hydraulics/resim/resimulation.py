@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, drive_state_cdr
-from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
+from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
 from ..bags.run_description import RunDescription
@@ -302,7 +302,7 @@ def resimulate(
     try:
         # the energy ledger at ENERGY_HZ, where the run has one (physical mode, a topic to put it on)
         energy_topic = run.energy_topic if replay.params.mode == "physical" else None
-        energy_every = max(1, round(run.publish_rate_hz / ENERGY_HZ))
+        energy_every = ledger_every(run.publish_rate_hz)
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
         topics += [Topic(events_topic, EVENTS_TYPE)] if events_topic else []
         topics += [Topic(energy_topic, ENERGY_LEDGER)] if energy_topic else []

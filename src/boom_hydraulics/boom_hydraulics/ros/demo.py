@@ -67,7 +67,7 @@ from boom_hydraulics_msgs.msg import DriveState, EnergyLedger, ValveCommand
 
 from ..analysis import windows
 from ..analysis.recordings import default_results_folder, report
-from ..bags.energy import ENERGY_HZ
+from ..bags.energy import ledger_every
 from ..errors import ConfigError
 from ..model import config
 from ..model.parameters import Parameters
@@ -499,10 +499,10 @@ def _node_values(params_file: str | None) -> dict[str, Any]:
 
 
 def ledger_period_ns(given: Mapping[str, Any]) -> int:
-    """How often the node publishes its energy ledger, ns: every round(rate / ENERGY_HZ) states."""
+    """How often the node publishes its energy ledger, ns: every ledger_every(rate) states."""
     rate = given.get("publish_rate_hz", 100.0)
     rate = float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0 else 100.0
-    return round(max(1, round(rate / ENERGY_HZ)) * 1e9 / rate)
+    return round(ledger_every(rate) * 1e9 / rate)
 
 
 def command_period_ns(timeout_s: Any) -> int:

@@ -57,7 +57,7 @@ from boom_hydraulics_msgs.srv import Reset, Step
 from ..bags import cdr, messages
 from ..bags.diagnostics import RunCounts, diagnostics
 from ..bags.encoding import setpoint_cdr
-from ..bags.energy import ENERGY_HZ, energy_ledger_cdr, finite, ledger_now
+from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.recording import run_description
 from ..bags.run_events import RunEvent
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
@@ -154,7 +154,7 @@ class BoomSimNode(Node):
             else None
         )
         self._markers_every = max(1, round(self.clock.rate_hz / MARKERS_HZ))
-        self._energy_every = max(1, round(self.clock.rate_hz / ENERGY_HZ))
+        self._energy_every = ledger_every(self.clock.rate_hz)
         self._ticks = 0
         self._messages = messages.TickMessages(self.sim.params)
         # in the order TickMessages.state packs them
@@ -433,7 +433,7 @@ class BoomSimNode(Node):
             self.drive.timeout_s = value["command_timeout_s"]  # the drive applies it
             clock.set_pace(value["publish_rate_hz"], value["real_time_factor"], value["max_catch_up_s"])
             self._markers_every = max(1, round(clock.rate_hz / MARKERS_HZ))
-            self._energy_every = max(1, round(clock.rate_hz / ENERGY_HZ))
+            self._energy_every = ledger_every(clock.rate_hz)
         if "real_time_factor" in node_changes:
             origin_before = self.clock.origin_ns
             self.clock.restart()  # a new pace: simulated time follows the clock afresh from here
