@@ -156,6 +156,9 @@ class TestMovesOnOneNode:
         # the node (at full speed it had settled, 4.55 s, before a loaded clean clone's override came)
         handle = mover.send(math.radians(50.0), max_speed=0.05)
         client.spin_sim(0.5)
+        # the goal lifts it first: at rest after ~/reset the boom sinks slowly (the closed spool's
+        # leakage fills the rod chamber), which alone would pass for the operator's lowering
+        assert client.spin_until(lambda: client.last().boom_rate_rad_s > 0.0)
         assert client.spin_until(lambda: client.last().boom_rate_rad_s < 0.0, opening=-0.5)  # the operator lowers it
         answer = mover.result(handle)
         assert answer.status == GoalStatus.STATUS_ABORTED and "operator override" in answer.result.message
