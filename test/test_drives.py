@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 
 from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import battery, config, electric_motor, geometry, hydraulics, pump
-from boom_hydraulics.model.drives import DRIVES, constants, fixed_pump, load_sensing, pump_controlled
+from boom_hydraulics.model.drives import DRIVES, STATE_COUNT, constants, fixed_pump, load_sensing, pump_controlled
 from boom_hydraulics.model.ledger import electric_chain
 from boom_hydraulics.model.parameters import DRIVES as DRIVE_CHOICES
 from boom_hydraulics.model.parameters import UNSOLVED, Parameters, describe, from_mapping, with_updates

@@ -65,6 +65,29 @@ def jitable(function: F | None = None, *, inline: str = "never") -> Any:
     return mark if function is None else mark(function)
 
 
+def tuple_of(row: Any, size: int) -> tuple:
+    """The first ``size`` values of ``row`` (an array) as a tuple. Compiled, ``size`` must be a
+    constant (a module's global), so that the tuple's length is known: numba keeps such a
+    tuple on the stack (the model's state and constants)."""
+    return tuple(row[i] for i in range(size))
+
+
+if numba is not None:
+
+    @overload(tuple_of)
+    def _tuple_of_compiled(row: Any, size: Any) -> Any:
+        """:func:`tuple_of` as compiled code runs it: numba's fixed-length tuple of an array."""
+        if not isinstance(size, numba.types.IntegerLiteral):
+            return None  # numba types the call again with the constant's value
+        length = size.literal_value
+        from numba.np.unsafe.ndarray import to_fixed_tuple
+
+        def of(row: Any, size: Any) -> Any:
+            return to_fixed_tuple(row, length)
+
+        return of
+
+
 def compiled_as(python_function: Callable[..., Any]) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register the decorated typing function (numba's ``overload``) as how compiled code
     runs ``python_function``, for the few primitives whose Python form numba cannot compile

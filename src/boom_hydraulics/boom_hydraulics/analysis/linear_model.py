@@ -37,9 +37,9 @@ if TYPE_CHECKING:
     import control  # imported where used: it takes seconds to load, and a sweep needs none of it
 
 #: The states of the linear model: the physical model's states that act on the dynamics (the
-#: drive's state is p_n, the only drive a linear model is taken of: operating_point).
+#: drive's states stand still in the drives a linear model is taken of: operating_point).
 STATES: tuple[int, ...] = tuple(
-    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i != MODEL.DRIVE_STATE
+    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}

@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..model import MODELS
 from ..model.control import full_opening_rate
+from ..model.drives import DRIVES
 from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
 from ..model.hydraulics import orifice_pressure_drop
 from ..model.parameters import Parameters
@@ -161,10 +162,11 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     [-1, 1] or a point where no steady state exists (the pump or a relief valve limits it)."""
     if p.mode != "physical":
         raise ConfigError("a linear model is taken of the physical drive: set mode: physical")
-    if p.drive != "pressure_compensated":
+    if not DRIVES[p.drive].STEADY_SUPPLY:
+        steady = ", ".join(name for name, drive in DRIVES.items() if drive.STEADY_SUPPLY)
         raise ConfigError(
-            f"a linear model is taken with the supply held at p_n (drive: pressure_compensated); drive '{p.drive}' "
-            "adds a supply state it does not hold yet: set drive: pressure_compensated"
+            f"a linear model is taken of a drive whose supply holds its pressure whatever the load ({steady}); "
+            f"drive '{p.drive}' adds states of its own that it does not hold yet: set drive: {steady.split(', ')[0]}"
         )
     check_inside_stroke(p, q1_m)
     if not (math.isfinite(opening) and -1.0 <= opening <= 1.0):

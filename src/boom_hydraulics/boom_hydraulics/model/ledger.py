@@ -2,12 +2,13 @@
 
 Every joule the battery gives ends in one term (eq. D29):
 
-    P_batt + P_res = P_R + P_m + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
-                     + P_fr + P_stop + P_amb + P_ext + P_oil + dT/dt + dPi/dt
+    P_batt + P_res = P_R + P_m + P_sb + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
+                     + P_fr + P_stop + P_amb + P_ext + P_oil + dT_rot/dt + dT/dt + dPi/dt
 
 - sources: the battery's chemical power P_batt = U I (negative while it takes power back)
   and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
-- losses, each >= 0: battery resistance, motor and inverter, pump (volumetric and
+- losses, each >= 0: battery resistance, motor and inverter, standby (inverter, controller
+  and auxiliaries, drawn whatever the load), pump (volumetric and
   hydro-mechanical), main relief, valve throttling (the 4/3 valve and load-holding valve,
   or the EHA's checks), leakage (the valve paths' laminar part and the load-holding
   valve's seat), port reliefs;
@@ -15,7 +16,8 @@ Every joule the battery gives ends in one term (eq. D29):
   them), the ambient pressure on the rod's end (relative to tank pressure), the external
   rod force (P_ext = -F_ext v: negative where the surroundings push the rod the way it moves);
 - stored: what the oil takes in (chambers and supply line: compression, and the void while
-  cavitating), the kinetic and the potential energy (weight and spring).
+  cavitating), the kinetic energy of the drive's rotors, the kinetic and the potential
+  energy (weight and spring).
 
 The hydraulic terms count pressures above tank pressure, as the model's energies do. Each
 link of the chain balances on its own (eq. D26-D28); their sum is eq. D29, an identity of
@@ -37,7 +39,6 @@ from .battery import battery_current_a, battery_loss_w, chemical_power_w, overlo
 from .drives.constants import DriveConstants, Supply
 from .electric_motor import electrical_power_w, motor_loss_w
 from .hydraulics import pos
-from .pump import mechanical_loss_w, shaft_torque_n_m, volumetric_loss_w
 
 Num = Any  # float or numpy.ndarray
 
@@ -48,6 +49,7 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("reservoir_power", "W", "source", "power the EHA's low-pressure reservoir gives, above tank pressure"),
     ("battery_loss", "W", "loss", "battery's internal resistance, R I^2"),
     ("motor_loss", "W", "loss", "electric motor and inverter"),
+    ("standby_loss", "W", "loss", "inverter, controller and auxiliaries, drawn whatever the load"),
     ("pump_volumetric_loss", "W", "loss", "pump leakage"),
     ("pump_mechanical_loss", "W", "loss", "pump friction torque"),
     ("main_relief_loss", "W", "loss", "main relief valve of the fixed pump"),
@@ -59,6 +61,7 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("ambient_work", "W", "work", "work against the ambient pressure on the rod's end, above tank pressure"),
     ("external_work", "W", "work", "work against the external rod force, -F_ext v (negative: it drives the rod)"),
     ("oil_work", "W", "stored", "what the oil of chambers and supply line takes in (compression, voids)"),
+    ("rotor_power", "W", "stored", "rate of the kinetic energy of the drive's motor and pump rotors"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
 )
@@ -74,6 +77,7 @@ class Ledger(NamedTuple):
     reservoir_power: Num
     battery_loss: Num
     motor_loss: Num
+    standby_loss: Num
     pump_volumetric_loss: Num
     pump_mechanical_loss: Num
     main_relief_loss: Num
@@ -85,6 +89,7 @@ class Ledger(NamedTuple):
     ambient_work: Num
     external_work: Num
     oil_work: Num
+    rotor_power: Num
     kinetic_power: Num
     potential_power: Num
 
@@ -124,56 +129,25 @@ class Cylinder(NamedTuple):
 
 @jitable
 def electric_chain(s: Supply, d: DriveConstants, xp: ModuleType = math) -> Chain:
-    """The pump at its operating point ``s`` through motor and inverter to the battery (eq. D26):
-    U I = R I^2 + P_m + P_v + P_hm + dp Q."""
-    torque = shaft_torque_n_m(s.displacement, s.speed, s.dp, d.torque_loss, xp)  # eq. D2
-    electrical = electrical_power_w(torque, s.speed, d.motor_copper, d.motor_iron)  # eq. D5
+    """The drive's motor at its operating point ``s`` through the inverter to the battery
+    (eq. D26): U I = R I^2 + P_m + P_sb + T w, the shaft power T w being the pump's
+    (P_v + P_hm + dp Q) and its rotors' (dT_rot/dt)."""
+    electrical = electrical_power_w(s.torque, s.speed, d.motor_copper, d.motor_iron) + s.standby_loss  # eq. D5
     current = battery_current_a(electrical, d.battery_voltage, d.battery_resistance, xp)  # eq. D8
     return Chain(
-        torque,
-        torque * s.speed,
-        motor_loss_w(torque, s.speed, d.motor_copper, d.motor_iron),  # eq. D6
+        s.torque,
+        s.torque * s.speed,
+        motor_loss_w(s.torque, s.speed, d.motor_copper, d.motor_iron),  # eq. D6
         electrical,
         current,
         battery_loss_w(current, d.battery_resistance),  # eq. D9
         chemical_power_w(current, d.battery_voltage),  # eq. D9
         state_of_charge_rate_1_s(current, d.battery_voltage, d.battery_capacity),  # eq. D10
-        volumetric_loss_w(s.dp, d.pump_leak),  # eq. D3
-        mechanical_loss_w(s.displacement, s.speed, s.dp, d.torque_loss, xp),  # eq. D3
-        s.dp * s.q_pump,
+        s.volumetric_loss,  # eq. D3
+        s.mechanical_loss,  # eq. D3
+        s.hydraulic_power,
         overloaded(electrical, d.battery_voltage, d.battery_resistance),  # eq. D11
     )
-
-
-@jitable
-def valve_losses(
-    q_pa: Num,
-    q_at: Num,
-    q_pb: Num,
-    q_bt: Num,
-    p_port_pa: Num,
-    p_tank_pa: Num,
-    p1_pa: Num,
-    p2_pa: Num,
-    leak_m3_s_pa: Num,
-    a_side: Num,
-    seat_leak_m3_s_pa: Num,
-) -> tuple[Num, Num]:
-    """(throttling, leakage) in the 4/3 valve and the load-holding valve, W (eq. D27).
-
-    ``q_pa`` .. ``q_bt`` are the spool's path flows (hydraulics.valve_flows) and ``a_side`` the
-    share of the A paths' flow the load-holding valve passes (1, or its pilot opening where
-    it checks an outflow). Each path dissipates dp Q, of which G dp^2 is its leakage; the
-    closed seat leaks G_seat (p1 - p_t) with the power G_seat (p1 - p_t)^2. Their sum is the
-    supply's power less what reaches the cylinder lines ("Supply and relief valves")."""
-    dp_pa, dp_at = p_port_pa - p1_pa, p1_pa - p_tank_pa
-    dp_pb, dp_bt = p_port_pa - p2_pa, p2_pa - p_tank_pa
-    paths = a_side * (dp_pa * q_pa + dp_at * q_at) + dp_pb * q_pb + dp_bt * q_bt
-    leakage = (
-        leak_m3_s_pa * (a_side * (dp_pa * dp_pa + dp_at * dp_at) + dp_pb * dp_pb + dp_bt * dp_bt)
-        + seat_leak_m3_s_pa * dp_at * dp_at
-    )
-    return paths - leakage + seat_leak_m3_s_pa * dp_at * dp_at, leakage  # eq. D27
 
 
 @jitable
@@ -226,25 +200,27 @@ def cylinder_side(
 
 
 @jitable
-def assemble(chain: Chain, s: Supply, throttling: Num, leakage: Num, cylinder: Cylinder) -> Ledger:
-    """The whole ledger from its links (eq. D29): the electric chain, the drive's supply side,
-    the valve's losses (0 for pump_controlled, whose checks are its valves) and the cylinder."""
+def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
+    """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
+    valve or checks, relief and line) and the cylinder."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
         chain.battery_loss,
         chain.motor_loss,
+        s.standby_loss,
         chain.pump_volumetric_loss,
         chain.pump_mechanical_loss,
         s.main_relief_loss,
-        throttling + s.check_loss,
-        leakage,
+        s.valve_loss,
+        s.leakage_loss,
         cylinder.port_relief_loss,
         cylinder.friction_work,
         cylinder.end_stop_work,
         cylinder.ambient_work,
         cylinder.external_work,
         cylinder.oil_work + s.line_oil_work,
+        s.rotor_power,
         cylinder.kinetic_power,
         cylinder.potential_power,
     )
@@ -259,6 +235,7 @@ def residual_w(ledger: Ledger) -> Num:
         + ledger.reservoir_power
         - ledger.battery_loss
         - ledger.motor_loss
+        - ledger.standby_loss
         - ledger.pump_volumetric_loss
         - ledger.pump_mechanical_loss
         - ledger.main_relief_loss
@@ -270,6 +247,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.ambient_work
         - ledger.external_work
         - ledger.oil_work
+        - ledger.rotor_power
         - ledger.kinetic_power
         - ledger.potential_power
     )
@@ -293,6 +271,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.reservoir_power,
         ledger.battery_loss,
         ledger.motor_loss,
+        ledger.standby_loss,
         ledger.pump_volumetric_loss,
         ledger.pump_mechanical_loss,
         ledger.main_relief_loss,
@@ -304,6 +283,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.ambient_work,
         ledger.external_work,
         ledger.oil_work,
+        ledger.rotor_power,
         ledger.kinetic_power,
         ledger.potential_power,
         pos(ledger.potential_power),

@@ -24,6 +24,7 @@ from ..jit import jitable, kernel, prange
 from ..model import (
     battery,
     control,
+    drives,
     electric_motor,
     end_stops,
     friction,
@@ -35,10 +36,9 @@ from ..model import (
     outputs,
     pump,
     setpoints,
+    valve,
 )
 from ..model import physical as model
-from ..model.drives import fixed_pump, load_sensing, pressure_compensated, pump_controlled
-from ..model.drives.constants import Supply
 from . import integrators, lanes, profiles, stepping, streaming
 from . import kernel as run
 from .integrators import euler_step, rk4_step, ros2_step
@@ -47,89 +47,28 @@ from .integrators import euler_step, rk4_step, ros2_step
 SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
     *jit.module_sources(kinematics),
-    *jit.module_sources(pump, electric_motor, battery, ledger, sys.modules[Supply.__module__]),
-    *jit.module_sources(pressure_compensated, fixed_pump, load_sensing, pump_controlled),
+    *jit.module_sources(pump, electric_motor, battery, ledger, valve),
+    *jit.module_sources(drives, sys.modules[drives.constants.__module__], *drives.DRIVES.values()),
     *jit.module_sources(model, integrators, lanes, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
 
 
+#: How many constants the model has, and how many states.
+N_CONSTANTS = len(model.Constants._fields)
+N_STATE = len(model.STATE_NAMES)
+
+
 @jitable
 def constants_of(row: Any) -> model.Constants:
     """The model's Constants from a row of floats, in the order of their fields."""
-    return model.Constants(
-        row[0],
-        row[1],
-        row[2],
-        row[3],
-        row[4],
-        row[5],
-        row[6],
-        row[7],
-        row[8],
-        row[9],
-        row[10],
-        row[11],
-        row[12],
-        row[13],
-        row[14],
-        row[15],
-        row[16],
-        row[17],
-        row[18],
-        row[19],
-        row[20],
-        row[21],
-        row[22],
-        row[23],
-        row[24],
-        row[25],
-        row[26],
-        row[27],
-        row[28],
-        row[29],
-        row[30],
-        row[31],
-        row[32],
-        row[33],
-        row[34],
-        row[35],
-        row[36],
-        row[37],
-        row[38],
-        row[39],
-        row[40],
-        row[41],
-        row[42],
-        row[43],
-        row[44],
-        row[45],
-        row[46],
-        row[47],
-        row[48],
-        row[49],
-        row[50],
-        row[51],
-        row[52],
-        row[53],
-        row[54],
-        row[55],
-        row[56],
-        row[57],
-        row[58],
-        row[59],
-        row[60],
-    )
+    return model.Constants(*jit.tuple_of(row, N_CONSTANTS))
 
 
 @jitable
 def state_of(row: Any) -> tuple:
     """The state as a tuple (the euler and rk4 steps keep it so)."""
-    return (
-        *(row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10]),
-        *(row[11], row[12], row[13], row[14], row[15], row[16], row[17], row[18], row[19], row[20]),
-        *(row[21], row[22], row[23], row[24], row[25], row[26], row[27], row[28], row[29]),
-    )
+    return jit.tuple_of(row, N_STATE)
 
 
 @jitable

@@ -44,7 +44,7 @@ FOLLOW_HORIZON_S = 1.0e9
 def absolute_tolerances(p: Parameters) -> list[float]:
     """rk45 absolute tolerance per state: atol_scale times the state's natural scale."""
     model = MODELS[p.mode]
-    scale = dict(_SCALES, pressure=p.supply_pressure_pa)
+    scale = dict(_SCALES, pressure=p.supply_pressure_pa, angular_velocity=p.pump_speed_rad_s)
     return [p.atol_scale * scale[kind] for kind in model.STATE_SCALES]
 
 

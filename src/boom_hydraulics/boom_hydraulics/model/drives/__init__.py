@@ -1,24 +1,38 @@
 """The drives that feed the cylinder, one module each, behind one parameter (``drive``).
 
-Every drive has one state (:data:`STATE_NAMES` of its module), so that they share one state
-layout, and offers ``initial_state(d)`` and ``supply(...)``: the rate of its state, the
-pump's operating point and its supply-side ledger terms (:class:`Supply`). The valve drives
-(``VALVE``: pressure_compensated, fixed_pump, load_sensing) also give ``port_pressure_pa``,
-what the 4/3 valve's P port sees; pump_controlled gives ``ports``, the flows into the
-chambers, in place of the valve. The electric chain from the pump's shaft to the battery
-and the energy ledger are the same for all (:mod:`..ledger`).
+A drive is everything between the battery and the cylinder's two lines: motor, pump and,
+for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
+
+- ``STATE_NAMES`` (at most :data:`STATE_COUNT` states of its own) and ``STATE_SCALES``;
+- ``initial_state(d)``: its states at the start, a tuple of :data:`STATE_COUNT`;
+- ``supply(z, u, opening, q1, v, p1, p2, d, xp)``: the drive at one instant (:class:`Supply`):
+  its states' rates, the flows into the lines, the motor's operating point, its ledger terms;
+- ``energy(z, d, xp)`` and ``energy_rate(z, s, d)``: what it stores beside the chambers;
+- ``stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)``: how stiffly it holds the lines, and
+  its own fastest rate (stepping's stability bound);
+- ``VALVE``: whether it feeds the chambers through the 4/3 valve.
+
+:data:`DRIVES` registers them; the functions below call the set's drive (compiled code picks
+no function from a dict of modules, so each names the registered drives once, in order).
+The model (physical.py), the solver and the analysis name no drive.
 
 Equations and conventions: docs/model.md, section "Drives".
 """
 
 from __future__ import annotations
 
+import math
 from types import ModuleType
+from typing import Any
 
-from ...jit import jitable
+import numpy as np
+
+from ...jit import compiled_as, jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
 from . import fixed_pump, load_sensing, pressure_compensated, pump_controlled
-from .constants import DriveConstants, Supply, constants
+from .constants import DriveConstants, Supply, blend, constants
+
+Num = Any  # float or numpy.ndarray
 
 #: Every drive, by the name the ``drive`` parameter gives it (the one registry of them).
 DRIVES: dict[str, ModuleType] = {
@@ -28,12 +42,39 @@ DRIVES: dict[str, ModuleType] = {
     "pump_controlled": pump_controlled,
 }
 assert tuple(DRIVES) == DRIVE_CHOICES, "parameters.DRIVES must name the registered drives"
+#: How many states the model keeps for the drive (the most any drive has).
+STATE_COUNT = 3
+assert all(len(m.STATE_NAMES) <= STATE_COUNT for m in DRIVES.values()), "a drive has more states than the model keeps"
+
+
+def in_use(flag: Num) -> bool:
+    """Whether a 0/1 flag (a float, or an array of a batch's sets) is set for any set: the
+    model skips the equations of a drive no set uses."""
+    if isinstance(flag, float):
+        return flag != 0.0
+    return bool(np.any(flag != 0.0))
+
+
+@compiled_as(in_use)
+def _in_use_compiled(flag: Any) -> Any:
+    """:func:`in_use` as compiled code runs it: a branch on the flag of the set (the
+    implementation's annotations are those of this typing function, as numba asks)."""
+
+    def of_set(flag: Any) -> Any:
+        return np.any(flag != 0.0)
+
+    return of_set
 
 
 @jitable
-def initial_state(drive: str, d: DriveConstants) -> float:
-    """``DRIVES[drive].initial_state(d)``, as compiled code can call it too (numba picks no
-    function from a dict of modules): the registered drives, in their order."""
+def uses(d: DriveConstants, index: int) -> Num:
+    """1.0 where the set's drive is the registered drive ``index``, else 0.0."""
+    return 1.0 * (d.drive == float(index))
+
+
+@jitable
+def initial_state(drive: str, d: DriveConstants) -> tuple[float, float, float]:
+    """``DRIVES[drive].initial_state(d)``, as compiled code can call it too."""
     if drive == "pressure_compensated":
         return pressure_compensated.initial_state(d)
     if drive == "fixed_pump":
@@ -45,4 +86,107 @@ def initial_state(drive: str, d: DriveConstants) -> float:
     raise ValueError("no drive of that name")  # parameters.DRIVES names the registered ones
 
 
-__all__ = ("DRIVES", "DriveConstants", "Supply", "constants", "initial_state")
+@jitable
+def _nothing(zero: Num) -> Supply:
+    """A Supply of zeros (what :func:`supply` blends each set's drive into)."""
+    return Supply(*(zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero),
+                  *(zero, zero, zero, zero, zero, zero, zero))  # fmt: skip
+
+
+@jitable(inline="always")
+def supply(
+    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
+) -> Supply:
+    """The set's drive at one instant (each drive's ``supply``; a batch: each set's)."""
+    s = _nothing(0.0 * p1_pa)
+    w = uses(d, 0)
+    if in_use(w):
+        s = blend(s, pressure_compensated.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+    w = uses(d, 1)
+    if in_use(w):
+        s = blend(s, fixed_pump.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+    w = uses(d, 2)
+    if in_use(w):
+        s = blend(s, load_sensing.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+    w = uses(d, 3)
+    if in_use(w):
+        s = blend(s, pump_controlled.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+    return s
+
+
+@jitable
+def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
+    """What the set's drive stores beside the chambers, J (each drive's ``energy``)."""
+    e = 0.0 * z[0]
+    w = uses(d, 0)
+    if in_use(w):
+        e = e + w * pressure_compensated.energy(z, d, xp)
+    w = uses(d, 1)
+    if in_use(w):
+        e = e + w * fixed_pump.energy(z, d, xp)
+    w = uses(d, 2)
+    if in_use(w):
+        e = e + w * load_sensing.energy(z, d, xp)
+    w = uses(d, 3)
+    if in_use(w):
+        e = e + w * pump_controlled.energy(z, d, xp)
+    return e
+
+
+@jitable
+def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
+    """d/dt of :func:`energy` along the drive's rates ``s``, W."""
+    e = 0.0 * z[0]
+    w = uses(d, 0)
+    if in_use(w):
+        e = e + w * pressure_compensated.energy_rate(z, s, d)
+    w = uses(d, 1)
+    if in_use(w):
+        e = e + w * fixed_pump.energy_rate(z, s, d)
+    w = uses(d, 2)
+    if in_use(w):
+        e = e + w * load_sensing.energy_rate(z, s, d)
+    w = uses(d, 3)
+    if in_use(w):
+        e = e + w * pump_controlled.energy_rate(z, s, d)
+    return e
+
+
+@jitable
+def stiffness(
+    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+) -> tuple[Num, Num, Num]:
+    """(dQ/dp the drive gives line A, line B; its own fastest rate): each drive's ``stiffness``."""
+    g_a, g_b, own = 0.0 * stiff1, 0.0 * stiff1, 0.0 * stiff1
+    w = uses(d, 0)
+    if in_use(w):
+        a, b, r = pressure_compensated.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+    w = uses(d, 1)
+    if in_use(w):
+        a, b, r = fixed_pump.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+    w = uses(d, 2)
+    if in_use(w):
+        a, b, r = load_sensing.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+    w = uses(d, 3)
+    if in_use(w):
+        a, b, r = pump_controlled.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+    return g_a, g_b, own
+
+
+__all__ = (
+    "DRIVES",
+    "STATE_COUNT",
+    "DriveConstants",
+    "Supply",
+    "constants",
+    "energy",
+    "energy_rate",
+    "in_use",
+    "initial_state",
+    "stiffness",
+    "supply",
+)

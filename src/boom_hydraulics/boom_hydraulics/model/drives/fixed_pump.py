@@ -18,9 +18,10 @@ from types import ModuleType
 from typing import Any
 
 from ...jit import jitable
-from ..hydraulics import chamber_pressure_pa, chamber_state_rate, relief_flow
+from ..hydraulics import chamber_pressure_pa, chamber_state_rate, larger, relief_flow
 from ..pump import delivered_flow_m3_s
-from .constants import DriveConstants, Supply
+from ..valve import laminar_slope, paths
+from .constants import DriveConstants, Supply, pump_point
 
 Num = Any  # float or numpy.ndarray
 
@@ -29,6 +30,9 @@ STATE_NAMES = ("drive_state",)
 STATE_SCALES = ("pressure",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
+#: Whether the supply holds its pressure whatever the load, its states standing still (a linear
+#: model leaves them out: analysis/operating_point).
+STEADY_SUPPLY = False
 
 
 @jitable
@@ -39,15 +43,9 @@ def dead_head_pressure_pa(d: DriveConstants) -> float:
 
 
 @jitable
-def initial_state(d: DriveConstants) -> float:
+def initial_state(d: DriveConstants) -> tuple[float, float, float]:
     """The pump runs before the run starts: the line at its dead-heading pressure, Pa."""
-    return dead_head_pressure_pa(d)
-
-
-@jitable
-def port_pressure_pa(z: Num, opening: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math) -> Num:
-    """The valve's P-port pressure: the supply line's, Pa."""
-    return chamber_pressure_pa(z, d.p_cav)
+    return (dead_head_pressure_pa(d), 0.0, 0.0)
 
 
 @jitable
@@ -58,21 +56,50 @@ def main_relief_flow_m3_s(p_line_pa: Num, d: DriveConstants) -> Num:
 
 @jitable
 def supply(
-    z: Num,
-    p_port_pa: Num,
-    opening: Num,
-    p1_pa: Num,
-    p2_pa: Num,
-    q_valve_in_m3_s: Num,
-    d: DriveConstants,
-    xp: ModuleType = math,
+    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
 ) -> Supply:
-    """The supply side when the valve's P paths take ``q_valve_in_m3_s``: the line's state rate
-    (eq. D13), the pump at w_n and the relief's loss."""
-    dp = p_port_pa - d.p_tank
+    """The drive at its states ``z`` (the line's state z[0]): the valve at the line's pressure,
+    the line's state rate (eq. D13), the pump at w_n and the main relief's loss."""
+    ps = chamber_pressure_pa(z[0], d.p_cav)
+    valve = paths(opening, ps, p1_pa, p2_pa, d, xp)
+    dp = ps - d.p_tank
     q_pump = delivered_flow_m3_s(d.displacement, d.speed, dp, d.pump_leak)  # eq. D1
-    q_relief = main_relief_flow_m3_s(p_port_pa, d)
-    net = q_pump - q_valve_in_m3_s - q_relief
-    rate = chamber_state_rate(d.bulk_modulus, d.line_volume, net, 0.0, z, d.p_cav)  # eq. D13
-    zero = 0.0 * z
-    return Supply(rate, d.displacement + zero, d.speed + zero, dp, q_pump, dp * q_relief, dp * net, zero, zero)
+    q_relief = main_relief_flow_m3_s(ps, d)
+    net = q_pump - valve.q_in - q_relief
+    rate = chamber_state_rate(d.bulk_modulus, d.line_volume, net, 0.0, z[0], d.p_cav)  # eq. D13
+    pumped = pump_point(d.displacement, d.speed, dp, q_pump, d, xp)
+    zero = 0.0 * dp
+    return Supply(
+        *(rate, zero, zero, valve.q_a, valve.q_b, 1.0 + zero, zero, opening + zero, ps),
+        *(1.0 * (ps < d.p_set), dp * valve.q_in, pumped.torque, d.speed + zero, pumped.hydraulic_power),
+        *(pumped.volumetric_loss, pumped.mechanical_loss, dp * q_relief, valve.throttling, valve.leakage),
+        *(dp * net, zero, zero, zero),
+    )
+
+
+@jitable
+def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
+    """The compression of the supply line's oil, V_s (p_s - p_t)^2 / (2 E), J."""
+    ps = chamber_pressure_pa(z[0], d.p_cav)
+    return d.line_volume * (ps - d.p_tank) * (ps - d.p_tank) / (2.0 * d.bulk_modulus)
+
+
+@jitable
+def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
+    """d/dt of :func:`energy` along the rates ``s`` (the pressure stands still at the floor), W."""
+    dps = s.rate * (z[0] > d.p_cav)
+    return d.line_volume * (s.p_supply - d.p_tank) * dps / d.bulk_modulus
+
+
+@jitable
+def stiffness(
+    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+) -> tuple[Num, Num, Num]:
+    """The valve's slopes, and the line: against its relief where it can reach it within this
+    step, the pump's leakage and the valve, and against a chamber through the open path,
+    G E (1/V_s + 1/V): the two oil springs in series."""
+    slope = laminar_slope(opening, d)
+    line_stiffness = d.bulk_modulus / d.line_volume
+    relief_near = z[0] + line_stiffness * d.max_flow * dt > d.p_set
+    line = line_stiffness * (d.g_main * relief_near + d.pump_leak + slope) + slope * larger(stiff1, stiff2)
+    return slope, slope, line

@@ -20,8 +20,8 @@ from typing import Any
 from ...jit import jitable
 from ..hydraulics import smaller, smoothstep
 from .constants import DriveConstants, Supply
-from .pressure_compensated import on_demand
-from .pressure_compensated import port_pressure_pa as _pump_port_pressure_pa
+from .pressure_compensated import energy, energy_rate, on_demand
+from .pressure_compensated import stiffness as _valve_stiffness
 
 Num = Any  # float or numpy.ndarray
 
@@ -30,15 +30,20 @@ STATE_NAMES = ("drive_state",)
 STATE_SCALES = ("pressure",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
+#: Whether the supply holds its pressure whatever the load, its states standing still (a linear
+#: model leaves them out: analysis/operating_point).
+STEADY_SUPPLY = False
 
 #: Spool opening at which the load-sensing signal port is fully open (eq. D15).
 SIGNAL_FULL_OPENING = 0.05
 
+__all__ = ("energy", "energy_rate", "initial_state", "stiffness", "supply")
+
 
 @jitable
-def initial_state(d: DriveConstants) -> float:
+def initial_state(d: DriveConstants) -> tuple[float, float, float]:
     """The pump idles at the margin over tank pressure with the spool closed, Pa."""
-    return d.p_tank + d.ls_margin
+    return (d.p_tank + d.ls_margin, 0.0, 0.0)
 
 
 @jitable
@@ -57,22 +62,21 @@ def target_pressure_pa(opening: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants) 
     return smaller(load_pressure_pa(opening, p1_pa, p2_pa, d.p_tank) + d.ls_margin, d.p_set)  # eq. D17
 
 
-#: The valve's P-port pressure: the pump's, or less at its flow limit, Pa (eq. D19): the
-#: pressure-compensated pump's law, set to this pump's pressure z.
-port_pressure_pa = _pump_port_pressure_pa
+@jitable
+def supply(
+    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
+) -> Supply:
+    """The drive at its states ``z`` (the pump's pressure z[0]): the pressure lag (eq. D18), the
+    P port at the pump's pressure or below it at its flow limit (eq. D19), delivering on
+    demand (eq. D4)."""
+    rate = (target_pressure_pa(opening, p1_pa, p2_pa, d) - z[0]) * d.ls_inv_tau  # eq. D18
+    return on_demand(rate, z[0], opening, p1_pa, p2_pa, d, xp)
 
 
 @jitable
-def supply(
-    z: Num,
-    p_port_pa: Num,
-    opening: Num,
-    p1_pa: Num,
-    p2_pa: Num,
-    q_valve_in_m3_s: Num,
-    d: DriveConstants,
-    xp: ModuleType = math,
-) -> Supply:
-    """The supply side: the pump's pressure lag (eq. D18), delivering on demand (eq. D4)."""
-    rate = (target_pressure_pa(opening, p1_pa, p2_pa, d) - z) * d.ls_inv_tau  # eq. D18
-    return on_demand(rate, p_port_pa, q_valve_in_m3_s, d)
+def stiffness(
+    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+) -> tuple[Num, Num, Num]:
+    """The valve's slopes, and the pump's pressure lag (as pressure_compensated.stiffness)."""
+    g_a, g_b, _ = _valve_stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+    return g_a, g_b, d.ls_inv_tau + 0.0 * g_a

@@ -21,9 +21,9 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ...jit import jitable
-from ..hydraulics import orifice_flow, smoothstep
+from ..hydraulics import larger, orifice_flow, smoothstep
 from ..pump import delivered_flow_m3_s
-from .constants import DriveConstants, Supply
+from .constants import DriveConstants, Supply, pump_point
 
 Num = Any  # float or numpy.ndarray
 
@@ -32,6 +32,9 @@ STATE_NAMES = ("drive_state",)
 STATE_SCALES = ("angular_velocity",)
 #: The drive feeds the chambers without the 4/3 valve.
 VALVE = False
+#: Whether the supply holds its pressure whatever the load, its states standing still (a linear
+#: model leaves them out: analysis/operating_point).
+STEADY_SUPPLY = False
 
 
 class Ports(NamedTuple):
@@ -45,9 +48,9 @@ class Ports(NamedTuple):
 
 
 @jitable
-def initial_state(d: DriveConstants) -> float:
+def initial_state(d: DriveConstants) -> tuple[float, float, float]:
     """The motor at rest, rad/s."""
-    return 0.0
+    return (0.0, 0.0, 0.0)
 
 
 @jitable
@@ -88,14 +91,47 @@ def ports(z: Num, command: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: M
 
 @jitable
 def supply(
-    z: Num, command: Num, p1_pa: Num, p2_pa: Num, flows: Ports, d: DriveConstants, xp: ModuleType = math
+    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
 ) -> Supply:
-    """The supply side of the EHA: the motor's speed rate (eq. D21), the pump at speed w across
-    p1 - p2 (a motor where w (p1 - p2) < 0: lowering), the checks' throttling and the
-    reservoir's power relative to tank pressure (eq. D25)."""
-    rate = d.motor_inv_tau * (command * d.speed - z)  # eq. D21
-    speed = motor_speed_rad_s(z, command, d)
+    """The EHA at its states ``z`` (the motor's speed z[0]) and command ``u``: the motor's speed
+    rate (eq. D21), the pump and the checks on the chambers' lines (eq. D20-D24), the pump at
+    speed w across p1 - p2 (a motor where w (p1 - p2) < 0: lowering), the checks' throttling
+    and the reservoir's power relative to tank pressure (eq. D25). No valve: ``opening`` is
+    only reported."""
+    flows = ports(z[0], u, p1_pa, p2_pa, d, xp)
+    rate = d.motor_inv_tau * (u * d.speed - z[0])  # eq. D21
+    speed = motor_speed_rad_s(z[0], u, d)
+    dp = p1_pa - p2_pa
     check_loss = flows.q_check_a * (d.p_reservoir - p1_pa) + flows.q_check_b * (d.p_reservoir - p2_pa)  # eq. D25
     reservoir = (d.p_reservoir - d.p_tank) * (flows.q_check_a + flows.q_check_b)  # eq. D25
-    zero = 0.0 * z
-    return Supply(rate, d.displacement + zero, speed, p1_pa - p2_pa, flows.q_pump, zero, zero, check_loss, reservoir)
+    power = (p1_pa - d.p_tank) * flows.q_a + (p2_pa - d.p_tank) * flows.q_b  # what the EHA gives the lines
+    pumped = pump_point(d.displacement, speed, dp, flows.q_pump, d, xp)
+    zero = 0.0 * dp
+    return Supply(
+        *(rate, zero, zero, flows.q_a, flows.q_b, 1.0 + zero, zero, opening + zero, larger(p1_pa, p2_pa)),
+        *(zero, power, pumped.torque, speed, pumped.hydraulic_power),
+        *(pumped.volumetric_loss, pumped.mechanical_loss, zero, check_loss, zero),
+        *(zero, reservoir, zero, zero),
+    )
+
+
+@jitable
+def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
+    """What the drive stores beside the chambers, J: nothing (the rotor's inertia is in its lag)."""
+    return 0.0 * z[0]
+
+
+@jitable
+def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
+    """d/dt of :func:`energy` along the rates ``s``, W."""
+    return 0.0 * z[0]
+
+
+@jitable
+def stiffness(
+    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+) -> tuple[Num, Num, Num]:
+    """(dQ/dp into line A, line B; the fastest rate of its own state): a line against its check
+    (its laminar slope K_c / sqrt(p_tr)) and the pump's cross-port leakage, and the motor's lag."""
+    check = d.k_check * d.k_laminar / d.k_valve + d.pump_leak
+    return check, check, d.motor_inv_tau + 0.0 * check
