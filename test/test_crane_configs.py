@@ -40,6 +40,17 @@ def test_the_loader_crane_loads_without_warnings_and_names_only_known_parameters
     assert params.drive == "pressure_compensated" and params.payload_mass_kg == 1000.0
 
 
+def test_ros_reads_the_loader_crane_as_the_model_does():
+    """ROS 2's own params-file reader (PyYAML, YAML 1.1) types every value as the model does."""
+    rclpy_parameter = pytest.importorskip("rclpy.parameter")
+    loaded = rclpy_parameter.parameter_dict_from_yaml_file(str(LOADER_CRANE), use_wildcard=True)
+    values = config.read_values(LOADER_CRANE)
+    assert set(loaded) == set(values)
+    for name, value in values.items():
+        ros = loaded[name].value
+        assert (ros.string_value if isinstance(value, str) else ros.double_value) == value, name
+
+
 def test_the_cylinder_holds_the_tonne_below_the_port_relief_over_the_whole_stroke(crane):
     q1 = np.linspace(crane.cylinder_min_length_m, crane.cylinder_max_length_m, 401)
     force = static_rod_force_of(crane, q1, np)  # eq. 6
