@@ -36,13 +36,35 @@ from .operating_point import MODEL, SPOOL, OperatingPoint, centred_batch
 if TYPE_CHECKING:
     import control  # imported where used: it takes seconds to load, and a sweep needs none of it
 
-#: The states of the linear model: the physical model's states that act on the dynamics (the
-#: drive's states stand still in the drives a linear model is taken of: operating_point).
+#: The states of the linear model: the physical model's states that act on the dynamics, then
+#: those of the drive (:func:`states_of`: a drive whose supply stands still adds none).
 STATES: tuple[int, ...] = tuple(
     i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
+#: The unit of a drive's state by its scale (the drive modules' STATE_SCALES).
+UNIT_OF_SCALE = {"pressure": "Pa", "angular_velocity": "rad/s", "length": "m", "velocity": "m/s", "unit": "1"}
+
+
+def states_of(p: Parameters) -> tuple[int, ...]:
+    """The model states of the linear model of ``p``: :data:`STATES` and the drive's own (its
+    ``STATE_NAMES``), unless its supply stands still (``STEADY_SUPPLY``)."""
+    drive = DRIVES[p.drive]
+    return STATES + (() if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)])
+
+
+def state_names_of(p: Parameters) -> tuple[str, ...]:
+    """The names of :func:`states_of`: the model's, then the drive's own."""
+    own = DRIVES[p.drive].STATE_NAMES[: len(states_of(p)) - len(STATES)]
+    return STATE_NAMES + tuple(own)
+
+
+def state_units_of(p: Parameters) -> tuple[str, ...]:
+    """The units of :func:`states_of`, in their order."""
+    drive = DRIVES[p.drive]
+    own = drive.STATE_SCALES[: len(states_of(p)) - len(STATES)]
+    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(UNIT_OF_SCALE[kind] for kind in own)
 #: The outputs (model state components), with their units.
 OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("q1", "m", "rod position"),
@@ -56,8 +78,13 @@ OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
 SLOW_RATIO = 100.0
 
 
-def _state_scales(p: Parameters) -> dict[str, float]:
-    return {"q1": 1.0, "v": 1.0, "p1": p.supply_pressure_pa, "p2": p.supply_pressure_pa, "x_v": 1.0, "bristle": 1.0}
+def _state_scales(p: Parameters) -> list[float]:
+    """The size of each state of :func:`states_of`, for differences and eigenvector shares."""
+    scale = {"pressure": p.supply_pressure_pa, "angular_velocity": p.pump_speed_rad_s}
+    drive = DRIVES[p.drive]
+    own = drive.STATE_SCALES[: len(states_of(p)) - len(STATES)]
+    body = {"q1": 1.0, "v": 1.0, "p1": p.supply_pressure_pa, "p2": p.supply_pressure_pa, "x_v": 1.0, "bristle": 1.0}
+    return [body[n] for n in STATE_NAMES] + [scale.get(kind, 1.0) for kind in own]
 
 
 @dataclass(frozen=True)
@@ -86,7 +113,7 @@ class Margins:
 
 @dataclass(frozen=True)
 class LinearModel:
-    """A, B, C, D of the drive at ``point`` (states STATE_NAMES, outputs OUTPUT_NAMES, SI units)."""
+    """A, B, C, D of the drive at ``point`` (states :attr:`state_names`, outputs OUTPUT_NAMES, SI units)."""
 
     point: OperatingPoint
     A: np.ndarray
@@ -94,12 +121,25 @@ class LinearModel:
     C: np.ndarray
     D: np.ndarray
 
+    @property
+    def states(self) -> tuple[int, ...]:
+        """The model states this linear model keeps (:func:`states_of`)."""
+        return states_of(self.point.params)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return state_names_of(self.point.params)
+
+    @property
+    def state_units(self) -> tuple[str, ...]:
+        return state_units_of(self.point.params)
+
     def system(self) -> control.StateSpace:
         """The model as a python-control state space (input ``u``, outputs q1, v, p1, p2)."""
         import control
 
         return control.ss(
-            self.A, self.B, self.C, self.D, inputs=["u"], outputs=list(OUTPUT_NAMES), states=list(STATE_NAMES)
+            self.A, self.B, self.C, self.D, inputs=["u"], outputs=list(OUTPUT_NAMES), states=list(self.state_names)
         )
 
     def modes(self) -> list[Mode]:
@@ -114,7 +154,7 @@ class LinearModel:
 
     def hydraulic_mode(self) -> Mode | None:
         """The oscillation of the boom on its oil springs (see :func:`hydraulic_eigenvalue`)."""
-        lam = hydraulic_eigenvalue(self.A[None], self.point.params)[0]
+        lam = hydraulic_eigenvalue(self.A[None], self.point.params, self.state_names)[0]
         if not np.isfinite(lam):
             return None
         size = abs(lam)
@@ -147,42 +187,47 @@ class LinearModel:
         return -(self.C @ z[:, :k]) @ np.linalg.solve(s[:k, :k], b)[:, 0] + self.D[:, 0]
 
 
-def hydraulic_eigenvalue(a: np.ndarray, p: Parameters) -> np.ndarray:
-    """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n): of the
-    oscillatory modes, the one whose eigenvector moves the rod's velocity most against the other
-    states (each in units of its scale); nan where every mode is real."""
+def hydraulic_eigenvalue(a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES) -> np.ndarray:
+    """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n) over the
+    states ``names``: of the oscillatory modes, the one whose eigenvector moves the rod's
+    velocity most against the other states (each in units of its scale); nan where every mode
+    is real."""
     values, vectors = np.linalg.eig(a)
-    scales = np.array([_state_scales(p)[n] for n in STATE_NAMES])
+    scales = np.array(_state_scales(p)[: len(names)])
     scaled = np.abs(vectors) * scales[:, None]
-    share = scaled[..., STATE_NAMES.index("v"), :] / np.sum(scaled, axis=-2)
+    share = scaled[..., names.index("v"), :] / np.sum(scaled, axis=-2)
     share = np.where(values.imag > 0.0, share, -1.0)
     best = np.argmax(share, axis=-1)
     lam = np.take_along_axis(values, best[..., None], axis=-1)[..., 0]
     return np.where(np.take_along_axis(share, best[..., None], axis=-1)[..., 0] >= 0.0, lam, np.nan)
 
 
-def _jacobian(c: Any, state: Sequence[Any], opening: Any, side: int, p: Parameters, xp: Any = math) -> np.ndarray:
-    """[A | B]: the derivative's Jacobian over the linear model's states and the command at
+def _jacobian(
+    c: Any, state: Sequence[Any], opening: Any, side: int, p: Parameters, xp: Any = math, states: Sequence[int] = STATES
+) -> np.ndarray:
+    """[A | B]: the derivative's Jacobian over the linear model's ``states`` and the command at
     ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
-    scales = _state_scales(p)
+    scales = _state_scales(p)[: len(states)]
 
     def f(x: list) -> list:
         y = list(state)
-        for i, xi in zip(STATES, x[:-1]):
+        for i, xi in zip(states, x[:-1]):
             y[i] = xi
         d = MODEL.derivative(0.0, y, c, x[-1], xp)
-        return [d[i] for i in STATES]
+        return [d[i] for i in states]
 
-    x = [state[i] for i in STATES] + [opening]
-    sides = [side if i == SPOOL else CENTRAL for i in STATES]
+    x = [state[i] for i in states] + [opening]
+    sides = [side if i == SPOOL else CENTRAL for i in states]
     sides.append(side)  # the command acts on the flows directly where there is no spool lag
-    return jacobian(f, x, [scales[n] for n in STATE_NAMES] + [1.0], sides)
+    return jacobian(f, x, [*scales, 1.0], sides)
 
 
 def linearize(point: OperatingPoint) -> LinearModel:
     """The linear model at ``point`` (A, B by differences of the model's derivative)."""
-    j = _jacobian(MODEL.constants(point.params), point.state, point.opening, point.kink_side, point.params)
-    n = len(STATES)
+    p = point.params
+    states = states_of(p)
+    j = _jacobian(MODEL.constants(p), point.state, point.opening, point.kink_side, p, math, states)
+    n = len(states)
     cmat = np.zeros((len(OUTPUT_NAMES), n))
     for row, name in enumerate(OUTPUT_NAMES):
         cmat[row, STATE_NAMES.index(name)] = 1.0

@@ -97,7 +97,7 @@ def summary(result: Linearization) -> list[str]:
     valve = "valve centred" if point.opening == 0.0 else f"valve at {point.opening:g}, v = {point.state[1]:.4g} m/s"
     lines = [
         f"linear model at q1 = {point.q1_m:.4f} m (alpha = {math.degrees(point.angle_rad):.2f} deg), payload "
-        f"{p.payload_mass_kg:g} kg, {valve}: states {', '.join(lm.STATE_NAMES)}; input u; outputs "
+        f"{p.payload_mass_kg:g} kg, {valve}: states {', '.join(result.model.state_names)}; input u; outputs "
         f"{', '.join(lm.OUTPUT_NAMES)}",
         "eigenvalues [1/s]: "
         + ", ".join(
@@ -218,12 +218,12 @@ def _npz(path: Path, result: Linearization) -> None:
         "B": m.B,
         "C": m.C,
         "D": m.D,
-        "state_names": np.array(lm.STATE_NAMES),
-        "state_units": np.array([lm.STATE_UNITS[n] for n in lm.STATE_NAMES]),
+        "state_names": np.array(m.state_names),
+        "state_units": np.array(m.state_units),
         "input_names": np.array(["u"]),
         "output_names": np.array(lm.OUTPUT_NAMES),
         "output_units": np.array([u for _, u, _ in lm.OUTPUTS]),
-        "operating_state": np.array([result.point.state[i] for i in lm.STATES]),
+        "operating_state": np.array([result.point.state[i] for i in m.states]),
         "opening": np.array(result.point.opening),
         "eigenvalues": np.linalg.eigvals(m.A),
         "dc_gains": m.dc_gains(),

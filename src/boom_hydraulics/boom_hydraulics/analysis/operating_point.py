@@ -152,6 +152,11 @@ def steady(
     return y, bool(np.all(converged)) if np.ndim(converged) == 0 else converged
 
 
+def _drive_scale(p: Any, kind: str) -> float:
+    """The size of a drive's state of scale ``kind`` (its module's STATE_SCALES)."""
+    return {"pressure": p.supply_pressure_pa, "angular_velocity": p.pump_speed_rad_s}.get(kind, 1.0)
+
+
 def _scales(p: Any) -> dict[int, float]:
     return {V: 1.0, P1: p.supply_pressure_pa, P2: p.supply_pressure_pa, BRISTLE: 1.0}
 
@@ -162,12 +167,6 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     [-1, 1] or a point where no steady state exists (the pump or a relief valve limits it)."""
     if p.mode != "physical":
         raise ConfigError("a linear model is taken of the physical drive: set mode: physical")
-    if not DRIVES[p.drive].STEADY_SUPPLY:
-        steady = ", ".join(name for name, drive in DRIVES.items() if drive.STEADY_SUPPLY)
-        raise ConfigError(
-            f"a linear model is taken of a drive whose supply holds its pressure whatever the load ({steady}); "
-            f"drive '{p.drive}' adds states of its own that it does not hold yet: set drive: {steady.split(', ')[0]}"
-        )
     check_inside_stroke(p, q1_m)
     if not (math.isfinite(opening) and -1.0 <= opening <= 1.0):
         raise ConfigError(f"--opening must be a valve opening in [-1, 1], got {opening}")
@@ -176,6 +175,11 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     scales = _scales(p)
     y0[SPOOL] = opening
     unknowns, equations = CENTRED if opening == 0.0 else MOVING
+    # a drive whose supply does not stand still: its own states settle too (their rates 0)
+    drive = DRIVES[p.drive]
+    own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
+    unknowns, equations = (*unknowns, *own), (*equations, *own)
+    scales.update({i: _drive_scale(p, kind) for i, kind in zip(own, drive.STATE_SCALES)})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731

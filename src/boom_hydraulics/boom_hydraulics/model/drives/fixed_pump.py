@@ -26,7 +26,7 @@ from .constants import DriveConstants, Supply, pump_point
 Num = Any  # float or numpy.ndarray
 
 #: The drive's one state: the supply line's liquid state z_s (its pressure above the floor), Pa.
-STATE_NAMES = ("drive_state",)
+STATE_NAMES = ("supply_line_state",)
 STATE_SCALES = ("pressure",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True

@@ -26,7 +26,7 @@ from .pressure_compensated import stiffness as _valve_stiffness
 Num = Any  # float or numpy.ndarray
 
 #: The drive's one state: the pump's pressure setting, which follows the load with a lag, Pa.
-STATE_NAMES = ("drive_state",)
+STATE_NAMES = ("pump_pressure",)
 STATE_SCALES = ("pressure",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True

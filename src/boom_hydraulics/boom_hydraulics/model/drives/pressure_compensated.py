@@ -25,7 +25,7 @@ from .constants import DriveConstants, Supply, pump_point
 Num = Any  # float or numpy.ndarray
 
 #: The drive's one state: the pressure the compensator holds (a constant here), Pa.
-STATE_NAMES = ("drive_state",)
+STATE_NAMES = ("supply_pressure",)
 STATE_SCALES = ("pressure",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True

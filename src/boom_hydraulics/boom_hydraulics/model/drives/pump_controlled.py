@@ -28,7 +28,7 @@ from .constants import DriveConstants, Supply, pump_point
 Num = Any  # float or numpy.ndarray
 
 #: The drive's one state: the motor's (and pump's) speed, rad/s.
-STATE_NAMES = ("drive_state",)
+STATE_NAMES = ("motor_speed",)
 STATE_SCALES = ("angular_velocity",)
 #: The drive feeds the chambers without the 4/3 valve.
 VALVE = False
