@@ -1,0 +1,132 @@
+"""The answer's sweep (docs/drives.md) in this checkout against an earlier one: steps per second per design.
+
+    tools/with-env python bench/bench_answer.py --against CHECKOUT [--rounds 3] [--operators 5]
+
+Runs boom-sweep over the loader cycle, start to finish (planning, the compiled kernel, the
+table; no plots), in each checkout's own environment, the checkouts in turn in each round:
+
+- *today's answer*: the drives both checkouts know, with their defaults, in both;
+- *the new answer*: every drive of this checkout with the settings docs/drives.md answers
+  with (:data:`AS_BUILT`), in this checkout alone, set against the other checkout's
+  today's answer.
+
+A design's rate is its simulated steps (of dt) per second of wall time; the ratio is this
+checkout's over the other's (1.0: as fast; the target for the new answer is at least 1/1.3).
+Each checkout's kernels are compiled before the first round. Prints a table and writes it
+to bench/results/answer-<date-time>.md; nothing is asserted (these machines are shared).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+from bench_node import checkout_path, with_env
+from tables import ROOT, commit, table, write_results
+
+#: The drives every checkout since the four drives' commit knows, in the README's order.
+TODAYS_DRIVES = ("pressure_compensated", "fixed_pump", "load_sensing", "pump_controlled")
+CYLINDERS = "piston_diameter=0.032:0.1:10"
+DURATION_S = 24.0
+DT_S = 1e-3
+
+
+def drives_of(checkout: Path) -> tuple[str, ...]:
+    """The drives ``checkout`` registers (parameters.DRIVES)."""
+    script = "from boom_hydraulics.model.parameters import DRIVES; print(','.join(DRIVES))"
+    out = subprocess.run([*with_env(checkout), "python", "-c", script], cwd=checkout, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"{checkout}: {out.stderr.strip().splitlines()[-1:]}")
+    return tuple(out.stdout.strip().split(","))
+
+
+#: The settings the new answer sweeps with (docs/drives.md, "The sweep"), as --set arguments.
+AS_BUILT: tuple[str, ...] = ()
+
+
+def sweep_s(checkout: Path, drives: tuple[str, ...], operators: int, settings: tuple[str, ...] = ()) -> float:
+    """Seconds of one boom-sweep in ``checkout`` (its environment), start to finish."""
+    with tempfile.TemporaryDirectory(prefix="bench-answer-") as folder:
+        args = [*with_env(checkout), "boom-sweep", "--config", str(checkout / "config" / "default.yaml")]
+        args += ["--scenario", "loader", "--operators", str(operators), "--duration", f"{DURATION_S:g}"]
+        args += ["--vary", f"drive={','.join(drives)}", "--vary", CYLINDERS, "--across", "operator"]
+        for setting in settings:
+            args += ["--set", setting]
+        args += ["--out", str(Path(folder) / "s"), "--no-plots", "--no-progress"]
+        t0 = time.perf_counter()
+        out = subprocess.run(args, cwd=checkout, capture_output=True, text=True)
+        seconds = time.perf_counter() - t0
+    if out.returncode != 0:
+        raise RuntimeError(f"boom-sweep in {checkout} failed: {out.stderr.strip().splitlines()[-1:]}")
+    return seconds
+
+
+def designs(drives: tuple[str, ...], operators: int) -> int:
+    return len(drives) * int(CYLINDERS.rsplit(":", 1)[1]) * operators
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", type=checkout_path, required=True, help="a built checkout to compare with")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds, each checkout once per round (3)")
+    parser.add_argument("--operators", type=int, default=5, help="operators' cycles per design (5)")
+    args = parser.parse_args()
+    if args.rounds < 1 or args.operators < 1:
+        parser.error("--rounds and --operators must be at least 1")
+    ours = drives_of(ROOT)
+    steps = DURATION_S / DT_S
+    runs = {
+        "today": (TODAYS_DRIVES, ()),
+        "new": (ours, AS_BUILT),
+    }
+    # compile each checkout's kernels first (a sweep of one design each)
+    for checkout in (ROOT, args.against):
+        sweep_s(checkout, TODAYS_DRIVES[:1], 1)
+    rates: dict[tuple[str, Path], list[float]] = {("today", ROOT): [], ("today", args.against): [], ("new", ROOT): []}
+    for n in range(args.rounds):
+        for (name, checkout), values in rates.items():
+            drives, settings = runs[name]
+            seconds = sweep_s(checkout, drives, args.operators, settings)
+            values.append(designs(drives, args.operators) * steps / seconds / 1e6)
+            print(f"round {n + 1}/{args.rounds}, {name} in {commit(checkout)}: {values[-1]:.3f} M steps/s", flush=True)
+    other = statistics.median(rates[("today", args.against)])
+
+    def row(what: str, values: list[float]) -> list[str]:
+        return [
+            what,
+            f"{statistics.median(values):.3f} ({min(values):.3f}-{max(values):.3f})",
+            f"{statistics.median(values) / other:.2f}",
+        ]
+
+    header = [
+        "sweep",
+        "M steps of dt per second, median (smallest-largest)",
+        f"ratio to {commit(args.against)}'s today's",
+    ]
+    rows = [
+        row(
+            f"today's answer ({len(TODAYS_DRIVES)} drives), {commit(args.against)} ({args.against.name})",
+            rates[("today", args.against)],
+        ),
+        row(f"today's answer ({len(TODAYS_DRIVES)} drives), {commit()} (this)", rates[("today", ROOT)]),
+        row(
+            f"the new answer ({len(ours)} drives, {' '.join(AS_BUILT) or 'defaults'}), {commit()}", rates[("new", ROOT)]
+        ),
+    ]
+    title = (
+        f"The answer's sweep: loader cycles of {DURATION_S:g} s at dt {DT_S * 1e3:g} ms, {args.operators} operators x "
+        f"{CYLINDERS}, median of {args.rounds} rounds taken in turn ({os.cpu_count()} cores)"
+    )
+    text = table(title, header, rows)
+    path = write_results("answer", text, f"commits: {commit()} (this) against {commit(args.against)}")
+    print(f"written to {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
