@@ -137,24 +137,24 @@ def test_shares_beyond_the_rated_loss_are_refused_in_one_line():
     with_updates(P, inverter_standby_power_w=0.39 * rated_loss)  # within it
 
 
-def _at_rest(drive: str, auxiliary_w: float, duration_s: float) -> tuple[dict[str, float], float]:
-    """The ledger's energies (J) of ``duration_s`` with the valve (or the EHA's command) at 0,
-    without the battery's resistance, so that the battery's energy is the terminals'; and the
-    simulated time."""
+def _run(params: Parameters, scenario: str, duration_s: float) -> tuple[dict[str, float], float]:
+    """The ledger's energies (J) of a run of ``scenario``, and the simulated time."""
     from boom_hydraulics.solve import commands
     from boom_hydraulics.solve.simulator import Simulator
 
-    params = with_updates(
-        P,
-        drive=drive,
-        auxiliary_power_w=auxiliary_w,
-        battery_resistance_ohm=0.0,
-        **commands.scenario("constant:0", duration_s),
-    )
+    params = with_updates(params, **commands.scenario(scenario, duration_s))
     sim = Simulator(params)
     sim.run(duration_s, commands.from_parameters(params), every=500)
     integrals = dict(zip(ledger.INTEGRALS, list(sim.y)[physical.LEDGER_STATES :], strict=True))
     return ledger.energies_of(integrals), sim.t
+
+
+def _at_rest(drive: str, auxiliary_w: float, duration_s: float) -> tuple[dict[str, float], float]:
+    """The ledger's energies (J) of ``duration_s`` with the valve (or the EHA's command) at 0,
+    without the battery's resistance, so that the battery's energy is the terminals'; and the
+    simulated time."""
+    params = with_updates(P, drive=drive, auxiliary_power_w=auxiliary_w, battery_resistance_ohm=0.0)
+    return _run(params, "constant:0", duration_s)
 
 
 @pytest.mark.parametrize("drive", list(DRIVES))
@@ -175,6 +175,20 @@ def test_the_auxiliary_power_adds_its_energy_to_the_battery_and_the_standby_term
         if name not in ("battery_power", "standby_loss"):
             assert with_aux[name] == pytest.approx(without[name], rel=1e-9, abs=1e-9), name
     assert with_aux["imbalance_ratio"] < 0.005, with_aux
+
+
+@pytest.mark.parametrize("drive", list(DRIVES))
+def test_with_every_loss_term_on_a_lift_and_lower_balances_and_books_both_standbys(drive):
+    """The 48 V overlay over make run's cycle (lift, hold, lower, hold): the ledger closes, the
+    standby term holds at least the inverter's and the auxiliaries' draw over the run, and the
+    motor loss is that of the overlay, not of the defaults."""
+    overlay = with_updates(config.load(OVERLAY), drive=drive)
+    energies, t = _run(overlay, "cycle", 9.0)
+    assert energies["imbalance_ratio"] < 0.005, energies
+    fixed = overlay.inverter_standby_power_w + overlay.auxiliary_power_w
+    assert energies["standby_loss"] >= fixed * t * (1.0 - 1e-9)
+    defaults, _ = _run(with_updates(P, drive=drive), "cycle", 9.0)
+    assert energies["motor_loss"] != pytest.approx(defaults["motor_loss"], rel=1e-3)
 
 
 numba = pytest.importorskip("numba")
