@@ -385,8 +385,8 @@ class Parameters:
     motor_copper_loss_fraction: float = _drive(
         0.6,
         "",
-        "Share of the motor's and inverter's rated loss that grows with the torque squared (copper); the rest "
-        "grows with the speed (iron, switching) (eq. D6)",
+        "Share of the motor's and inverter's rated loss that grows with the torque squared (copper, conduction); "
+        "the rest, less the shares and standby below, grows with the speed (hysteresis, friction) (eq. D6)",
         low=0.0,
         low_inclusive=True,
         high=1.0,
