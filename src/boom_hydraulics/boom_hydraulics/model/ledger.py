@@ -37,7 +37,7 @@ from typing import Any, NamedTuple
 from ..jit import jitable
 from .battery import battery_current_a, battery_loss_w, chemical_power_w, overloaded, state_of_charge_rate_1_s
 from .drives.constants import DriveConstants, Supply
-from .electric_motor import electrical_power_w, motor_loss_w
+from .electric_motor import MotorLosses, machine_loss_w
 from .hydraulics import pos
 
 Num = Any  # float or numpy.ndarray
@@ -112,6 +112,7 @@ class Chain(NamedTuple):
     pump_mechanical_loss: Num  # W (eq. D3)
     hydraulic_power: Num  # dp Q at the pump's outlet, W
     overloaded: Num  # 1.0 where the battery cannot give the power asked (eq. D11)
+    standby_loss: Num  # the drive's standby, the inverter's and the auxiliaries', W (eq. D5)
 
 
 class Cylinder(NamedTuple):
@@ -131,13 +132,20 @@ class Cylinder(NamedTuple):
 def electric_chain(s: Supply, d: DriveConstants, xp: ModuleType = math) -> Chain:
     """The drive's motor at its operating point ``s`` through the inverter to the battery
     (eq. D26): U I = R I^2 + P_m + P_sb + T w, the shaft power T w being the pump's
-    (P_v + P_hm + dp Q) and its rotors' (dT_rot/dt)."""
-    electrical = electrical_power_w(s.torque, s.speed, d.motor_copper, d.motor_iron) + s.standby_loss  # eq. D5
+    (P_v + P_hm + dp Q) and its rotors' (dT_rot/dt). The motor's and inverter's loss P_m is
+    one function of the torque and speed for every drive (eq. D6); the standby P_sb is the
+    drive's own (``s.standby_loss``), the enabled inverter's P_0 and the auxiliaries' P_aux,
+    drawn while the machine is on, whatever its load (eq. D5)."""
+    m = MotorLosses(d.motor_copper, d.motor_iron, d.motor_current, d.motor_eddy, d.motor_windage, d.inverter_standby)
+    shaft = s.torque * s.speed
+    loss = machine_loss_w(s.torque, s.speed, m)  # eq. D6
+    standby = s.standby_loss + d.inverter_standby + d.auxiliary_power
+    electrical = shaft + loss + standby  # eq. D5
     current = battery_current_a(electrical, d.battery_voltage, d.battery_resistance, xp)  # eq. D8
     return Chain(
         s.torque,
-        s.torque * s.speed,
-        motor_loss_w(s.torque, s.speed, d.motor_copper, d.motor_iron),  # eq. D6
+        shaft,
+        loss,
         electrical,
         current,
         battery_loss_w(current, d.battery_resistance),  # eq. D9
@@ -147,6 +155,7 @@ def electric_chain(s: Supply, d: DriveConstants, xp: ModuleType = math) -> Chain
         s.mechanical_loss,  # eq. D3
         s.hydraulic_power,
         overloaded(electrical, d.battery_voltage, d.battery_resistance),  # eq. D11
+        standby,
     )
 
 
@@ -208,7 +217,7 @@ def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
         s.reservoir_power,
         chain.battery_loss,
         chain.motor_loss,
-        s.standby_loss,
+        chain.standby_loss,
         chain.pump_volumetric_loss,
         chain.pump_mechanical_loss,
         s.main_relief_loss,

@@ -385,11 +385,59 @@ class Parameters:
     motor_copper_loss_fraction: float = _drive(
         0.6,
         "",
-        "Share of the motor's and inverter's rated loss that grows with the torque squared (copper); the rest "
-        "grows with the speed (iron, switching) (eq. D6)",
+        "Share of the motor's and inverter's rated loss that grows with the torque squared (copper, conduction); "
+        "the rest, less the shares and standby below, grows with the speed (hysteresis, friction) (eq. D6)",
         low=0.0,
         low_inclusive=True,
         high=1.0,
+    )
+    # motor and inverter losses, auxiliary power (docs/model.md, "Electric motor and inverter"; eq. D5, D6):
+    # further shares of the rated loss, taken from the speed share (1 - motor_copper_loss_fraction); 0: off
+    motor_switching_loss_fraction: float = _drive(
+        0.0,
+        "",
+        "Share of the rated loss that grows with |torque|, as the current: the inverter's switching and its "
+        "devices' threshold voltage (MOSFET/IGBT datasheet E_on + E_off per ampere; docs/model.md) (eq. D6)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
+    motor_eddy_loss_fraction: float = _drive(
+        0.0,
+        "",
+        "Share of the rated loss that grows with the speed squared: eddy currents in the laminations "
+        "(Steinmetz/Bertotti iron loss, Pyrhonen et al., Design of Rotating Electrical Machines) (eq. D6)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
+    motor_windage_loss_fraction: float = _drive(
+        0.0,
+        "",
+        "Share of the rated loss that grows with the speed cubed: windage (and fan) (Larminie and Lowry, "
+        "Electric Vehicle Technology Explained, loss model k_c T^2 + k_i w + k_w w^3 + C) (eq. D6)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
+    inverter_standby_power_w: float = _drive(
+        0.0,
+        "W",
+        "The enabled inverter's constant draw (gate drivers, logic, current sensors), part of the rated loss of "
+        "motor_efficiency; booked as standby_loss (eq. D5, D6)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e5,
+    )
+    auxiliary_power_w: float = _drive(
+        0.0,
+        "W",
+        "The machine's auxiliaries drawn from the battery while it is on, whatever the drive and load: "
+        "controller, cooling fan, display, contactor coils (typical: tens of watts, docs/model.md); booked "
+        "as standby_loss (eq. D5)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e5,
     )
     motor_time_constant_s: float = _drive(
         0.05,
@@ -671,7 +719,22 @@ def _refuse_value(name: str, v: float) -> None:
 
 def _check_cross_fields(p: Parameters) -> None:
     _check_plant(p)
+    _check_motor_losses(p)
     _check_scenario(p)
+
+
+def _check_motor_losses(p: Parameters) -> None:
+    """The shares of the motor's rated loss leave hysteresis and friction a share >= 0 (eq. D6)."""
+    rated_loss = p.motor_rated_torque_n_m * p.pump_speed_rad_s * (1.0 / p.motor_efficiency - 1.0)
+    shares = p.motor_copper_loss_fraction + p.motor_switching_loss_fraction
+    shares += p.motor_eddy_loss_fraction + p.motor_windage_loss_fraction
+    if shares * rated_loss + p.inverter_standby_power_w > (1.0 + 1e-12) * rated_loss:
+        raise ConfigError(
+            f"the motor's loss shares (motor_copper_loss_fraction, motor_switching_loss_fraction, "
+            f"motor_eddy_loss_fraction, motor_windage_loss_fraction: {shares:.4g} together) and "
+            f"inverter_standby_power_w ({p.inverter_standby_power_w} W of the rated loss {rated_loss:.4g} W) "
+            "exceed the rated loss that motor_efficiency gives; lower them or motor_efficiency"
+        )
 
 
 #: Why a plant's parameters do not fit together: one line per check of :func:`plant_fault`,

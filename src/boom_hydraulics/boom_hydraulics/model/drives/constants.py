@@ -60,6 +60,12 @@ class DriveConstants(NamedTuple):
     p_reservoir: Num  # EHA low-pressure reservoir, Pa
     k_check: Num  # K of a pilot-operated check, m^3/(s Pa^0.5)
     pilot_full: Num  # pilot pressure above the reservoir's that opens a check fully, Pa
+    # motor and inverter losses, auxiliary power
+    motor_current: Num  # k_i: inverter switching, W/(N m) (eq. D6)
+    motor_eddy: Num  # k_e: eddy currents, W/(rad/s)^2 (eq. D6)
+    motor_windage: Num  # k_w: windage, W/(rad/s)^3 (eq. D6)
+    inverter_standby: Num  # P_0: the enabled inverter's standby, W (eq. D5)
+    auxiliary_power: Num  # P_aux: the machine's auxiliaries while it is on, W (eq. D5)
 
 
 @jitable
@@ -75,9 +81,11 @@ def drive_index(name: str) -> float:
 @jitable
 def constants(p: Parameters) -> DriveConstants:
     """The drive constants of one parameter set (compiled code calls it too: the native FMU)."""
-    copper, iron = electric_motor.loss_coefficients(
-        p.motor_rated_torque_n_m, p.pump_speed_rad_s, p.motor_efficiency, p.motor_copper_loss_fraction
-    )
+    motor = electric_motor.loss_coefficients(
+        p.motor_rated_torque_n_m, p.pump_speed_rad_s, p.motor_efficiency, p.motor_copper_loss_fraction,
+        p.motor_switching_loss_fraction, p.motor_eddy_loss_fraction, p.motor_windage_loss_fraction,
+        p.inverter_standby_power_w,
+    )  # fmt: skip
     lag = 1.0 if p.motor_time_constant_s > 0.0 else 0.0
     inv_tau = lag / p.motor_time_constant_s if lag else 0.0  # here: numba compiles no keyword argument that branches
     holding = 1.0 if p.load_holding_valve == "piston_side" else 0.0
@@ -101,8 +109,8 @@ def constants(p: Parameters) -> DriveConstants:
             p.pump_volumetric_efficiency, p.pump_max_flow_m3_s, p.supply_pressure_pa - p.tank_pressure_pa
         ),
         torque_loss=pump.torque_loss_ratio(p.pump_hydromechanical_efficiency),
-        motor_copper=copper,
-        motor_iron=iron,
+        motor_copper=motor.copper,
+        motor_iron=motor.iron,
         motor_lag=lag,
         motor_inv_tau=inv_tau,
         battery_voltage=p.battery_voltage_v,
@@ -115,6 +123,12 @@ def constants(p: Parameters) -> DriveConstants:
         p_reservoir=p.reservoir_pressure_pa,
         k_check=orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.pilot_check_diameter_m), p.density_kg_m3),
         pilot_full=p.pilot_check_opening_pa,
+        # motor and inverter losses, auxiliary power
+        motor_current=motor.current,
+        motor_eddy=motor.eddy,
+        motor_windage=motor.windage,
+        inverter_standby=motor.standby,
+        auxiliary_power=p.auxiliary_power_w,
     )
 
 
