@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 from ...jit import jitable
 from .. import electric_motor, pump
 from ..battery import J_PER_KWH
-from ..geometry import piston_area_m2
+from ..geometry import annulus_area_m2, piston_area_m2
 from ..hydraulics import orifice_coefficient
 from ..parameters import DRIVES, Parameters
 
@@ -60,6 +60,19 @@ class DriveConstants(NamedTuple):
     p_reservoir: Num  # EHA low-pressure reservoir, Pa
     k_check: Num  # K of a pilot-operated check, m^3/(s Pa^0.5)
     pilot_full: Num  # pilot pressure above the reservoir's that opens a check fully, Pa
+    # electro_mechanical (docs/model.md, "Drives", eq. D30-D36)
+    ema_ratio: Num  # r = l / (2 pi N): rod travel per motor radian, m/rad (eq. D30)
+    ema_friction_mean: Num  # m = (1/eta_f - eta_b) / 2 of the gearing and screw (eq. D32)
+    ema_friction_skew: Num  # d = (1/eta_f + eta_b) / 2 - 1 (eq. D32)
+    ema_stiffness: Num  # k_s, N/m (eq. D31)
+    ema_damping: Num  # c_s, N s/m (eq. D31)
+    ema_inertia: Num  # J_m, kg m^2 (eq. D33)
+    ema_torque_limit: Num  # T_max, N m (eq. D34)
+    ema_speed_gain: Num  # K_w = J_m w_c, N m s/rad (eq. D34)
+    ema_brake_torque: Num  # T_b, N m (eq. D35)
+    ema_brake_threshold: Num  # u_b: |u| below which the brake engages (eq. D35)
+    ema_piston_area: Num  # S1, m^2: the chambers breathe (eq. D36)
+    ema_annulus_area: Num  # S2, m^2
 
 
 @jitable
@@ -115,6 +128,19 @@ def constants(p: Parameters) -> DriveConstants:
         p_reservoir=p.reservoir_pressure_pa,
         k_check=orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.pilot_check_diameter_m), p.density_kg_m3),
         pilot_full=p.pilot_check_opening_pa,
+        # electro_mechanical (eq. D30-D36)
+        ema_ratio=p.ema_screw_lead_m / (2.0 * math.pi * p.ema_gear_ratio),
+        ema_friction_mean=0.5 * (1.0 / p.ema_forward_efficiency - p.ema_backdrive_efficiency),
+        ema_friction_skew=0.5 * (1.0 / p.ema_forward_efficiency + p.ema_backdrive_efficiency) - 1.0,
+        ema_stiffness=p.ema_screw_stiffness_n_m,
+        ema_damping=p.ema_screw_damping_n_s_m,
+        ema_inertia=p.ema_inertia_kg_m2,
+        ema_torque_limit=p.ema_torque_limit_n_m,
+        ema_speed_gain=p.ema_inertia_kg_m2 * p.ema_speed_bandwidth_rad_s,
+        ema_brake_torque=p.ema_brake_torque_n_m,
+        ema_brake_threshold=p.ema_brake_threshold,
+        ema_piston_area=piston_area_m2(p.piston_diameter_m),
+        ema_annulus_area=annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m),
     )
 
 
