@@ -51,6 +51,10 @@ CYLINDER_OIL = False
 #: 0.13 mm at the rod with the defaults, and keeps the bristle's relaxation |w| / this, at full
 #: speed, near the seals' (3 kHz: stepping's stability bound).
 PRESLIDING_RAD = 0.05
+#: The bristle's damping: the friction's and the brake's torque grow by this time their slope in
+#: s times s' (LuGre's sigma_1), s: it damps the rotor's presliding on them (ratio about 0.5 at
+#: the brake's and the screw's holding torque with the defaults), dissipative in every state.
+PRESLIDING_DAMPING_S = 3.0e-3
 
 
 @jitable
@@ -84,10 +88,10 @@ def load_torque_n_m(force_n: Num, bristle: Num, d: DriveConstants) -> Num:
 
 @jitable
 def motor_torque_n_m(w: Num, u: Num, d: DriveConstants, xp: ModuleType = math) -> Num:
-    """T_m = (1 - b) T_max tanh(K_w (u w_max - w) / T_max): the speed controller with its torque
-    limit, faded out as the brake engages, N m (eq. D34, D35)."""
-    wanted = d.ema_speed_gain * (u * d.speed - w)
-    return (1.0 - brake_engagement(u, d)) * d.ema_torque_limit * xp.tanh(wanted / d.ema_torque_limit)
+    """T_m = (1 - b) T_max x / sqrt(1 + x^2), x = K_w (u w_max - w) / T_max: the speed controller
+    with its torque limit (a smooth saturation), faded out as the brake engages, N m (eq. D34, D35)."""
+    x = d.ema_speed_gain * (u * d.speed - w) / d.ema_torque_limit
+    return (1.0 - brake_engagement(u, d)) * d.ema_torque_limit * x / xp.sqrt(1.0 + x * x)
 
 
 @jitable
@@ -104,11 +108,13 @@ def supply(
     slip = d.ema_ratio * w - v  # the nut's velocity less the rod's (eq. D30)
     force = rod_force_n(z, v, d)
     load = load_torque_n_m(force, s, d)
-    brake = brake_engagement(u, d) * d.ema_brake_torque * s  # eq. D35
+    engaged = brake_engagement(u, d) * d.ema_brake_torque
+    s_rate = (w - abs(w) * s) / PRESLIDING_RAD  # eq. D32
+    # the brake, and the bristle's damping on the friction's and the brake's slope in s (eq. D35)
+    brake = engaged * s + PRESLIDING_DAMPING_S * (d.ema_ratio * d.ema_friction_mean * abs(force) + engaged) * s_rate
     torque = motor_torque_n_m(w, u, d, xp)
     w_rate = (torque - load - brake) / d.ema_inertia  # eq. D33
     f_rate = d.ema_stiffness * slip  # eq. D31
-    s_rate = (w - abs(w) * s) / PRESLIDING_RAD  # eq. D32
     # T w = J w w' + F_k F_k' / k_s + (the friction's and the brake's (T_L - r F + T_b) w + c_s slip^2) + F v
     friction_loss = (load - d.ema_ratio * force + brake) * w + d.ema_damping * slip * slip
     stored = d.ema_inertia * w * w_rate + f_k * f_rate / d.ema_stiffness
@@ -149,7 +155,8 @@ def stiffness(
     r2 = d.ema_ratio * d.ema_ratio
     level = d.ema_brake_torque + d.ema_ratio * (abs(d.ema_friction_mean) + abs(d.ema_friction_skew)) * abs(z[0])
     spring = xp.sqrt((d.ema_stiffness * r2 + level / PRESLIDING_RAD) / d.ema_inertia)
+    damping = (d.ema_damping * r2 + PRESLIDING_DAMPING_S * level / PRESLIDING_RAD) / d.ema_inertia
     speed = abs(z[1]) + abs(u) * d.speed
-    own = d.ema_speed_gain / d.ema_inertia + spring + d.ema_damping * r2 / d.ema_inertia + speed / PRESLIDING_RAD
+    own = d.ema_speed_gain / d.ema_inertia + spring + damping + speed / PRESLIDING_RAD
     zero = 0.0 * own
     return zero, zero, own
