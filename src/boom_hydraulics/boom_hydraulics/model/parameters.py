@@ -532,7 +532,7 @@ class Parameters:
         "rad/s",
         "electro_mechanical: the speed controller's gain over the motor's inertia, K_w = J_m times this (a servo "
         "inverter's speed loop of some 160 Hz on the rotor alone; the gain makes the speed droop under the "
-        "holding torque about 1 % of pump_speed_rad_s) (eq. D34)",
+        "holding torque about 2 % of pump_speed_rad_s) (eq. D34)",
         low=0.0,
         high=1.0e5,
     )
