@@ -14,6 +14,7 @@ from conftest import CONFIG, run_tool
 from scipy.optimize import brentq
 
 from boom_hydraulics.analysis.labels import drive_words
+from boom_hydraulics.errors import ConfigError
 from boom_hydraulics.model import config, ledger, physical
 from boom_hydraulics.model.drives import DRIVES, electro_mechanical, holds_oil
 from boom_hydraulics.model.geometry import annulus_area_m2, boom_angle_rad, piston_area_m2, static_rod_force_of
@@ -68,6 +69,8 @@ def _supply(y: list[float], u: float, c: physical.Constants = C):
 def test_the_ema_is_a_registered_drive_with_its_words_and_sourced_parameters_listed_in_the_shipped_file():
     assert DRIVES["electro_mechanical"] is electro_mechanical and "electro_mechanical" in DRIVE_NAMES
     assert drive_words("electro_mechanical") == "electro-mechanical actuator"
+    with pytest.raises(ConfigError, match=r"drive 'electro_mechanical' needs physical mode"):
+        from_mapping({"drive": "electro_mechanical", "mode": "paper"})
     assert not electro_mechanical.VALVE and not holds_oil("electro_mechanical") and holds_oil("pump_controlled")
     shipped = config.read_values(CONFIG / "default.yaml")
     assert len(EMA_PARAMETERS) == 11
@@ -177,6 +180,22 @@ def test_a_self_locking_screw_holds_its_load_without_brake_or_torque_where_a_bal
     assert out["battery_drawn"][-1] - out["battery_drawn"][25] < 1e-4
     _, fell, p = _run(0.5, ema_brake_torque_n_m=0.0)
     assert fell[0] < p.initial_length_m - 0.02
+
+
+def test_against_the_end_stop_the_motor_stalls_at_its_torque_limit():
+    """Full command into the upper stop: the motor stands at its torque limit, the screw pushes
+    with T_max / r (at rest the bristle is near zero), and the battery gives the copper loss."""
+    _, y, p = _run(1.5, command_value=1.0)
+    assert y[0] >= p.cylinder_max_length_m and abs(y[1]) < 1e-4
+    force = _supply(y, 1.0).force
+    assert force == pytest.approx(p.ema_torque_limit_n_m / R, rel=0.02)
+    copper, _ = _motor_losses(p)
+    torque = _supply(y, 1.0).torque
+    x = p.ema_inertia_kg_m2 * p.ema_speed_bandwidth_rad_s * p.pump_speed_rad_s / p.ema_torque_limit_n_m
+    assert torque == pytest.approx(p.ema_torque_limit_n_m * x / math.sqrt(1.0 + x * x), rel=1e-6)  # eq. D34
+    assert physical.ledger(0.0, y, C, 1.0).battery_power == pytest.approx(
+        _battery_power(copper * torque**2, p), rel=1e-3
+    )
 
 
 # --- the energy ledger -------------------------------------------------------------------
