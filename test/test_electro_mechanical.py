@@ -219,6 +219,8 @@ def test_the_ledger_closes_at_every_state_and_the_stored_energy_changes_as_its_r
         terms = physical.ledger(0.0, y, c, u)
         scale = sum(abs(v) for v in terms)
         assert abs(ledger.residual_w(terms)) <= 1e-9 * scale, (y, u, terms)
+        losses = [v for (_, _, kind, _), v in zip(ledger.TERMS, terms, strict=True) if kind == "loss"]
+        assert min(losses) >= -1e-9 * scale, (y, u, terms)  # every loss takes, none gives
         rate = physical.derivative(0.0, y, c, u)
         h = 1e-7
         ahead = physical.energy([a + h * b for a, b in zip(y, rate)], c)

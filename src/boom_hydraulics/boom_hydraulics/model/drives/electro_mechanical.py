@@ -111,13 +111,17 @@ def supply(
     engaged = brake_engagement(u, d) * d.ema_brake_torque
     s_rate = (w - abs(w) * s) / PRESLIDING_RAD  # eq. D32
     # the brake, and the bristle's damping on the friction's and the brake's slope in s (eq. D35)
-    brake = engaged * s + PRESLIDING_DAMPING_S * (d.ema_ratio * d.ema_friction_mean * abs(force) + engaged) * s_rate
+    damping = PRESLIDING_DAMPING_S * (d.ema_ratio * d.ema_friction_mean * abs(force) + engaged) * s_rate
+    brake = engaged * s + damping
     torque = motor_torque_n_m(w, u, d, xp)
     w_rate = (torque - load - brake) / d.ema_inertia  # eq. D33
     f_rate = d.ema_stiffness * slip  # eq. D31
-    # T w = J w w' + F_k F_k' / k_s + (the friction's and the brake's (T_L - r F + T_b) w + c_s slip^2) + F v
-    friction_loss = (load - d.ema_ratio * force + brake) * w + d.ema_damping * slip * slip
-    stored = d.ema_inertia * w * w_rate + f_k * f_rate / d.ema_stiffness
+    # T w = J w w' + F_k F_k' / k_s + (T_L - r F + T_B) w + c_s slip^2 + F v, where the bristle's torque
+    # (T_L - r F + b T_b s = L s, its level L >= 0) times w = theta s' + |w| s is its elastic power
+    # L s theta s' and its dissipation L s^2 |w| >= 0 (LuGre), and the bristle's damping dissipates
+    bristle = load - d.ema_ratio * force + engaged * s
+    friction_loss = bristle * s * abs(w) + damping * w + d.ema_damping * slip * slip
+    stored = d.ema_inertia * w * w_rate + f_k * f_rate / d.ema_stiffness + bristle * PRESLIDING_RAD * s_rate
     q_a = d.ema_piston_area * v  # eq. D36: the housing breathes
     q_b = -d.ema_annulus_area * v
     lines = (p1_pa - d.p_tank) * q_a + (p2_pa - d.p_tank) * q_b  # zero at tank pressure
