@@ -10,7 +10,9 @@ for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
 - ``energy(z, d, xp)`` and ``energy_rate(z, s, d)``: what it stores beside the chambers;
 - ``stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)``: how stiffly it holds the lines, and
   its own fastest rate (stepping's stability bound);
-- ``VALVE``: whether it feeds the chambers through the 4/3 valve.
+- ``VALVE``: whether it feeds the chambers through the 4/3 valve;
+- ``CYLINDER_OIL`` (optional, True if absent): whether its cylinder holds oil; a drive without
+  (electro_mechanical) keeps the chambers at tank pressure, where :func:`holds_oil` starts them.
 
 :data:`DRIVES` registers them; the functions below call the set's drive (compiled code picks
 no function from a dict of modules, so each names the registered drives once, in order).
