@@ -47,6 +47,8 @@ DRIVE_NAMES: dict[str, str] = {
     "fixed_pump": "a fixed pump at constant speed into a supply line with a main relief at p_n (the paper's Fig. 6)",
     "load_sensing": "a variable pump at the fed port's pressure plus a margin, with its own lag",
     "pump_controlled": "a variable-speed motor and a bidirectional pump on the two chambers (EHA), regenerating",
+    "electro_mechanical": "a variable-speed motor, a gearing and a ball screw in place of the oil (EMA), with a "
+    "holding brake, regenerating",
 }
 DRIVES = tuple(DRIVE_NAMES)
 #: The drives the solvers run. The others are model elements (model/drives/) that the run
@@ -345,7 +347,8 @@ class Parameters:
         "pressure_compensated",
         "",
         "Drive that feeds the cylinder: pressure_compensated (the reference), fixed_pump (the paper's "
-        "circuit, main relief at supply_pressure_pa), load_sensing or pump_controlled (EHA); physical mode",
+        "circuit, main relief at supply_pressure_pa), load_sensing, pump_controlled (EHA) or electro_mechanical "
+        "(EMA: motor, gearing and ball screw); physical mode",
         choices=DRIVES,
         start_only=True,
     )
@@ -502,6 +505,101 @@ class Parameters:
         "fully open (eq. D22)",
         low=0.0,
         high=1.0e8,
+    )
+    # --- electro-mechanical actuator (electro_mechanical; docs/model.md, "Drives", eq. D30-D36)
+    ema_screw_lead_m: float = _drive(
+        0.032,
+        "m",
+        "electro_mechanical: the ball screw's lead, rod travel per screw turn (a 32x32 ball screw: SKF/Ewellix "
+        "and THK catalogues list 32 mm leads on 32 mm shafts) (eq. D30)",
+        low=0.0,
+        high=1.0,
+    )
+    ema_gear_ratio: float = _drive(
+        2.0,
+        "",
+        "electro_mechanical: motor turns per screw turn of the gearing (a 2:1 toothed belt); with the lead it "
+        "gives the valve drives' top rod speed, pump_max_flow_m3_s over the piston area, at pump_speed_rad_s "
+        "(eq. D30)",
+        low=0.0,
+        high=1000.0,
+    )
+    ema_forward_efficiency: float = _drive(
+        0.87,
+        "",
+        "electro_mechanical: gearing and screw together when the motor drives the load: a ball screw's 0.9 "
+        "(THK, SKF catalogues: eta = tan(lead angle) / tan(lead angle + friction angle)) times a toothed "
+        "belt's 0.97 (eq. D32)",
+        low=0.0,
+        high=1.0,
+    )
+    ema_backdrive_efficiency: float = _drive(
+        0.78,
+        "",
+        "electro_mechanical: gearing and screw together when the load drives the motor (lowering): a ball "
+        "screw's 0.8 (THK, SKF: tan(lead angle - friction angle) / tan(lead angle)) times the belt's 0.97; "
+        "<= 0: a self-locking (trapezoidal) screw the load cannot drive (eq. D32)",
+        low=-1.0,
+        high=1.0,
+    )
+    ema_screw_stiffness_n_m: float = _drive(
+        1.0e8,
+        "N/m",
+        "electro_mechanical: axial stiffness from the nut to the rod: a 32 mm screw shaft E A / L over 0.7 m "
+        "(1.7e8), nut and thrust bearing (about 1e9 each, SKF/THK catalogues) and mounts in series (eq. D31)",
+        low=0.0,
+        high=1.0e11,
+    )
+    ema_screw_damping_n_s_m: float = _drive(
+        3.0e4,
+        "N s/m",
+        "electro_mechanical: damping of that compliance: a structural damping ratio of about 0.05 (steel "
+        "assemblies, 0.02-0.05) of the nut's mode on the motor's reflected inertia (eq. D31)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e8,
+    )
+    ema_inertia_kg_m2: float = _drive(
+        5.0e-3,
+        "kg m^2",
+        "electro_mechanical: the motor's rotor with the gearing and the screw reflected to it (a 48 V PMSM of "
+        "the 60 N m class, a few 1e-3 kg m^2; the screw's 6e-4 over the ratio squared) (eq. D33)",
+        low=0.0,
+        high=10.0,
+    )
+    ema_torque_limit_n_m: float = _drive(
+        60.0,
+        "N m",
+        "electro_mechanical: the inverter's torque (current) limit of the speed controller; against an end stop "
+        "the motor stalls at it (eq. D34)",
+        low=0.0,
+        high=1.0e5,
+    )
+    ema_speed_bandwidth_rad_s: float = _drive(
+        1000.0,
+        "rad/s",
+        "electro_mechanical: the speed controller's gain over the motor's inertia, K_w = J_m times this (a servo "
+        "inverter's speed loop of some 160 Hz on the rotor alone; the gain makes the speed droop under the "
+        "holding torque about 2 % of pump_speed_rad_s) (eq. D34)",
+        low=0.0,
+        high=1.0e5,
+    )
+    ema_brake_torque_n_m: float = _drive(
+        32.0,
+        "N m",
+        "electro_mechanical: holding torque of the spring-applied motor brake (a 32 N m size of the usual "
+        "4-8-16-32-60 N m series); 0: no brake (eq. D35)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e5,
+    )
+    ema_brake_threshold: float = _drive(
+        0.02,
+        "",
+        "electro_mechanical: command |u| below which the brake engages and the motor's torque fades out "
+        "(fully engaged at u = 0, smoothly); the command sets the motor's speed u pump_speed_rad_s (eq. D35)",
+        low=0.0,
+        high=1.0,
     )
 
     # --- closed-loop position control (see model/control.py) ------------------------------

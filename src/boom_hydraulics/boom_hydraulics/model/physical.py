@@ -171,8 +171,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     p2 = p.tank_pressure_pa
     p1 = (force - p.external_rod_force_n + spring + p2 * s2 + p.ambient_pressure_pa * (s1 - s2)) / s1
     p1 = max(p1, p.tank_pressure_pa)  # an external force that more than carries the boom: no holding pressure
-    if q1 <= p.cylinder_min_length_m:
-        p1 = p.tank_pressure_pa  # parked: the stop carries the boom
+    if q1 <= p.cylinder_min_length_m or not drives.holds_oil(p.drive):
+        p1 = p.tank_pressure_pa  # parked: the stop carries the boom; or no oil: a drive's housing
     z_d = drives.initial_state(p.drive, drives.constants(p))
     return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2]] + [0.0] * len(
         INTEGRALS

@@ -10,7 +10,9 @@ for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
 - ``energy(z, d, xp)`` and ``energy_rate(z, s, d)``: what it stores beside the chambers;
 - ``stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)``: how stiffly it holds the lines, and
   its own fastest rate (stepping's stability bound);
-- ``VALVE``: whether it feeds the chambers through the 4/3 valve.
+- ``VALVE``: whether it feeds the chambers through the 4/3 valve;
+- ``CYLINDER_OIL`` (optional, True if absent): whether its cylinder holds oil; a drive without
+  (electro_mechanical) keeps the chambers at tank pressure, where :func:`holds_oil` starts them.
 
 :data:`DRIVES` registers them; the functions below call the set's drive (compiled code picks
 no function from a dict of modules, so each names the registered drives once, in order).
@@ -29,7 +31,7 @@ import numpy as np
 
 from ...jit import compiled_as, jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
-from . import fixed_pump, load_sensing, pressure_compensated, pump_controlled
+from . import electro_mechanical, fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from .constants import DriveConstants, Supply, blend, constants
 
 Num = Any  # float or numpy.ndarray
@@ -40,6 +42,7 @@ DRIVES: dict[str, ModuleType] = {
     "fixed_pump": fixed_pump,
     "load_sensing": load_sensing,
     "pump_controlled": pump_controlled,
+    "electro_mechanical": electro_mechanical,
 }
 assert tuple(DRIVES) == DRIVE_CHOICES, "parameters.DRIVES must name the registered drives"
 #: How many states the model keeps for the drive (the most any drive has).
@@ -83,7 +86,25 @@ def initial_state(drive: str, d: DriveConstants) -> tuple[float, float, float]:
         return load_sensing.initial_state(d)
     if drive == "pump_controlled":
         return pump_controlled.initial_state(d)
+    if drive == "electro_mechanical":
+        return electro_mechanical.initial_state(d)
     raise ValueError("no drive of that name")  # parameters.DRIVES names the registered ones
+
+
+#: Whether each registered drive's cylinder holds oil, in the registry's order (a drive without
+#: oil sets ``CYLINDER_OIL = False``: its chambers are a housing at tank pressure).
+_OIL = tuple(bool(getattr(module, "CYLINDER_OIL", True)) for module in DRIVES.values())
+
+
+@jitable
+def holds_oil(drive: str) -> bool:
+    """Whether the cylinder of drive ``drive`` holds oil (physical.initial_state: else its chambers
+    start at tank pressure), as compiled code can ask too."""
+    oil = True
+    for i in range(len(DRIVE_CHOICES)):
+        if DRIVE_CHOICES[i] == drive:
+            oil = _OIL[i]
+    return oil
 
 
 @jitable
@@ -111,6 +132,9 @@ def supply(
     w = uses(d, 3)
     if in_use(w):
         s = blend(s, pump_controlled.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+    w = uses(d, 4)
+    if in_use(w):
+        s = blend(s, electro_mechanical.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     return s
 
 
@@ -130,6 +154,9 @@ def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
     w = uses(d, 3)
     if in_use(w):
         e = e + w * pump_controlled.energy(z, d, xp)
+    w = uses(d, 4)
+    if in_use(w):
+        e = e + w * electro_mechanical.energy(z, d, xp)
     return e
 
 
@@ -149,6 +176,9 @@ def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
     w = uses(d, 3)
     if in_use(w):
         e = e + w * pump_controlled.energy_rate(z, s, d)
+    w = uses(d, 4)
+    if in_use(w):
+        e = e + w * electro_mechanical.energy_rate(z, s, d)
     return e
 
 
@@ -174,6 +204,10 @@ def stiffness(
     if in_use(w):
         a, b, r = pump_controlled.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
         g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+    w = uses(d, 4)
+    if in_use(w):
+        a, b, r = electro_mechanical.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
     return g_a, g_b, own
 
 
@@ -185,6 +219,7 @@ __all__ = (
     "constants",
     "energy",
     "energy_rate",
+    "holds_oil",
     "in_use",
     "initial_state",
     "stiffness",

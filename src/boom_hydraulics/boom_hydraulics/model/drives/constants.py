@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 from ...jit import jitable
 from .. import electric_motor, pump
 from ..battery import J_PER_KWH
-from ..geometry import piston_area_m2
+from ..geometry import annulus_area_m2, piston_area_m2
 from ..hydraulics import orifice_coefficient
 from ..parameters import DRIVES, Parameters
 
@@ -66,6 +66,19 @@ class DriveConstants(NamedTuple):
     motor_windage: Num  # k_w: windage, W/(rad/s)^3 (eq. D6)
     inverter_standby: Num  # P_0: the enabled inverter's standby, W (eq. D5)
     auxiliary_power: Num  # P_aux: the machine's auxiliaries while it is on, W (eq. D5)
+    # electro_mechanical (docs/model.md, "Drives", eq. D30-D36)
+    ema_ratio: Num  # r = l / (2 pi N): rod travel per motor radian, m/rad (eq. D30)
+    ema_friction_mean: Num  # m = (1/eta_f - eta_b) / 2 of the gearing and screw (eq. D32)
+    ema_friction_skew: Num  # d = (1/eta_f + eta_b) / 2 - 1 (eq. D32)
+    ema_stiffness: Num  # k_s, N/m (eq. D31)
+    ema_damping: Num  # c_s, N s/m (eq. D31)
+    ema_inertia: Num  # J_m, kg m^2 (eq. D33)
+    ema_torque_limit: Num  # T_max, N m (eq. D34)
+    ema_speed_gain: Num  # K_w = J_m w_c, N m s/rad (eq. D34)
+    ema_brake_torque: Num  # T_b, N m (eq. D35)
+    ema_brake_threshold: Num  # u_b: |u| below which the brake engages (eq. D35)
+    ema_piston_area: Num  # S1, m^2: the chambers breathe (eq. D36)
+    ema_annulus_area: Num  # S2, m^2
 
 
 @jitable
@@ -129,6 +142,19 @@ def constants(p: Parameters) -> DriveConstants:
         motor_windage=motor.windage,
         inverter_standby=motor.standby,
         auxiliary_power=p.auxiliary_power_w,
+        # electro_mechanical (eq. D30-D36)
+        ema_ratio=p.ema_screw_lead_m / (2.0 * math.pi * p.ema_gear_ratio),
+        ema_friction_mean=0.5 * (1.0 / p.ema_forward_efficiency - p.ema_backdrive_efficiency),
+        ema_friction_skew=0.5 * (1.0 / p.ema_forward_efficiency + p.ema_backdrive_efficiency) - 1.0,
+        ema_stiffness=p.ema_screw_stiffness_n_m,
+        ema_damping=p.ema_screw_damping_n_s_m,
+        ema_inertia=p.ema_inertia_kg_m2,
+        ema_torque_limit=p.ema_torque_limit_n_m,
+        ema_speed_gain=p.ema_inertia_kg_m2 * p.ema_speed_bandwidth_rad_s,
+        ema_brake_torque=p.ema_brake_torque_n_m,
+        ema_brake_threshold=p.ema_brake_threshold,
+        ema_piston_area=piston_area_m2(p.piston_diameter_m),
+        ema_annulus_area=annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m),
     )
 
 
