@@ -43,8 +43,6 @@ STATES: tuple[int, ...] = tuple(
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
-#: The unit of a drive's state by its scale (the drive modules' STATE_SCALES).
-UNIT_OF_SCALE = {"pressure": "Pa", "angular_velocity": "rad/s", "length": "m", "velocity": "m/s", "unit": "1"}
 
 
 def states_of(p: Parameters) -> tuple[int, ...]:
@@ -62,9 +60,8 @@ def state_names_of(p: Parameters) -> tuple[str, ...]:
 
 def state_units_of(p: Parameters) -> tuple[str, ...]:
     """The units of :func:`states_of`, in their order."""
-    drive = DRIVES[p.drive]
-    own = drive.STATE_SCALES[: len(states_of(p)) - len(STATES)]
-    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(UNIT_OF_SCALE[kind] for kind in own)
+    own = DRIVES[p.drive].STATE_UNITS[: len(states_of(p)) - len(STATES)]
+    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own)
 #: The outputs (model state components), with their units.
 OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("q1", "m", "rod position"),

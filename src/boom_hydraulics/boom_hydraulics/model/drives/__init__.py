@@ -3,7 +3,8 @@
 A drive is everything between the battery and the cylinder's two lines: motor, pump and,
 for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
 
-- ``STATE_NAMES`` (at most :data:`STATE_COUNT` states of its own) and ``STATE_SCALES``;
+- ``STATE_NAMES`` (at most :data:`STATE_COUNT` states of its own), ``STATE_SCALES`` (the
+  model's error control) and ``STATE_UNITS``;
 - ``initial_state(d)``: its states at the start, a tuple of :data:`STATE_COUNT`;
 - ``supply(z, u, opening, q1, v, p1, p2, d, xp)``: the drive at one instant (:class:`Supply`):
   its states' rates, the flows into the lines, the motor's operating point, its ledger terms;
@@ -48,6 +49,7 @@ assert tuple(DRIVES) == DRIVE_CHOICES, "parameters.DRIVES must name the register
 #: How many states the model keeps for the drive (the most any drive has).
 STATE_COUNT = 3
 assert all(len(m.STATE_NAMES) <= STATE_COUNT for m in DRIVES.values()), "a drive has more states than the model keeps"
+assert all(len(m.STATE_NAMES) == len(m.STATE_SCALES) == len(m.STATE_UNITS) for m in DRIVES.values())
 
 
 def in_use(flag: Num) -> bool:

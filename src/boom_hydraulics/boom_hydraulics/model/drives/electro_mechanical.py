@@ -37,8 +37,9 @@ Num = Any  # float or numpy.ndarray
 #: The drive's states: the screw's spring force F_k (N, held to the model's pressure scale:
 #: its tolerance is a fraction of a newton), the motor's speed w (rad/s) and the friction's
 #: bristle s (-1..1).
-STATE_NAMES = ("drive_state", "drive_state_2", "drive_state_3")
+STATE_NAMES = ("screw_force", "motor_speed", "friction_state")
 STATE_SCALES = ("pressure", "angular_velocity", "unit")
+STATE_UNITS = ("N", "rad/s", "1")
 #: The drive feeds the cylinder without the 4/3 valve.
 VALVE = False
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear

@@ -28,6 +28,7 @@ Num = Any  # float or numpy.ndarray
 #: The drive's one state: the supply line's liquid state z_s (its pressure above the floor), Pa.
 STATE_NAMES = ("supply_line_state",)
 STATE_SCALES = ("pressure",)
+STATE_UNITS = ("Pa",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear

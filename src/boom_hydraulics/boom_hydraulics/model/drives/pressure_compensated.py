@@ -27,6 +27,7 @@ Num = Any  # float or numpy.ndarray
 #: The drive's one state: the pressure the compensator holds (a constant here), Pa.
 STATE_NAMES = ("supply_pressure",)
 STATE_SCALES = ("pressure",)
+STATE_UNITS = ("Pa",)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear

@@ -30,6 +30,7 @@ Num = Any  # float or numpy.ndarray
 #: The drive's one state: the motor's (and pump's) speed, rad/s.
 STATE_NAMES = ("motor_speed",)
 STATE_SCALES = ("angular_velocity",)
+STATE_UNITS = ("rad/s",)
 #: The drive feeds the chambers without the 4/3 valve.
 VALVE = False
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear
