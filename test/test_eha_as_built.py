@@ -219,6 +219,8 @@ def test_with_the_load_holding_valve_the_boom_holds_still_where_the_eha_hunted()
     hunted, held = _holds(today), _holds(built)
     assert hunted and max(hunted) > 3e-3  # the pump's leakage sinks the boom, the loop lifts it again
     assert held and max(held) < 1e-3
+    valve_alone = _holds(_loader(eha_holding_valve="piston_side")[1])  # the lag's speed source, valve on
+    assert valve_alone and max(valve_alone) < 1e-3
     assert _overshoot_rad(built, EHA) < 0.75 * _overshoot_rad(today, EHA)
 
 

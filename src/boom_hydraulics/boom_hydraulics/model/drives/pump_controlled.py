@@ -78,11 +78,15 @@ def pump_speed_rad_s(z: Num, command: Num, d: DriveConstants) -> Num:
 
 
 @jitable
-def holding_opening(command: Num, d: DriveConstants) -> Num:
+def holding_opening(speed_rad_s: Num, command: Num, d: DriveConstants) -> Num:
     """How far the load-holding valve is open, 0 closed to 1 open: fully while the motor is
-    commanded at u_h of its top speed or more, closed at a zero command (eq. D53); 1 without
-    the valve."""
-    return d.eha_holding * smoothstep(abs(command) / d.eha_holding_command) + (1.0 - d.eha_holding)  # eq. D53
+    commanded at u_h of its top speed or more; at a zero command it closes, with the lag's
+    speed source once the motor has stopped (eq. D53). With the torque-limited motor the
+    closed valve stops the rotors itself, within milliseconds (the pump's port against its
+    leakage). 1 without the valve."""
+    lag = 1.0 - d.eha_torque_model
+    share = larger(abs(command), lag * abs(speed_rad_s) / d.speed)
+    return d.eha_holding * smoothstep(share / d.eha_holding_command) + (1.0 - d.eha_holding)  # eq. D53
 
 
 @jitable
@@ -121,7 +125,7 @@ def ports(z: Num, command: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: M
     """The EHA's flows into the chamber lines at chamber pressures p1 (A) and p2 (B) (eq. D20,
     D24), through the load-holding valve where there is one (eq. D53-D55)."""
     speed = pump_speed_rad_s(z, command, d)
-    opening = holding_opening(command, d)
+    opening = holding_opening(speed, command, d)
     drop = holding_drop_pa(delivered_flow_m3_s(d.displacement, speed, p1_pa - p2_pa, d.pump_leak), opening, d, xp)
     dp_pump = p1_pa - p2_pa + drop
     q_pump = delivered_flow_m3_s(d.displacement, speed, dp_pump, d.pump_leak)  # eq. D20, D54
