@@ -530,8 +530,7 @@ class Parameters:
         "pump_controlled: load-holding valve between the pump and the piston chamber: 'none' (the pump and its "
         "leakage hold the boom) or 'piston_side' (a seat valve, as a pilot-operated check with an electric pilot, "
         "that the controller opens while the motor is commanded and closes at a zero command, once the motor "
-        "stops, sealing the chamber) "
-        "(eq. D53-D55)",
+        "stops, sealing the chamber; it needs a pump that leaks, pump_volumetric_efficiency < 1) (eq. D53-D55)",
         choices=("none", "piston_side"),
     )
     eha_holding_command: float = _drive(

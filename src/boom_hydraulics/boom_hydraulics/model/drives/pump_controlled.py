@@ -14,8 +14,8 @@ reservoir, and the electric machine generates back into the battery (eq. D25).
 As built (docs/model.md, "The EHA as built"; each off by default): the motor's speed a state
 under a torque-limited speed loop on the rotors' inertia (model/drives/eha_motor.py, eq.
 D50-D52), a load-holding seat valve between the pump and the piston chamber that seals the
-chamber while the motor is neither commanded nor turning (eq. D53-D55), and the inverter's
-and controller's standby power (eq. D56).
+chamber at a zero command (with the lag, once the motor has stopped) (eq. D53-D55), and the
+inverter's and controller's standby power (eq. D56).
 
 Equations and conventions: docs/model.md, sections "Drives" and "The EHA as built".
 """
