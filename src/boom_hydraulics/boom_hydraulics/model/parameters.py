@@ -602,6 +602,92 @@ class Parameters:
         high=1.0,
     )
 
+    # --- EHA as built: motor speed controller, standby, load-holding valve (docs/model.md, "The EHA as built";
+    # eq. D50-D56; each off by default, so that pump_controlled's earlier answers stand) -------------------------
+    eha_torque_limit_n_m: float = _drive(
+        0.0,
+        "N m",
+        "pump_controlled: the motor controller's torque limit (0: off, the motor is the speed lag of eq. D21). "
+        "On, the motor's speed is a state that a PI speed loop drives with at most min(this, "
+        "eha_torque_constant_n_m_a x eha_current_limit_a) against the pump's torque and the rotors' inertia, "
+        "so that the drive stalls at dp = T_max / (D (1 + c_f)) (55 N m: 15.6 MPa, below the port reliefs); at "
+        "most the motor's peak torque, typically 2-3 x rated for a PMSM (eq. D50-D52)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e5,
+    )
+    eha_current_limit_a: float = _drive(
+        375.0,
+        "A",
+        "pump_controlled: the inverter's phase current limit, rms (375: the 2-minute rating of a 36-48 V traction "
+        "inverter, Curtis AC F4-A 48-375 manual, Table E-1; its 1-hour rating is 175 A) (eq. D50)",
+        low=0.0,
+        high=1.0e5,
+    )
+    eha_torque_constant_n_m_a: float = _drive(
+        0.3,
+        "N m/A",
+        "pump_controlled: the motor's torque per phase current, rms (0.3: a 48 V PMSM whose back-EMF at "
+        "pump_speed_rad_s stays within the inverter's output voltage, k_t = sqrt(3) k_e with k_e <= 0.18 V s/rad; "
+        "its rated 60 N m then takes 200 A) (eq. D50)",
+        low=0.0,
+        high=100.0,
+    )
+    eha_motor_inertia_kg_m2: float = _drive(
+        0.01,
+        "kg m^2",
+        "pump_controlled: the inertia of the motor's and pump's rotors, with the torque limit on (0.01: a 60 N m "
+        "PMSM's rotor, of order 1e-2 kg m^2 in servo-motor catalogues, plus a 20 cm^3/rev pump's, of order "
+        "1e-3) (eq. D51)",
+        low=0.0,
+        high=100.0,
+    )
+    eha_speed_gain_n_m_s_rad: float = _drive(
+        2.0,
+        "N m s/rad",
+        "pump_controlled: the speed loop's proportional gain K_w, with the torque limit on (2: K_w / J = "
+        "200 rad/s, a speed-loop bandwidth of about 30 Hz, below the 50-200 Hz of industrial servo drives) "
+        "(eq. D50)",
+        low=0.0,
+        high=1.0e5,
+    )
+    eha_speed_integral_time_s: float = _drive(
+        0.05,
+        "s",
+        "pump_controlled: the speed loop's integral time T_i (0: a proportional loop), with the torque limit on: "
+        "the integral holds the commanded speed under load (eq. D50, D52)",
+        low=0.0,
+        low_inclusive=True,
+        high=100.0,
+    )
+    eha_standby_power_w: float = _drive(
+        0.0,
+        "W",
+        "pump_controlled: power the inverter, the controller and their auxiliaries draw from the battery whenever "
+        "the drive is ready, whatever the load (0: off; typically 20-50 W: the main contactor's coil, the logic, "
+        "gate drivers and switching at zero torque; 'tens of watts') (eq. D56)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e4,
+    )
+    eha_holding_valve: str = _drive(
+        "none",
+        "",
+        "pump_controlled: load-holding valve between the pump and the piston chamber: 'none' (the pump and its "
+        "leakage hold the boom) or 'piston_side' (a seat valve, as a pilot-operated check with an electric pilot, "
+        "that the controller opens while the motor is commanded and closes at a zero command, once the motor "
+        "stops, sealing the chamber; it needs a pump that leaks, pump_volumetric_efficiency < 1) (eq. D53-D55)",
+        choices=("none", "piston_side"),
+    )
+    eha_holding_command: float = _drive(
+        0.01,
+        "",
+        "pump_controlled, eha_holding_valve piston_side: the share of top speed commanded at which "
+        "the load-holding valve is fully open; it closes towards a zero command (eq. D53)",
+        low=0.0,
+        high=1.0,
+    )
+
     # --- closed-loop position control (see model/control.py) ------------------------------
     control_position_gain_1_rad: float = _controller(
         4.0, "1/rad", "Kp: valve opening per rad of boom-angle error; physical mode", low=0.0, high=1000.0

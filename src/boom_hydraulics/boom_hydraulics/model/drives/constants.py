@@ -79,6 +79,16 @@ class DriveConstants(NamedTuple):
     ema_brake_threshold: Num  # u_b: |u| below which the brake engages (eq. D35)
     ema_piston_area: Num  # S1, m^2: the chambers breathe (eq. D36)
     ema_annulus_area: Num  # S2, m^2
+    # the EHA as built (docs/model.md, "The EHA as built", eq. D50-D56): each off at its default
+    eha_torque_model: Num  # 1.0: the motor's speed is a state under a torque-limited speed loop; 0.0: the lag
+    eha_torque_max: Num  # T_max = min(torque limit, k_t I_max), N m (eq. D50)
+    eha_inertia: Num  # J of the rotors, kg m^2 (0 with the lag) (eq. D51)
+    eha_inv_inertia: Num  # 1 / J (0 with the lag), 1/(kg m^2)
+    eha_speed_gain: Num  # K_w, N m s/rad (eq. D50)
+    eha_inv_integral_time: Num  # 1 / T_i of the speed loop (0: proportional), 1/s (eq. D52)
+    eha_standby: Num  # P_sb, W (eq. D56)
+    eha_holding: Num  # 1.0 with the load-holding valve between pump and piston chamber, 0.0 without
+    eha_holding_command: Num  # u_h: share of top speed at which it is fully open (eq. D53)
 
 
 @jitable
@@ -103,6 +113,10 @@ def constants(p: Parameters) -> DriveConstants:
     inv_tau = lag / p.motor_time_constant_s if lag else 0.0  # here: numba compiles no keyword argument that branches
     holding = 1.0 if p.load_holding_valve == "piston_side" else 0.0
     k_valve = orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.orifice_diameter_m), p.density_kg_m3)
+    # the EHA as built: the torque-limited speed loop is on with a torque limit (eq. D50)
+    torque_model = 1.0 if p.eha_torque_limit_n_m > 0.0 else 0.0
+    eha_integral = 1.0 if torque_model * p.eha_speed_integral_time_s > 0.0 else 0.0
+    eha_inv_integral_time = eha_integral / p.eha_speed_integral_time_s if eha_integral else 0.0
     return DriveConstants(
         drive=drive_index(p.drive),
         p_tank=p.tank_pressure_pa,
@@ -155,6 +169,15 @@ def constants(p: Parameters) -> DriveConstants:
         ema_brake_threshold=p.ema_brake_threshold,
         ema_piston_area=piston_area_m2(p.piston_diameter_m),
         ema_annulus_area=annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m),
+        eha_torque_model=torque_model,
+        eha_torque_max=torque_model * min(p.eha_torque_limit_n_m, p.eha_torque_constant_n_m_a * p.eha_current_limit_a),
+        eha_inertia=torque_model * p.eha_motor_inertia_kg_m2,
+        eha_inv_inertia=torque_model / p.eha_motor_inertia_kg_m2,
+        eha_speed_gain=p.eha_speed_gain_n_m_s_rad,
+        eha_inv_integral_time=eha_inv_integral_time,
+        eha_standby=p.eha_standby_power_w,
+        eha_holding=1.0 if p.eha_holding_valve == "piston_side" else 0.0,
+        eha_holding_command=p.eha_holding_command,
     )
 
 
