@@ -25,7 +25,7 @@ STANDBY_W = 30.0
 AS_BUILT = {
     "eha_torque_limit_n_m": TORQUE_LIMIT_N_M,
     "eha_holding_valve": "piston_side",
-    "eha_standby_power_w": STANDBY_W,
+    "inverter_standby_power_w": STANDBY_W,
 }
 #: The brief's end-stop run: full speed out into the stop, hold, full speed in, hold.
 STOPS = "steps:0=1,3=0,4=-1,7=0"
@@ -168,7 +168,7 @@ def test_standby_adds_its_power_times_the_time_to_the_battery_energy_at_rest():
     duration = 2.0
     rest = {"battery_resistance_ohm": 0.0}  # U I = P_el: the battery adds nothing of its own
     without, _, _, _ = _run("constant:0", duration, **rest)
-    standby, _, _, _ = _run("constant:0", duration, eha_standby_power_w=STANDBY_W, **rest)
+    standby, _, _, _ = _run("constant:0", duration, inverter_standby_power_w=STANDBY_W, **rest)
     drawn = standby["battery_drawn"] - standby["battery_returned"]
     drawn_before = without["battery_drawn"] - without["battery_returned"]
     assert drawn - drawn_before == pytest.approx(STANDBY_W * duration, rel=1e-9)

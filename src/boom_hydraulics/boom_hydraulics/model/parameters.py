@@ -660,16 +660,6 @@ class Parameters:
         low_inclusive=True,
         high=100.0,
     )
-    eha_standby_power_w: float = _drive(
-        0.0,
-        "W",
-        "pump_controlled: power the inverter, the controller and their auxiliaries draw from the battery whenever "
-        "the drive is ready, whatever the load (0: off; typically 20-50 W: the main contactor's coil, the logic, "
-        "gate drivers and switching at zero torque; 'tens of watts') (eq. D56)",
-        low=0.0,
-        low_inclusive=True,
-        high=1.0e4,
-    )
     eha_holding_valve: str = _drive(
         "none",
         "",

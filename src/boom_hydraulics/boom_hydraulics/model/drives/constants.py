@@ -86,7 +86,6 @@ class DriveConstants(NamedTuple):
     eha_inv_inertia: Num  # 1 / J (0 with the lag), 1/(kg m^2)
     eha_speed_gain: Num  # K_w, N m s/rad (eq. D50)
     eha_inv_integral_time: Num  # 1 / T_i of the speed loop (0: proportional), 1/s (eq. D52)
-    eha_standby: Num  # P_sb, W (eq. D56)
     eha_holding: Num  # 1.0 with the load-holding valve between pump and piston chamber, 0.0 without
     eha_holding_command: Num  # u_h: share of top speed at which it is fully open (eq. D53)
 
@@ -175,7 +174,6 @@ def constants(p: Parameters) -> DriveConstants:
         eha_inv_inertia=torque_model / p.eha_motor_inertia_kg_m2,
         eha_speed_gain=p.eha_speed_gain_n_m_s_rad,
         eha_inv_integral_time=eha_inv_integral_time,
-        eha_standby=p.eha_standby_power_w,
         eha_holding=1.0 if p.eha_holding_valve == "piston_side" else 0.0,
         eha_holding_command=p.eha_holding_command,
     )

@@ -14,8 +14,8 @@ reservoir, and the electric machine generates back into the battery (eq. D25).
 As built (docs/model.md, "The EHA as built"; each off by default): the motor's speed a state
 under a torque-limited speed loop on the rotors' inertia (model/drives/eha_motor.py, eq.
 D50-D52), a load-holding seat valve between the pump and the piston chamber that seals the
-chamber at a zero command (with the lag, once the motor has stopped) (eq. D53-D55), and the
-inverter's and controller's standby power (eq. D56).
+chamber at a zero command (with the lag, once the motor has stopped) (eq. D53-D55). Its
+inverter's standby is every drive's (ledger.electric_chain).
 
 Equations and conventions: docs/model.md, sections "Drives" and "The EHA as built".
 """
@@ -148,7 +148,7 @@ def supply(
     D50-D52), the pump, the load-holding valve and the checks on the chambers' lines (eq.
     D20-D24, D53-D55), the pump at speed w across its pressure rise (a motor where it is
     negative: lowering), the checks' and valve's throttling, the valve's seat leakage, the
-    reservoir's power relative to tank pressure (eq. D25) and the standby power (eq. D56).
+    reservoir's power relative to tank pressure (eq. D25).
     No 4/3 valve: ``opening`` is only reported."""
     flows = ports(z[0], u, p1_pa, p2_pa, d, xp)
     speed = pump_speed_rad_s(z[0], u, d)
@@ -167,7 +167,7 @@ def supply(
         *(rate, f * m.integral_rate, zero, flows.q_a, flows.q_b, 1.0 + zero, zero, opening + zero),
         *(larger(p1_pa, p2_pa), zero, power, torque, speed, pumped.hydraulic_power),
         *(pumped.volumetric_loss, pumped.mechanical_loss, zero, valve_loss, leakage),
-        *(zero, reservoir, f * m.rotor_power, d.eha_standby + zero),
+        *(zero, reservoir, f * m.rotor_power, zero),
     )
 
 
