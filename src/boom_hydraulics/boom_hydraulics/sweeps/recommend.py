@@ -48,29 +48,36 @@ _PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*
 @dataclass(frozen=True)
 class Constraint:
     """``metric op value`` over a column of the sweep table; ``magnitude``: over its absolute
-    value; ``unless_nan``: a NaN passes (the metric does not apply to the row: a work cycle's
-    target in an open-loop run); ``why``: what a row that fails it did, in words."""
+    value; ``only_where``: a column that is NaN where the constraint does not apply (a work
+    cycle's target in an open-loop run), which such a row passes; ``why``: what a row that
+    fails it did, in words."""
 
     metric: str
     op: str
     value: float
     why: str = ""
     magnitude: bool = False
-    unless_nan: bool = False
+    only_where: str = ""
 
     def __str__(self) -> str:
         metric = f"|{self.metric}|" if self.magnitude else self.metric
         return f"{metric} {self.op} {self.value:g}"
 
     def holds(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
-        """Per row: the constraint holds (a value that is not finite never does; a NaN does
-        with ``unless_nan``)."""
+        """Per row: the constraint holds (a value that is not finite never does), or does not
+        apply (``only_where``)."""
         column = np.asarray(table[self.metric], dtype=float)
         if self.magnitude:
             column = np.abs(column)
         with np.errstate(invalid="ignore"):
             held = _OPS[self.op](column, self.value) & np.isfinite(column)
-        return held | np.isnan(column) if self.unless_nan else held
+        return held | ~self.applies(table)
+
+    def applies(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Per row: whether the constraint applies to it (see ``only_where``)."""
+        if not self.only_where:
+            return np.ones(len(table[self.metric]), dtype=bool)
+        return ~np.isnan(np.asarray(table[self.only_where], dtype=float))
 
 
 def parse_constraint(text: str, columns: Sequence[str] = METRIC_NAMES) -> Constraint:

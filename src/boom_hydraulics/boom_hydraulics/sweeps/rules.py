@@ -15,8 +15,9 @@ did not fail) and:
 - with ``max_pressure_pa``, no chamber pressure above it: ``peak_pressure_pa``;
 - no port relief valve opened (``relief_s`` == 0) unless ``allow_relief``.
 
-The target and set-down rules do not apply to a run without targets or a release (open loop:
-NaN metrics). With ``--across`` a design qualifies only if every one of its points does
+The rules but the pressure's apply to closed-loop runs alone (an open-loop scenario, which
+slams the valve shut by itself, has no targets: NaN metrics), the set-down rule to those
+that release a payload. With ``--across`` a design qualifies only if every one of its points does
 (recommend.recommend): across operators, every operator's cycle.
 """
 
@@ -29,12 +30,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..model.parameters import describe
 from .recommend import Constraint, format_value
 
 #: How close to its target a work cycle's boom has to be at each phase's end, degrees: a
 #: loader crane's operator places the load by eye to about a degree of boom (10-15 cm at the
 #: tip of a 6-8 m boom, the accuracy a payload is set down with).
 TARGET_TOLERANCE_DEG = 1.0
+
+#: The column that says a run has targets (NaN: open loop), where the rules of a closed-loop run apply.
+TARGETS = "worst_target_error_deg"
 
 
 @dataclass(frozen=True)
@@ -60,11 +65,12 @@ class Rules:
         found = [
             Constraint(
                 "worst_target_error_deg", "<=", tolerance,
-                f"a target missed by more than {tolerance:g} deg at its phase's end", unless_nan=True,
+                f"a target missed by more than {tolerance:g} deg at its phase's end", only_where=TARGETS,
             ),
             Constraint(
                 "set_down_error_deg", "<=", set_down,
-                f"the payload put down more than {set_down:g} deg from the ground", magnitude=True, unless_nan=True,
+                f"the payload put down more than {set_down:g} deg from the ground", magnitude=True,
+                only_where="set_down_error_deg",
             ),
         ]  # fmt: skip
         if self.settle_time_s is not None:
@@ -72,7 +78,7 @@ class Rules:
                 Constraint(
                     "worst_settle_time_s", "<=", self.settle_time_s,
                     f"a target not reached and held within {self.settle_time_s:g} s of its phase's start",
-                    unless_nan=True,
+                    only_where=TARGETS,
                 )
             )  # fmt: skip
         if self.max_pressure_pa is not None:
@@ -83,27 +89,42 @@ class Rules:
                 )
             )  # fmt: skip
         if not self.allow_relief:
-            found.append(Constraint("relief_s", "==", 0.0, "a port relief valve opened"))
+            found.append(Constraint("relief_s", "==", 0.0, "a port relief valve opened", only_where=TARGETS))
         return found
 
 
 def range_edges(table: Mapping[str, np.ndarray], axes: Sequence[str], row: int, whose: str = "best") -> list[str]:
     """A line for each numeric column of ``axes`` where ``row`` of ``table`` lies at an end of
-    the values the sweep searched (those of the column, over all rows): which end, and which
-    way to extend the range. ``whose``: the design the line names ("best", "load_sensing's best")."""
+    the values the sweep searched (those of the column, over all rows), unless the parameter
+    can go no further that way (a payload of 0 kg): which end, and which way to extend the
+    range. ``whose``: the design the line names ("best", "load_sensing's best")."""
     lines = []
     for axis in axes:
         values = np.asarray(table[axis])
-        if values.dtype.kind not in "fiu":
+        if values.dtype.kind not in "fiu" or axis == "operator":
             continue
         values = values.astype(float)
         finite = values[np.isfinite(values)]
-        low, high = (float(finite.min()), float(finite.max())) if len(finite) else (math.nan, math.nan)
-        value = float(values[row])
-        if not low < high:  # one value: no range
+        if len(finite) == 0 or not finite.min() < finite.max():  # one value: no range
             continue
-        for end, word, way in ((low, "lower", "below"), (high, "upper", "above")):
-            if value == end:
-                shown = format_value(end)
+        limits = _limits(axis)
+        value = float(values[row])
+        for end, limit, word, way in (
+            (finite.min(), limits[0], "lower", "below"),
+            (finite.max(), limits[1], "upper", "above"),
+        ):
+            if value == end and end != limit:
+                shown = format_value(float(end))
                 lines.append(f"{axis}: {whose} at the {word} end {shown}; extend the range {way} {shown}")
     return lines
+
+
+def _limits(name: str) -> tuple[float, float]:
+    """The lowest and highest values parameter ``name`` may take (none for a column that is not a
+    parameter)."""
+    try:
+        described = describe(name)
+    except KeyError:
+        return -math.inf, math.inf
+    low, high = described.get("low"), described.get("high")
+    return (-math.inf if low is None else float(low)), (math.inf if high is None else float(high))

@@ -156,10 +156,9 @@ class BatchCells:
 def applicable(
     constraints: Sequence[recommend.Constraint], table: Mapping[str, np.ndarray]
 ) -> list[recommend.Constraint]:
-    """The constraints that apply to some row of ``table``: a rule that a NaN passes (a work
-    cycle's target, say) applies only where its metric is not NaN at every row (an open-loop
-    sweep's table has no targets)."""
-    return [c for c in constraints if not c.unless_nan or not np.isnan(np.asarray(table[c.metric], float)).all()]
+    """The constraints that apply to some row of ``table`` (an open-loop sweep's table has no
+    targets: the rules of a closed-loop run do not apply to it, see rules.Rules)."""
+    return [c for c in constraints if c.applies(table).any()]
 
 
 def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str], qualifies: np.ndarray) -> str:
