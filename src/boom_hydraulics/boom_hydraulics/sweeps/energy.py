@@ -118,13 +118,20 @@ def best_per_drive(bands: Mapping[str, np.ndarray], qualifies: np.ndarray | None
     return best
 
 
-def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str], qualifies: np.ndarray | None = None) -> str:
+def summary(
+    bands: Mapping[str, np.ndarray],
+    columns: Sequence[str],
+    qualifies: np.ndarray | None = None,
+    conditions: Sequence[str] = (),
+) -> str:
     """A line per drive: its best design (of those that qualify, with ``qualifies``: see
     :func:`best_per_drive`), battery energy per cycle and cycles per charge with their 10th-90th
-    percentile band over its cycles (a design of one cycle has no band); and where that design
-    lies at an end of a searched axis, a line saying which way to extend it."""
+    percentile band over its cycles (a design of one cycle has no band); and with ``qualifies``,
+    where that design lies at an end of a searched axis other than the ``conditions`` (the
+    columns of ``--across``), a line saying which way to extend it."""
     lines = []
     axes = [c for c in design_columns(columns) if c != "drive"]
+    searched = [c for c in axes if c not in conditions]
     drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(bands["cycles"])
     for drive, row in best_per_drive(bands, qualifies).items():
         with_drive = f" with {drive}" if drive else ""
@@ -148,5 +155,5 @@ def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str], qualifies: 
         lines.append(f"  least battery energy{with_drive}: {figures}" + (f" at {where}" if where else ""))
         whose = f"{drive}'s best" if drive else "best"
         if qualifies is not None:
-            lines += [f"    {line}" for line in range_edges(bands, axes, row, whose)]
+            lines += [f"    {line}" for line in range_edges(bands, searched, row, whose)]
     return "\n".join(lines)

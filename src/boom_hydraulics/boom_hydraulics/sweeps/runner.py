@@ -424,7 +424,8 @@ def _run_plan(
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns, qualifies))
     if battery:
-        print(energy.summary(bands, plan.columns, energy.qualifying_designs(table, plan.columns, qualifies)))
+        designs = energy.qualifying_designs(table, plan.columns, qualifies)
+        print(energy.summary(bands, plan.columns, designs, across))
     if ranked is not None:
         print(text, end="")
     return 0
