@@ -124,6 +124,10 @@ def test_each_drives_best_line_honours_the_rules():
     assert "least battery energy with fixed_pump: none of its 2 designs meets every rule and constraint" in text, text
     assert "with load_sensing: 15 kJ per cycle" in text and "at piston_diameter_m=0.088" in text, text
     assert "piston_diameter_m: load_sensing's best at the upper end 0.088; extend the range above 0.088" in text, text
+    from boom_hydraulics.sweeps import plots
+
+    bars = plots._breakdown_bars(bands, columns, qualifies)  # energy_breakdown.png: each drive's best that qualifies
+    assert [name for name, _, _ in bars] == ["load sensing\n88 mm"], bars
 
 
 def _cycle_metrics(alpha_deg, t, targets) -> dict[str, float]:
@@ -188,3 +192,5 @@ def test_boom_sweep_picks_each_drives_best_under_the_pressure_limit(tmp_path):
     assert best.endswith("at piston_diameter_m=0.06"), result.stdout
     assert "    piston_diameter_m: pump_controlled's best at the upper end 0.06; extend the range above 0.06" in lines
     assert "1 fail: a chamber pressure above 5 MPa" in result.stdout, result.stdout
+    with np.load(out / "results.npz") as results:
+        assert results["qualifies"].tolist() == [0, 1]

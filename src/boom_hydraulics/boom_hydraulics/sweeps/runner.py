@@ -392,6 +392,9 @@ def _run_plan(
     seconds = time.perf_counter() - started
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
+    constraints = applicable(constraints, table)
+    qualifies = recommend.qualifying(table, constraints, plan.columns, across)
+    table["qualifies"] = qualifies.astype(np.int64)
     if drawer is not None:
         drawer.draw(table, plan.columns, out)  # it draws while the files below are written here
     write_table(table, out / "results.csv", cells=cells)
@@ -399,12 +402,12 @@ def _run_plan(
     battery = np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any()
     # each design's band over its operators' cycles: their table, and the battery's summary
     bands = energy.operator_bands(table, plan.columns) if battery or "operator" in plan.columns else None
+    if bands is not None:
+        bands["qualifies"] = energy.qualifying_designs(table, plan.columns, qualifies).astype(np.int64)
     if "operator" in plan.columns:
         write_table(bands, out / "operators.csv")
         written += ["operators.csv", "operators.npz"]
     ranked = None
-    constraints = applicable(constraints, table)
-    qualifies = recommend.qualifying(table, constraints, plan.columns, across)
     if _recommending(options):
         ranked = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
         text = recommend.format_table(ranked, options.top)
@@ -424,8 +427,7 @@ def _run_plan(
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
     print(_summary(table, plan.columns, qualifies))
     if battery:
-        designs = energy.qualifying_designs(table, plan.columns, qualifies)
-        print(energy.summary(bands, plan.columns, designs, across))
+        print(energy.summary(bands, plan.columns, bands["qualifies"].astype(bool), across))
     if ranked is not None:
         print(text, end="")
     return 0
