@@ -194,3 +194,10 @@ def test_boom_sweep_picks_each_drives_best_under_the_pressure_limit(tmp_path):
     assert "1 fail: a chamber pressure above 5 MPa" in result.stdout, result.stdout
     with np.load(out / "results.npz") as results:
         assert results["qualifies"].tolist() == [0, 1]
+
+
+@pytest.mark.parametrize("option", ["--target-tolerance-deg", "--set-down-tolerance-deg", "--settle-time-s"])
+def test_a_rule_that_cannot_be_met_is_refused_in_one_line(option, tmp_path):
+    result = run_tool("boom-sweep", "--vary", "piston_diameter=0.04,0.05", option, "0", "--out", tmp_path / "sweep")
+    assert result.returncode == 2
+    assert result.stderr.strip() == f"boom-sweep: error: {option} must be > 0, got 0.0", result.stderr

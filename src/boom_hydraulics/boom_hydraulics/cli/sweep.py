@@ -122,8 +122,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="progress bar on stderr (default: when stderr is a terminal)",
     )
     pick = parser.add_argument_group("recommendation")
-    pick.add_argument("--recommend", action="store_true", help="rank the designs that meet the constraints")
-    pick.add_argument("--max-pressure-pa", type=float, help="constraint: peak_pressure_pa <= VALUE")
+    pick.add_argument(
+        "--recommend",
+        action="store_true",
+        help="rank the designs that meet the rules (below: a closed-loop run's targets, set-down and port reliefs, "
+        "--max-pressure-pa) and the constraints",
+    )
+    pick.add_argument(
+        "--max-pressure-pa",
+        type=float,
+        help="rule: peak_pressure_pa <= VALUE (the recommendation and every summary line)",
+    )
     pick.add_argument("--max-lift-time-s", type=float, help="constraint: lift_time_s <= VALUE")
     pick.add_argument("--no-cavitation", action="store_true", help="constraint: cavitation_s == 0")
     pick.add_argument(
