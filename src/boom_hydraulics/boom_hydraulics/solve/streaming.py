@@ -37,11 +37,11 @@ Definitions (SI):
   the next target's time, the last until the run ends; :func:`cycle_targets`), over the
   samples of each phase: ``worst_target_error_deg``, the largest |target - elevation| at a
   phase's last sample; ``worst_settle_time_s``, the longest time from a phase's start until
-  the elevation stays within 2 % of its step around its target (the band of
-  ``settling_s``, at least 0.1 degree), inf where a phase ends outside the band; ``set_down_error_deg``, the
-  elevation above the target in effect (the ground, in a work cycle) at the last sample at or
-  before the payload is released (the first time its share on the hook falls). NaN without
-  targets (open loop) or a release; at most :data:`MAX_TARGETS` targets count.
+  the elevation stays within 2 % of its step around its target (the band of ``settling_s``,
+  at least 0.1 degree), inf where a phase ends outside the band; ``set_down_error_deg``,
+  the elevation above the target in effect (the ground, in a work cycle) at the last sample
+  at or before the payload is released (the first time its share on the hook falls). NaN
+  without targets (open loop) or a release; at most :data:`MAX_TARGETS` targets count.
 - ``supply_energy_j``, ``valve_loss_energy_j``: at the last sample.
 - The battery (docs/model.md, "Energy ledger"): ``battery_energy_j``, what it gave less what it
   took back over the run; ``battery_drawn_j``, ``battery_returned_j``, those two apart;
