@@ -58,7 +58,7 @@ def test_batched_metrics_equal_those_of_single_runs(scenario):
     for batch in plan.batches:
         for point, params in zip(batch.points, batch.params):
             single = simulate(params, 2.0, commands.from_parameters(params), jit=False)
-            expected = analysis.metrics(single.columns, lift_angle_deg=8.0)
+            expected = analysis.metrics(single.columns, lift_angle_deg=8.0, params=params)
             expected.update(analysis.move_metrics(params, single.columns))
             for name, _, _ in sweep.STREAMED_METRICS:  # the linear model's: test_linearize
                 assert _same(table[name][point], expected[name]), (point, name)

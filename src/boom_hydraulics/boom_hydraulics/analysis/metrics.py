@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..solve import streaming
-from ..solve.streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
+from ..solve.streaming import DEFAULT_LIFT_ANGLE_DEG, cycle_targets, move_window
 
 #: The battery's signals among the samples (the physical model's ledger).
 BATTERY = ("battery_drawn", "battery_returned", "lift_work")
@@ -25,17 +25,18 @@ def streamed(
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     move: tuple[float, float, float] = (math.nan, math.inf, math.nan),
     ripple: float = streaming.RIPPLE_PA,
+    targets: tuple = ((), (), math.nan),
 ) -> dict[str, float]:
     """The metrics of :mod:`streaming` over stored ``signals`` (names of streaming.SAMPLE_SIGNALS; a
     missing one counts as 0, a missing battery signal as NaN: its metrics are unknown), with the
-    closed-loop ``move`` (see :func:`move_window`) and the ringing's turning points counted beyond
-    ``ripple``."""
+    closed-loop ``move`` (see :func:`move_window`), a work cycle's ``targets`` (see
+    :func:`cycle_targets`) and the ringing's turning points counted beyond ``ripple``."""
     n = len(signals["t"])
     columns = [
         np.asarray(signals[k], dtype=float) if k in signals else np.full(n, math.nan if k in BATTERY else 0.0)
         for k in streaming.SAMPLE_SIGNALS
     ]
-    s = streaming.settings(lift_angle_deg, *move)
+    s = streaming.settings(lift_angle_deg, *move, targets)
     s[streaming.RIPPLE] = ripple
     m = streaming.accumulator()
     for row in zip(*(c.tolist() for c in columns)):
@@ -75,8 +76,8 @@ def metrics(
     lift_angle_deg: float = DEFAULT_LIFT_ANGLE_DEG,
     params: Any = None,
 ) -> dict[str, float]:
-    """The design metrics of one run: those of :mod:`streaming` (with the closed-loop move
-    of ``params``' angle scenario, if given), plus figures of the whole run:
+    """The design metrics of one run: those of :mod:`streaming` (with the closed-loop move and
+    the targets of ``params``' angle scenario, if given), plus figures of the whole run:
 
     - ``duration_s``;
     - ``time_to_target_s``: from the first opening command (u > 0) until q1 first reaches
@@ -84,7 +85,7 @@ def metrics(
     - ``supply_energy_per_m_j_m``, ``valve_loss_per_m_j_m``: per metre of that rise.
     """
     t, q, u = (np.asarray(signals[k], dtype=float) for k in ("t", "q1", "u"))
-    out = streamed(signals, lift_angle_deg, move_window(params))
+    out = streamed(signals, lift_angle_deg, move_window(params), targets=cycle_targets(params))
     lift = out["lift_m"]
     reached = np.nonzero(q >= q[0] + target_fraction * lift)[0] if lift > 0 else []
     out["duration_s"] = float(t[-1] - t[0])

@@ -44,6 +44,7 @@ from ..errors import BoomHydraulicsError, ConfigError
 from ..programs import DefaultsFormatter, RaisingParser, Terminated, run_main, stop_received, stop_words
 from ..sweeps import sweep
 from ..sweeps.recommend import RANKINGS
+from ..sweeps.rules import TARGET_TOLERANCE_DEG
 from ..sweeps.runner import BATCH_SIZE, Reached, SweepOptions, run_sweep
 from ..sweeps.sampling import SAMPLES
 
@@ -121,10 +122,46 @@ def build_parser() -> argparse.ArgumentParser:
         help="progress bar on stderr (default: when stderr is a terminal)",
     )
     pick = parser.add_argument_group("recommendation")
-    pick.add_argument("--recommend", action="store_true", help="rank the designs that meet the constraints")
-    pick.add_argument("--max-pressure-pa", type=float, help="constraint: peak_pressure_pa <= VALUE")
+    pick.add_argument(
+        "--recommend",
+        action="store_true",
+        help="rank the designs that meet the rules (below: a closed-loop run's targets, set-down and port reliefs, "
+        "--max-pressure-pa) and the constraints",
+    )
+    pick.add_argument(
+        "--max-pressure-pa",
+        type=float,
+        help="rule: peak_pressure_pa <= VALUE (the recommendation and every summary line)",
+    )
     pick.add_argument("--max-lift-time-s", type=float, help="constraint: lift_time_s <= VALUE")
     pick.add_argument("--no-cavitation", action="store_true", help="constraint: cavitation_s == 0")
+    pick.add_argument(
+        "--target-tolerance-deg",
+        type=float,
+        default=TARGET_TOLERANCE_DEG,
+        metavar="DEG",
+        help="rule of a closed-loop scenario (angle:, loader): the boom within DEG of each target at the end of "
+        "its phase (the next target's time; the last one's at the end of the run)",
+    )
+    pick.add_argument(
+        "--set-down-tolerance-deg",
+        type=float,
+        metavar="DEG",
+        help="rule of a work cycle: the boom within DEG of the ground when the payload is released "
+        "(default: --target-tolerance-deg)",
+    )
+    pick.add_argument(
+        "--settle-time-s",
+        type=float,
+        metavar="S",
+        help="rule of a closed-loop scenario: each target reached (within 2 %% of its step) and held from at most "
+        "S after its phase's start (default: no such rule)",
+    )
+    pick.add_argument(
+        "--allow-relief",
+        action="store_true",
+        help="recommend designs whose port relief valves open (default: a design qualifies only if none opens)",
+    )
     pick.add_argument("--require", action="append", default=[], metavar="EXPR", help="e.g. 'damping_ratio>=0.1'")
     pick.add_argument(
         "--across",
@@ -163,11 +200,17 @@ def _resume_command(argv: Sequence[str], out: Path, args: argparse.Namespace) ->
 
 def check_numbers(args: argparse.Namespace) -> None:
     """Refuse, in one line, numbers that make no sense, before anything is read or planned."""
-    for name in ("duration", "lift_angle_deg", "max_pressure_pa", "max_lift_time_s", "scheduler_timeout"):
+    numbers = ("duration", "lift_angle_deg", "max_pressure_pa", "max_lift_time_s", "scheduler_timeout",
+               "target_tolerance_deg", "set_down_tolerance_deg", "settle_time_s")  # fmt: skip
+    for name in numbers:
         value = getattr(args, name)
         if value is not None and not math.isfinite(value):
             raise ConfigError(f"--{name.replace('_', '-')} must be a finite number, got {value}")
     sweep.check_duration(args.duration)
+    for name in ("target_tolerance_deg", "set_down_tolerance_deg", "settle_time_s"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise ConfigError(f"--{name.replace('_', '-')} must be > 0, got {value}")
     if not args.scheduler_timeout > 0:
         raise ConfigError(f"--scheduler-timeout must be > 0 s, got {args.scheduler_timeout}")
     for name, least in (("samples", 0), ("seed", 0), ("every", 1), ("batch_size", 1), ("workers", 1), ("top", 1)):

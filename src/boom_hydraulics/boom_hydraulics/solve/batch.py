@@ -42,7 +42,7 @@ from .outcomes import MAX_SUBSTEPS, NONFINITE, OK, evaluation_message, message
 from .outputs import BOOLEAN_OUTPUTS, OUTPUT_NAMES
 from .profiles import ANGLE
 from .stepping import loop_of
-from .streaming import DEFAULT_LIFT_ANGLE_DEG, move_window
+from .streaming import DEFAULT_LIFT_ANGLE_DEG, cycle_targets, move_window
 
 SHARED = ("mode", "method", "time_step_s", "substeps")
 
@@ -333,7 +333,7 @@ class SetRun:
             raise ConfigError("a feedback command that has run already drives one parameter set; give each set its own")
         compiled = accelerate.available() if jit is None else jit and accelerate.available()
         adaptive = integrators.METHODS[p0.method].step is None  # rk45: one advance per step
-        settings = np.array([streaming.settings(lift_angle_deg, *move_window(p)) for p in params])
+        settings = np.array([streaming.settings(lift_angle_deg, *move_window(p), cycle_targets(p)) for p in params])
         schedule = payload_schedule(p0) if payload is None else payload
         spec = RunSpec(
             np.array(constants, dtype=float), encoding or CALLED, float(p0.time_step_s),

@@ -33,6 +33,15 @@ Definitions (SI):
   within 2 % of the step around the target (NaN if it is outside at the last sample);
   ``target_overshoot_deg``, how far it passed the target; ``target_error_deg``, target
   minus elevation at the window's last sample. NaN without a move.
+- A work cycle's targets (the ``angle`` profile's: target i from ``command_times_s[i]`` until
+  the next target's time, the last until the run ends; :func:`cycle_targets`), over the
+  samples of each phase: ``worst_target_error_deg``, the largest |target - elevation| at a
+  phase's last sample; ``worst_settle_time_s``, the longest time from a phase's start until
+  the elevation stays within 2 % of its step around its target (the band of ``settling_s``,
+  at least 0.1 degree), inf where a phase ends outside the band; ``set_down_error_deg``,
+  the elevation above the target in effect (the ground, in a work cycle) at the last sample
+  at or before the payload is released (the first time its share on the hook falls). NaN
+  without targets (open loop) or a release; at most :data:`MAX_TARGETS` targets count.
 - ``supply_energy_j``, ``valve_loss_energy_j``: at the last sample.
 - The battery (docs/model.md, "Energy ledger"): ``battery_energy_j``, what it gave less what it
   took back over the run; ``battery_drawn_j``, ``battery_returned_j``, those two apart;
@@ -73,6 +82,9 @@ NAMES = (
     "settling_s",
     "target_overshoot_deg",
     "target_error_deg",
+    "worst_target_error_deg",
+    "worst_settle_time_s",
+    "set_down_error_deg",
     "supply_energy_j",
     "valve_loss_energy_j",
     "battery_energy_j",
@@ -88,14 +100,21 @@ SAMPLE_SIGNALS = SAMPLE_NAMES
 
 #: A turning point of the ringing counts once p1 has come back from it by more than this, Pa.
 RIPPLE_PA = 1.0e3
-#: Settling band of a closed-loop move, as a fraction of its step.
+#: Settling band of a closed-loop move, as a fraction of its step ...
 SETTLING_BAND = 0.02
+#: ... and, for a work cycle's targets, at least this (a target at the angle the boom holds), rad.
+SETTLING_FLOOR_RAD = math.radians(0.1)
 #: A hold needs more samples than this for an overshoot, and this many for a ringing.
 HOLD_MIN_SAMPLES, RINGING_MIN_SAMPLES = 5, 16
 
-# The settings of one run (see settings()).
-LIFT_RAD, MOVE_START, MOVE_END, TARGET, RIPPLE = range(5)
-N_SETTINGS = 5
+#: A work cycle's targets the metrics follow, at most (the loader cycle has 4).
+MAX_TARGETS = 16
+
+# The settings of one run (see settings()): then the targets' times (s) and angles (rad)
+LIFT_RAD, MOVE_START, MOVE_END, TARGET, RIPPLE, N_TARGETS, RELEASE = range(7)
+TARGET_TIMES = 7
+TARGET_ANGLES = TARGET_TIMES + MAX_TARGETS
+N_SETTINGS = TARGET_ANGLES + MAX_TARGETS
 
 # The accumulator's slots.
 (COUNT, T0, Q0, ALPHA0, T_PREV, RISE_PREV, SUPPLY_PREV, LOSS_PREV, CAV_PREV, RELIEF_PREV) = range(10)
@@ -109,22 +128,54 @@ N_SETTINGS = 5
 (MOVE_N, MOVE_T0, MOVE_STEP, OUTSIDE, EVER_OUTSIDE, SETTLED_T, PAST, MOVE_LAST) = range(48, 56)
 # the battery
 (DRAWN, RETURNED, LIFT_WORK, BATTERY_PEAK) = range(56, 60)
-SIZE = 60
+# the work cycle's targets: the phase now (-1: before the first), its samples, step, whether
+# outside the band now and ever, when it last came inside, its last error; the worst so far
+(PH, PH_N, PH_STEP, PH_OUTSIDE, PH_EVER, PH_SETTLED, PH_ERR, WORST_ERR, WORST_SETTLE, SET_DOWN) = range(60, 70)
+SIZE = 70
 
 # PHASE: before the first opening, opened, in the hold, after it
 WAITING, OPEN, HOLDING, HELD = 0.0, 1.0, 2.0, 3.0
 
 
-def settings(lift_angle_deg: float, move_start_s: float, move_end_s: float, target_rad: float) -> np.ndarray:
-    """The settings of one run's metrics: the lift angle, and the closed-loop move's window and
-    target (``move_start_s`` NaN: no move)."""
-    out = np.empty(N_SETTINGS)
+def settings(
+    lift_angle_deg: float,
+    move_start_s: float,
+    move_end_s: float,
+    target_rad: float,
+    targets: tuple[Any, Any, float] = ((), (), math.nan),
+) -> np.ndarray:
+    """The settings of one run's metrics: the lift angle, the closed-loop move's window and
+    target (``move_start_s`` NaN: no move), and a work cycle's ``targets`` (times s, angles
+    rad, the payload's release s: :func:`cycle_targets`; none: open loop)."""
+    out = np.full(N_SETTINGS, math.nan)
     out[LIFT_RAD] = math.radians(lift_angle_deg)
     out[MOVE_START] = move_start_s
     out[MOVE_END] = move_end_s
     out[TARGET] = target_rad
     out[RIPPLE] = RIPPLE_PA
+    times, angles, release_s = targets
+    n = min(len(times), len(angles), MAX_TARGETS)
+    out[N_TARGETS] = n
+    out[TARGET_TIMES : TARGET_TIMES + n] = times[:n]
+    out[TARGET_ANGLES : TARGET_ANGLES + n] = angles[:n]
+    out[RELEASE] = release_s
     return out
+
+
+def cycle_targets(p: Any) -> tuple[tuple[float, ...], tuple[float, ...], float]:
+    """(times s, angles rad, release s) of the targets of a closed-loop ``angle`` scenario
+    (Parameters ``p``): each of ``command_angles_rad`` from its time in ``command_times_s``;
+    the release is the first of ``command_payload_times_s`` where the payload's share on the
+    hook falls (NaN: never). None of them for open loop."""
+    if p is None or p.command_profile != "angle":
+        return (), (), math.nan
+    release, share = math.nan, 1.0
+    for t, fraction in zip(p.command_payload_times_s, p.command_payload_fractions):
+        if fraction < share:
+            release = float(t)
+            break
+        share = fraction
+    return tuple(map(float, p.command_times_s)), tuple(map(float, p.command_angles_rad)), release
 
 
 def accumulator() -> np.ndarray:
@@ -230,6 +281,43 @@ def _move(m: np.ndarray, s: np.ndarray, t: float, alpha: float) -> None:
 
 
 @jitable
+def _phase_result(m: np.ndarray) -> tuple[float, float]:
+    """(|error| rad at its last sample, settling time s: inf if outside its band there) of the
+    phase now, were it to end here; zeros for one without samples."""
+    if m[PH] < 0.0 or m[PH_N] == 0.0:
+        return 0.0, 0.0
+    settle = math.inf if m[PH_OUTSIDE] == 1.0 else (m[PH_SETTLED] if m[PH_EVER] == 1.0 else 0.0)
+    return abs(m[PH_ERR]), settle
+
+
+@jitable
+def _targets(m: np.ndarray, s: np.ndarray, t: float, alpha: float) -> None:
+    """A sample of a work cycle with targets (see the module): follow the phase it falls in."""
+    n = int(s[N_TARGETS])
+    phase = int(m[PH])
+    while phase + 1 < n and t >= s[TARGET_TIMES + phase + 1]:
+        error, settle = _phase_result(m)  # the phase ends
+        m[WORST_ERR], m[WORST_SETTLE] = max(m[WORST_ERR], error), max(m[WORST_SETTLE], settle)
+        phase += 1
+        m[PH], m[PH_N] = phase, 0.0
+    if phase < 0:
+        return
+    target = s[TARGET_ANGLES + phase]
+    error = alpha - target
+    if m[PH_N] == 0.0:
+        m[PH_STEP] = target - alpha
+        m[PH_OUTSIDE], m[PH_EVER], m[PH_SETTLED] = 0.0, 0.0, 0.0
+    m[PH_N] += 1.0
+    if abs(error) > max(SETTLING_BAND * abs(m[PH_STEP]), SETTLING_FLOOR_RAD):
+        m[PH_OUTSIDE], m[PH_EVER] = 1.0, 1.0
+    elif m[PH_OUTSIDE] == 1.0:
+        m[PH_OUTSIDE], m[PH_SETTLED] = 0.0, t - s[TARGET_TIMES + phase]
+    m[PH_ERR] = error
+    if t <= s[RELEASE]:
+        m[SET_DOWN] = error
+
+
+@jitable
 def add_sample(
     m: np.ndarray,
     s: np.ndarray,
@@ -255,6 +343,7 @@ def add_sample(
         m[Q_MAX], m[RISE_MAX], m[SPEED_MAX], m[V2_SUM] = q1, 0.0, 0.0, 0.0
         m[P_MAX], m[P_MIN], m[CAV_S], m[RELIEF_S] = max(p1, p2), min(p1, p2), 0.0, 0.0
         m[OPENED], m[PHASE], m[HOLD_N], m[MOVE_N] = 0.0, WAITING, 0.0, 0.0
+        m[PH], m[PH_N], m[WORST_ERR], m[WORST_SETTLE] = -1.0, 0.0, 0.0, 0.0
     else:
         m[CAV_S] += (t - m[T_PREV]) * m[CAV_PREV]
         m[RELIEF_S] += (t - m[T_PREV]) * m[RELIEF_PREV]
@@ -287,6 +376,8 @@ def add_sample(
         _ringing(m, t, p1, s[RIPPLE])
     if not math.isnan(s[MOVE_START]) and s[MOVE_START] <= t < s[MOVE_END]:
         _move(m, s, t, alpha)
+    if s[N_TARGETS] > 0.0:
+        _targets(m, s, t, alpha)
     # the battery's mean power since the last sample (the battery's energy is a state: no
     # evaluation of the ledger per sample); NaN (no battery) stays NaN
     if first:
@@ -341,10 +432,14 @@ def finish(m: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
             out[15] = m[SETTLED_T]
         out[16] = math.degrees(m[PAST]) if m[MOVE_STEP] != 0.0 else 0.0
         out[17] = math.degrees(s[TARGET] - m[MOVE_LAST])
-    out[18], out[19] = m[SUPPLY], m[LOSS]
+    if s[N_TARGETS] > 0.0 and m[PH] >= 0.0:  # the last phase ends with the run
+        error, settle = _phase_result(m)
+        out[18], out[19] = math.degrees(max(m[WORST_ERR], error)), max(m[WORST_SETTLE], settle)
+        out[20] = math.degrees(m[SET_DOWN])
+    out[21], out[22] = m[SUPPLY], m[LOSS]
     battery = m[DRAWN] - m[RETURNED]
-    out[20], out[21], out[22], out[23] = battery, m[DRAWN], m[RETURNED], m[LIFT_WORK]
+    out[23], out[24], out[25], out[26] = battery, m[DRAWN], m[RETURNED], m[LIFT_WORK]
     if battery > 0.0:
-        out[24] = m[LIFT_WORK] / battery
+        out[27] = m[LIFT_WORK] / battery
     if m[BATTERY_PEAK] > -math.inf:  # (NaN without a battery, as every battery figure)
-        out[25] = m[BATTERY_PEAK]
+        out[28] = m[BATTERY_PEAK]

@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .recommend import designs_of, format_value
+from .rules import range_edges
 from .sweep import LEDGER_METRICS
 
 #: The band's percentiles.
@@ -82,29 +83,65 @@ def grouped_percentile(values: np.ndarray, group: np.ndarray, sizes: np.ndarray,
     return out
 
 
-def best_per_drive(bands: Mapping[str, np.ndarray]) -> dict[str, int]:
+def qualifying_designs(
+    table: Mapping[str, np.ndarray], point_columns: Sequence[str], qualifies: np.ndarray
+) -> np.ndarray:
+    """Per row of :func:`operator_bands` (a design, in the order designs first appear): every
+    one of its rows in ``table`` qualifies (``qualifies``: per row, recommend.qualifying)."""
+    groups = designs_of(table, design_columns(point_columns))
+    qualifies = np.asarray(qualifies, dtype=bool)
+    return np.array([bool(qualifies[rows].all()) for rows in groups.values()], dtype=bool)
+
+
+def best_per_drive(bands: Mapping[str, np.ndarray], qualifies: np.ndarray | None = None) -> dict[str, int | None]:
     """Each drive's row of ``bands`` with the least median battery energy per cycle, among its
-    designs whose every cycle ran ok (or, where none did, those with the most ok cycles); one
-    entry "" without a drive column."""
+    designs that qualify (``qualifies``: per row of ``bands``, see :func:`qualifying_designs`;
+    None where none of a drive's does), or without ``qualifies`` among its designs whose every
+    cycle ran ok (or, where none did, those with the most ok cycles); one entry "" without a
+    drive column."""
     drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(bands["cycles"])
     energy = np.asarray(bands["battery_energy_j_p50"], dtype=float)
     cycles = np.asarray(bands["cycles"])
     most = {d: max(cycles[i] for i, e in enumerate(drives) if e == d) for d in dict.fromkeys(drives)}
-    best: dict[str, int] = {}
+    best: dict[str, int | None] = dict.fromkeys(most) if qualifies is not None else {}
     for row, drive in enumerate(drives):
-        if cycles[row] < most[drive] or not np.isfinite(energy[row]):
+        if not np.isfinite(energy[row]):
             continue
-        if drive not in best or energy[row] < energy[best[drive]]:
+        if qualifies is not None:
+            if not qualifies[row]:
+                continue
+        elif cycles[row] < most[drive]:
+            continue
+        now = best.get(drive)
+        if now is None or energy[row] < energy[now]:
             best[drive] = row
     return best
 
 
-def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
-    """A line per drive: its best design, battery energy per cycle and cycles per charge with
-    their 10th-90th percentile band over its cycles (a design of one cycle has no band)."""
+def summary(
+    bands: Mapping[str, np.ndarray],
+    columns: Sequence[str],
+    qualifies: np.ndarray | None = None,
+    conditions: Sequence[str] = (),
+) -> str:
+    """A line per drive: its best design (of those that qualify, with ``qualifies``: see
+    :func:`best_per_drive`), battery energy per cycle and cycles per charge with their 10th-90th
+    percentile band over its cycles (a design of one cycle has no band); and with ``qualifies``,
+    where that design lies at an end of a searched axis other than the ``conditions`` (the
+    columns of ``--across``), a line saying which way to extend it."""
     lines = []
-    for drive, row in best_per_drive(bands).items():
-        where = ", ".join(f"{c}={format_value(bands[c][row])}" for c in design_columns(columns) if c != "drive")
+    axes = [c for c in design_columns(columns) if c != "drive"]
+    searched = [c for c in axes if c not in conditions]
+    drives = np.asarray(bands["drive"]).tolist() if "drive" in bands else [""] * len(bands["cycles"])
+    for drive, row in best_per_drive(bands, qualifies).items():
+        with_drive = f" with {drive}" if drive else ""
+        if row is None:
+            count = drives.count(drive)
+            lines.append(
+                f"  least battery energy{with_drive}: none of its {count} designs meets every rule and constraint"
+            )
+            continue
+        where = ", ".join(f"{c}={format_value(bands[c][row])}" for c in axes)
         energy = [float(bands[f"battery_energy_j_p{q}"][row]) * 1e-3 for q in PERCENTILES]
         cycles = [float(bands[f"cycles_per_charge_p{q}"][row]) for q in PERCENTILES]
         count = int(bands["cycles"][row])
@@ -115,7 +152,8 @@ def summary(bands: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
                 f"{energy[1]:.3g} kJ per cycle ({energy[0]:.3g}-{energy[2]:.3g}), {cycles[1]:.0f} cycles per charge "
                 f"({cycles[0]:.0f}-{cycles[2]:.0f}), median (10th-90th percentile) over its {count} cycles"
             )
-        lines.append(
-            f"  least battery energy{' with ' + drive if drive else ''}: {figures}" + (f" at {where}" if where else "")
-        )
+        lines.append(f"  least battery energy{with_drive}: {figures}" + (f" at {where}" if where else ""))
+        whose = f"{drive}'s best" if drive else "best"
+        if qualifies is not None:
+            lines += [f"    {line}" for line in range_edges(bands, searched, row, whose)]
     return "\n".join(lines)

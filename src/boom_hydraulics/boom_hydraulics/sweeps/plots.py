@@ -22,7 +22,7 @@ from ..analysis import labels, layout
 from ..analysis.plots import energy_breakdown_figure
 from ..files import atomic_path
 from ..programs import Forked, can_fork
-from .energy import BREAKDOWN, PERCENTILES, best_per_drive, design_columns, operator_bands
+from .energy import BREAKDOWN, PERCENTILES, best_per_drive, design_columns, operator_bands, qualifying_designs
 from .recommend import TRADE_OFF, trade_off_front
 
 #: Metrics plotted against the varied parameters: (column, label, scale).
@@ -393,12 +393,17 @@ def _log_label(value: float, _: Any = None) -> str:
     return f"{value:g}" if any(abs(mantissa - m) < 1e-6 for m in (1.0, 2.0, 5.0)) else ""
 
 
-def energy_breakdown(bands: Mapping[str, np.ndarray], design_columns: Sequence[str], path: Path) -> None:
+def energy_breakdown(
+    bands: Mapping[str, np.ndarray], design_columns: Sequence[str], qualifies: np.ndarray | None, path: Path
+) -> None:
     """Where the battery's energy goes, a stacked bar for each drive at its best design (the
-    least median battery energy per cycle): the lift's work and every loss and work term of
-    the ledger (in words), averaged over its cycles; the energy it took back is drawn below
-    zero. Each bar is named by its drive in words and its design's values with units."""
-    fig = energy_breakdown_figure(_breakdown_bars(bands, design_columns), breakdown_title("drive" in bands))
+    least median battery energy per cycle, of its designs that qualify: ``qualifies``, per row
+    of ``bands``; a drive none of whose designs does has no bar): the lift's work and every
+    loss and work term of the ledger (in words), averaged over its cycles; the energy it took
+    back is drawn below zero. Each bar is named by its drive in words and its design's values
+    with units."""
+    bars = _breakdown_bars(bands, design_columns, qualifies)
+    fig = energy_breakdown_figure(bars, breakdown_title("drive" in bands))
     _save(fig, path)
     plt.close(fig)
 
@@ -413,12 +418,14 @@ def breakdown_title(drives: bool) -> str:
 
 
 def _breakdown_bars(
-    bands: Mapping[str, np.ndarray], design_columns: Sequence[str]
+    bands: Mapping[str, np.ndarray], design_columns: Sequence[str], qualifies: np.ndarray | None = None
 ) -> list[tuple[str, dict[str, float], float]]:
     """The bars of :func:`energy_breakdown`: (name, energies J by the ledger's names, median
-    battery energy J) for each drive's best design."""
+    battery energy J) for each drive's best design (of those that qualify, see best_per_drive)."""
     bars = []
-    for drive, row in best_per_drive(bands).items():
+    for drive, row in best_per_drive(bands, qualifies).items():
+        if row is None:
+            continue
         energies = {name.removesuffix("_j"): float(bands[name][row]) for name in BREAKDOWN}
         where = "\n".join(labels.value_with_unit(c, bands[c][row]) for c in design_columns if c != "drive")
         name = labels.drive_words(drive) if drive else "best design"
@@ -523,5 +530,10 @@ def _plots(table: Mapping[str, np.ndarray], point_columns: Sequence[str], folder
         if axes:
             parameter = "piston_diameter_m" if "piston_diameter_m" in axes else axes[0]
             plots.append(plot("battery_energy.png", 0.1, battery_energy, bands, parameter, designs))
-        plots.append(plot("energy_breakdown.png", 0.13, energy_breakdown, bands, designs))
+        qualifies = (
+            qualifying_designs(table, point_columns, np.asarray(table["qualifies"], dtype=bool))
+            if "qualifies" in table
+            else None
+        )
+        plots.append(plot("energy_breakdown.png", 0.13, energy_breakdown, bands, designs, qualifies))
     return plots

@@ -47,20 +47,37 @@ _PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|<|>)\s*(\S+)\s*
 
 @dataclass(frozen=True)
 class Constraint:
-    """``metric op value`` over a column of the sweep table."""
+    """``metric op value`` over a column of the sweep table; ``magnitude``: over its absolute
+    value; ``only_where``: a column that is NaN where the constraint does not apply (a work
+    cycle's target in an open-loop run), which such a row passes; ``why``: what a row that
+    fails it did, in words."""
 
     metric: str
     op: str
     value: float
+    why: str = ""
+    magnitude: bool = False
+    only_where: str = ""
 
     def __str__(self) -> str:
-        return f"{self.metric} {self.op} {self.value:g}"
+        metric = f"|{self.metric}|" if self.magnitude else self.metric
+        return f"{metric} {self.op} {self.value:g}"
 
     def holds(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
-        """Per row: the constraint holds (NaN never does)."""
+        """Per row: the constraint holds (a value that is not finite never does), or does not
+        apply (``only_where``)."""
         column = np.asarray(table[self.metric], dtype=float)
+        if self.magnitude:
+            column = np.abs(column)
         with np.errstate(invalid="ignore"):
-            return _OPS[self.op](column, self.value) & np.isfinite(column)
+            held = _OPS[self.op](column, self.value) & np.isfinite(column)
+        return held | ~self.applies(table)
+
+    def applies(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Per row: whether the constraint applies to it (see ``only_where``)."""
+        if not self.only_where:
+            return np.ones(len(table[self.metric]), dtype=bool)
+        return ~np.isnan(np.asarray(table[self.only_where], dtype=float))
 
 
 def parse_constraint(text: str, columns: Sequence[str] = METRIC_NAMES) -> Constraint:
@@ -185,6 +202,38 @@ class Recommendation:
     rank_by: str = RANK_BY
 
 
+def _design_of(table: Mapping[str, np.ndarray], design_columns: Sequence[str]) -> tuple[np.ndarray, int]:
+    """Each row's design (its index in the order designs first appear) and how many there are."""
+    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(table["status"])
+    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    return np.array([index[k] for k in keys], dtype=np.int64), len(index)
+
+
+def _every(flags: np.ndarray, of_design: np.ndarray, designs: int) -> np.ndarray:
+    """Per design: ``flags`` holds at every one of its rows."""
+    failed = np.zeros(designs, bool)
+    failed[of_design[~flags]] = True
+    return ~failed
+
+
+def qualifying(
+    table: Mapping[str, np.ndarray],
+    constraints: Sequence[Constraint],
+    point_columns: Sequence[str] = (),
+    across: Sequence[str] = (),
+) -> np.ndarray:
+    """Per row of ``table``: its design qualifies, i.e. every point of it (every row, without
+    ``across``; with it, the rows that differ only in those columns) is ok and meets every
+    constraint."""
+    meets = np.asarray(table["status"]) == "ok"
+    for c in constraints:
+        meets &= c.holds(table)
+    if not across:
+        return meets
+    of_design, designs = _design_of(table, [c for c in point_columns if c not in across])
+    return _every(meets, of_design, designs)[of_design]
+
+
 def recommend(
     table: Mapping[str, np.ndarray],
     constraints: Sequence[Constraint],
@@ -216,20 +265,29 @@ def recommend(
         return Recommendation(table, ("point", *point_columns), ranked, tuple(constraints), passing, rank_by)
     design_columns = [c for c in point_columns if c not in across]
     designs = worst_case(table, design_columns)
-    keys = list(zip(*(np.asarray(table[c]).tolist() for c in design_columns))) or [()] * len(status_ok)
-    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
-    of_design = np.array([index[k] for k in keys])
-
-    def every(flags: np.ndarray) -> np.ndarray:
-        failed = np.zeros(len(index), bool)
-        failed[of_design[~flags]] = True
-        return ~failed
-
-    qualifies = every(meets)
-    passing = {"status ok": int(every(status_ok).sum()), **{k: int(every(v).sum()) for k, v in holds.items()}}
+    of_design, count = _design_of(table, design_columns)
+    qualifies = _every(meets, of_design, count)
+    passing = {
+        "status ok": int(_every(status_ok, of_design, count).sum()),
+        **{k: int(_every(v, of_design, count).sum()) for k, v in holds.items()},
+    }
     rows = np.nonzero(qualifies)[0]
     ranked = rows[np.argsort(sign * designs[rank_by][rows], kind="stable")]
     return Recommendation(designs, ("design", *design_columns), ranked, tuple(constraints), passing, rank_by)
+
+
+def failing(rec: Recommendation) -> list[str]:
+    """A line per constraint (and "status ok"): the designs meeting it; where some fail one
+    that says why (a rule's: see :mod:`rules`), how many and why."""
+    total = len(rec.table[rec.columns[0]])
+    whys = {str(c): c.why for c in rec.constraints}
+    lines = []
+    for name, count in rec.passing.items():
+        line = f"  {name:<32} {count} of {total}"
+        if count < total and whys.get(name):
+            line += f"; {total - count} fail: {whys[name]}"
+        lines.append(line)
+    return lines
 
 
 #: Columns of the readable table: (column, heading, scale).
@@ -250,8 +308,7 @@ def format_table(rec: Recommendation, top: int = 10) -> str:
     """The recommendation as aligned text: the constraints, then the best ``top`` rows."""
     table, designs = rec.table, rec.columns[0] == "design"
     what = "designs meeting each at all their points" if designs else "designs meeting each"
-    lines = [f"Constraints ({what}):"]
-    lines += [f"  {name:<32} {count} of {len(table[rec.columns[0]])}" for name, count in rec.passing.items()]
+    lines = [f"Constraints ({what}):", *failing(rec)]
     if not len(rec.rows):
         lines.append("No design meets every constraint; relax the tightest one above.")
         return "\n".join(lines) + "\n"

@@ -27,6 +27,7 @@ from ..programs import raise_pending
 from ..solve import accelerate
 from . import energy, plotter, recommend, sweep
 from .executors import DaskExecutor, LocalExecutor
+from .rules import Rules, range_edges
 from .sampling import parse_axis, point_count, resolve_name
 from .store import OUTPUTS, SweepStore, plot_names
 
@@ -65,6 +66,10 @@ class SweepOptions:
     max_pressure_pa: float | None = None
     max_lift_time_s: float | None = None
     no_cavitation: bool = False
+    target_tolerance_deg: float = Rules.target_tolerance_deg
+    set_down_tolerance_deg: float | None = None  # None: target_tolerance_deg
+    settle_time_s: float | None = None
+    allow_relief: bool = False
     require: Sequence[str] = ()
     across: Sequence[str] = ()
     rank_by: str | None = None  # recommend.RANKINGS; None: recommend.RANK_BY
@@ -79,10 +84,18 @@ def load_configs(files: Sequence[str], assignments: Sequence[str]) -> list[tuple
     return [(Path(f).stem, config.load(f, overrides)) for f in files]
 
 
+def rules_of(options: SweepOptions) -> Rules:
+    """The rules every design must meet (see :mod:`rules`), as the options set them."""
+    return Rules(
+        options.target_tolerance_deg, options.set_down_tolerance_deg, options.settle_time_s, options.max_pressure_pa,
+        options.allow_relief,
+    )  # fmt: skip
+
+
 def constraints_of(options: SweepOptions, columns: Sequence[str]) -> list[recommend.Constraint]:
-    found = [recommend.parse_constraint(text, columns) for text in options.require]
-    if options.max_pressure_pa is not None:
-        found.append(recommend.Constraint("peak_pressure_pa", "<=", options.max_pressure_pa))
+    """The rules (:func:`rules_of`), then the constraints the options add."""
+    found = rules_of(options).constraints()
+    found += [recommend.parse_constraint(text, columns) for text in options.require]
     if options.max_lift_time_s is not None:
         found.append(recommend.Constraint("lift_time_s", "<=", options.max_lift_time_s))
     if options.no_cavitation:
@@ -140,7 +153,17 @@ class BatchCells:
         return list(map(",".join, zip(*parts, strict=True)))
 
 
-def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
+def applicable(
+    constraints: Sequence[recommend.Constraint], table: Mapping[str, np.ndarray]
+) -> list[recommend.Constraint]:
+    """The constraints that apply to some row of ``table`` (an open-loop sweep's table has no
+    targets: the rules of a closed-loop run do not apply to it, see rules.Rules)."""
+    return [c for c in constraints if c.applies(table).any()]
+
+
+def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str], qualifies: np.ndarray) -> str:
+    """The points' statuses, and the fastest and most frugal lift of the points whose design
+    qualifies (``qualifies``: per row)."""
     status = np.asarray(table["status"])
     counts = ", ".join(
         f"{int((status == s).sum())} {s}" + (f" ({sweep.STATUS_MEANINGS[s]})" if s in sweep.STATUS_MEANINGS else "")
@@ -148,7 +171,9 @@ def _summary(table: Mapping[str, np.ndarray], columns: Sequence[str]) -> str:
         if (status == s).any()
     )
     lines = [f"{len(status)} points: {counts}"]
-    ok = np.nonzero(status == "ok")[0]
+    ok = np.nonzero(qualifies)[0]
+    if len(ok) < int((status == "ok").sum()):
+        lines.append(f"  of the ok points, {len(ok)} are of designs that meet every rule and constraint:")
     if len(ok):
         for metric, label in (("lift_time_s", "fastest lift"), ("lift_energy_j", "least lift energy")):
             best = ok[np.nanargmin(np.asarray(table[metric], float)[ok])]
@@ -291,6 +316,15 @@ def run_sweep(options: SweepOptions, reached: Reached) -> int:
         raise
 
 
+def _recommending(options: SweepOptions) -> bool:
+    """Whether the options ask for a recommendation (the rules alone do not: every sweep has them)."""
+    return bool(
+        options.recommend or options.require or options.max_pressure_pa is not None
+        or options.max_lift_time_s is not None or options.no_cavitation or options.settle_time_s is not None
+        or options.across or options.rank_by
+    )  # fmt: skip
+
+
 @contextlib.contextmanager
 def _frozen_heap() -> Iterator[None]:
     """What is alive now (the plan: a Parameters and a dict per point) out of the garbage
@@ -358,6 +392,9 @@ def _run_plan(
     seconds = time.perf_counter() - started
     table = sweep.assemble(plan, parts)
     table["front"] = recommend.trade_off_front(table).astype(np.int64)
+    constraints = applicable(constraints, table)
+    qualifies = recommend.qualifying(table, constraints, plan.columns, across)
+    table["qualifies"] = qualifies.astype(np.int64)
     if drawer is not None:
         drawer.draw(table, plan.columns, out)  # it draws while the files below are written here
     write_table(table, out / "results.csv", cells=cells)
@@ -365,13 +402,18 @@ def _run_plan(
     battery = np.isfinite(np.asarray(table["battery_energy_j"], dtype=float)[np.asarray(table["status"]) == "ok"]).any()
     # each design's band over its operators' cycles: their table, and the battery's summary
     bands = energy.operator_bands(table, plan.columns) if battery or "operator" in plan.columns else None
+    if bands is not None:
+        bands["qualifies"] = energy.qualifying_designs(table, plan.columns, qualifies).astype(np.int64)
     if "operator" in plan.columns:
         write_table(bands, out / "operators.csv")
         written += ["operators.csv", "operators.npz"]
     ranked = None
-    if options.recommend or constraints or options.across or options.rank_by:
+    if _recommending(options):
         ranked = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
         text = recommend.format_table(ranked, options.top)
+        if len(ranked.rows):
+            edges = range_edges(ranked.table, ranked.columns[1:], int(ranked.rows[0]))
+            text += "".join(f"{line}\n" for line in edges)
         write_bytes(out / "recommendation.txt", text.encode())
         write_table(ranked.table, out / "recommendation.csv", rows=ranked.rows)
     if drawer is not None:
@@ -383,9 +425,9 @@ def _run_plan(
     ran = sum(len(b.points) for b in todo)
     rate = f" ({ran / seconds:.0f} points/s)" if ran and seconds > 0 else ""
     print(f"{out}: {', '.join(written)}; {ran} points run in {seconds:.1f} s{rate}")
-    print(_summary(table, plan.columns))
+    print(_summary(table, plan.columns, qualifies))
     if battery:
-        print(energy.summary(bands, plan.columns))
+        print(energy.summary(bands, plan.columns, bands["qualifies"].astype(bool), across))
     if ranked is not None:
         print(text, end="")
     return 0
