@@ -29,15 +29,17 @@ AS_BUILT = {
 }
 #: The brief's end-stop run: full speed out into the stop, hold, full speed in, hold.
 STOPS = "steps:0=1,3=0,4=-1,7=0"
-#: Recorded at d39ea8d (tools/with-env python, Simulator compiled, every=10): the default EHA's
-#: ledger over the loader cycle and over STOPS (9 s), J, and its final cylinder length, m.
+#: Recorded before the EHA was built (tools/with-env python, Simulator compiled, every=10): the
+#: default EHA's ledger over the loader cycle and over STOPS (9 s), J, and its final cylinder
+#: length, m. STOPS at d39ea8d; the loader cycle once the position controller's feedforward took
+#: the EHA's own rod speed at full command (D w_max / S1) in place of the valve's law.
 RECORDED = {
     "loader": {
-        "battery_drawn": 2254.733485618495,
-        "battery_returned": 529.4202761776879,
-        "lift_work": 1284.8602446379582,
+        "battery_drawn": 2179.0374896691624,
+        "battery_returned": 510.4842702218557,
+        "lift_work": 1234.3107717605244,
         "port_relief_loss": 0.0,
-        "q1": 1.3683865841600211,
+        "q1": 1.369169408930717,
     },
     STOPS: {
         "battery_drawn": 55896.35159292596,

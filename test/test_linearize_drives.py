@@ -77,5 +77,22 @@ def test_boom_sim_linearize_of_the_eha_saves_its_motor_state_with_its_unit(tmp_p
     assert cli.main(args) == 0
     saved = np.load(out / "linear_model.npz")
     names, units = list(saved["state_names"]), list(saved["state_units"])
-    assert names[-1] == "motor_speed" and units[-1] == "rad/s" and saved["A"].shape == (7, 7)
-    assert len(saved["operating_state"]) == 7
+    assert names[-2:] == ["motor_speed", "speed_loop_integral"] and units[-2:] == ["rad/s", "rad/s"]
+    assert saved["A"].shape == (8, 8) and len(saved["operating_state"]) == 8
+
+
+def test_the_actuator_held_on_its_brake_rings_on_its_screw_in_series_with_the_brake():
+    """At rest the electro-mechanical actuator holds on its brake: the boom's mass at the rod
+    rings on the screw's stiffness k_s in series with the brake's presliding stiffness, its
+    torque T_b over the presliding angle theta seen at the rod through the ratio r
+    (docs/model.md, eq. D30-D35): f = sqrt(k / m) / (2 pi), 1/k = 1/k_s + r^2 theta / T_b."""
+    from boom_hydraulics.model.drives import electro_mechanical
+
+    model = _model("electro_mechanical")
+    p = model.point.params
+    assert model.state_names[-3:] == ("screw_force", "motor_speed", "friction_state")
+    r = p.ema_screw_lead_m / (2.0 * np.pi * p.ema_gear_ratio)
+    brake = p.ema_brake_torque_n_m / electro_mechanical.PRESLIDING_RAD / r**2
+    stiffness = 1.0 / (1.0 / p.ema_screw_stiffness_n_m + 1.0 / brake)
+    frequency = np.sqrt(stiffness / lm.effective_mass_at(p, model.point.q1_m)) / (2.0 * np.pi)
+    assert model.hydraulic_mode().natural_frequency_hz == pytest.approx(frequency, rel=0.05)

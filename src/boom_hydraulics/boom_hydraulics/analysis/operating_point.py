@@ -31,8 +31,9 @@ from ..model.control import full_opening_rate
 from ..model.drives import DRIVES
 from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
 from ..model.hydraulics import orifice_pressure_drop
-from ..model.parameters import Parameters
+from ..model.parameters import Parameters, with_updates
 from ..solve.closed_loop import stacked_constants
+from ..solve.simulator import Simulator
 from .jacobian import CENTRAL, FORWARD, jacobian
 
 MODEL = MODELS["physical"]
@@ -184,6 +185,8 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731
     y, ok = steady(derivative, y0, unknowns, equations, [scales[i] for i in unknowns])
+    if not ok and opening == 0.0 and own:
+        y, ok = settled(p, q1_m, [scales[i] for i in equations], equations)
     d = MODEL.derivative(0.0, y, c, opening)
     if not ok or not all(math.isfinite(v) for v in y):
         raise ConfigError(
@@ -192,6 +195,25 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
         )
     state = [float(v) for v in y]
     return OperatingPoint(p, state, float(opening), float(d[P1]) if opening == 0.0 else 0.0)
+
+
+#: How long a drive with states of its own is left to settle at rest where Newton's method finds
+#: no steady state, s: a friction or a brake that holds with any torque within its range leaves
+#: the equations of its states without a unique root.
+SETTLE_S = 1.0
+
+
+def settled(p: Parameters, q1_m: float, scales: Sequence[float], equations: Sequence[int]) -> tuple[list, bool]:
+    """The state the drive comes to rest in at ``q1_m`` with the valve closed, run for
+    :data:`SETTLE_S` from its initial state (a brake or a screw's friction takes the load where
+    it holds it), and whether the ``equations``' rates there are below 1e-6 of their scales per
+    second (as Newton's method would have them)."""
+    simulator = Simulator(with_updates(p, initial_length_m=q1_m))
+    simulator.step(0.0, max(1, round(SETTLE_S / p.time_step_s)))
+    y = [float(v) for v in simulator.y]
+    rates = MODEL.derivative(0.0, y, MODEL.constants(p), 0.0)
+    ok = all(abs(rates[i]) <= 1e-6 * scale for i, scale in zip(equations, scales)) and math.isfinite(sum(y))
+    return y, ok
 
 
 def _motion_guess(c: Any, q1_m: float, opening: float) -> tuple[float, float, float, float]:

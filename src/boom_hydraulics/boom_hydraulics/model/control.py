@@ -83,7 +83,8 @@ def initial_control_state(like: Num = 0.0) -> ControlState:
 @jitable
 def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Num]:
     """Boom rates (rad/s) at full opening, lifting and lowering, at cylinder length ``q1_m``
-    (the feedforward's plant model; ``c``: physical-mode Constants)."""
+    (the feedforward's plant model; ``c``: physical-mode Constants): through the valve, or, for
+    a drive whose command sets its motor's speed, that drive's rod speed at full command."""
     lever = lever_rad_per_m(q1_m, c.a, c.b, xp)
     # eq. 6: F = M_g k, less the external rod force that carries part of it (eq. 11)
     force = c.weight_coeff * cos_boom_angle(q1_m, c.a, c.b, c.h, xp) * lever - c.f_external
@@ -91,7 +92,10 @@ def full_opening_rate(q1_m: Num, c: Any, xp: ModuleType = math) -> tuple[Num, Nu
     margin = _MIN_MARGIN * c.p_set * (c.s1 + c.s2)
     v_up = c.k_valve * xp.sqrt(larger(c.p_set * c.s1 - c.p_tank * c.s2 - force, margin) / cubes)
     v_down = c.k_valve * xp.sqrt(larger(force + c.p_set * c.s2 - c.p_tank * c.s1, margin) / cubes)
-    return lever * smaller(v_up, c.max_flow / c.s1), lever * smaller(v_down, c.max_flow / c.s2)
+    direct = 1.0 * (c.command_rod_speed > 0.0)  # a drive without the valve: its motor sets the speed
+    v_up = smaller(v_up, c.max_flow / c.s1) + direct * (c.command_rod_speed - smaller(v_up, c.max_flow / c.s1))
+    v_down = smaller(v_down, c.max_flow / c.s2) + direct * (c.command_rod_speed - smaller(v_down, c.max_flow / c.s2))
+    return lever * v_up, lever * v_down
 
 
 @jitable

@@ -141,47 +141,44 @@ def supply(
 
 
 @jitable
-def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
-    """What the set's drive stores beside the chambers, J (each drive's ``energy``)."""
-    e = 0.0 * z[0]
+def stored(z: tuple, s: Supply, d: DriveConstants, xp: ModuleType = math) -> tuple[Num, Num]:
+    """(E, dE/dt): what the set's drive stores beside the chambers, J (each drive's ``energy``),
+    and its rate along the drive's rates ``s``, W (each drive's ``energy_rate``)."""
+    e, rate = 0.0 * z[0], 0.0 * z[0]
     w = uses(d, 0)
     if in_use(w):
-        e = e + w * pressure_compensated.energy(z, d, xp)
+        e, rate = e + w * pressure_compensated.energy(z, d, xp), rate + w * pressure_compensated.energy_rate(z, s, d)
     w = uses(d, 1)
     if in_use(w):
-        e = e + w * fixed_pump.energy(z, d, xp)
+        e, rate = e + w * fixed_pump.energy(z, d, xp), rate + w * fixed_pump.energy_rate(z, s, d)
     w = uses(d, 2)
     if in_use(w):
-        e = e + w * load_sensing.energy(z, d, xp)
+        e, rate = e + w * load_sensing.energy(z, d, xp), rate + w * load_sensing.energy_rate(z, s, d)
     w = uses(d, 3)
     if in_use(w):
-        e = e + w * pump_controlled.energy(z, d, xp)
+        e, rate = e + w * pump_controlled.energy(z, d, xp), rate + w * pump_controlled.energy_rate(z, s, d)
     w = uses(d, 4)
     if in_use(w):
-        e = e + w * electro_mechanical.energy(z, d, xp)
-    return e
+        e, rate = e + w * electro_mechanical.energy(z, d, xp), rate + w * electro_mechanical.energy_rate(z, s, d)
+    return e, rate
+
+
+@jitable
+def energy(z: tuple, d: DriveConstants, xp: ModuleType = math) -> Num:
+    """What the set's drive stores beside the chambers, J (:func:`stored`)."""
+    return stored(z, _nothing(0.0 * z[0]), d, xp)[0]
 
 
 @jitable
 def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
-    """d/dt of :func:`energy` along the drive's rates ``s``, W."""
-    e = 0.0 * z[0]
-    w = uses(d, 0)
-    if in_use(w):
-        e = e + w * pressure_compensated.energy_rate(z, s, d)
-    w = uses(d, 1)
-    if in_use(w):
-        e = e + w * fixed_pump.energy_rate(z, s, d)
-    w = uses(d, 2)
-    if in_use(w):
-        e = e + w * load_sensing.energy_rate(z, s, d)
-    w = uses(d, 3)
-    if in_use(w):
-        e = e + w * pump_controlled.energy_rate(z, s, d)
-    w = uses(d, 4)
-    if in_use(w):
-        e = e + w * electro_mechanical.energy_rate(z, s, d)
-    return e
+    """d/dt of :func:`energy` along the drive's rates ``s``, W (:func:`stored`)."""
+    return stored(z, s, d)[1]
+
+
+@jitable
+def _plus(a: tuple, w: Num, b: tuple) -> tuple:
+    """a + w b, element by element, of two triples."""
+    return a[0] + w * b[0], a[1] + w * b[1], a[2] + w * b[2]
 
 
 @jitable
@@ -189,28 +186,24 @@ def stiffness(
     z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
 ) -> tuple[Num, Num, Num]:
     """(dQ/dp the drive gives line A, line B; its own fastest rate): each drive's ``stiffness``."""
-    g_a, g_b, own = 0.0 * stiff1, 0.0 * stiff1, 0.0 * stiff1
+    zero = 0.0 * stiff1
+    g = (zero, zero, zero)
     w = uses(d, 0)
     if in_use(w):
-        a, b, r = pressure_compensated.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+        g = _plus(g, w, pressure_compensated.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
     w = uses(d, 1)
     if in_use(w):
-        a, b, r = fixed_pump.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+        g = _plus(g, w, fixed_pump.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
     w = uses(d, 2)
     if in_use(w):
-        a, b, r = load_sensing.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+        g = _plus(g, w, load_sensing.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
     w = uses(d, 3)
     if in_use(w):
-        a, b, r = pump_controlled.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
+        g = _plus(g, w, pump_controlled.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
     w = uses(d, 4)
     if in_use(w):
-        a, b, r = electro_mechanical.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-        g_a, g_b, own = g_a + w * a, g_b + w * b, own + w * r
-    return g_a, g_b, own
+        g = _plus(g, w, electro_mechanical.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
+    return g
 
 
 __all__ = (

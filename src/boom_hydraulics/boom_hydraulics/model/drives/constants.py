@@ -41,6 +41,7 @@ class DriveConstants(NamedTuple):
     leak: Num  # laminar leakage of each closed valve path, m^3/(s Pa)
     holding: Num  # 1.0 with a load-holding valve on the piston side, 0.0 without
     seat_leak: Num  # seat leakage of the closed load-holding valve, m^3/(s Pa)
+    command_rod_speed: Num  # rod speed at full command where the command sets a motor's speed, m/s (0: valve)
     max_flow: Num  # Q_max: the pump's geometric flow at speed, m^3/s
     speed: Num  # w_n: constant pump speed; the EHA's top speed, rad/s
     displacement: Num  # D = Q_max / w_n, m^3/rad (eq. D4)
@@ -116,6 +117,13 @@ def constants(p: Parameters) -> DriveConstants:
     torque_model = 1.0 if p.eha_torque_limit_n_m > 0.0 else 0.0
     eha_integral = 1.0 if torque_model * p.eha_speed_integral_time_s > 0.0 else 0.0
     eha_inv_integral_time = eha_integral / p.eha_speed_integral_time_s if eha_integral else 0.0
+    # the drives without the 4/3 valve set the motor's speed by the command, and so the rod's speed
+    # at full command (control.full_opening_rate, the feedforward's plant model; 0: the valve's law)
+    command_rod_speed = 0.0
+    if p.drive == "pump_controlled":
+        command_rod_speed = p.pump_max_flow_m3_s / piston_area_m2(p.piston_diameter_m)  # D w_max / S1 (eq. D20)
+    if p.drive == "electro_mechanical":
+        command_rod_speed = p.ema_screw_lead_m / (2.0 * math.pi * p.ema_gear_ratio) * p.pump_speed_rad_s  # eq. D30
     return DriveConstants(
         drive=drive_index(p.drive),
         p_tank=p.tank_pressure_pa,
@@ -128,6 +136,7 @@ def constants(p: Parameters) -> DriveConstants:
         leak=p.valve_leakage_m3_s_pa,
         holding=holding,
         seat_leak=p.load_holding_leakage_m3_s_pa,
+        command_rod_speed=command_rod_speed,
         max_flow=p.pump_max_flow_m3_s,
         speed=p.pump_speed_rad_s,
         displacement=p.pump_max_flow_m3_s / p.pump_speed_rad_s,
