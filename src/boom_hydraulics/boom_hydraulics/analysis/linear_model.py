@@ -62,6 +62,8 @@ def state_units_of(p: Parameters) -> tuple[str, ...]:
     """The units of :func:`states_of`, in their order."""
     own = DRIVES[p.drive].STATE_UNITS[: len(states_of(p)) - len(STATES)]
     return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own)
+
+
 #: The outputs (model state components), with their units.
 OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("q1", "m", "rod position"),
