@@ -163,10 +163,11 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     if p.mode != "physical":
         raise ConfigError("a linear model is taken of the physical drive: set mode: physical")
     if not DRIVES[p.drive].STEADY_SUPPLY:
-        steady = ", ".join(name for name, drive in DRIVES.items() if drive.STEADY_SUPPLY)
+        holding = [name for name, drive in DRIVES.items() if drive.STEADY_SUPPLY]  # (steady: the solver below)
         raise ConfigError(
-            f"a linear model is taken of a drive whose supply holds its pressure whatever the load ({steady}); "
-            f"drive '{p.drive}' adds states of its own that it does not hold yet: set drive: {steady.split(', ')[0]}"
+            f"a linear model is taken of a drive whose supply holds its pressure whatever the load "
+            f"({', '.join(holding)}); drive '{p.drive}' adds states of its own that it does not hold yet: "
+            f"set drive: {holding[0]}"
         )
     check_inside_stroke(p, q1_m)
     if not (math.isfinite(opening) and -1.0 <= opening <= 1.0):
