@@ -147,6 +147,7 @@ def test_boom_sim_linearize_writes_what_it_says(tmp_path, capsys):
         (["--angle-deg", "400"], "(400.00 deg) lies outside the stroke's"),
         (["--opening", "2"], "--opening must be a valve opening in [-1, 1]"),
         (["--set", "mode=paper"], "a linear model is taken of the physical drive"),
+        (["--set", "drive=load_sensing"], "drive 'load_sensing' adds states of its own that it does not hold yet"),
     ],
 )
 def test_what_cannot_be_linearised_is_one_line_and_nothing_written(tmp_path, capsys, args, message):
