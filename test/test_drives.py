@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from boom_hydraulics.errors import ConfigError
-from boom_hydraulics.model import battery, config, electric_motor, geometry, hydraulics, pump
+from boom_hydraulics.model import battery, config, electric_motor, geometry, hydraulics, pump, valve
 from boom_hydraulics.model.drives import DRIVES, STATE_COUNT, constants, fixed_pump, load_sensing, pump_controlled
 from boom_hydraulics.model.ledger import electric_chain
 from boom_hydraulics.model.parameters import DRIVES as DRIVE_CHOICES
@@ -29,10 +29,26 @@ def test_one_registry_of_drives_behind_one_start_only_parameter_defaulting_to_to
     assert P.drive == "pressure_compensated" and describe("drive")["start_only"]
     assert describe("drive")["group"] == "plant"
     for name, module in DRIVES.items():
-        assert len(module.STATE_NAMES) == len(module.STATE_SCALES) == 1, name
-        assert callable(module.supply) and callable(module.initial_state), name
-        assert module.VALVE == hasattr(module, "port_pressure_pa"), name
+        assert 1 <= len(module.STATE_NAMES) == len(module.STATE_SCALES) <= STATE_COUNT, name
+        for function in ("initial_state", "supply", "energy", "energy_rate", "stiffness"):
+            assert callable(getattr(module, function)), (name, function)
+        assert len(module.initial_state(D)) == STATE_COUNT, name
     assert not pump_controlled.VALVE and callable(pump_controlled.ports)
+
+
+@pytest.mark.parametrize("drive", DRIVE_CHOICES)
+def test_a_valve_drive_feeds_the_lines_through_the_spool_and_the_eha_by_its_command(drive):
+    """VALVE: the spool, not the command, lets the pump's oil into the lines (closed, only
+    the valve's leakage passes); the EHA's pump feeds them at its speed whatever the spool."""
+    module = DRIVES[drive]
+    z = (P.supply_pressure_pa, 0.0, 0.0) if module.VALVE else (D.speed, 0.0, 0.0)  # the pump up to pressure, speed
+    closed = module.supply(z, 1.0, 0.0, 1.4, 0.0, 8e6, 2e5, D)
+    opened = module.supply(z, 1.0, 1.0, 1.4, 0.0, 8e6, 2e5, D)
+    if module.VALVE:
+        assert abs(closed.q_a) + abs(closed.q_b) < 0.01 * P.pump_max_flow_m3_s, drive
+        assert opened.q_a > 0.1 * P.pump_max_flow_m3_s and opened.q_b < 0.0, drive
+    else:
+        assert closed.q_a == opened.q_a > 0.5 * P.pump_max_flow_m3_s and closed.q_b == opened.q_b < 0.0
 
 
 @pytest.mark.parametrize("drive", ["fixed_pump", "load_sensing", "pump_controlled"])
@@ -77,13 +93,17 @@ def test_the_main_relief_is_closed_below_p_n_and_passes_the_pump_flow_at_p_n_plu
     assert flows[3] == pytest.approx(P.pump_max_flow_m3_s, rel=1e-12)
 
 
+#: The drives' constants with a valve that leaks nothing: closed, its P paths take nothing.
+TIGHT = D._replace(leak=0.0)
+
+
 def _line_rate(t: float, y: np.ndarray) -> list[float]:
     """The supply line of the fixed pump with the valve closed (its P paths take nothing)."""
-    p = fixed_pump.port_pressure_pa(y[0], 0.0, 0.0, 0.0, D)
-    s = fixed_pump.supply(y[0], p, 0.0, 0.0, 0.0, 0.0, D)
-    chain = electric_chain(s, D)
+    p_t = P.tank_pressure_pa
+    s = fixed_pump.supply((y[0], 0.0, 0.0), 0.0, 0.0, 1.4, 0.0, p_t, p_t, TIGHT)
+    chain = electric_chain(s, TIGHT)
     losses = chain.battery_loss + chain.motor_loss + chain.pump_volumetric_loss + chain.pump_mechanical_loss
-    return [s.rate, chain.battery_power, losses + s.main_relief_loss, s.line_oil_work]
+    return [s.rate, chain.battery_power, losses + s.main_relief_loss + s.valve_loss + s.leakage_loss, s.line_oil_work]
 
 
 def test_a_fixed_pump_dead_heading_settles_at_its_relief_pressure_with_the_line_time_constant():
@@ -102,9 +122,12 @@ def test_a_fixed_pump_dead_heading_settles_at_its_relief_pressure_with_the_line_
 
 def test_the_fixed_pump_spills_p_n_q_over_the_relief_and_draws_it_from_the_battery_while_the_boom_holds():
     p_ss = fixed_pump.dead_head_pressure_pa(D)
-    s = fixed_pump.supply(p_ss, p_ss, 0.0, 0.0, 0.0, 0.0, D)
+    p_t = P.tank_pressure_pa
+    s = fixed_pump.supply((p_ss, 0.0, 0.0), 0.0, 0.0, 1.4, 0.0, p_t, p_t, TIGHT)
     spill = p_ss - P.tank_pressure_pa
-    assert s.main_relief_loss == pytest.approx(spill * s.q_pump, rel=1e-9)  # all of the pump's flow
+    q_pump = pump.delivered_flow_m3_s(D.displacement, D.speed, spill, D.pump_leak)  # eq. D1
+    assert s.p_supply == p_ss and s.hydraulic_power == pytest.approx(spill * q_pump, rel=1e-12)
+    assert s.main_relief_loss == pytest.approx(spill * q_pump, rel=1e-9)  # all of the pump's flow
     # p_n Q_max, less the pump's leakage (5 % at p_n), plus the relief's override (6 %)
     assert 0.95 < s.main_relief_loss / (P.supply_pressure_pa * P.pump_max_flow_m3_s) < 1.06
     chain = electric_chain(s, D)
@@ -144,24 +167,28 @@ def test_load_sensing_tracks_a_rising_load_plus_its_margin_with_the_pumps_lag():
     p1 = lambda t: 4e6 + rate * t  # noqa: E731
 
     def f(t, y):
-        return [load_sensing.supply(y[0], y[0], 1.0, p1(t), 1e5, 1e-4, D).rate]
+        return [load_sensing.supply((y[0], 0.0, 0.0), 1.0, 1.0, 1.4, 0.1, p1(t), 1e5, D).rate]
 
     t_end = 20 * tau  # the start's offset has decayed to 1e-9 of itself
-    run = solve_ivp(f, (0.0, t_end), [load_sensing.initial_state(D)], rtol=1e-10, atol=1.0)
+    run = solve_ivp(f, (0.0, t_end), [load_sensing.initial_state(D)[0]], rtol=1e-10, atol=1.0)
     assert run.y[0, -1] == pytest.approx(p1(t_end) + P.load_sensing_margin_pa - rate * tau, abs=20.0)
 
 
 def test_load_sensing_delivers_on_demand_at_its_own_pressure_and_falls_at_the_pumps_flow_limit():
     z, p1 = 8e6, 6e6
-    assert load_sensing.port_pressure_pa(z, 0.1, p1, 1e5, D) == z  # a small opening takes less than Q_max
+    s = load_sensing.supply((z, 0.0, 0.0), 0.1, 0.1, 1.4, 0.0, p1, 1e5, D)
+    assert s.p_supply == z and not s.saturated  # a small opening takes less than Q_max
     wide = constants(with_updates(P, orifice_diameter_m=0.006))  # passes Q_max at 0.35 MPa fully open
-    limited = load_sensing.port_pressure_pa(z, 1.0, 7e6, 1e5, wide)
-    assert 7e6 < limited < z
-    dp = limited - 7e6
+    limited = load_sensing.supply((z, 0.0, 0.0), 1.0, 1.0, 1.4, 0.0, 7e6, 1e5, wide)
+    assert 7e6 < limited.p_supply < z and limited.saturated
+    dp = limited.p_supply - 7e6
     assert hydraulics.orifice_flow(wide.k_valve, dp, wide.transition2) == pytest.approx(P.pump_max_flow_m3_s, rel=1e-9)
-    s = load_sensing.supply(z, z, 0.1, p1, 1e5, 2e-4, D)
-    assert s.q_pump == 2e-4 and s.dp == z - P.tank_pressure_pa
-    assert s.displacement * s.speed == pytest.approx(2e-4 + D.pump_leak * s.dp, rel=1e-12)  # eq. D4
+    # on demand: what the valve's P paths take at the pump's pressure, and the stroke that delivers it
+    q_in = valve.paths(0.1, z, p1, 1e5, D).q_in
+    dp = z - P.tank_pressure_pa
+    assert q_in > 0.0 and s.power == pytest.approx(dp * q_in, rel=1e-12) and s.speed == D.speed
+    stroke = s.torque / pump.shaft_torque_n_m(1.0, s.speed, dp, D.torque_loss)  # T is D times T(1)
+    assert stroke * s.speed == pytest.approx(q_in + D.pump_leak * dp, rel=1e-12)  # eq. D4
 
 
 # --- pump, motor, battery -------------------------------------------------------------
@@ -233,8 +260,7 @@ def test_the_eha_regenerates_the_pumps_power_less_the_copper_loss_on_lowering():
     """With copper the only loss: U I = D dp w + k_c (D dp)^2, negative for w < 0."""
     p, d = _lossless_but_copper()
     p1, p2, w = 8e6, p.reservoir_pressure_pa, -100.0  # lowering: the load drives the pump
-    flows = pump_controlled.ports(w, -1.0, p1, p2, d)
-    s = pump_controlled.supply(w, -1.0, p1, p2, flows, d)
+    s = pump_controlled.supply((w, 0.0, 0.0), -1.0, -1.0, 1.4, -0.1, p1, p2, d)
     chain = electric_chain(s, d)
     torque = d.displacement * (p1 - p2)
     expected = torque * w + d.motor_copper * torque**2
@@ -265,7 +291,7 @@ def _steady_lowering(v: float) -> dict[str, float]:
     p2 = brentq(rod_line_excess, p_r - 4e5, p_r + 4e5, xtol=1e-3)
     p1, w = p1_of(p2), speed_of(p2)
     flows = pump_controlled.ports(w, -1.0, p1, p2, D)
-    chain = electric_chain(pump_controlled.supply(w, -1.0, p1, p2, flows, D), D)
+    chain = electric_chain(pump_controlled.supply((w, 0.0, 0.0), -1.0, -1.0, q1, v, p1, p2, D), D)
     return {"p1": p1, "p2": p2, "w": w, "weight_power": force * -v, "hydraulic_power": (p1 - p2) * s1 * -v,
             "returned": -chain.battery_power, "check_b": flows.q_check_b, "area_flow": (s1 - s2) * -v}  # fmt: skip
 
@@ -284,16 +310,17 @@ def test_the_eha_lifts_with_make_up_oil_from_the_reservoir_and_the_motor_follows
     p1, p2 = 8e6, 4e5  # the rod line below the reservoir: check B lets oil in
     flows = pump_controlled.ports(100.0, 1.0, p1, p2, D)
     assert flows.q_pump > 0.0 and flows.q_check_b > 0.0 and flows.q_check_a == pytest.approx(0.0, abs=1e-12)
-    s = pump_controlled.supply(100.0, 1.0, p1, p2, flows, D)
+    s = pump_controlled.supply((100.0, 0.0, 0.0), 1.0, 1.0, 1.4, 0.05, p1, p2, D)
+    assert (s.q_a, s.q_b) == (flows.q_a, flows.q_b)
     assert s.rate == pytest.approx((P.pump_speed_rad_s - 100.0) / P.motor_time_constant_s, rel=1e-12)
-    assert s.check_loss > 0.0 and s.reservoir_power > 0.0
+    assert s.valve_loss > 0.0 and s.reservoir_power > 0.0  # the checks' throttling, the make-up oil
     assert electric_chain(s, D).battery_power > 0.0
 
 
 def test_without_a_motor_lag_the_speed_is_the_command():
     d = constants(with_updates(P, motor_time_constant_s=0.0))
     assert pump_controlled.motor_speed_rad_s(12.0, -0.5, d) == -0.5 * P.pump_speed_rad_s
-    s = pump_controlled.supply(12.0, -0.5, 5e6, 5e5, pump_controlled.ports(12.0, -0.5, 5e6, 5e5, d), d)
+    s = pump_controlled.supply((12.0, 0.0, 0.0), -0.5, -0.5, 1.4, 0.0, 5e6, 5e5, d)
     assert s.rate == 0.0 and s.speed == -0.5 * P.pump_speed_rad_s
 
 
@@ -302,10 +329,12 @@ def test_the_elements_take_arrays_as_they_take_floats():
     p1 = np.array([3e6, 9e6, 2e5])
     p2 = np.array([5e5, 6e5, 1e6])
     w = np.array([50.0, -80.0, 0.0])
-    arrays = electric_chain(pump_controlled.supply(w, 0.3, p1, p2, pump_controlled.ports(w, 0.3, p1, p2, D, np), D, np),
-                            D, np)  # fmt: skip
+    zero = 0.0 * w
+    supplied = pump_controlled.supply((w, zero, zero), 0.3, 0.3, 1.4, 0.0, p1, p2, D, np)
+    arrays = electric_chain(supplied, D, np)
     for k in range(3):
-        flows = pump_controlled.ports(w[k], 0.3, p1[k], p2[k], D)
-        one = electric_chain(pump_controlled.supply(w[k], 0.3, p1[k], p2[k], flows, D), D)
+        single = pump_controlled.supply((w[k], 0.0, 0.0), 0.3, 0.3, 1.4, 0.0, p1[k], p2[k], D)
+        one = electric_chain(single, D)
         assert [float(a[k]) for a in arrays] == pytest.approx(list(one), rel=1e-12, abs=1e-15)
+        assert [float(np.asarray(a)[k]) for a in supplied] == pytest.approx(list(single), rel=1e-12, abs=1e-15)
     assert math.isfinite(float(arrays.battery_power[2]))

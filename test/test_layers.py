@@ -1,13 +1,18 @@
-"""The architecture holds: only the ROS layer imports rclpy; one registry of models and of methods."""
+"""The architecture holds: only the ROS layer imports rclpy; one registry of models and of methods;
+a drive is one module, which the model, the solver and the analysis never name."""
 
 from __future__ import annotations
 
+import ast
 import pkgutil
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import boom_hydraulics
 from boom_hydraulics.model import MODELS, Model
+from boom_hydraulics.model.drives import DRIVES
 from boom_hydraulics.model.parameters import METHODS, MODES, describe
 from boom_hydraulics.solve.integrators import BATCHED, FIXED_STEP
 from boom_hydraulics.solve.integrators import METHODS as REGISTRY
@@ -50,3 +55,63 @@ def test_the_methods_come_from_one_registry():
     assert METHODS == tuple(REGISTRY) == describe("method")["choices"]
     assert set(FIXED_STEP) == {"euler", "rk4", "ros2"}  # rk45 is adaptive: no compiled path
     assert set(BATCHED) == {"euler", "rk4"}  # the explicit ones run on arrays
+
+
+PACKAGE = Path(boom_hydraulics.__file__).resolve().parent
+#: Where a drive is registered outside model/drives (docs/drives.md): the words a plot's legend
+#: gives it.
+REGISTRATION = (PACKAGE / "analysis" / "labels.py",)
+#: A registered drive's name as a word (in a string, a name or a module path).
+DRIVE_WORD = re.compile(r"\b(?:" + "|".join(map(re.escape, DRIVES)) + r")\b")
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    """The ids of the docstrings' nodes in ``tree`` (prose: it may name a drive as an example)."""
+    bodies = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
+    return {
+        id(node.body[0].value)
+        for node in ast.walk(tree)
+        if isinstance(node, bodies)
+        and node.body
+        and isinstance(node.body[0], ast.Expr)
+        and isinstance(node.body[0].value, ast.Constant)
+    }
+
+
+def names_of_drives(path: Path) -> list[str]:
+    """Where the code of ``path`` names a registered drive: a string that holds its name (a
+    docstring aside), a name or attribute spelled as it, an import of its module."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    prose = _docstrings(tree)
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in prose:
+            named = DRIVE_WORD.search(node.value)
+        elif isinstance(node, ast.Name):
+            named = DRIVE_WORD.fullmatch(node.id)
+        elif isinstance(node, ast.Attribute):
+            named = DRIVE_WORD.fullmatch(node.attr)
+        elif isinstance(node, ast.ImportFrom):
+            named = DRIVE_WORD.search(" ".join([node.module or "", *(alias.name for alias in node.names)]))
+        elif isinstance(node, ast.Import):
+            named = DRIVE_WORD.search(" ".join(alias.name for alias in node.names))
+        else:
+            continue
+        if named:
+            found.append(f"{path.relative_to(PACKAGE)}:{node.lineno}: {named.group(0)}")
+    return found
+
+
+def test_a_drive_is_one_module_that_the_model_the_solver_and_the_analysis_never_name():
+    """model/physical.py, solve/*.py and analysis/*.py reach a drive only through the registry
+    (model/drives: supply, energy, energy_rate, stiffness, initial_state, and the drives'
+    flags such as VALVE): no drive's name in their code, no import of a drive's module. So a
+    new drive touches model/drives and its registration only (docs/drives.md)."""
+    sources = [PACKAGE / "model" / "physical.py", *sorted((PACKAGE / "solve").glob("*.py"))]
+    sources += [path for path in sorted((PACKAGE / "analysis").glob("*.py")) if path not in REGISTRATION]
+    assert len(sources) > 20  # the folders were found
+    assert [where for path in sources for where in names_of_drives(path)] == []
+    # the check sees a drive where one is named: the registry, and its registration for plots
+    registry = names_of_drives(PACKAGE / "model" / "drives" / "__init__.py")
+    assert {where.rsplit(" ", 1)[-1] for where in registry} == set(DRIVES)
+    assert {where.rsplit(" ", 1)[-1] for where in names_of_drives(*REGISTRATION)} == set(DRIVES)

@@ -1,10 +1,8 @@
 """The energy ledger from battery to hook closes for every drive, interpreted and compiled.
 
-The valve drives' ledger is the model's own (physical.ledger, from the terms of its
-derivative). The EHA is not in the run loop yet, so these tests put it in front of the
-physical model's cylinder and boom the way the kernels will: its flows into the chambers,
-the model's reliefs and its own mechanics (physical._terms, whose forces and acceleration
-depend on the state alone). The states are random, and so is the external rod force
+Every drive's ledger is the model's own (physical.ledger, from the terms of its derivative:
+the drive's Supply through the electric chain, the model's reliefs and its own mechanics).
+The states are random, the drive's states among them, and so is the external rod force
 (external_rod_force_n) that a mechanical network puts on the rod."""
 
 from __future__ import annotations
@@ -15,13 +13,11 @@ import numpy as np
 import pytest
 
 from boom_hydraulics import jit
-from boom_hydraulics.model import ledger, physical
-from boom_hydraulics.model.drives import DRIVES, constants, pump_controlled
-from boom_hydraulics.model.hydraulics import relief_flow
+from boom_hydraulics.model import drives, ledger, physical, valve
+from boom_hydraulics.model.drives import DRIVES, pump_controlled
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
 P = Parameters()
-D = constants(P)
 RNG = np.random.default_rng(23)
 #: The largest external rod force the random states take, N (the default boom holds with 4.9 kN).
 EXTERNAL_N = 3.0e4
@@ -38,37 +34,28 @@ def _constants(rng: np.random.Generator, drive: str = "pressure_compensated") ->
 C = _constants(RNG)
 
 
-def _random_state(rng: np.random.Generator) -> tuple[list[float], float, float]:
+#: Where a random drive state of each kind (a drive's STATE_SCALES) lies: a pressure from
+#: below the cavitation floor to above p_n, a motor speed either way beyond its top speed.
+DRIVE_STATE_RANGES = {
+    "pressure": (-2e5, 1.8e7),
+    "angular_velocity": (-1.2 * P.pump_speed_rad_s, 1.2 * P.pump_speed_rad_s),
+    "unit": (-1.0, 1.0),
+}
+
+
+def _random_state(rng: np.random.Generator, name: str = "pressure_compensated") -> tuple[list[float], float]:
     """A state anywhere the model goes: in the stroke or pressed into a stop, moving either way,
-    chambers from cavitating to the reliefs, the spool anywhere; and a drive state and command."""
+    chambers from cavitating to the reliefs, the spool anywhere, the states of drive ``name``
+    anywhere (p_n for today's source, whose pressure stands still); and a command."""
     q1 = rng.uniform(P.cylinder_min_length_m - 2e-3, P.cylinder_max_length_m + 2e-3)
     z1, z2 = rng.uniform(-2e5, 2e7, size=2)
-    y = [q1, rng.uniform(-0.4, 0.4), z1, z2, rng.uniform(-1, 1), 0.0, 0.0, rng.uniform(-1, 1), 0.0, 0.0, P_N]
-    return y, rng.uniform(-2e5, 1.8e7), rng.uniform(-1, 1)
-
-
-def _cylinder(y: list[float], q_line1: float, q_line2: float, c=C) -> tuple[ledger.Cylinder, float, float]:
-    """The cylinder side of the ledger for flows ``q_line1``, ``q_line2`` into the chamber lines
-    (before the reliefs), with the model's mechanics at state ``y``; and the chambers' state rates."""
-    t = physical._terms(y, c, 0.0, math)
-    q_r1, q_r2 = relief_flow(t.p1, c.p_relief, c.g_relief), relief_flow(t.p2, c.p_relief, c.g_relief)
-    q_in1, q_in2 = q_line1 - q_r1, q_line2 - q_r2
-    spring = c.spring * (y[0] - c.spring_free)
-    cylinder = ledger.cylinder_side(
-        y[1], t.acc, t.p1, t.p2, q_in1, q_in2, t.dvol1, t.dvol2, q_r1, q_r2, t.f_friction, t.f_stop, spring,
-        t.lever, t.lever_slope, t.cos_alpha, c.inertia, c.weight_coeff, c.s1, c.s2, c.p_tank, c.p_ambient,
-        c.f_external,
-    )  # fmt: skip
-    return cylinder, q_in1, q_in2
-
-
-def eha_ledger(y: list[float], z: float, u: float, d=D, c=C) -> ledger.Ledger:
-    """The ledger of the EHA on the physical model's chambers at state ``y``."""
-    p1, p2 = max(y[2], C.p_cav), max(y[3], C.p_cav)
-    flows = pump_controlled.ports(z, u, p1, p2, d)
-    s = pump_controlled.supply(z, u, p1, p2, flows, d)
-    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b, c)
-    return ledger.assemble(ledger.electric_chain(s, d), s, 0.0, 0.0, cylinder)
+    y = [q1, rng.uniform(-0.4, 0.4), z1, z2, rng.uniform(-1, 1), 0.0, 0.0, rng.uniform(-1, 1), 0.0, 0.0]
+    y += [0.0] * (len(physical.STATE_NAMES) - len(y))
+    for k, kind in enumerate(DRIVES[name].STATE_SCALES):
+        y[physical.DRIVE_STATE + k] = rng.uniform(*DRIVE_STATE_RANGES[kind])
+    if name == "pressure_compensated":
+        y[physical.DRIVE_STATE] = P_N
+    return y, rng.uniform(-1, 1)
 
 
 def _closes(terms: ledger.Ledger) -> bool:
@@ -87,10 +74,8 @@ def test_the_ledger_names_every_term_of_the_issue_once_with_its_kind():
 
 
 def _valve_drive_state(rng: np.random.Generator, name: str) -> list[float]:
-    """A random state with the drive state of ``name`` (p_n for today's source)."""
-    y, z, _ = _random_state(rng)
-    y[physical.DRIVE_STATE] = P_N if name == "pressure_compensated" else z
-    return y
+    """A random state with the drive states of ``name`` (p_n for today's source)."""
+    return _random_state(rng, name)[0]
 
 
 @pytest.mark.parametrize("name", VALVE_DRIVES)
@@ -106,14 +91,15 @@ def test_the_valve_drives_ledger_splits_the_models_own_supply_power_and_valve_lo
         relief = terms.port_relief_loss
         assert terms.valve_loss + terms.leakage_loss + relief == pytest.approx(t.loss, rel=1e-9, abs=1e-9)
         s = t.supply
-        delivered = s.dp * s.q_pump - s.main_relief_loss - s.line_oil_work  # what the P port takes
-        assert delivered == pytest.approx(t.power, rel=1e-9, abs=1e-6)
+        delivered = s.hydraulic_power - s.main_relief_loss - s.line_oil_work  # dp Q_pump less what stays behind
+        assert delivered == pytest.approx(s.power, rel=1e-9, abs=1e-6)  # what the P port takes
         if name == "pressure_compensated":
-            assert s.q_pump == t.q_valve_in and t.p_supply <= P_N
+            q_valve_in = valve.paths(y[4], s.p_supply, t.p1, t.p2, c).q_in  # what the valve's P paths take
+            assert s.hydraulic_power == s.power == (s.p_supply - c.p_tank) * q_valve_in and s.p_supply <= P_N
 
 
-@pytest.mark.parametrize("name", VALVE_DRIVES)
-def test_the_ledger_of_a_valve_drive_closes_at_every_state(name):
+@pytest.mark.parametrize("name", DRIVES)
+def test_the_ledger_of_every_drive_closes_at_every_state(name):
     for _ in range(300):
         y = _valve_drive_state(RNG, name)
         c = _constants(RNG, name)
@@ -127,11 +113,10 @@ def test_the_ledger_of_a_valve_drive_closes_at_every_state(name):
 def test_the_ledger_of_the_eha_closes_at_every_state_and_lowering_returns_power_to_the_battery():
     returned = 0
     for _ in range(300):
-        y, _, u = _random_state(RNG)
-        z = RNG.uniform(-1.2, 1.2) * P.pump_speed_rad_s
-        c = _constants(RNG)
-        terms = eha_ledger(y, z, u, c=c)
-        assert _closes(terms), (y, z, u, c.f_external, ledger.residual_w(terms), terms)
+        y, u = _random_state(RNG, "pump_controlled")  # the motor's speed up to 1.2 w_max either way
+        c = _constants(RNG, "pump_controlled")
+        terms = physical.ledger(0.0, y, c, u)
+        assert _closes(terms), (y, u, c.f_external, ledger.residual_w(terms), terms)
         losses = [v for (n, _, kind, _), v in zip(ledger.TERMS, terms) if kind == "loss"]
         assert min(losses) >= -1e-9 * sum(map(abs, terms))
         returned += terms.battery_power < 0.0
@@ -188,6 +173,7 @@ def test_the_ledgers_integrals_over_a_cycle_balance_and_store_what_the_boom_gain
     assert integrals["lift_work"] >= potential1 - potential0 + 0.5 * integrals["lift_work"]
     losses = [integrals[n] for n, _, kind, _ in ledger.TERMS if kind == "loss"]
     assert min(losses) >= 0.0
+    assert integrals["standby_loss"] == integrals["rotor_power"] == 0.0  # today's drives have neither
 
 
 def test_on_a_cycle_load_sensing_draws_least_from_the_battery_and_the_fixed_pump_most():
@@ -210,29 +196,50 @@ def _compiled_ledger(y, c, u):
 
 
 @numba.njit
-def _compiled_eha(z, u, p1, p2, cylinder, d):
-    flows = pump_controlled.ports(z, u, p1, p2, d)
-    s = pump_controlled.supply(z, u, p1, p2, flows, d)
-    chain = ledger.electric_chain(s, d)
-    return flows, ledger.assemble(chain, s, 0.0, 0.0, cylinder)
+def _compiled_supply(z, u, opening, q1, v, p1, p2, c):
+    return drives.supply(z, u, opening, q1, v, p1, p2, c)
 
 
 @pytest.mark.skipif(not jit.available(), reason="numba is switched off")
 def test_every_drive_and_the_ledger_compile_to_the_values_they_give_interpreted():
-    d = constants(with_updates(P, motor_time_constant_s=0.05))
-    for name in VALVE_DRIVES:
+    for name in DRIVES:
         c = physical.constants(with_updates(P, drive=name))
         for _ in range(20):
-            y = _valve_drive_state(RNG, name)
-            compiled, interpreted = _compiled_ledger(tuple(y), c, y[4]), physical.ledger(0.0, y, c, y[4])
+            y, u = _random_state(RNG, name)
+            compiled, interpreted = _compiled_ledger(tuple(y), c, u), physical.ledger(0.0, y, c, u)
             assert list(compiled) == pytest.approx(list(interpreted), rel=1e-12, abs=1e-9), name
-    y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0, P_N]
-    flows = pump_controlled.ports(-60.0, -0.5, 6e6, 5.2e5, d)
-    cylinder, _, _ = _cylinder(y, flows.q_a, flows.q_b)
-    compiled_flows, compiled = _compiled_eha(-60.0, -0.5, 6e6, 5.2e5, cylinder, d)
-    assert list(compiled_flows) == pytest.approx(list(flows), rel=1e-12)
-    assert list(compiled) == pytest.approx(list(eha_ledger(y, -60.0, -0.5, d)), rel=1e-12, abs=1e-12)
+            z, p1, p2 = physical.drive_states(y), max(y[2], c.p_cav), max(y[3], c.p_cav)
+            compiled_supply = _compiled_supply(z, u, y[4], y[0], y[1], p1, p2, c)
+            assert list(compiled_supply) == pytest.approx(list(drives.supply(z, u, y[4], y[0], y[1], p1, p2, c)),
+                                                          rel=1e-12, abs=1e-15), name  # fmt: skip
+    # the EHA lowering, its motor 60 rad/s backwards: the compiled flows are the pump's and checks'
+    c = physical.constants(with_updates(P, drive="pump_controlled", motor_time_constant_s=0.05))
+    y = [1.4, -0.1, 6e6, 5.2e5, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0, -60.0] + [0.0] * (len(physical.STATE_NAMES) - 11)
+    flows = pump_controlled.ports(-60.0, -0.5, 6e6, 5.2e5, c)
+    s = _compiled_supply((-60.0, 0.0, 0.0), -0.5, 0.0, 1.4, -0.1, 6e6, 5.2e5, c)
+    assert [s.q_a, s.q_b] == pytest.approx([flows.q_a, flows.q_b], rel=1e-12)
+    compiled = _compiled_ledger(tuple(y), c, -0.5)
+    assert list(compiled) == pytest.approx(list(physical.ledger(0.0, y, c, -0.5)), rel=1e-12, abs=1e-12)
     assert compiled.battery_power < 0.0 and _closes(compiled)  # lowering: it returns power
+
+
+#: The drives as they were when the ledger took its standby and rotor terms: neither has either.
+TODAYS_DRIVES = ("pressure_compensated", "fixed_pump", "load_sensing", "pump_controlled")
+
+
+@pytest.mark.parametrize("name", TODAYS_DRIVES)
+def test_todays_drives_draw_no_standby_power_store_nothing_in_rotors_and_close_the_ledger_compiled_too(name):
+    """standby_loss and rotor_power are zero for today's drives at their defaults, at any
+    state; the ledger still closes with them, interpreted and compiled alike."""
+    compiling = jit.available()
+    for _ in range(100):
+        y, u = _random_state(RNG, name)
+        c = _constants(RNG, name)
+        runs = [physical.ledger(0.0, y, c, u)] + ([_compiled_ledger(tuple(y), c, u)] if compiling else [])
+        for terms in runs:
+            assert terms.standby_loss == 0.0 and terms.rotor_power == 0.0, (name, terms)
+            assert _closes(terms), (name, y, u, ledger.residual_w(terms), terms)
+        assert list(runs[-1]) == pytest.approx(list(runs[0]), rel=1e-12, abs=1e-9)
 
 
 def test_boom_sim_runs_csv_has_every_term_of_the_ledger_and_its_last_row_balances(tmp_path):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import run_tool
 
-from boom_hydraulics.model import physical
+from boom_hydraulics.model import drives, physical
 from boom_hydraulics.model.drives import constants as drive_constants
 from boom_hydraulics.model.drives import fixed_pump
 from boom_hydraulics.model.parameters import Parameters, from_mapping, with_updates
@@ -32,7 +32,8 @@ def test_the_constants_the_drives_read_are_the_drive_constants_under_their_names
         physical.DRIVE_FIELDS
     )
     assert all(getattr(c, name) == getattr(d, name) for name in physical.DRIVE_FIELDS)
-    assert (c.fixed, c.sensing) == (1.0, 0.0)
+    # the set's drive is the fixed pump, and no other: the flag each drive's equations run under
+    assert [drives.uses(c, k) for k in range(len(drives.DRIVES))] == [1.0 * (n == "fixed_pump") for n in drives.DRIVES]
 
 
 @pytest.mark.parametrize("jit", JIT)

@@ -25,6 +25,7 @@ TERM_WORDS: dict[str, str] = {
     "battery_returned": "returned to the battery",
     "battery_loss": "battery resistance",
     "motor_loss": "motor and inverter",
+    "standby_loss": "standby (inverter, controller, auxiliaries)",
     "pump_volumetric_loss": "pump leakage",
     "pump_mechanical_loss": "pump friction",
     "main_relief_loss": "main relief valve",
@@ -36,6 +37,7 @@ TERM_WORDS: dict[str, str] = {
     "ambient_work": "ambient pressure on the rod",
     "external_work": "external rod force",
     "oil_work": "oil compression (net)",
+    "rotor_power": "rotor kinetic energy (net)",
     "kinetic_power": "kinetic energy (net)",
     "potential_power": "potential energy (net)",
 }

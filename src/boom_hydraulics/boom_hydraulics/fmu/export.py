@@ -30,7 +30,7 @@ from ..model import physical as model
 from ..model.parameters import PLANT_FAULTS, STROKE_LIMITS, Parameters, as_dict, describe
 from ..solve import integrators
 from ..solve.batch import stability_limit
-from ..solve.outcomes import MAX_SUBSTEPS
+from ..solve.outcomes import MAX_SUBSTEPS, VOLUME_ADVICE
 from ..solve.stepping import HALVED_MOST
 from . import native
 from .interface import (
@@ -145,6 +145,7 @@ def header(params: Parameters, guid: str) -> str:
         f"static const double EXPORTED_ROW[N_ROW] = {{{', '.join(_c_double(v) for v in row)}}};",
         f"static const char *const ROW_NAMES[N_ROW] = {{{', '.join(_c_string(n) for n in names)}}};",
         f"static const int ROW_FIXED[N_ROW] = {{{', '.join('1' if n in FIXED else '0' for n in names)}}};",
+        f"static const char *const VOLUME_ADVICE[] = {{{', '.join(_c_string(a) for a in VOLUME_ADVICE)}}};",
     ]
     checks = []
     for k, name in enumerate(names):

@@ -39,7 +39,7 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("f_friction", "N", "seal friction force, opposing the motion"),
     ("u", "1", "valve command"),
     ("x_v", "1", "spool position applied"),
-    ("p_supply", "Pa", "pressure at the valve P port"),
+    ("p_supply", "Pa", "supply pressure: at the valve P port, or the EHA's higher line"),
     ("power", "W", "hydraulic power drawn from the supply at the valve's P port"),
     ("supply_energy", "J", "energy drawn from the supply at the valve's P port"),
     ("valve_loss_energy", "J", "energy dissipated in the valve and relief valves"),

@@ -198,6 +198,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # reservoir_power_j
         zero + math.nan,  # battery_loss_j
         zero + math.nan,  # motor_loss_j
+        zero + math.nan,  # standby_loss_j
         zero + math.nan,  # pump_volumetric_loss_j
         zero + math.nan,  # pump_mechanical_loss_j
         zero + math.nan,  # main_relief_loss_j
@@ -209,6 +210,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # ambient_work_j
         zero + math.nan,  # external_work_j
         zero + math.nan,  # oil_work_j
+        zero + math.nan,  # rotor_power_j
         zero + math.nan,  # kinetic_power_j
         zero + math.nan,  # potential_power_j
         zero,  # void1

@@ -145,7 +145,7 @@ def constants(p: Parameters) -> Constants:
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
     )
-    return Constants(*body, *drives.constants(p))
+    return Constants(*body, *drives.constants(p)[:])  # [:]: a plain tuple, which numba joins to one
 
 
 @jitable

@@ -13,7 +13,8 @@ from collections.abc import Sequence
 
 from ..model import MODELS
 from ..model.geometry import triangle_bounds_m
-from ..model.parameters import Parameters
+from ..model.parameters import DRIVES, NAMES, Parameters
+from ..model.parameters import describe as described
 from . import integrators
 from .stepping import ENERGY, ENERGY_TOLERANCE, HALVED_MOST, NONFINITE, OK, TOO_STIFF
 
@@ -69,6 +70,18 @@ def likely_cause(p: Parameters) -> str:
     return step_advice(p)
 
 
+def volume_advice(drive: str) -> str:
+    """What else softens a stiff run of ``drive``: ", a larger <name>" for each oil volume of its
+    own (its parameters in m^3, whose description begins with the drive's name: fixed_pump's
+    supply line). This module names no drive, so that a drive is one module (docs/drives.md)."""
+    own = [n for n in NAMES if described(n)["unit"] == "m^3" and described(n)["description"].startswith(f"{drive}:")]
+    return "".join(f", a larger {name}" for name in own)
+
+
+#: :func:`volume_advice` of each drive, in the order of parameters.DRIVES (the FMU's too).
+VOLUME_ADVICE = tuple(volume_advice(drive) for drive in DRIVES)
+
+
 def message(p: Parameters, outcome: int, t_s: float, y: Sequence[float], needed_substeps: int = 0) -> str:
     """Why a run of ``p`` stopped: the failure ``outcome`` of the step after ``t_s``, from the
     last good state ``y`` (at ``t_s``); ``needed_substeps``: what a TOO_STIFF step asked for."""
@@ -88,7 +101,7 @@ def message(p: Parameters, outcome: int, t_s: float, y: Sequence[float], needed_
             f"too stiff at t = {t_s:.6g} s: a stable {p.method} step of {p.time_step_s:g} s needs "
             f"{needed_substeps} substeps, more than {MAX_SUBSTEPS} ({state}); use method ros2 (implicit) "
             "or larger dead volumes"
-            + (", a larger supply_line_volume_m3" if p.drive == "fixed_pump" else "")
+            + VOLUME_ADVICE[DRIVES.index(p.drive)]
             + ", a lower bulk_modulus_pa or a smaller orifice"
         )
     if outcome == OUT_OF_GEOMETRY:

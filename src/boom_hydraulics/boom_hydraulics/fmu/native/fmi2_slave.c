@@ -557,7 +557,7 @@ static void failure(const Instance *m, int outcome, double t_s, const double *y,
         snprintf(why, size, "too stiff at t = %.6g s: a stable %s step of %g s needs %.0f substeps, more than %d (%s); use method "
                  "ros2 (implicit) or larger dead volumes%s, a lower bulk_modulus_pa or a smaller orifice", t_s,
                  text_of(ROW_method, m->active), m->active[ROW_TIME_STEP], needed, MAX_SUBSTEPS, state,
-                 strcmp(text_of(ROW_drive, m->active), "fixed_pump") == 0 ? ", a larger supply_line_volume_m3" : "");
+                 VOLUME_ADVICE[(int)m->active[ROW_drive]]);
     else if (outcome == OUTCOME_GEOMETRY)
         snprintf(why, size, "rod left the valid geometry after t = %.6g s (%s): the next step takes q1 outside (%.4g, %.4g) m "
                  "where the triangle of eq. 1 degenerates; %s", t_s, state, fabs(b - a), a + b, advice);
