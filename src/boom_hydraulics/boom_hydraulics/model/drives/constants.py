@@ -117,6 +117,7 @@ def constants(p: Parameters) -> DriveConstants:
     torque_model = 1.0 if p.eha_torque_limit_n_m > 0.0 else 0.0
     eha_integral = 1.0 if torque_model * p.eha_speed_integral_time_s > 0.0 else 0.0
     eha_inv_integral_time = eha_integral / p.eha_speed_integral_time_s if eha_integral else 0.0
+    eha_holding = 1.0 if p.eha_holding_valve == "piston_side" else 0.0
     # the drives without the 4/3 valve set the motor's speed by the command, and so the rod's speed
     # at full command (control.full_opening_rate, the feedforward's plant model; 0: the valve's law)
     command_rod_speed = 0.0
@@ -183,7 +184,7 @@ def constants(p: Parameters) -> DriveConstants:
         eha_inv_inertia=torque_model / p.eha_motor_inertia_kg_m2,
         eha_speed_gain=p.eha_speed_gain_n_m_s_rad,
         eha_inv_integral_time=eha_inv_integral_time,
-        eha_holding=1.0 if p.eha_holding_valve == "piston_side" else 0.0,
+        eha_holding=eha_holding,
         eha_holding_command=p.eha_holding_command,
     )
 
