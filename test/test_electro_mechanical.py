@@ -68,7 +68,7 @@ def _supply(y: list[float], u: float, c: physical.Constants = C):
 
 def test_the_ema_is_a_registered_drive_with_its_words_and_sourced_parameters_listed_in_the_shipped_file():
     assert DRIVES["electro_mechanical"] is electro_mechanical and "electro_mechanical" in DRIVE_NAMES
-    assert drive_words("electro_mechanical") == "electro-mechanical actuator"
+    assert drive_words("electro_mechanical") == "EMA (ball screw)"
     with pytest.raises(ConfigError, match=r"drive 'electro_mechanical' needs physical mode"):
         from_mapping({"drive": "electro_mechanical", "mode": "paper"})
     assert not electro_mechanical.VALVE and not holds_oil("electro_mechanical") and holds_oil("pump_controlled")

@@ -126,6 +126,7 @@ def _spot_colours(ax) -> set[tuple[float, ...]]:
 def test_with_a_drive_axis_each_drive_has_its_colour_and_its_name_in_words_in_every_plot(drives_plots):
     drawn = drives_plots
     words = {"EHA (pump controlled)", "load sensing", "pressure compensated", "fixed pump"}
+    words |= {"EMA (ball screw)"}
     assert set(labels.DRIVE_WORDS.values()) == words and set(labels.DRIVE_WORDS) == set(DRIVES)
     metrics = drawn["metrics_vs_piston_diameter_m.png"]
     key = [t for t in figure_checks.legend_texts(metrics) if not t.startswith("not ok")]

@@ -15,7 +15,7 @@ DRIVE_WORDS: dict[str, str] = {
     "fixed_pump": "fixed pump",
     "load_sensing": "load sensing",
     "pump_controlled": "EHA (pump controlled)",
-    "electro_mechanical": "electro-mechanical actuator",
+    "electro_mechanical": "EMA (ball screw)",
 }
 
 #: The energy ledger's terms (model.ledger.TERMS but its sources), the lift's work and the
