@@ -18,7 +18,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ...jit import jitable
-from .. import electric_motor, pump
+from .. import electric_motor, pump, valve
 from ..battery import J_PER_KWH
 from ..geometry import piston_area_m2
 from ..hydraulics import orifice_coefficient
@@ -60,6 +60,15 @@ class DriveConstants(NamedTuple):
     p_reservoir: Num  # EHA low-pressure reservoir, Pa
     k_check: Num  # K of a pilot-operated check, m^3/(s Pa^0.5)
     pilot_full: Num  # pilot pressure above the reservoir's that opens a check fully, Pa
+    # how the valve drives' motor runs, and the open-centre valve (docs/model.md, "Motor strategies",
+    # "Open-centre valve")
+    motor_strategy: Num  # index in motor_speed.STRATEGIES: 0 constant, 1 idle_stop, 2 speed_on_demand
+    min_speed: Num  # w_min of speed_on_demand, rad/s (eq. D32)
+    rotor_inertia: Num  # J of the motor's and pump's rotors, kg m^2 (eq. D33)
+    idle_stop_s: Num  # T_idle of idle_stop, s (eq. D31)
+    open_centre: Num  # 1.0 with fixed_pump's valve open-centre, 0.0 closed-centre
+    k_centre: Num  # K_c of the fully open centre path, m^3/(s Pa^0.5) (eq. D35)
+    centre_closed: Num  # x_c: the spool opening at which the centre path has closed (eq. D35)
 
 
 @jitable
@@ -115,6 +124,15 @@ def constants(p: Parameters) -> DriveConstants:
         p_reservoir=p.reservoir_pressure_pa,
         k_check=orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.pilot_check_diameter_m), p.density_kg_m3),
         pilot_full=p.pilot_check_opening_pa,
+        motor_strategy=1.0 * (p.motor_strategy == "idle_stop") + 2.0 * (p.motor_strategy == "speed_on_demand"),
+        min_speed=p.motor_min_speed_rad_s,
+        rotor_inertia=p.motor_rotor_inertia_kg_m2,
+        idle_stop_s=p.motor_idle_stop_s,
+        open_centre=1.0 if p.valve_centre == "open" else 0.0,
+        k_centre=valve.centre_coefficient(
+            p.pump_max_flow_m3_s, p.open_centre_pressure_drop_pa, p.transition_pressure_pa
+        ),
+        centre_closed=p.open_centre_closed_opening,
     )
 
 
