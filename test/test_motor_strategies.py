@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from boom_hydraulics.model import ledger, physical
 from boom_hydraulics.model.drives import DRIVES, constants, motor_speed
 from boom_hydraulics.model.parameters import Parameters, with_updates
-from boom_hydraulics.solve import commands
+from boom_hydraulics.solve import accelerate, commands
+from boom_hydraulics.solve.commands import steps
+from boom_hydraulics.solve.simulation import simulate
 from boom_hydraulics.solve.simulator import Simulator
 
 P = Parameters()
@@ -205,3 +208,23 @@ def test_opening_the_spool_closes_the_centre_and_lifts_as_the_closed_centre_does
     assert speeds["closed", 0.05] > 1e-3 and abs(speeds["open", 0.05]) < 1e-4, speeds
     assert speeds["open", 1.0] == pytest.approx(speeds["closed", 1.0], rel=0.02)
     assert math.isfinite(speeds["open", 1.0])
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
+@pytest.mark.parametrize(
+    "updates",
+    [
+        {"drive": "load_sensing", "motor_strategy": "speed_on_demand"},
+        {"drive": "fixed_pump", "motor_strategy": "idle_stop", "valve_centre": "open", "motor_idle_stop_s": 0.5},
+        {"drive": "pressure_compensated", "motor_strategy": "idle_stop", "motor_idle_stop_s": 0.5},
+    ],
+)
+def test_each_strategy_runs_the_same_compiled_and_interpreted(updates):
+    """Lift, hold long enough for idle_stop to stop the motor, lower, hold: the compiled model
+    and the interpreted one agree (numba nopython and Python give one model)."""
+    command = steps([0.0, 0.1, 0.6, 1.6, 2.2], [0.0, 1.0, 0.0, -0.6, 0.0])
+    params = with_updates(P, **updates)
+    compiled, interpreted = simulate(params, 2.5, command, jit=True), simulate(params, 2.5, command, jit=False)
+    for name in ("q1", "p1", "p2", "p_supply", "battery_drawn", "rotor_power_j"):
+        scale = max(np.max(np.abs(interpreted[name])), 1.0)
+        assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
