@@ -153,6 +153,32 @@ def test_idle_stop_stops_the_motor_after_the_set_time_and_restarts_it_through_it
     assert 1.0 < extra / (0.5 * j * w_n * w_n) < 1.5
 
 
+@pytest.mark.parametrize("drive", VALVE_DRIVES)
+def test_a_motor_stopped_for_a_long_hold_or_started_from_standstill_runs_again(drive):
+    """idle_stop: through a minute's hold the stopped motor's speed decays to a denormal, the
+    pump holding no pressure, and the next demand starts it. speed_on_demand with no minimum
+    speed starts at standstill; holding, a variable pump turns only as fast as its leakage at
+    its pressure asks ((G_p dp + Q_leak) / D), the fixed pump not at all; lifting starts it."""
+    sim = Simulator(with_updates(P, drive=drive, motor_strategy="idle_stop"))
+    sim.step(0.0, 60_000)
+    assert sim.y[SPEED] < 1e-200
+    sim.step(1.0, 500)
+    assert sim.y[SPEED] > 0.9 * P.pump_speed_rad_s and sim.outputs()["v"] > 0.0
+    sim = Simulator(with_updates(P, drive=drive, motor_strategy="speed_on_demand", motor_min_speed_rad_s=0.0))
+    assert sim.y[SPEED] == 0.0
+    sim.step(0.0, 2000)
+    d = constants(sim.params)
+    out = sim.outputs()
+    # the pump's leakage and the closed P->B path's, and P->A's where it exceeds A->T's (the
+    # load-holding valve checks a net outflow of line A)
+    ps, p1, p2 = out["p_supply"], out["p1"], out["p2"]
+    p_to_a = d.leak * (ps - p1) * (ps - p1 > p1 - P.tank_pressure_pa)
+    leakage = (d.pump_leak * (ps - P.tank_pressure_pa) + d.leak * (ps - p2) + p_to_a) / d.displacement
+    assert sim.y[SPEED] == pytest.approx(0.0 if drive == "fixed_pump" else leakage, rel=0.02, abs=1e-9)
+    sim.step(1.0, 500)
+    assert sim.y[SPEED] > 0.2 * P.pump_speed_rad_s and sim.outputs()["v"] > 0.0
+
+
 @pytest.mark.parametrize("strategy", motor_speed.STRATEGIES)
 @pytest.mark.parametrize("drive", [*VALVE_DRIVES, "fixed_pump open"])
 def test_the_ledger_closes_over_the_loader_cycle_for_every_strategy(drive, strategy):

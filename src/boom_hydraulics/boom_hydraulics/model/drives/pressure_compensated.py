@@ -29,8 +29,9 @@ Num = Any  # float or numpy.ndarray
 #: speed and idle_stop's demand memory (motor_speed; standing still under the constant strategy).
 STATE_NAMES = ("drive_state", *motor_speed.STATE_NAMES)
 STATE_SCALES = ("pressure", *motor_speed.STATE_SCALES)
-#: The speed below which the stroke's division takes this speed: a stopped pump holds no
-#: pressure (its P port is at tank pressure), so it gives no torque whatever its stroke, rad/s.
+#: The speed below which the stroke's division and the flow limit take this speed: a stopped
+#: pump holds no pressure (its P port is at tank pressure), so it gives no torque whatever its
+#: stroke, rad/s.
 STOPPED_RAD_S = 1e-6
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
@@ -59,10 +60,10 @@ def port_pressure_at_speed_pa(
 ) -> Num:
     """The P-port pressure of a pump set to z at full displacement and speed w: eq. D19 with its
     geometric flow D w in place of Q_max, and at most its dead-heading pressure against its own
-    and the closed spool's leakage, p_t + D w / (G_p + 2 G) (eq. D32), Pa. At w_n it is at least
-    :func:`port_pressure_pa`'s; a stopped pump holds none."""
-    flow = d.displacement * speed
-    dead_head = d.p_tank + flow / (d.pump_leak + 2.0 * d.leak)
+    leakage, p_t + D w / G_p (eq. D32), Pa. At w_n it is at least :func:`port_pressure_pa`'s; a
+    stopped pump holds none."""
+    flow = d.displacement * larger(speed, STOPPED_RAD_S)  # the orifice's inverse of no flow is 0/0
+    dead_head = d.p_tank + flow / d.pump_leak
     return smaller(supply_pressure(opening, z, p1_pa, p2_pa, d.k_valve, d.transition2, flow, xp), dead_head)
 
 
