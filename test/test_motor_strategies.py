@@ -254,3 +254,31 @@ def test_each_strategy_runs_the_same_compiled_and_interpreted(updates):
     for name in ("q1", "p1", "p2", "p_supply", "battery_drawn", "rotor_power_j"):
         scale = max(np.max(np.abs(interpreted[name])), 1.0)
         assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
+
+
+@pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"drive": "fixed_pump", "valve_centre": "open", "motor_strategy": "idle_stop"},
+        {"drive": "load_sensing", "motor_strategy": "speed_on_demand", "motor_min_speed_rad_s": 30.0},
+    ],
+)
+def test_the_native_fmu_derives_the_strategies_constants_and_initial_state_to_the_bit(changes):
+    """Compiled code (the native FMU) derives the drive's constants, the strategy's and the open
+    centre's among them, and its initial state from the parameters as Python does."""
+    import numba
+
+    from boom_hydraulics.fmu import native
+    from boom_hydraulics.model import drives
+
+    @numba.njit(error_model="numpy")
+    def derive(row: np.ndarray) -> tuple:
+        p = native.surrogate_of(row)
+        d = drives.constants(p)
+        return d, drives.initial_state(p.drive, d)
+
+    params = with_updates(P, **changes)
+    d, z = derive(np.array(native.row_of(params)))
+    assert tuple(d) == tuple(constants(params))
+    assert z == drives.initial_state(params.drive, constants(params))

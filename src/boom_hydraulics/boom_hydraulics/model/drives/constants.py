@@ -128,7 +128,7 @@ def constants(p: Parameters) -> DriveConstants:
         min_speed=p.motor_min_speed_rad_s,
         rotor_inertia=p.motor_rotor_inertia_kg_m2,
         idle_stop_s=p.motor_idle_stop_s,
-        open_centre=1.0 if p.valve_centre == "open" else 0.0,
+        open_centre=1.0 * (p.valve_centre == "open"),  # arithmetic: numba compiles no keyword argument that branches
         k_centre=valve.centre_coefficient(
             p.pump_max_flow_m3_s, p.open_centre_pressure_drop_pa, p.transition_pressure_pa
         ),
