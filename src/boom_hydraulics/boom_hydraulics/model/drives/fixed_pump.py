@@ -6,9 +6,13 @@ paths and the main relief valve drain. The relief cracks at p_n and passes the p
 full flow at p_n plus its range (eq. D12): with the closed-centre valve closed, the whole
 flow goes over it, and the pump draws about p_n Q_max / eta from the battery while the
 boom holds (eq. D14). The line cavitates as a chamber does, keeping its oil
-(docs/model.md, "Chambers").
+(docs/model.md, "Chambers"). With ``valve_centre: open`` the valve's open centre passes the
+flow to tank at low pressure in neutral (model/valve.py, eq. D35-D37); under a
+``motor_strategy`` other than constant the motor's speed is the drive's second state
+(motor_speed, eq. D30-D34).
 
-Equations and conventions: docs/model.md, section "Drives".
+Equations and conventions: docs/model.md, sections "Drives", "Motor strategies" and
+"Open-centre valve".
 """
 
 from __future__ import annotations

@@ -6,9 +6,10 @@ lowering), through a signal opening that opens with the first 5 % of the spool's
 margin. The pump's pressure follows the load plus the margin, at most p_n, with the
 pump's own lag (eq. D17, D18), delivers on demand, and falls where the open path would
 take more than its maximum flow, as the pressure-compensated pump's does (eq. D19). The
-meter-in throttling is the margin; the meter-out throttling on lowering remains.
+meter-in throttling is the margin; the meter-out throttling on lowering remains. Its motor
+runs as ``motor_strategy`` says, as pressure_compensated's does (motor_speed).
 
-Equations and conventions: docs/model.md, section "Drives".
+Equations and conventions: docs/model.md, sections "Drives" and "Motor strategies".
 """
 
 from __future__ import annotations

@@ -4,10 +4,11 @@ Today's source, kept as the reference: the P port sees p_n, or less where the op
 would take more than the pump's maximum flow (docs/model.md, "Supply and relief valves").
 The compensator strokes the pump to deliver what the valve takes plus the pump's own
 leakage (eq. D4), so the pump draws shaft power even while the boom holds (the standby
-loss G_p p_n^2 and its friction). The drive's state is a constant p_n (rate 0): every
-valve drive has one state, so that they share one state layout.
+loss G_p p_n^2 and its friction). The drive's first state is a constant p_n (rate 0), as
+every valve drive's first state is its pressure; the second and third are its motor's
+(motor_speed: ``motor_strategy``), which stand still at the default constant speed.
 
-Equations and conventions: docs/model.md, section "Drives".
+Equations and conventions: docs/model.md, sections "Drives" and "Motor strategies".
 """
 
 from __future__ import annotations
@@ -99,7 +100,7 @@ def on_demand(
     zero = 0.0 * dp
     return Supply(
         *(rate + zero, m.speed_rate, m.memory_rate, valve.q_a, valve.q_b, 1.0 + zero, zero, opening + zero, ps),
-        *(1.0 * (ps < p_pump_pa), dp * valve.q_in, pumped.torque + m.torque, m.speed, pumped.hydraulic_power),
+        *(1.0 * (ps < p_pump_pa), dp * valve.q_in, pumped.torque + m.torque, m.speed + zero, pumped.hydraulic_power),
         *(pumped.volumetric_loss, pumped.mechanical_loss, zero, valve.throttling, valve.leakage),
         *(zero, zero, m.rotor_power, zero),
     )
