@@ -677,6 +677,70 @@ class Parameters:
         low=0.0,
         high=1.0,
     )
+    # motor strategies of the valve drives and the open-centre valve (docs/model.md, "Motor strategies",
+    # "Open-centre valve"; eq. D60-D67)
+    motor_strategy: str = _drive(
+        "constant",
+        "",
+        "How the valve drives' motor runs: constant (at pump_speed_rad_s), idle_stop (stops after "
+        "motor_idle_stop_s without valve demand, restarts on demand) or speed_on_demand (its speed follows "
+        "the valves' demand: 'flow on demand', electronic load sensing); it follows its target with "
+        "motor_time_constant_s; pump_controlled ignores it (eq. D60-D64)",
+        choices=("constant", "idle_stop", "speed_on_demand"),  # motor_speed.STRATEGIES
+        start_only=True,
+    )
+    motor_min_speed_rad_s: float = _drive(
+        52.36,
+        "rad/s",
+        "speed_on_demand: lowest motor speed (52.36: 500 rpm, the order of the minimum speed at rated pressure "
+        "in external gear pumps' data sheets; not read from one: check the chosen pump's) (eq. D62)",
+        low=0.0,
+        low_inclusive=True,
+        high=1000.0,
+    )
+    motor_rotor_inertia_kg_m2: float = _drive(
+        0.015,
+        "kg m^2",
+        "idle_stop, speed_on_demand: inertia of the motor's and the pump's rotors, J (0.015: the order of a "
+        "10 kW, 60 N m permanent-magnet motor's rotor in servo-motor catalogues, 0.005-0.03 kg m^2; not read "
+        "from one data sheet) (eq. D63)",
+        low=0.0,
+        low_inclusive=True,
+        high=10.0,
+    )
+    motor_idle_stop_s: float = _drive(
+        2.0,
+        "s",
+        "idle_stop: time without valve demand (|spool| below 2 %) after which the motor stops (issue 49's "
+        "example; battery machines offer 1-10 s) (eq. D61)",
+        low=0.0,
+        high=3600.0,
+    )
+    valve_centre: str = _drive(
+        "closed",
+        "",
+        "fixed_pump: the 4/3 valve's centre: closed (the pump's flow goes over the main relief in neutral) or "
+        "open (it passes to tank through the open centre, which the spool closes as it opens); the variable "
+        "pumps ignore it (eq. D65-D67)",
+        choices=("closed", "open"),
+        start_only=True,
+    )
+    open_centre_pressure_drop_pa: float = _drive(
+        5.0e5,
+        "Pa",
+        "valve_centre open: pressure drop of the open centre in neutral at pump_max_flow_m3_s (the order of "
+        "mobile open-centre valves' neutral P->T curves at rated flow, 0.3-1 MPa; not read from one) (eq. D65)",
+        low=0.0,
+        high=1.0e8,
+    )
+    open_centre_closed_opening: float = _drive(
+        0.5,
+        "",
+        "valve_centre open: spool opening (either way) at which the open centre has closed; its area falls "
+        "linearly from neutral to there (eq. D65)",
+        low=0.0,
+        high=1.0,
+    )
 
     # --- closed-loop position control (see model/control.py) ------------------------------
     control_position_gain_1_rad: float = _controller(

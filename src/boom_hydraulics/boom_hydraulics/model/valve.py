@@ -17,7 +17,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
-from .hydraulics import load_holding_flow, pos, smaller, valve_flows
+from .hydraulics import load_holding_flow, orifice_flow, pos, smaller, valve_flows
 
 Num = Any  # float or numpy.ndarray
 
@@ -89,3 +89,36 @@ def paths(opening: Num, p_port_pa: Num, p1_pa: Num, p2_pa: Num, d: Any, xp: Modu
 def laminar_slope(opening: Num, d: Any) -> Num:
     """The steepest dQ/dp of the paths at ``opening`` (laminar region) plus two leaking paths, m^3/(s Pa)."""
     return d.k_laminar * opening + 2.0 * d.leak
+
+
+# --- the open centre (docs/model.md, "Open-centre valve"; eq. D65-D67) ----------------------
+
+
+@jitable
+def centre_coefficient(flow_m3_s: float, drop_pa: float, transition_pa: float) -> float:
+    """K_c of an open centre that passes ``flow_m3_s`` at ``drop_pa`` through the laminar-turbulent
+    orifice ("Orifices and the 4/3 valve"): K_c = Q (dp^2 + p_tr^2)^(1/4) / dp, m^3/(s Pa^0.5) (eq. D65)."""
+    return flow_m3_s * math.sqrt(math.sqrt(drop_pa * drop_pa + transition_pa * transition_pa)) / drop_pa
+
+
+@jitable
+def centre_opening(opening: Num, d: Any) -> Num:
+    """The open centre's share of its full area at spool ``opening``: 1 in neutral, falling
+    linearly to 0 at |x| = x_c (``d.centre_closed``), and 0 with a closed centre (eq. D65)."""
+    return d.open_centre * pos(1.0 - abs(opening) / d.centre_closed)
+
+
+@jitable
+def centre_flow(opening: Num, p_port_pa: Num, d: Any, xp: ModuleType = math) -> tuple[Num, Num]:
+    """(Q_c, its throttling loss): what the open centre passes from the P port to tank at spool
+    ``opening``, m^3/s, and (p_P - p_t) Q_c, W (eq. D66; ``d``: the drives' constants: open_centre,
+    k_centre, centre_closed, transition2, p_tank). Zero with a closed centre."""
+    dp = p_port_pa - d.p_tank
+    q = d.k_centre * centre_opening(opening, d) * orifice_flow(1.0, dp, d.transition2, xp)  # eq. D66
+    return q, dp * q
+
+
+@jitable
+def centre_slope(opening: Num, d: Any) -> Num:
+    """The steepest dQ_c/dp of the open centre at ``opening`` (its laminar region), m^3/(s Pa)."""
+    return d.k_centre * centre_opening(opening, d) * d.k_laminar / d.k_valve

@@ -18,7 +18,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ...jit import jitable
-from .. import electric_motor, pump
+from .. import electric_motor, pump, valve
 from ..battery import J_PER_KWH
 from ..geometry import annulus_area_m2, piston_area_m2
 from ..hydraulics import orifice_coefficient
@@ -89,6 +89,15 @@ class DriveConstants(NamedTuple):
     eha_inv_integral_time: Num  # 1 / T_i of the speed loop (0: proportional), 1/s (eq. D52)
     eha_holding: Num  # 1.0 with the load-holding valve between pump and piston chamber, 0.0 without
     eha_holding_command: Num  # u_h: share of top speed at which it is fully open (eq. D53)
+    # how the valve drives' motor runs, and the open-centre valve (docs/model.md, "Motor strategies",
+    # "Open-centre valve")
+    motor_strategy: Num  # index in motor_speed.STRATEGIES: 0 constant, 1 idle_stop, 2 speed_on_demand
+    min_speed: Num  # w_min of speed_on_demand, rad/s (eq. D62)
+    rotor_inertia: Num  # J of the motor's and pump's rotors, kg m^2 (eq. D63)
+    idle_stop_s: Num  # T_idle of idle_stop, s (eq. D61)
+    open_centre: Num  # 1.0 with fixed_pump's valve open-centre, 0.0 closed-centre
+    k_centre: Num  # K_c of the fully open centre path, m^3/(s Pa^0.5) (eq. D65)
+    centre_closed: Num  # x_c: the spool opening at which the centre path has closed (eq. D65)
 
 
 @jitable
@@ -186,6 +195,15 @@ def constants(p: Parameters) -> DriveConstants:
         eha_inv_integral_time=eha_inv_integral_time,
         eha_holding=eha_holding,
         eha_holding_command=p.eha_holding_command,
+        motor_strategy=1.0 * (p.motor_strategy == "idle_stop") + 2.0 * (p.motor_strategy == "speed_on_demand"),
+        min_speed=p.motor_min_speed_rad_s,
+        rotor_inertia=p.motor_rotor_inertia_kg_m2,
+        idle_stop_s=p.motor_idle_stop_s,
+        open_centre=1.0 * (p.valve_centre == "open"),  # arithmetic: numba compiles no keyword argument that branches
+        k_centre=valve.centre_coefficient(
+            p.pump_max_flow_m3_s, p.open_centre_pressure_drop_pa, p.transition_pressure_pa
+        ),
+        centre_closed=p.open_centre_closed_opening,
     )
 
 

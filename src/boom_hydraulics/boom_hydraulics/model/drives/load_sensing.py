@@ -6,9 +6,10 @@ lowering), through a signal opening that opens with the first 5 % of the spool's
 margin. The pump's pressure follows the load plus the margin, at most p_n, with the
 pump's own lag (eq. D17, D18), delivers on demand, and falls where the open path would
 take more than its maximum flow, as the pressure-compensated pump's does (eq. D19). The
-meter-in throttling is the margin; the meter-out throttling on lowering remains.
+meter-in throttling is the margin; the meter-out throttling on lowering remains. Its motor
+runs as ``motor_strategy`` says, as pressure_compensated's does (motor_speed).
 
-Equations and conventions: docs/model.md, section "Drives".
+Equations and conventions: docs/model.md, sections "Drives" and "Motor strategies".
 """
 
 from __future__ import annotations
@@ -18,17 +19,19 @@ from types import ModuleType
 from typing import Any
 
 from ...jit import jitable
-from ..hydraulics import smaller, smoothstep
+from ..hydraulics import larger, smaller, smoothstep
+from . import motor_speed
 from .constants import DriveConstants, Supply
 from .pressure_compensated import energy, energy_rate, on_demand
 from .pressure_compensated import stiffness as _valve_stiffness
 
 Num = Any  # float or numpy.ndarray
 
-#: The drive's one state: the pump's pressure setting, which follows the load with a lag, Pa.
-STATE_NAMES = ("pump_pressure",)
-STATE_SCALES = ("pressure",)
-STATE_UNITS = ("Pa",)
+#: The drive's states: the pump's pressure setting, which follows the load with a lag, Pa; the
+#: motor's speed and idle_stop's demand memory (motor_speed).
+STATE_NAMES = ("pump_pressure", *motor_speed.STATE_NAMES)
+STATE_SCALES = ("pressure", *motor_speed.STATE_SCALES)
+STATE_UNITS = ("Pa", *motor_speed.STATE_UNITS)
 #: The drive feeds the cylinder through the 4/3 valve.
 VALVE = True
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear
@@ -43,8 +46,10 @@ __all__ = ("energy", "energy_rate", "initial_state", "stiffness", "supply")
 
 @jitable
 def initial_state(d: DriveConstants) -> tuple[float, float, float]:
-    """The pump idles at the margin over tank pressure with the spool closed, Pa."""
-    return (d.p_tank + d.ls_margin, 0.0, 0.0)
+    """The pump idles at the margin over tank pressure with the spool closed, Pa; the motor's speed
+    and demand memory (motor_speed)."""
+    w, m = motor_speed.initial_state(d)
+    return (d.p_tank + d.ls_margin, w, m)
 
 
 @jitable
@@ -71,13 +76,13 @@ def supply(
     P port at the pump's pressure or below it at its flow limit (eq. D19), delivering on
     demand (eq. D4)."""
     rate = (target_pressure_pa(opening, p1_pa, p2_pa, d) - z[0]) * d.ls_inv_tau  # eq. D18
-    return on_demand(rate, z[0], opening, p1_pa, p2_pa, d, xp)
+    return on_demand(rate, z[0], z, opening, p1_pa, p2_pa, d, xp)
 
 
 @jitable
 def stiffness(
     z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
 ) -> tuple[Num, Num, Num]:
-    """The valve's slopes, and the pump's pressure lag (as pressure_compensated.stiffness)."""
-    g_a, g_b, _ = _valve_stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
-    return g_a, g_b, d.ls_inv_tau + 0.0 * g_a
+    """The valve's slopes, and the pump's pressure lag or its motor's states (as pressure_compensated.stiffness)."""
+    g_a, g_b, motor = _valve_stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)
+    return g_a, g_b, larger(d.ls_inv_tau + 0.0 * g_a, motor)
