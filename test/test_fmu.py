@@ -418,15 +418,16 @@ def test_a_ros2_fmu_steps_as_the_simulator_and_its_export_leaves_nothing_behind(
     [
         {"drive": "electro_mechanical"},
         {"drive": "pump_controlled", "eha_torque_limit_n_m": 55.0, "eha_holding_valve": "piston_side"},
-        {"motor_eddy_loss_fraction": 0.1, "inverter_standby_power_w": 20.0, "auxiliary_power_w": 40.0},
+        {"drive": "load_sensing", "motor_strategy": "speed_on_demand"},
+        {"drive": "fixed_pump", "valve_centre": "open", "motor_strategy": "idle_stop"},
     ],
 )
 def test_the_drives_and_their_settings_chosen_before_initialization_step_as_the_simulator(
     fmu: Path, changes: dict
 ) -> None:
-    """The FMU carries every drive: the actuator, the EHA as built and the motor's losses,
-    set before initialization, lift and lower as the Simulator does, to the bit, with every
-    joule of the ledger (battery drawn and returned)."""
+    """The FMU carries every drive and its settings: the actuator, the EHA as built, the valve
+    drives' motor strategies and the open centre, set before initialization, lift and lower
+    as the Simulator does, to the bit."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
@@ -446,15 +447,14 @@ def test_the_drives_and_their_settings_chosen_before_initialization_step_as_the_
     for k in range(200):
         instance.setReal([refs["valve_command"]], [1.0 if k < 100 else -1.0])
         instance.doStep(k * 0.01, 0.01)
-    names = (*OUTPUTS, "battery_drawn", "battery_returned")
-    got = instance.getReal([refs[name] for name in names])
+    got = instance.getReal([refs[name] for name in OUTPUTS])
     instance.terminate()
     instance.freeInstance()
     params = with_updates(Parameters(), **changes)
     sim = Simulator(params)
     sim.step(1.0, round(1.0 / params.time_step_s))
     sim.step(-1.0, round(1.0 / params.time_step_s))
-    assert got == [sim.outputs()[name] for name in names]
+    assert got == [sim.outputs()[name] for name in OUTPUTS]
 
 
 # --- the model's own code, compiled for the FMU ------------------------------------------
