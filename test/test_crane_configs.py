@@ -61,9 +61,15 @@ def test_the_cylinder_holds_the_tonne_below_the_port_relief_over_the_whole_strok
     assert p1.max() < crane.supply_pressure_pa  # the supply can lift it from anywhere in the stroke
 
 
+#: The fixed pump as the paper builds it: the open centre it is shipped with, its motor on demand,
+#: misses the cycle's targets by degrees (the open centre bleeds what a small opening passes;
+#: docs/drives.md), and this test is of the crane, not of that circuit.
+PAPERS_CIRCUIT = {"fixed_pump": {"valve_centre": "closed", "motor_strategy": "constant"}}
+
+
 def _loader_cycle(crane, drive: str):
     """The nominal loader cycle with ``drive``, and 2 s to settle after it."""
-    params = with_updates(crane, drive=drive)
+    params = with_updates(crane, drive=drive, **PAPERS_CIRCUIT.get(drive, {}))
     params = with_updates(params, **commands.scenario("loader", 0.0, params))
     sim = Simulator(params)
     out = sim.run(duty_cycles.loader_duration_s() + 2.0, commands.from_parameters(params), every=5)

@@ -108,6 +108,21 @@ def test_the_best_design_at_an_end_of_a_searched_axis_says_which_way_to_extend_i
     assert range_edges({"piston_diameter_m": np.array([0.05, 0.05])}, ["piston_diameter_m"], 0) == []
 
 
+def test_a_best_no_better_than_a_design_inside_the_range_names_no_end():
+    """The electro-mechanical actuator has no cylinder's oil: its designs over piston diameters
+    score alike, and its best at an end of the range is no reason to extend it; a drive whose
+    score falls towards the end still gets its line."""
+    table = {"drive": np.array(["electro_mechanical"] * 3 + ["load_sensing"] * 3),
+             "piston_diameter_m": np.array([0.07, 0.09, 0.11] * 2)}  # fmt: skip
+    score = np.array([10.60e3, 10.6002e3, 10.6004e3, 40e3, 43e3, 45e3])
+    axes = ["drive", "piston_diameter_m"]
+    assert range_edges(table, axes, 0, score=score) == []
+    assert range_edges(table, axes, 3, score=score) == [
+        "piston_diameter_m: best at the lower end 0.07; extend the range below 0.07"
+    ]
+    assert range_edges(table, axes, 0) == ["piston_diameter_m: best at the lower end 0.07; extend the range below 0.07"]
+
+
 def test_each_drives_best_line_honours_the_rules():
     """fixed_pump's least-energy design puts the payload down 2.9 deg above the ground and
     load_sensing's least-energy one is over the pressure limit: each line names the best design

@@ -155,5 +155,6 @@ def summary(
         lines.append(f"  least battery energy{with_drive}: {figures}" + (f" at {where}" if where else ""))
         whose = f"{drive}'s best" if drive else "best"
         if qualifies is not None:
-            lines += [f"    {line}" for line in range_edges(bands, searched, row, whose)]
+            score = bands["battery_energy_j_p50"]  # what the least battery energy was chosen by
+            lines += [f"    {line}" for line in range_edges(bands, searched, row, whose, score)]
     return "\n".join(lines)

@@ -93,13 +93,28 @@ class Rules:
         return found
 
 
-def range_edges(table: Mapping[str, np.ndarray], axes: Sequence[str], row: int, whose: str = "best") -> list[str]:
+#: Within this share of the best's score a design inside the range is as good: the axis barely
+#: matters there (a drive without a cylinder's oil, over piston diameters), and no end is named.
+FLAT = 1e-3
+
+
+def range_edges(
+    table: Mapping[str, np.ndarray],
+    axes: Sequence[str],
+    row: int,
+    whose: str = "best",
+    score: np.ndarray | None = None,
+) -> list[str]:
     """A line for each numeric column of ``axes`` where ``row`` of ``table`` lies at an end of
     the values the sweep searched (those of the column, over all rows), unless the parameter
-    can go no further that way (a payload of 0 kg): which end, and which way to extend the
-    range. ``whose``: the design the line names ("best", "load_sensing's best")."""
+    can go no further that way (a payload of 0 kg), or (with ``score``, what the best was chosen
+    by, per row) a design that differs from it in that column alone, away from the end, scores
+    within :data:`FLAT` of it: which end, and which way to extend the range. ``whose``: the
+    design the line names ("best", "load_sensing's best")."""
     lines = []
     for axis in axes:
+        if score is not None and _flat_along(table, axes, axis, row, np.asarray(score, dtype=float)):
+            continue
         values = np.asarray(table[axis])
         if values.dtype.kind not in "fiu" or axis == "operator":
             continue
@@ -117,6 +132,19 @@ def range_edges(table: Mapping[str, np.ndarray], axes: Sequence[str], row: int, 
                 shown = format_value(float(end))
                 lines.append(f"{axis}: {whose} at the {word} end {shown}; extend the range {way} {shown}")
     return lines
+
+
+def _flat_along(table: Mapping[str, np.ndarray], axes: Sequence[str], axis: str, row: int, score: np.ndarray) -> bool:
+    """Whether a row equal to ``row`` in every column of ``axes`` but ``axis``, at another value
+    of ``axis``, scores within :data:`FLAT` of it."""
+    same = np.ones(len(score), dtype=bool)
+    for other in axes:
+        if other != axis:
+            same &= np.asarray(table[other]) == np.asarray(table[other])[row]
+    values = np.asarray(table[axis])
+    others = same & (values != values[row]) & np.isfinite(score)
+    best = score[row]
+    return bool(np.isfinite(best) and np.any(np.abs(score[others] - best) <= FLAT * abs(best)))
 
 
 def _limits(name: str) -> tuple[float, float]:

@@ -412,7 +412,9 @@ def _run_plan(
         ranked = recommend.recommend(table, constraints, plan.columns, across, options.rank_by or recommend.RANK_BY)
         text = recommend.format_table(ranked, options.top)
         if len(ranked.rows):
-            edges = range_edges(ranked.table, ranked.columns[1:], int(ranked.rows[0]))
+            rank_by = options.rank_by or recommend.RANK_BY
+            score = ranked.table[rank_by] if rank_by in ranked.table else None
+            edges = range_edges(ranked.table, ranked.columns[1:], int(ranked.rows[0]), score=score)
             text += "".join(f"{line}\n" for line in edges)
         write_bytes(out / "recommendation.txt", text.encode())
         write_table(ranked.table, out / "recommendation.csv", rows=ranked.rows)
