@@ -22,7 +22,16 @@ def _battery(diagnostic) -> dict[str, str] | None:
     return None
 
 
-def test_the_node_publishes_its_ledger_and_the_battery_charge_and_records_them(nodes, client, tmp_path):
+@pytest.mark.parametrize(
+    "drive",
+    [
+        ("drive:=pump_controlled",),
+        # the actuator, with standby drawn whatever the load: the drive named at start, the ledger's new terms
+        ("drive:=electro_mechanical", "inverter_standby_power_w:=20.0", "auxiliary_power_w:=40.0"),
+    ],
+    ids=["eha", "actuator"],
+)
+def test_the_node_publishes_its_ledger_and_the_battery_charge_and_records_them(nodes, client, tmp_path, drive):
     from bag_checks import check_bag
     from rosbags.highlevel import AnyReader
 
@@ -35,7 +44,7 @@ def test_the_node_publishes_its_ledger_and_the_battery_charge_and_records_them(n
     )
     capacity_j = Parameters().battery_capacity_kwh * J_PER_KWH
     proc = nodes.start(
-        "drive:=pump_controlled", "battery_initial_soc:=0.8", "command_timeout_s:=0.0", f"record_folder:={tmp_path}",
+        *drive, "battery_initial_soc:=0.8", "command_timeout_s:=0.0", f"record_folder:={tmp_path}",
         record=True,
     )  # fmt: skip
     try:
@@ -81,11 +90,21 @@ def test_the_node_publishes_its_ledger_and_the_battery_charge_and_records_them(n
     from boom_hydraulics.resim.resimulation import resimulate
 
     again, _ = resimulate(bag, tmp_path / "again")
-    bigger, _ = resimulate(bag, tmp_path / "bigger", overrides={"piston_diameter_m": 0.05})
+    # another cylinder for the EHA; for the actuator, which has no oil, another screw
+    other = {"piston_diameter_m": 0.05} if "pump_controlled" in drive[0] else {"ema_forward_efficiency": 0.7}
+    bigger, _ = resimulate(bag, tmp_path / "bigger", overrides=other)
     results = analyze([bag, again, bigger], tmp_path / "analysis")
     recorded_j = recorded[-1].battery_drawn_j - recorded[-1].battery_returned_j
     assert results[bag.name]["battery_energy_j"] == pytest.approx(recorded_j, rel=1e-12)
     assert results["again"]["battery_energy_j"] == pytest.approx(recorded_j, rel=1e-9)
-    assert results["bigger"]["battery_energy_j"] != pytest.approx(recorded_j, rel=1e-3)  # another cylinder
+    assert results["bigger"]["battery_energy_j"] != pytest.approx(recorded_j, rel=1e-3)  # another design
     assert (tmp_path / "analysis" / "energy.png").is_file()
     assert read_energy_ledger(again)["battery_returned"] > 0.0
+    standby_w = sum(float(arg.split(":=")[1]) for arg in drive if arg.split(":=")[0].endswith("power_w"))
+    at = list(last.terms).index("standby_loss")
+    first = ledgers[0]
+    seconds = (last.header.stamp.sec - first.header.stamp.sec) + 1e-9 * (
+        last.header.stamp.nanosec - first.header.stamp.nanosec
+    )
+    drawn = last.energy_j[at] - first.energy_j[at]
+    assert drawn == pytest.approx(standby_w * seconds, rel=1e-6, abs=1e-9)  # drawn all along, whatever the load
