@@ -6,9 +6,9 @@ Runs boom-sweep over the loader cycle, start to finish (planning, the compiled k
 table; no plots), in each checkout's own environment, the checkouts in turn in each round:
 
 - *today's answer*: the drives both checkouts know, with their defaults, in both;
-- *the new answer*: every drive of this checkout with the settings docs/drives.md answers
-  with (:data:`AS_BUILT`), in this checkout alone, set against the other checkout's
-  today's answer.
+- *the new answer*: every drive of this checkout built as docs/drives.md answers with
+  (:data:`AS_BUILT`, config/battery_crane.yaml), in this checkout alone, set against the other
+  checkout's today's answer.
 
 A design's rate is its simulated steps (of dt) per second of wall time; the ratio is this
 checkout's over the other's (1.0: as fast; the target for the new answer is at least 1/1.3).
@@ -45,18 +45,16 @@ def drives_of(checkout: Path) -> tuple[str, ...]:
     return tuple(out.stdout.strip().split(","))
 
 
-#: The settings the new answer sweeps with (docs/drives.md, "The sweep"), as --set arguments.
-AS_BUILT: tuple[str, ...] = ()
+#: The params file the new answer sweeps with (docs/drives.md, "The sweeps").
+AS_BUILT = "battery_crane.yaml"
 
 
-def sweep_s(checkout: Path, drives: tuple[str, ...], operators: int, settings: tuple[str, ...] = ()) -> float:
+def sweep_s(checkout: Path, drives: tuple[str, ...], operators: int, config: str = "default.yaml") -> float:
     """Seconds of one boom-sweep in ``checkout`` (its environment), start to finish."""
     with tempfile.TemporaryDirectory(prefix="bench-answer-") as folder:
-        args = [*with_env(checkout), "boom-sweep", "--config", str(checkout / "config" / "default.yaml")]
+        args = [*with_env(checkout), "boom-sweep", "--config", str(checkout / "config" / config)]
         args += ["--scenario", "loader", "--operators", str(operators), "--duration", f"{DURATION_S:g}"]
         args += ["--vary", f"drive={','.join(drives)}", "--vary", CYLINDERS, "--across", "operator"]
-        for setting in settings:
-            args += ["--set", setting]
         args += ["--out", str(Path(folder) / "s"), "--no-plots", "--no-progress"]
         t0 = time.perf_counter()
         out = subprocess.run(args, cwd=checkout, capture_output=True, text=True)
@@ -81,7 +79,7 @@ def main() -> int:
     ours = drives_of(ROOT)
     steps = DURATION_S / DT_S
     runs = {
-        "today": (TODAYS_DRIVES, ()),
+        "today": (TODAYS_DRIVES, "default.yaml"),
         "new": (ours, AS_BUILT),
     }
     # compile each checkout's kernels first (a sweep of one design each)
@@ -90,8 +88,8 @@ def main() -> int:
     rates: dict[tuple[str, Path], list[float]] = {("today", ROOT): [], ("today", args.against): [], ("new", ROOT): []}
     for n in range(args.rounds):
         for (name, checkout), values in rates.items():
-            drives, settings = runs[name]
-            seconds = sweep_s(checkout, drives, args.operators, settings)
+            drives, config = runs[name]
+            seconds = sweep_s(checkout, drives, args.operators, config)
             values.append(designs(drives, args.operators) * steps / seconds / 1e6)
             print(f"round {n + 1}/{args.rounds}, {name} in {commit(checkout)}: {values[-1]:.3f} M steps/s", flush=True)
     other = statistics.median(rates[("today", args.against)])
@@ -114,9 +112,7 @@ def main() -> int:
             rates[("today", args.against)],
         ),
         row(f"today's answer ({len(TODAYS_DRIVES)} drives), {commit()} (this)", rates[("today", ROOT)]),
-        row(
-            f"the new answer ({len(ours)} drives, {' '.join(AS_BUILT) or 'defaults'}), {commit()}", rates[("new", ROOT)]
-        ),
+        row(f"the new answer ({len(ours)} drives, config/{AS_BUILT}), {commit()}", rates[("new", ROOT)]),
     ]
     title = (
         f"The answer's sweep: loader cycles of {DURATION_S:g} s at dt {DT_S * 1e3:g} ms, {args.operators} operators x "

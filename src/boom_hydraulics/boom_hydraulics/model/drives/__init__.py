@@ -28,12 +28,10 @@ import math
 from types import ModuleType
 from typing import Any
 
-import numpy as np
-
-from ...jit import compiled_as, jitable
+from ...jit import jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
 from . import electro_mechanical, fixed_pump, load_sensing, pressure_compensated, pump_controlled
-from .constants import DriveConstants, Supply, blend, constants
+from .constants import DriveConstants, Supply, blend, constants, in_use
 
 Num = Any  # float or numpy.ndarray
 
@@ -50,25 +48,6 @@ assert tuple(DRIVES) == DRIVE_CHOICES, "parameters.DRIVES must name the register
 STATE_COUNT = 3
 assert all(len(m.STATE_NAMES) <= STATE_COUNT for m in DRIVES.values()), "a drive has more states than the model keeps"
 assert all(len(m.STATE_NAMES) == len(m.STATE_SCALES) == len(m.STATE_UNITS) for m in DRIVES.values())
-
-
-def in_use(flag: Num) -> bool:
-    """Whether a 0/1 flag (a float, or an array of a batch's sets) is set for any set: the
-    model skips the equations of a drive no set uses."""
-    if isinstance(flag, float):
-        return flag != 0.0
-    return bool(np.any(flag != 0.0))
-
-
-@compiled_as(in_use)
-def _in_use_compiled(flag: Any) -> Any:
-    """:func:`in_use` as compiled code runs it: a branch on the flag of the set (the
-    implementation's annotations are those of this typing function, as numba asks)."""
-
-    def of_set(flag: Any) -> Any:
-        return np.any(flag != 0.0)
-
-    return of_set
 
 
 @jitable

@@ -17,7 +17,9 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
-from ...jit import jitable
+import numpy as np
+
+from ...jit import compiled_as, jitable
 from .. import electric_motor, pump, valve
 from ..battery import J_PER_KWH
 from ..geometry import annulus_area_m2, piston_area_m2
@@ -25,6 +27,25 @@ from ..hydraulics import orifice_coefficient
 from ..parameters import DRIVES, Parameters
 
 Num = Any  # float or numpy.ndarray
+
+
+def in_use(flag: Num) -> bool:
+    """Whether a 0/1 flag (a float, or an array of a batch's sets) is set for any set: the
+    model skips the equations of a drive no set uses."""
+    if isinstance(flag, float):
+        return flag != 0.0
+    return bool(np.any(flag != 0.0))
+
+
+@compiled_as(in_use)
+def _in_use_compiled(flag: Any) -> Any:
+    """:func:`in_use` as compiled code runs it: a branch on the flag of the set (the
+    implementation's annotations are those of this typing function, as numba asks)."""
+
+    def of_set(flag: Any) -> Any:
+        return np.any(flag != 0.0)
+
+    return of_set
 
 
 class DriveConstants(NamedTuple):

@@ -22,7 +22,7 @@ from ..hydraulics import larger, smaller, supply_pressure
 from ..pump import stroke_for_flow_m3_rad
 from ..valve import laminar_slope, paths
 from . import motor_speed
-from .constants import DriveConstants, Supply, pump_point
+from .constants import DriveConstants, Supply, in_use, pump_point
 
 Num = Any  # float or numpy.ndarray
 
@@ -88,12 +88,15 @@ def on_demand(
     displacement delivers what the valve would take at full speed, (Q_P + G_p dp) / D (eq. D62),
     and the P port sees the flow limit and the dead-heading pressure of the pump's speed."""
     constant, _, _ = motor_speed.flags(d)
-    ps_full = port_pressure_pa(p_pump_pa, opening, p1_pa, p2_pa, d, xp)
-    wanted = paths(opening, ps_full, p1_pa, p2_pa, d, xp)
-    required = (wanted.q_in + d.pump_leak * (ps_full - d.p_tank)) / d.displacement  # eq. D62
+    variable = 1.0 - constant  # (a set whose motor turns at constant speed skips what follows its speed)
+    ps = port_pressure_pa(p_pump_pa, opening, p1_pa, p2_pa, d, xp)
+    required = 0.0 * ps
+    if in_use(variable):
+        wanted = paths(opening, ps, p1_pa, p2_pa, d, xp)
+        required = (wanted.q_in + d.pump_leak * (ps - d.p_tank)) / d.displacement  # eq. D62
     m = motor_speed.motor(z, opening, required, d)
-    at_speed = port_pressure_at_speed_pa(p_pump_pa, m.speed, opening, p1_pa, p2_pa, d, xp)
-    ps = constant * ps_full + (1.0 - constant) * at_speed
+    if in_use(variable):
+        ps = constant * ps + variable * port_pressure_at_speed_pa(p_pump_pa, m.speed, opening, p1_pa, p2_pa, d, xp)
     valve = paths(opening, ps, p1_pa, p2_pa, d, xp)
     dp = ps - d.p_tank
     stroke = stroke_for_flow_m3_rad(valve.q_in, larger(m.speed, STOPPED_RAD_S), dp, d.pump_leak)  # eq. D4
