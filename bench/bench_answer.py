@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 from bench_node import checkout_path, with_env
-from tables import ROOT, commit, table, write_results
+from tables import ROOT, commit, publish_against
 
 #: The drives every checkout since the four drives' commit knows, in the README's order.
 TODAYS_DRIVES = ("pressure_compensated", "fixed_pump", "load_sensing", "pump_controlled")
@@ -118,9 +118,7 @@ def main() -> int:
         f"The answer's sweep: loader cycles of {DURATION_S:g} s at dt {DT_S * 1e3:g} ms, {args.operators} operators x "
         f"{CYLINDERS}, median of {args.rounds} rounds taken in turn ({os.cpu_count()} cores)"
     )
-    text = table(title, header, rows)
-    path = write_results("answer", text, f"commits: {commit()} (this) against {commit(args.against)}")
-    print(f"written to {path.relative_to(ROOT)}")
+    publish_against("answer", title, header, rows, args.against)
     return 0
 
 

@@ -38,7 +38,7 @@ import subprocess
 from pathlib import Path
 
 from bench_node import checkout_path, with_env
-from tables import ROOT, commit, table, write_results
+from tables import ROOT, commit, publish_against, table, write_results
 
 #: One round of one checkout, run in its environment: prints {"lift": M/s, "loader": M/s}.
 MEASURE = """
@@ -152,9 +152,7 @@ def main() -> int:
         this, other = figures[ROOT][key], figures[args.against][key]
         rows.append([what, spread(this), spread(other), f"{statistics.median(this) / statistics.median(other):.2f}"])
     title = f"Batch kernel, median (smallest-largest) of {args.rounds} rounds taken in turn ({os.cpu_count()} cores)"
-    text = table(title, header, rows)
-    path = write_results("batch", text, f"commits: {commit()} (this) against {commit(args.against)}")
-    print(f"written to {path.relative_to(ROOT)}")
+    publish_against("batch", title, header, rows, args.against)
     return 0
 
 

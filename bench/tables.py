@@ -82,3 +82,12 @@ def write_results(name: str, text: str, commits: str = "") -> Path:
     )
     write_bytes(path, body.encode())
     return path
+
+
+def publish_against(name: str, title: str, header: list[str], rows: list[list[str]], against: Path) -> Path:
+    """Print the table of a run against the checkout ``against`` and write it with both commits
+    (``write_results``): the file's path."""
+    text = table(title, header, rows)
+    path = write_results(name, text, f"commits: {commit()} (this) against {commit(against)}")
+    print(f"written to {path.relative_to(ROOT)}")
+    return path

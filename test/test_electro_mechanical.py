@@ -248,23 +248,6 @@ def test_over_a_loader_cycle_the_ema_follows_the_moves_and_the_ledger_balances()
 # --- as a user runs it ---------------------------------------------------------------------
 
 
-def test_boom_sim_runs_the_loader_cycle_with_the_ema_and_its_csv_balances(tmp_path):
-    out = tmp_path / "ema.csv"
-    result = run_tool(
-        "boom-sim", "run", "--config", CONFIG / "default.yaml", "--set", "drive=electro_mechanical",
-        "--profile", "loader", "--duration", "18.5", "--every", "50", "--out", out,
-    )  # fmt: skip
-    assert result.returncode == 0, result.stderr
-    with out.open() as handle:
-        rows = list(csv.reader(handle))
-    header = [name.split(" [")[0] for name in rows[0]]
-    last = dict(zip(header, map(float, rows[-1])))
-    spent = [f"{name}_j" for name in ledger.INTEGRALS[2:-1] if name != "reservoir_power"]
-    drawn = last["battery_drawn"] - last["battery_returned"] + last["reservoir_power_j"]
-    assert sum(last[name] for name in spent) == pytest.approx(drawn, rel=5e-3)
-    assert last["battery_returned"] > 0.2 * last["lift_work"] > 0.0
-
-
 def test_boom_sweep_compares_the_ema_with_the_eha_on_the_loader_cycle(tmp_path):
     out = tmp_path / "sweep"
     result = run_tool(

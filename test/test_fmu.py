@@ -380,11 +380,37 @@ def test_fmu_without_a_c_compiler_says_so_in_one_line(tmp_path: Path) -> None:
     assert not out.exists()
 
 
+def _lifted_and_lowered(path: Path, name: str, changes: dict | None = None) -> list[float]:
+    """The FMU at ``path`` in fmpy, in this process (instance ``name``, ``changes`` set before
+    initialization), after 1 s at full command up and 1 s down in steps of 10 ms: its OUTPUTS."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    description = read_model_description(str(path))
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    instance = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)), modelIdentifier="boom_drive",
+                         instanceName=name)  # fmt: skip
+    instance.instantiate()
+    instance.setupExperiment(startTime=0.0)
+    for key, value in (changes or {}).items():
+        if isinstance(value, str):
+            instance.setString([refs[key]], [value])
+        else:
+            instance.setReal([refs[key]], [value])
+    instance.enterInitializationMode()
+    instance.exitInitializationMode()
+    for k in range(200):
+        instance.setReal([refs["valve_command"]], [1.0 if k < 100 else -1.0])
+        instance.doStep(k * 0.01, 0.01)
+    got = instance.getReal([refs[key] for key in OUTPUTS])
+    instance.terminate()
+    instance.freeInstance()
+    return got
+
+
 def test_a_ros2_fmu_steps_as_the_simulator_and_its_export_leaves_nothing_behind(tmp_path: Path) -> None:
     """ros2's steps allocate (numba's runtime, held by the FMU's binary): an FMU exported in
     this process with it lifts and lowers as the Simulator does, to the bit."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
 
     from boom_hydraulics.fmu.export import write_fmu
 
@@ -393,20 +419,7 @@ def test_a_ros2_fmu_steps_as_the_simulator_and_its_export_leaves_nothing_behind(
     write_fmu(params, tmp_path / "boom_drive.fmu")
     assert sys.path == path_before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["boom_drive.fmu"]
-    description = read_model_description(str(tmp_path / "boom_drive.fmu"))
-    refs = {v.name: v.valueReference for v in description.modelVariables}
-    fmu = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(tmp_path / "boom_drive.fmu")),
-                    modelIdentifier="boom_drive", instanceName="ros2")  # fmt: skip
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    for k in range(200):
-        fmu.setReal([refs["valve_command"]], [1.0 if k < 100 else -1.0])
-        fmu.doStep(k * 0.01, 0.01)
-    got = fmu.getReal([refs[name] for name in OUTPUTS])
-    fmu.terminate()
-    fmu.freeInstance()
+    got = _lifted_and_lowered(tmp_path / "boom_drive.fmu", "ros2")
     sim = Simulator(params)
     sim.step(1.0, 500)
     sim.step(-1.0, 500)
@@ -428,28 +441,7 @@ def test_the_drives_and_their_settings_chosen_before_initialization_step_as_the_
     """The FMU carries every drive and its settings: the actuator, the EHA as built, the valve
     drives' motor strategies and the open centre, set before initialization, lift and lower
     as the Simulator does, to the bit."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
-
-    description = read_model_description(str(fmu))
-    refs = {v.name: v.valueReference for v in description.modelVariables}
-    instance = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(fmu)), modelIdentifier="boom_drive",
-                         instanceName="drives")  # fmt: skip
-    instance.instantiate()
-    instance.setupExperiment(startTime=0.0)
-    for name, value in changes.items():
-        if isinstance(value, str):
-            instance.setString([refs[name]], [value])
-        else:
-            instance.setReal([refs[name]], [value])
-    instance.enterInitializationMode()
-    instance.exitInitializationMode()
-    for k in range(200):
-        instance.setReal([refs["valve_command"]], [1.0 if k < 100 else -1.0])
-        instance.doStep(k * 0.01, 0.01)
-    got = instance.getReal([refs[name] for name in OUTPUTS])
-    instance.terminate()
-    instance.freeInstance()
+    got = _lifted_and_lowered(fmu, "drives", changes)
     params = with_updates(Parameters(), **changes)
     sim = Simulator(params)
     sim.step(1.0, round(1.0 / params.time_step_s))

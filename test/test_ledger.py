@@ -242,16 +242,21 @@ def test_todays_drives_draw_no_standby_power_store_nothing_in_rotors_and_close_t
         assert list(runs[-1]) == pytest.approx(list(runs[0]), rel=1e-12, abs=1e-9)
 
 
-def test_boom_sim_runs_csv_has_every_term_of_the_ledger_and_its_last_row_balances(tmp_path):
-    """A user closes the ledger from boom-sim run's CSV alone: a column per integral, in J."""
+@pytest.mark.parametrize(
+    ("drive", "profile", "duration"),
+    [("pump_controlled", "angle:0=25,2.5=8.5", "5"), ("electro_mechanical", "loader", "18.5")],
+)
+def test_boom_sim_runs_csv_has_every_term_of_the_ledger_and_its_last_row_balances(tmp_path, drive, profile, duration):
+    """A user closes the ledger from boom-sim run's CSV alone: a column per integral, in J (the
+    EHA lifting and lowering, the electro-mechanical actuator through the loader cycle)."""
     import csv
 
     from conftest import CONFIG, run_tool
 
-    out = tmp_path / "eha.csv"
+    out = tmp_path / f"{drive}.csv"
     result = run_tool(
-        "boom-sim", "run", "--config", CONFIG / "default.yaml", "--set", "drive=pump_controlled",
-        "--profile", "angle:0=25,2.5=8.5", "--duration", "5", "--every", "50", "--out", out,
+        "boom-sim", "run", "--config", CONFIG / "default.yaml", "--set", f"drive={drive}",
+        "--profile", profile, "--duration", duration, "--every", "50", "--out", out,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     with out.open() as handle:
