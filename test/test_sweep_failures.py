@@ -132,6 +132,31 @@ def test_stale_temporaries_of_a_killed_run_are_removed_and_nothing_else(copy):
     assert result.stderr.count("left unfinished by an earlier run that was stopped") == 3
 
 
+def test_a_stopped_sweep_leaves_no_temporary_of_its_own_and_another_writers_stays(tmp_path):
+    """A stop can land between a batch's temporary and the writer that removes it on failure (the
+    context manager not yet entered): the line a stopped sweep ends with removes what this
+    process left half-written, and nothing of a process that still runs."""
+    from boom_hydraulics.sweeps.runner import Reached
+    from boom_hydraulics.sweeps.store import SweepStore
+
+    store = SweepStore(tmp_path / "s", resume=False)
+    store.save(0, {"point": np.arange(2)})
+    mine = store.batches / f".00001.npz.{os.getpid()}-k2j4h5g6.partial.npz"
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        theirs = store.batches / f".00002.npz.{other.pid}-abcdefgh.partial.npz"
+        for path in (mine, theirs):
+            path.write_bytes(b"half")
+        reached = Reached()
+        reached.out, reached.store = store.folder, store
+        line = reached.interrupted("interrupted (Ctrl-C)", lambda out: "boom-sweep --resume")
+        assert "1 batches are stored" in line
+        assert not mine.exists() and theirs.read_bytes() == b"half"
+    finally:
+        other.kill()
+        other.wait()
+
+
 def test_a_billion_points_are_refused_at_once_with_their_size(tmp_path):
     result = _sweep("--vary", "piston_diameter=0.04:0.08:1000000000", "--out", tmp_path / "s")
     _one_error(result, 2, "1000000000 points need about 5.12 TB of memory")

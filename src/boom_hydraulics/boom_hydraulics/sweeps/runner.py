@@ -260,7 +260,10 @@ class Reached:
 
     def interrupted(self, why: str, finish: Callable[[Path], str]) -> str:
         """What stopped the sweep, what is kept, and how to go on (``finish(out)``: the command
-        that finishes the sweep stored in ``out``)."""
+        that finishes the sweep stored in ``out``). What this process was writing when it stopped
+        is removed: only whole batches stay."""
+        if self.store is not None:
+            self.store.remove_own_temporaries()
         done = len(self.store.done()) if self.store is not None else 0
         if self.out is None or done == 0:
             return f"boom-sweep: error: {why} before a batch finished; nothing was stored"

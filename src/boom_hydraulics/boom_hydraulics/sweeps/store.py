@@ -99,10 +99,12 @@ def _batch_files(folder: Path) -> dict[int, Path]:
     return {int(p.stem): p for p in folder.glob("[0-9]*.npz") if p.stem.isdigit()}
 
 
-def remove_stale_temporaries(folder: Path, names: Sequence[str]) -> list[Path]:
+def remove_stale_temporaries(folder: Path, names: Sequence[str], ours: bool = False) -> list[Path]:
     """Remove the temporaries that a killed sweep (SIGKILL, a power cut) left of its own files in
     ``folder`` and its ``batches/``: hidden ``.NAME.PID-XXXXXXXX.partial`` files of the sweep's
-    ``names`` and of batch files, written by a process that no longer runs; nothing else.
+    ``names`` and of batch files, written by a process that no longer runs; with ``ours``, this
+    process's too (a stopped sweep, whose stop may land between a temporary's creation and the
+    writer that removes it on failure); nothing else.
 
     files.atomic_path removes those of a file when it writes that file again; this also finds
     those of files the next run does not write (plots under --no-plots, a recommendation not
@@ -116,7 +118,8 @@ def remove_stale_temporaries(folder: Path, names: Sequence[str]) -> list[Path]:
             continue
         for path in sorted(where.iterdir()):
             match = pattern.fullmatch(path.name)
-            if match and not process_alive(int(match["pid"])) and path.is_file() and not path.is_symlink():
+            gone = match and (not process_alive(int(match["pid"])) or (ours and int(match["pid"]) == os.getpid()))
+            if gone and path.is_file() and not path.is_symlink():
                 path.unlink(missing_ok=True)
                 removed.append(path)
     return removed
@@ -172,6 +175,10 @@ class SweepStore:
 
     def path(self, index: int) -> Path:
         return self.batches / f"{index:05d}.npz"
+
+    def remove_own_temporaries(self) -> list[Path]:
+        """Remove what this process left half-written in the sweep's folder (a stopped sweep)."""
+        return remove_stale_temporaries(self.folder, self.names, ours=True) if self.folder.is_dir() else []
 
     def done(self) -> set[int]:
         """Indices of the batches whose rows are on disk."""
