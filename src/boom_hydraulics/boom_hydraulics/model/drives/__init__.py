@@ -31,7 +31,7 @@ from typing import Any
 from ...jit import jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
 from . import electro_mechanical, fixed_pump, load_sensing, pressure_compensated, pump_controlled
-from .constants import DriveConstants, Supply, blend, constants, in_use
+from .constants import DriveConstants, Supply, chosen, constants, in_use
 
 Num = Any  # float or numpy.ndarray
 
@@ -103,19 +103,19 @@ def supply(
     s = _nothing(0.0 * p1_pa)
     w = uses(d, 0)
     if in_use(w):
-        s = blend(s, pressure_compensated.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, pressure_compensated.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     w = uses(d, 1)
     if in_use(w):
-        s = blend(s, fixed_pump.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, fixed_pump.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     w = uses(d, 2)
     if in_use(w):
-        s = blend(s, load_sensing.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, load_sensing.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     w = uses(d, 3)
     if in_use(w):
-        s = blend(s, pump_controlled.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, pump_controlled.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     w = uses(d, 4)
     if in_use(w):
-        s = blend(s, electro_mechanical.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, electro_mechanical.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     return s
 
 

@@ -289,6 +289,31 @@ def blend(a: Supply, b: Supply, w: Num) -> Supply:
     )
 
 
+def chosen(a: Supply, b: Supply, w: Num) -> Supply:
+    """The set's drive ``b`` where its flag ``w`` is 1: for one set (a float flag, 1 wherever a
+    drive's equations run) ``b`` itself, without :func:`blend`'s arithmetic; for a batch, the blend."""
+    return b if isinstance(w, float) else blend(a, b, w)
+
+
+@compiled_as(chosen)
+def _chosen_compiled(a: Any, b: Any, w: Any) -> Any:
+    """:func:`chosen` as compiled code runs it: one set's float flag picks ``b`` (the implementation's
+    annotations are those of this typing function, as numba asks)."""
+    import numba
+
+    if isinstance(w, numba.types.Float):
+
+        def of_set(a: Any, b: Any, w: Any) -> Any:
+            return b
+
+        return of_set
+
+    def of_batch(a: Any, b: Any, w: Any) -> Any:
+        return blend(a, b, w)
+
+    return of_batch
+
+
 class PumpPoint(NamedTuple):
     """A displacement pump at one operating point (eq. D1-D3), W and N m."""
 
