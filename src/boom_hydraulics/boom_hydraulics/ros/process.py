@@ -132,14 +132,24 @@ def _run(argv: list[str]) -> None:
         shut_down()
         _fail(ros_parameters.on_command_line(str(exc), argv))
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
-        _shield_signals()
+        while True:  # (the try here, not in the call: a second Ctrl-C landed on _shield_signals' first line)
+            try:
+                _shield_signals()
+                break
+            except KeyboardInterrupt:
+                continue
         shut_down()
         _stopped_while_starting()
         return
     except Exception:
         if rclpy.ok():
             raise
-        _shield_signals()  # a signal shut the context down under the start-up: a clean stop too
+        while True:  # a signal shut the context down under the start-up: a clean stop too
+            try:
+                _shield_signals()
+                break
+            except KeyboardInterrupt:  # (as above)
+                continue
         _stopped_while_starting()
         return
     started = False
