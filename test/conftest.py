@@ -134,6 +134,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 #: each), longest first. They are handed to the workers before the others, so that no worker is
 #: left running a long file while the rest are done; a file missing here only runs later.
 LONGEST_FIRST = (
+    "test_fmu.py",
+    "test_fmu_in_process.py",
     "test_node.py",
     "test_sweep_cli.py",
     "test_node_bags.py",
@@ -146,7 +148,6 @@ LONGEST_FIRST = (
     "test_studies.py",
     "test_node_parameters.py",
     "test_tool_outputs.py",
-    "test_fmu.py",
     "test_resim_refusals.py",
     "test_resim.py",
     "test_live.py",
