@@ -11,7 +11,8 @@ for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
 - ``energy(z, d, xp)`` and ``energy_rate(z, s, d)``: what it stores beside the chambers;
 - ``stiffness(z, u, opening, stiff1, stiff2, dt, d, xp)``: how stiffly it holds the lines, and
   its own fastest rate (stepping's stability bound);
-- ``VALVE``: whether it feeds the chambers through the 4/3 valve;
+- ``VALVE``: whether it feeds the chambers through the 4/3 valve; ``STEADY_SUPPLY``: whether its
+  states stand still whatever the load (a linear model leaves them out);
 - ``CYLINDER_OIL`` (optional, True if absent): whether its cylinder holds oil; a drive without
   (electro_mechanical) keeps the chambers at tank pressure, where :func:`holds_oil` starts them.
 
