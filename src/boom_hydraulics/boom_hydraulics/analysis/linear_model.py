@@ -30,6 +30,7 @@ from ..model.geometry import lever_rad_per_m
 from ..model.mechanics import effective_mass_kg
 from ..model.parameters import Parameters
 from ..model.physical import chamber_volumes
+from ..solve.simulator import scale_sizes
 from .jacobian import CENTRAL, FORWARD, jacobian
 from .operating_point import MODEL, SPOOL, OperatingPoint, centred_batch
 
@@ -78,12 +79,11 @@ SLOW_RATIO = 100.0
 
 
 def _state_scales(p: Parameters) -> list[float]:
-    """The size of each state of :func:`states_of`, for differences and eigenvector shares."""
-    scale = {"pressure": p.supply_pressure_pa, "angular_velocity": p.pump_speed_rad_s}
-    drive = DRIVES[p.drive]
-    own = drive.STATE_SCALES[: len(states_of(p)) - len(STATES)]
-    body = {"q1": 1.0, "v": 1.0, "p1": p.supply_pressure_pa, "p2": p.supply_pressure_pa, "x_v": 1.0, "bristle": 1.0}
-    return [body[n] for n in STATE_NAMES] + [scale.get(kind, 1.0) for kind in own]
+    """The size of each state of :func:`states_of`, for differences and eigenvector shares: by
+    the model's scale of each of :data:`STATES`, then by the drive's of its own."""
+    sizes = scale_sizes(p)
+    own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES)]
+    return [sizes[MODEL.STATE_SCALES[i]] for i in STATES] + [sizes[kind] for kind in own]
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
 from ..model.hydraulics import orifice_pressure_drop
 from ..model.parameters import Parameters, with_updates
 from ..solve.closed_loop import stacked_constants
-from ..solve.simulator import Simulator
+from ..solve.simulator import Simulator, scale_sizes
 from .jacobian import CENTRAL, FORWARD, jacobian
 
 MODEL = MODELS["physical"]
@@ -153,11 +153,6 @@ def steady(
     return y, bool(np.all(converged)) if np.ndim(converged) == 0 else converged
 
 
-def _drive_scale(p: Any, kind: str) -> float:
-    """The size of a drive's state of scale ``kind`` (its module's STATE_SCALES)."""
-    return {"pressure": p.supply_pressure_pa, "angular_velocity": p.pump_speed_rad_s}.get(kind, 1.0)
-
-
 def _scales(p: Any) -> dict[int, float]:
     return {V: 1.0, P1: p.supply_pressure_pa, P2: p.supply_pressure_pa, BRISTLE: 1.0}
 
@@ -180,7 +175,8 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     drive = DRIVES[p.drive]
     own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
     unknowns, equations = (*unknowns, *own), (*equations, *own)
-    scales.update({i: _drive_scale(p, kind) for i, kind in zip(own, drive.STATE_SCALES)})
+    sizes = scale_sizes(p)
+    scales.update({i: sizes[kind] for i, kind in zip(own, drive.STATE_SCALES)})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731

@@ -132,24 +132,19 @@ def _run(argv: list[str]) -> None:
         shut_down()
         _fail(ros_parameters.on_command_line(str(exc), argv))
     except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT/SIGTERM while it compiles or starts
+        node = None
+    except Exception:
+        if rclpy.ok():
+            raise
+        node = None  # a signal shut the context down under the start-up: a clean stop too
+    if node is None:
         while True:  # (the try here, not in the call: a second Ctrl-C landed on _shield_signals' first line)
             try:
                 _shield_signals()
                 break
             except KeyboardInterrupt:
                 continue
-        shut_down()
-        _stopped_while_starting()
-        return
-    except Exception:
-        if rclpy.ok():
-            raise
-        while True:  # a signal shut the context down under the start-up: a clean stop too
-            try:
-                _shield_signals()
-                break
-            except KeyboardInterrupt:  # (as above)
-                continue
+        shut_down()  # (nothing to do where the signal has shut the context down already)
         _stopped_while_starting()
         return
     started = False

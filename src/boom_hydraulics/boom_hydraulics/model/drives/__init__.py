@@ -32,7 +32,7 @@ from typing import Any
 from ...jit import jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
 from . import electro_mechanical, fixed_pump, load_sensing, pressure_compensated, pump_controlled
-from .constants import DriveConstants, Supply, chosen, constants, in_use
+from .constants import DriveConstants, Supply, chosen, constants, drive_index, in_use
 
 Num = Any  # float or numpy.ndarray
 
@@ -82,11 +82,7 @@ _OIL = tuple(bool(getattr(module, "CYLINDER_OIL", True)) for module in DRIVES.va
 def holds_oil(drive: str) -> bool:
     """Whether the cylinder of drive ``drive`` holds oil (physical.initial_state: else its chambers
     start at tank pressure), as compiled code can ask too."""
-    oil = True
-    for i in range(len(DRIVE_CHOICES)):
-        if DRIVE_CHOICES[i] == drive:
-            oil = _OIL[i]
-    return oil
+    return _OIL[int(drive_index(drive))]
 
 
 @jitable
@@ -120,7 +116,7 @@ def supply(
     return s
 
 
-@jitable
+@jitable(inline="always")
 def stored(z: tuple, s: Supply, d: DriveConstants, xp: ModuleType = math) -> tuple[Num, Num]:
     """(E, dE/dt): what the set's drive stores beside the chambers, J (each drive's ``energy``),
     and its rate along the drive's rates ``s``, W (each drive's ``energy_rate``)."""
