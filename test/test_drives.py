@@ -224,8 +224,9 @@ def test_the_pump_has_its_stated_efficiencies_pumping_and_the_losses_turn_round_
 def test_motor_losses_are_the_same_in_both_quadrants_with_eta_motoring_and_2_minus_1_over_eta_generating():
     torque, speed, eta = P.motor_rated_torque_n_m, P.pump_speed_rad_s, P.motor_efficiency
     k_c, k_s = D.motor_copper, D.motor_iron
-    motoring = electric_motor.electrical_power_w(torque, speed, k_c, k_s)
-    generating = electric_motor.electrical_power_w(-torque, speed, k_c, k_s)
+    m = electric_motor.MotorLosses(k_c, k_s, 0.0, 0.0, 0.0, 0.0)  # the default shares: copper and speed terms alone
+    motoring = electric_motor.input_power_w(torque, speed, m)
+    generating = electric_motor.input_power_w(-torque, speed, m)
     assert torque * speed / motoring == pytest.approx(eta, rel=1e-12)
     assert generating / (-torque * speed) == pytest.approx(2.0 - 1.0 / eta, rel=1e-12)
     assert generating < 0.0  # it returns power

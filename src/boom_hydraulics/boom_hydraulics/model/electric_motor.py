@@ -76,13 +76,6 @@ def motor_loss_w(torque_n_m: Num, speed_rad_s: Num, copper_w_n2m2: Num, iron_w_s
 
 
 @jitable
-def electrical_power_w(torque_n_m: Num, speed_rad_s: Num, copper_w_n2m2: Num, iron_w_s_rad: Num) -> Num:
-    """T w + k_c T^2 + k_s |w|: eq. D5 with the default shares of eq. D6 (no switching, eddy,
-    windage or standby term), W."""
-    return torque_n_m * speed_rad_s + motor_loss_w(torque_n_m, speed_rad_s, copper_w_n2m2, iron_w_s_rad)  # eq. D5
-
-
-@jitable
 def machine_loss_w(torque_n_m: Num, speed_rad_s: Num, m: MotorLosses) -> Num:
     """P_m = k_c T^2 + k_s |w| + k_i |T| + k_e w^2 + k_w |w|^3: the motor's and inverter's losses
     that depend on the operating point, W, the same in both directions (eq. D6)."""
