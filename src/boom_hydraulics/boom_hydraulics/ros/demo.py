@@ -144,6 +144,12 @@ LEAD_NS = 500_000_000
 #: that the cycle's window begins and ends at one (its figures then need no carrying on).
 #: Less than LEAD_NS - max(AHEAD_NS): no command is sent before.
 SETTLE_NS = 150_000_000
+#: How many of the node's publishing periods the served clock may run ahead of the node's
+#: latest state (lockstep): a node starved on a busy machine wakes to a clock at most this far
+#: on, so that its executor has taken the commands due before it steps past their stamps (it
+#: takes one message per topic per turn; the clock it would see otherwise is the newest,
+#: however many commands still wait).
+LOCKSTEP_PERIODS = 2
 
 
 class ScenarioDriver(Node):
@@ -153,11 +159,16 @@ class ScenarioDriver(Node):
     payload changes, each once at its time of the node's clock."""
 
     def __init__(
-        self, scenario: tuple[tuple[float, float], ...] | WorkCycle, serve_clock: bool, period_ns: int
+        self,
+        scenario: tuple[tuple[float, float], ...] | WorkCycle,
+        serve_clock: bool,
+        period_ns: int,
+        state_period_ns: int,
     ) -> None:
         super().__init__("boom_demo")
         self.scenario = scenario
         self.period_ns = period_ns
+        self.state_period_ns = state_period_ns  # how often the node publishes its state, ns of its clock
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         # the node's clock, where boom-demo serves it: real time from now, as a simulator's /clock
         self.clock_pub = (
@@ -192,8 +203,8 @@ class ScenarioDriver(Node):
 
     def tick_clock(self) -> None:
         """Publish /clock (where boom-demo serves it): real time since boom-demo started it, held
-        at :meth:`clock_limit_ns` while boom-demo is behind (a busy machine), so that the node
-        never reaches a command's stamp before the command was sent."""
+        at :meth:`clock_limit_ns` while boom-demo or the node is behind (a busy machine), so that
+        the node never reaches a command's stamp before it has the command."""
         if self.clock_pub is not None:
             wall_ns, steady_ns = self._clock_origin
             now_ns = wall_ns + time.monotonic_ns() - steady_ns
@@ -204,18 +215,20 @@ class ScenarioDriver(Node):
             self.clock_pub.publish(msg)
 
     def clock_limit_ns(self) -> int | None:
-        """How far the served clock may go now (None: no limit): before the scenario begins, to
+        """How far the served clock may go now (None: no limit): :data:`LOCKSTEP_PERIODS` of the
+        node's publishing beyond its latest state, and before the scenario begins, to
         :data:`LEAD_NS` less the longest of :data:`AHEAD_NS` after the node's first state; while a
         cycle's commands are sent, to the stamp of the last one sent. A work cycle's goals are not
-        stamped: no limit once it began."""
+        stamped: only the lockstep once it began."""
         if self.first_ns is None:
             return None
+        lockstep = self.now_ns + LOCKSTEP_PERIODS * self.state_period_ns
         if not self.start_ns or self._settle_at_ns is not None:  # (held until the start is settled)
-            return self.first_ns + LEAD_NS - max(AHEAD_NS)
+            return min(lockstep, self.first_ns + LEAD_NS - max(AHEAD_NS))
         if isinstance(self.scenario, WorkCycle):
-            return None
+            return lockstep
         next_ns = self.start_ns + self.sent[0] * self.period_ns
-        return None if next_ns > self.end_ns else next_ns - self.period_ns
+        return lockstep if next_ns > self.end_ns else min(lockstep, next_ns - self.period_ns)
 
     def on_log(self, msg: Log) -> None:
         if msg.name == NODE and msg.level >= Log.ERROR and self.node_error is None:
@@ -463,7 +476,8 @@ def demo(argv: list[str] | None) -> int:
     stopper = Stopper(node_proc)
     try:
         ledger_ns = ledger_period_ns(given) if given.get("mode", "physical") != "paper" else 0  # (none in paper mode)
-        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, period_ns, ledger_ns)
+        state_ns = round(1e9 / publish_rate_hz(given))
+        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, (period_ns, state_ns), ledger_ns)
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
@@ -498,10 +512,15 @@ def _node_values(params_file: str | None) -> dict[str, Any]:
         return {}
 
 
+def publish_rate_hz(given: Mapping[str, Any]) -> float:
+    """How often the node publishes its state, Hz of its clock (the default where the file gives no number)."""
+    rate = given.get("publish_rate_hz", 100.0)
+    return float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0 else 100.0
+
+
 def ledger_period_ns(given: Mapping[str, Any]) -> int:
     """How often the node publishes its energy ledger, ns: every ledger_every(rate) states."""
-    rate = given.get("publish_rate_hz", 100.0)
-    rate = float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0 else 100.0
+    rate = publish_rate_hz(given)
     return round(ledger_every(rate) * 1e9 / rate)
 
 
@@ -549,14 +568,16 @@ def _analyze(bag: Path, driven: Driven, cycle: tuple[tuple[float, float], ...] |
 
 def _drive(
     node_proc: subprocess.Popen, stopper: Stopper, scenario: tuple[tuple[float, float], ...] | WorkCycle,
-    duration_s: float, serve_clock: bool, period_ns: int, ledger_period_ns: int,
+    duration_s: float, serve_clock: bool, periods_ns: tuple[int, int], ledger_period_ns: int,
 ) -> Driven:  # fmt: skip
     """Wait for the node's first state, then drive it through ``scenario`` until its clock has
     passed ``duration_s`` from the scenario's start, printing the state every half second of
     it. The status is None when done or stopped; an exit status when the node ended, refused
-    a step of the scenario, or its clock stood still."""
+    a step of the scenario, or its clock stood still. ``periods_ns``: the cycle's commands' and
+    the node's states'."""
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Stopper handles the signals
-    driver = ScenarioDriver(scenario, serve_clock, period_ns)
+    period_ns, state_period_ns = periods_ns
+    driver = ScenarioDriver(scenario, serve_clock, period_ns, state_period_ns)
     try:
         print(
             "boom-demo: starting boom_sim (a start without the compiled model in the cache compiles it: a minute "
