@@ -69,7 +69,7 @@ node: setup
 # the workers start (test/conftest.py).
 TEST_WORKERS := $(shell echo $$(( $$(nproc) + 1 )))
 test: setup imports
-	$(WITH_ENV) python -m pytest -q -n $(TEST_WORKERS) --dist loadfile test
+	$(WITH_ENV) python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=25 test
 
 lint: setup imports
 	$(WITH_ENV) ruff check src test bench
