@@ -38,9 +38,12 @@ if TYPE_CHECKING:
     import control  # imported where used: it takes seconds to load, and a sweep needs none of it
 
 #: The states of the linear model: the physical model's states that act on the dynamics, then
-#: those of the drive (:func:`states_of`: a drive whose supply stands still adds none).
+#: those of the drive (:func:`states_of`: a drive whose supply stands still adds none) and of the
+#: model elements that are on (the accumulator's).
 STATES: tuple[int, ...] = tuple(
-    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
+    i
+    for i, kind in enumerate(MODEL.STATE_SCALES)
+    if kind != "energy" and i not in MODEL.DRIVE_STATES and i != MODEL.ACCUMULATOR_STATE
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}

@@ -73,9 +73,7 @@ def port_flow_m3_s(
 
 
 @jitable
-def gas_energy_j(
-    fill: Num, precharge_pa: Num, exponent: Num, size_m3: Num, tank_pa: Num, xp: ModuleType = math
-) -> Num:
+def gas_energy_j(fill: Num, precharge_pa: Num, exponent: Num, size_m3: Num, tank_pa: Num, xp: ModuleType = math) -> Num:
     """The gas's energy relative to its pre-charge state, above tank pressure, J (eq. A5):
     the polytropic work V0 p0 I(x), I(x) = int_0^x (1 - s)^-n ds = ((1 - x)^(1-n) - 1) / (n - 1)
     (-ln(1 - x) for n = 1), less p_t V0 x; below an empty bladder p0 holds (its rate stays

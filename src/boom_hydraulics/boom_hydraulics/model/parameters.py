@@ -754,24 +754,28 @@ class Parameters:
         low=0.0,
         low_inclusive=True,
         high=0.1,
+        start_only=True,
     )
     accumulator_precharge_pa: float = _plant(
         8.0e6,
         "Pa",
-        "p0: the gas's pre-charge pressure (absolute) with the bladder empty; for pulsation and shock damping "
-        "0.6-0.9 of the operating pressure (Hydac, 'Bladder accumulators', pre-charge rules) (eq. A1)",
+        "p0: the gas's pre-charge pressure (absolute) with the bladder empty; 0.9 of the least working "
+        "pressure for storage, 0.6 of the highest for pulsation damping (Olaer/Parker, 'Correct pre-charge "
+        "settings') (eq. A1)",
         low=0.0,
         high=1.0e8,
+        start_only=True,
     )
     accumulator_polytropic_exponent: float = _plant(
         1.4,
         "",
         "n: the gas's polytropic exponent, 1.0 isothermal (slow cycles, minutes) to 1.4 adiabatic (nitrogen; "
-        "cycles and oscillations of seconds or faster: Rabie, 'Fluid Power Engineering', ch. on accumulators; "
-        "Hydac's sizing rule) (eq. A1)",
+        "cycles and oscillations faster than about 3 minutes, as accumulator makers size them: Rabie, 'Fluid "
+        "Power Engineering', accumulators chapter) (eq. A1)",
         low=1.0,
         low_inclusive=True,
         high=1.4,
+        start_only=True,
     )
     accumulator_orifice_diameter_m: float = _plant(
         0.006,

@@ -168,7 +168,9 @@ def constants(p: Parameters) -> Constants:
     )
     on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
     piston = on if p.accumulator_position == "piston" else 0.0
-    k_acc = on * orifice_coefficient(p.discharge_coefficient, piston_area_m2(p.accumulator_orifice_diameter_m), p.density_kg_m3)
+    k_acc = on * orifice_coefficient(
+        p.discharge_coefficient, piston_area_m2(p.accumulator_orifice_diameter_m), p.density_kg_m3
+    )
     acc = (
         *(on, piston, on - piston, p.accumulator_gas_volume_m3 if on else 1.0, on * p.accumulator_precharge_pa),
         *(p.accumulator_polytropic_exponent, k_acc, k_acc / math.sqrt(p.transition_pressure_pa)),
