@@ -21,7 +21,7 @@ from boom_hydraulics.solve import commands
 from boom_hydraulics.solve.simulation import Simulator
 
 CRANE = load(CONFIG / "loader_crane_1t.yaml")
-#: The crane without its accumulator, and with it (the config's: 0.75 L, 6 MPa, 1.5 mm, piston line).
+#: The crane without its accumulator, and with it (the config's: 0.5 L, 8 MPa, 1.2 mm, piston line).
 BARE = with_updates(CRANE, accumulator_gas_volume_m3=0.0)
 FILL = physical.ACCUMULATOR_STATE
 
@@ -88,9 +88,12 @@ def test_linearize_drops_the_hydraulic_mode_as_the_gas_spring_in_parallel_with_t
         k_eff, m_eff = _stiffness_closed_form(p, point)
         assert mode.natural_frequency_hz == pytest.approx(math.sqrt(k_eff / m_eff) / (2 * math.pi), rel=5e-3)
     # the gas holds the piston chamber's pressure at the operating point (eq. A1: its fill settled)
-    assert accumulator.gas_pressure_pa(point.state[FILL], 6e6, 1.4) == pytest.approx(point.state[2], rel=1e-9)
+    gas = accumulator.gas_pressure_pa(
+        point.state[FILL], wide.accumulator_precharge_pa, wide.accumulator_polytropic_exponent
+    )
+    assert gas == pytest.approx(point.state[2], rel=1e-9)
     bare = lm.linearize(operating_point(BARE, BARE.initial_length_m)).hydraulic_mode()
-    assert mode.natural_frequency_hz < 0.62 * bare.natural_frequency_hz  # 4.0 Hz -> 2.3 Hz
+    assert mode.natural_frequency_hz < 0.65 * bare.natural_frequency_hz  # 4.0 Hz -> 2.3 Hz
 
 
 def _reduced_eigenvalue(p: Parameters, point) -> complex:
@@ -119,10 +122,10 @@ def _reduced_eigenvalue(p: Parameters, point) -> complex:
     return values[np.argmax(np.abs(values.imag))]
 
 
-@pytest.mark.parametrize("orifice_m", [0.0015, 0.003, 0.006])
+@pytest.mark.parametrize("orifice_m", [0.0012, 0.003, 0.006])
 def test_the_orifice_damps_the_ringing_as_the_closed_form_model_says(orifice_m):
     """The hydraulic mode's frequency and damping at three orifices against the closed-form
-    five-state model; the crane's 1.5 mm damps it 15 times more than no accumulator does."""
+    five-state model; the crane's 1.2 mm damps it 15 times more than no accumulator does."""
     p = with_updates(CRANE, accumulator_orifice_diameter_m=orifice_m)
     point = operating_point(p, p.initial_length_m)
     mode = lm.linearize(point).hydraulic_mode()
@@ -199,16 +202,16 @@ def test_the_accumulators_size_is_a_sweep_axis(tmp_path):
     down in frequency and up in damping with the crane's accumulator."""
     out = tmp_path / "sweep"
     result = run_tool(
-        "boom-sweep", "--config", CONFIG / "loader_crane_1t.yaml", "--vary", "accumulator_gas_volume_m3=0,0.00075",
+        "boom-sweep", "--config", CONFIG / "loader_crane_1t.yaml", "--vary", "accumulator_gas_volume_m3=0,0.0005",
         "--duration", "1.5", "--lift-angle-deg", "8", "--no-plots", "--out", out,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     with (out / "results.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert [float(r["accumulator_gas_volume_m3"]) for r in rows] == [0.0, 0.00075]
+    assert [float(r["accumulator_gas_volume_m3"]) for r in rows] == [0.0, 0.0005]
     assert {r["status"] for r in rows} == {"ok"}
     bare, fitted = rows
-    assert float(fitted["natural_frequency_hz"]) < 0.75 * float(bare["natural_frequency_hz"])
+    assert float(fitted["natural_frequency_hz"]) < 0.9 * float(bare["natural_frequency_hz"])
     assert float(fitted["linear_damping_ratio"]) > 5.0 * float(bare["linear_damping_ratio"])
     assert float(fitted["accumulator_loss_j"]) > 0.0 == float(bare["accumulator_loss_j"])
 
