@@ -2,8 +2,8 @@
 
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
 s (seal bristle deflection / presliding displacement), W (J), |W| (J), the drive's states
-(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own),
-then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
+(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own), the accumulator's fill
+(model/accumulator.py; 0 without one), then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
 loss, work and stored term, and the lift's work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
 floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
@@ -14,7 +14,8 @@ kin: a drive is one module. Pressures are absolute. What this mode corrects
 in the paper's equations is listed in docs/model.md: the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
 with volumes that follow the rod, a laminar-turbulent orifice, spool lag, supply limit,
 reliefs, mass-conserving cavitation, a load-holding valve, LuGre seal friction, ambient
-pressure on the rod and Hunt-Crossley end stops. Functions work on floats and, for batches,
+pressure on the rod and Hunt-Crossley end stops; a gas-charged accumulator where it is on
+(docs/model.md, "Accumulator"). Functions work on floats and, for batches,
 on numpy arrays per state component (``xp=numpy`` and array-valued constants).
 
 Equations and conventions: docs/model.md, sections "What physical mode corrects, and why".
