@@ -3,8 +3,9 @@
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
 s (seal bristle deflection / presliding displacement), W (J), |W| (J), the drive's states
 (drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own), the accumulator's fill
-(model/accumulator.py; 0 without one), then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
-loss, work and stored term, and the lift's work)].
+(model/accumulator.py; 0 without one), then the energy ledger's integrals (J,
+ledger.INTEGRALS: battery drawn and returned, every loss, work and stored term, and the lift's
+work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
 floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
 change of the stored energy :func:`energy` (|W| its absolute value): the energy balance the
@@ -169,12 +170,20 @@ def constants(p: Parameters) -> Constants:
     )
     on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
     piston = on if p.accumulator_position == "piston" else 0.0
+    size = p.accumulator_gas_volume_m3 if on else 1.0  # (computed apart: numba builds no tuple around a branch)
     k_acc = on * orifice_coefficient(
         p.discharge_coefficient, piston_area_m2(p.accumulator_orifice_diameter_m), p.density_kg_m3
     )
+    slope = k_acc / math.sqrt(p.transition_pressure_pa)
     acc = (
-        *(on, piston, on - piston, p.accumulator_gas_volume_m3 if on else 1.0, on * p.accumulator_precharge_pa),
-        *(p.accumulator_polytropic_exponent, k_acc, k_acc / math.sqrt(p.transition_pressure_pa)),
+        on,
+        piston,
+        on - piston,
+        size,
+        on * p.accumulator_precharge_pa,
+        p.accumulator_polytropic_exponent,
+        k_acc,
+        slope,
     )
     return Constants(*body, *acc, *drives.constants(p)[:])  # [:]: a plain tuple, which numba joins to one
 
