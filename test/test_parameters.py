@@ -206,6 +206,7 @@ def test_plant_fault_numbers_the_first_check_that_fails_and_its_line_is_the_erro
         8: {"cavitation_pressure_pa": base.tank_pressure_pa},
         9: {"mode": "paper", "drive": "fixed_pump"},
         10: {"static_friction_n": 0.5 * base.coulomb_friction_n},
+        11: {"accumulator_gas_volume_m3": 1e-3, "accumulator_position": "supply"},
     }
     assert plant_fault(base) == 0
     assert set(faults) == set(range(1, len(PLANT_FAULTS) + 1))

@@ -40,6 +40,8 @@ TERM_WORDS: dict[str, str] = {
     "rotor_power": "rotor kinetic energy (net)",
     "kinetic_power": "kinetic energy (net)",
     "potential_power": "potential energy (net)",
+    "accumulator_loss": "accumulator orifice",
+    "gas_power": "accumulator gas (net)",
 }
 
 #: Sweep columns that are not parameters, in words.

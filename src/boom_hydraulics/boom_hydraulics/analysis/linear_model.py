@@ -38,31 +38,50 @@ if TYPE_CHECKING:
     import control  # imported where used: it takes seconds to load, and a sweep needs none of it
 
 #: The states of the linear model: the physical model's states that act on the dynamics, then
-#: those of the drive (:func:`states_of`: a drive whose supply stands still adds none).
+#: those of the drive (:func:`states_of`: a drive whose supply stands still adds none) and of the
+#: model elements that are on (the accumulator's).
 STATES: tuple[int, ...] = tuple(
-    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
+    i
+    for i, kind in enumerate(MODEL.STATE_SCALES)
+    if kind != "energy" and i not in MODEL.DRIVE_STATES and i != MODEL.ACCUMULATOR_STATE
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
 
 
 def states_of(p: Parameters) -> tuple[int, ...]:
-    """The model states of the linear model of ``p``: :data:`STATES` and the drive's own (its
-    ``STATE_NAMES``), unless its supply stands still (``STEADY_SUPPLY``)."""
+    """The model states of the linear model of ``p``: :data:`STATES`, the drive's own (its
+    ``STATE_NAMES``) unless its supply stands still (``STEADY_SUPPLY``), then the model elements'
+    that are on (:func:`element_states_of`)."""
     drive = DRIVES[p.drive]
-    return STATES + (() if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)])
+    own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
+    return STATES + own + element_states_of(p)
+
+
+def element_states_of(p: Parameters) -> tuple[int, ...]:
+    """The states of the model elements that ``p`` switches on: the accumulator's fill."""
+    return (MODEL.ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
+
+
+def _own_names(p: Parameters, table: str) -> tuple[str, ...]:
+    """The drive's states' names (``table`` STATE_NAMES) or units (STATE_UNITS) that
+    :func:`states_of` keeps, then the elements' (model names; unit 1)."""
+    elements = element_states_of(p)
+    count = len(states_of(p)) - len(STATES) - len(elements)
+    drive = tuple(getattr(DRIVES[p.drive], table)[:count])
+    if table == "STATE_UNITS":
+        return drive + tuple("1" for _ in elements)
+    return drive + tuple(MODEL.STATE_NAMES[i] for i in elements)
 
 
 def state_names_of(p: Parameters) -> tuple[str, ...]:
-    """The names of :func:`states_of`: the model's, then the drive's own."""
-    own = DRIVES[p.drive].STATE_NAMES[: len(states_of(p)) - len(STATES)]
-    return STATE_NAMES + tuple(own)
+    """The names of :func:`states_of`: the model's, then the drive's own, then the elements'."""
+    return STATE_NAMES + _own_names(p, "STATE_NAMES")
 
 
 def state_units_of(p: Parameters) -> tuple[str, ...]:
     """The units of :func:`states_of`, in their order."""
-    own = DRIVES[p.drive].STATE_UNITS[: len(states_of(p)) - len(STATES)]
-    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own)
+    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + _own_names(p, "STATE_UNITS")
 
 
 #: The outputs (model state components), with their units.
@@ -82,8 +101,13 @@ def _state_scales(p: Parameters) -> list[float]:
     """The size of each state of :func:`states_of`, for differences and eigenvector shares: by
     the model's scale of each of :data:`STATES`, then by the drive's of its own."""
     sizes = scale_sizes(p)
-    own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES)]
-    return [sizes[MODEL.STATE_SCALES[i]] for i in STATES] + [sizes[kind] for kind in own]
+    elements = element_states_of(p)
+    own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES) - len(elements)]
+    return (
+        [sizes[MODEL.STATE_SCALES[i]] for i in STATES]
+        + [sizes[kind] for kind in own]
+        + [sizes[MODEL.STATE_SCALES[i]] for i in elements]
+    )
 
 
 @dataclass(frozen=True)
@@ -186,13 +210,15 @@ class LinearModel:
         return -(self.C @ z[:, :k]) @ np.linalg.solve(s[:k, :k], b)[:, 0] + self.D[:, 0]
 
 
-def hydraulic_eigenvalue(a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES) -> np.ndarray:
+def hydraulic_eigenvalue(
+    a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES, sizes: Sequence[float] | None = None
+) -> np.ndarray:
     """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n) over the
-    states ``names``: of the oscillatory modes, the one whose eigenvector moves the rod's
-    velocity most against the other states (each in units of its scale); nan where every mode
-    is real."""
+    states ``names`` (of sizes ``sizes``, by default those of ``p``'s :func:`states_of`): of the
+    oscillatory modes, the one whose eigenvector moves the rod's velocity most against the other
+    states (each in units of its scale); nan where every mode is real."""
     values, vectors = np.linalg.eig(a)
-    scales = np.array(_state_scales(p)[: len(names)])
+    scales = np.array(_state_scales(p)[: len(names)] if sizes is None else sizes)
     scaled = np.abs(vectors) * scales[:, None]
     share = scaled[..., names.index("v"), :] / np.sum(scaled, axis=-2)
     share = np.where(values.imag > 0.0, share, -1.0)
@@ -202,11 +228,18 @@ def hydraulic_eigenvalue(a: np.ndarray, p: Parameters, names: Sequence[str] = ST
 
 
 def _jacobian(
-    c: Any, state: Sequence[Any], opening: Any, side: int, p: Parameters, xp: Any = math, states: Sequence[int] = STATES
+    c: Any,
+    state: Sequence[Any],
+    opening: Any,
+    side: int,
+    p: Parameters,
+    xp: Any = math,
+    states: Sequence[int] = STATES,
+    sizes: Sequence[float] | None = None,
 ) -> np.ndarray:
-    """[A | B]: the derivative's Jacobian over the linear model's ``states`` and the command at
-    ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
-    scales = _state_scales(p)[: len(states)]
+    """[A | B]: the derivative's Jacobian over the linear model's ``states`` (of sizes ``sizes``,
+    by default ``p``'s) and the command at ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
+    scales = _state_scales(p)[: len(states)] if sizes is None else list(sizes)
 
     def f(x: list) -> list:
         y = list(state)
@@ -245,8 +278,14 @@ def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarr
     sets = [params[k] for k in chosen]
     q1 = np.array([0.5 * (p.cylinder_min_length_m + p.cylinder_max_length_m) for p in sets])
     y, c, ok = centred_batch(sets, q1)
-    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np)[..., :, : len(STATES)]
-    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0]), np.nan)
+    # an accumulator's fill where any set has one (a set without: a row and column of zeros)
+    elements = max((element_states_of(p) for p in sets), key=len)
+    states = STATES + elements
+    n = len(states)
+    sizes = _state_scales(sets[0])[: len(STATES)] + [scale_sizes(sets[0])[MODEL.STATE_SCALES[i]] for i in elements]
+    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np, states, sizes)[..., :, :n]
+    names = STATE_NAMES + tuple(MODEL.STATE_NAMES[i] for i in elements)
+    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0], names, sizes), np.nan)
     size = np.abs(lam)
     frequency[chosen] = size / (2 * math.pi)
     damping[chosen] = -lam.real / size

@@ -174,9 +174,12 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     # a drive whose supply does not stand still: its own states settle too (their rates 0)
     drive = DRIVES[p.drive]
     own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
-    unknowns, equations = (*unknowns, *own), (*equations, *own)
+    # an accumulator's fill settles too (its flow 0: the gas at its line's pressure)
+    elements = (MODEL.ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
+    unknowns, equations = (*unknowns, *own, *elements), (*equations, *own, *elements)
     sizes = scale_sizes(p)
     scales.update({i: sizes[kind] for i, kind in zip(own, drive.STATE_SCALES)})
+    scales.update({i: sizes[MODEL.STATE_SCALES[i]] for i in elements})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731
@@ -238,5 +241,9 @@ def centred_batch(params: Sequence[Parameters], q1_m: np.ndarray) -> tuple[list[
         for column in zip(*(MODEL.initial_state(p, float(q)) for p, q in zip(params, q1_m)))
     ]
     scales = _scales(params[0])
-    y, ok = steady(lambda y: MODEL.derivative(0.0, y, c, 0.0, np), y0, *CENTRED, [scales[P1], scales[P2]])
+    # an accumulator's fill settles too where any set has one (a set without: its row of zeros holds it)
+    elements = (MODEL.ACCUMULATOR_STATE,) if any(p.accumulator_gas_volume_m3 > 0.0 for p in params) else ()
+    unknowns, equations = (*CENTRED[0], *elements), (*CENTRED[1], *elements)
+    sizes = [scales[P1], scales[P2], *(1.0 for _ in elements)]  # the fill's scale: unit
+    y, ok = steady(lambda y: MODEL.derivative(0.0, y, c, 0.0, np), y0, unknowns, equations, sizes)
     return y, c, np.asarray(ok) & np.all(np.isfinite(y), axis=0)

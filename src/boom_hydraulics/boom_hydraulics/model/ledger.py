@@ -4,6 +4,7 @@ Every joule the battery gives ends in one term (eq. D29):
 
     P_batt + P_res = P_R + P_m + P_sb + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
                      + P_fr + P_stop + P_amb + P_ext + P_oil + dT_rot/dt + dT/dt + dPi/dt
+                     + P_acc + dE_gas/dt
 
 - sources: the battery's chemical power P_batt = U I (negative while it takes power back)
   and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
@@ -17,7 +18,9 @@ Every joule the battery gives ends in one term (eq. D29):
   rod force (P_ext = -F_ext v: negative where the surroundings push the rod the way it moves);
 - stored: what the oil takes in (chambers and supply line: compression, and the void while
   cavitating), the kinetic energy of the drive's rotors, the kinetic and the potential
-  energy (weight and spring).
+  energy (weight and spring);
+- the accumulator (off by default): its orifice's throttling P_acc (a loss) and the rate of
+  its gas's energy dE_gas/dt (stored), eq. A6.
 
 The hydraulic terms count pressures above tank pressure, as the model's energies do. Each
 link of the chain balances on its own (eq. D26-D28); their sum is eq. D29, an identity of
@@ -64,6 +67,8 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("rotor_power", "W", "stored", "rate of the kinetic energy of the drive's motor and pump rotors"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
+    ("accumulator_loss", "W", "loss", "throttling in the accumulator's connecting orifice"),
+    ("gas_power", "W", "stored", "rate of the accumulator gas's energy: polytropic work from its pre-charge"),
 )
 TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
 #: The terms that supply energy; every other term takes it.
@@ -92,6 +97,8 @@ class Ledger(NamedTuple):
     rotor_power: Num
     kinetic_power: Num
     potential_power: Num
+    accumulator_loss: Num
+    gas_power: Num
 
 
 assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
@@ -209,9 +216,10 @@ def cylinder_side(
 
 
 @jitable
-def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
+def assemble(chain: Chain, s: Supply, cylinder: Cylinder, accumulator_loss: Num, gas_power: Num) -> Ledger:
     """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
-    valve or checks, relief and line) and the cylinder."""
+    valve or checks, relief and line), the cylinder and the accumulator (its orifice's
+    throttling and its gas's rate, eq. A6; 0 without one)."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
@@ -232,6 +240,8 @@ def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
         s.rotor_power,
         cylinder.kinetic_power,
         cylinder.potential_power,
+        accumulator_loss,
+        gas_power,
     )
 
 
@@ -259,6 +269,8 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.rotor_power
         - ledger.kinetic_power
         - ledger.potential_power
+        - ledger.accumulator_loss
+        - ledger.gas_power
     )
 
 
@@ -295,6 +307,8 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.rotor_power,
         ledger.kinetic_power,
         ledger.potential_power,
+        ledger.accumulator_loss,
+        ledger.gas_power,
         pos(ledger.potential_power),
     )
 

@@ -51,6 +51,9 @@ DRIVE_NAMES: dict[str, str] = {
     "holding brake, regenerating",
 }
 DRIVES = tuple(DRIVE_NAMES)
+#: The drives with a supply line (an oil volume between pump and valve, a node of its own) that
+#: an accumulator can sit on (accumulator_position: supply); model.drives checks their SUPPLY_NODE.
+SUPPLY_LINE_DRIVES = ("fixed_pump",)
 #: The drives the solvers run. The others are model elements (model/drives/) that the run
 #: kernels do not call yet: a run that asks for one is refused.
 COMMAND_PROFILES = ("constant", "steps", "ramp", "sine", "angle")
@@ -742,6 +745,56 @@ class Parameters:
         high=1.0,
     )
 
+    # --- gas-charged accumulator (docs/model.md, "Accumulator", eq. A1-A7) -----------------
+    accumulator_gas_volume_m3: float = _plant(
+        0.0,
+        "m^3",
+        "V0: the accumulator's size, its nitrogen volume at pre-charge (a bladder accumulator's nominal volume, "
+        "Hydac SB330 / Bosch Rexroth HAB: 0.2-50 L); 0: no accumulator (eq. A1)",
+        low=0.0,
+        low_inclusive=True,
+        high=0.1,
+        start_only=True,
+    )
+    accumulator_precharge_pa: float = _plant(
+        8.0e6,
+        "Pa",
+        "p0: the gas's pre-charge pressure (absolute) with the bladder empty; 0.9 of the least working "
+        "pressure for storage, 0.6 of the highest for pulsation damping (Olaer/Parker, 'Correct pre-charge "
+        "settings') (eq. A1)",
+        low=0.0,
+        high=1.0e8,
+        start_only=True,
+    )
+    accumulator_polytropic_exponent: float = _plant(
+        1.4,
+        "",
+        "n: the gas's polytropic exponent, 1.0 isothermal (slow cycles, minutes) to 1.4 adiabatic (nitrogen; "
+        "cycles and oscillations faster than about 3 minutes, as accumulator makers size them: Rabie, 'Fluid "
+        "Power Engineering', accumulators chapter) (eq. A1)",
+        low=1.0,
+        low_inclusive=True,
+        high=1.4,
+        start_only=True,
+    )
+    accumulator_orifice_diameter_m: float = _plant(
+        0.006,
+        "m",
+        "d_A: the accumulator's connecting orifice (its port's or a damping restrictor's bore), with the valve's "
+        "discharge_coefficient and transition_pressure_pa (eq. A3)",
+        low=0.0,
+        high=0.1,
+    )
+    accumulator_position: str = _plant(
+        "piston",
+        "",
+        "Where the accumulator sits: piston (on the piston-side line at the piston chamber, behind the "
+        "load-holding valve: damping, elasticity while holding) or supply (on the supply line of a drive that "
+        "has one, fixed_pump: storage and recovery) (eq. A3)",
+        choices=("piston", "supply"),
+        start_only=True,
+    )
+
     # --- closed-loop position control (see model/control.py) ------------------------------
     control_position_gain_1_rad: float = _controller(
         4.0, "1/rad", "Kp: valve opening per rad of boom-angle error; physical mode", low=0.0, high=1000.0
@@ -1001,6 +1054,8 @@ PLANT_FAULTS = (
     f"set mode: physical, or drive: {DRIVES[0]}",
     "static_friction_n ({p.static_friction_n} N) must be at least coulomb_friction_n "
     "({p.coulomb_friction_n} N): breakaway friction is the larger one",
+    "accumulator_position 'supply' needs a drive with a supply line (" + ", ".join(SUPPLY_LINE_DRIVES) + "); "
+    "drive '{p.drive}' has none: set accumulator_position: piston or accumulator_gas_volume_m3: 0",
 )
 #: The names PLANT_FAULTS gives the lengths of :func:`stroke_limits_m`, in its order.
 STROKE_LIMITS = ("q_low", "q_high", "lo", "hi")
@@ -1012,6 +1067,15 @@ def stroke_limits_m(a_m: float, b_m: float) -> tuple[float, float, float, float]
     degenerates, and the interval a stroke must lie in, m."""
     q_low, q_high = triangle_bounds_m(a_m, b_m)
     return q_low, q_high, q_low + GEOMETRY_CLEARANCE_M, q_high - GEOMETRY_CLEARANCE_M
+
+
+@jitable
+def has_supply_line(drive: str) -> bool:
+    """Whether drive ``drive`` has a supply line an accumulator can sit on (:data:`SUPPLY_LINE_DRIVES`)."""
+    for name in SUPPLY_LINE_DRIVES:
+        if drive == name:
+            return True
+    return False
 
 
 @jitable
@@ -1041,6 +1105,8 @@ def plant_fault(p: Parameters) -> int:
         return 9
     if p.static_friction_n < p.coulomb_friction_n:
         return 10
+    if p.accumulator_gas_volume_m3 > 0.0 and p.accumulator_position == "supply" and not has_supply_line(p.drive):
+        return 11
     return 0
 
 

@@ -2,9 +2,10 @@
 
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
 s (seal bristle deflection / presliding displacement), W (J), |W| (J), the drive's states
-(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own),
-then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
-loss, work and stored term, and the lift's work)].
+(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own), the accumulator's fill
+(model/accumulator.py; 0 without one), then the energy ledger's integrals (J,
+ledger.INTEGRALS: battery drawn and returned, every loss, work and stored term, and the lift's
+work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
 floor they measure the void (see hydraulics.chamber_state_rate). W integrates the rate of
 change of the stored energy :func:`energy` (|W| its absolute value): the energy balance the
@@ -14,7 +15,8 @@ kin: a drive is one module. Pressures are absolute. What this mode corrects
 in the paper's equations is listed in docs/model.md: the Lagrange equation with its m'(q1) q1'^2 / 2 term, both chambers
 with volumes that follow the rod, a laminar-turbulent orifice, spool lag, supply limit,
 reliefs, mass-conserving cavitation, a load-holding valve, LuGre seal friction, ambient
-pressure on the rod and Hunt-Crossley end stops. Functions work on floats and, for batches,
+pressure on the rod and Hunt-Crossley end stops; a gas-charged accumulator where it is on
+(docs/model.md, "Accumulator"). Functions work on floats and, for batches,
 on numpy arrays per state component (``xp=numpy`` and array-valued constants).
 
 Equations and conventions: docs/model.md, sections "What physical mode corrects, and why".
@@ -27,8 +29,8 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
-from . import drives
-from .drives.constants import DriveConstants, Supply
+from . import accumulator, drives
+from .drives.constants import DriveConstants, Supply, in_use
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
 from .geometry import (
@@ -41,7 +43,15 @@ from .geometry import (
     sin_boom_angle,
     static_rod_force_of,
 )
-from .hydraulics import chamber_pressure_pa, chamber_state_rate, larger, pos, relief_flow, void_volume_m3
+from .hydraulics import (
+    chamber_pressure_pa,
+    chamber_state_rate,
+    larger,
+    orifice_coefficient,
+    pos,
+    relief_flow,
+    void_volume_m3,
+)
 from .ledger import INTEGRALS, Ledger, assemble, cylinder_side, electric_chain, integral_rates
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
@@ -63,11 +73,13 @@ STATE_NAMES = (
     "drive_state",
     "drive_state_2",
     "drive_state_3",
+    "accumulator_fill",
     *INTEGRALS,
 )
 STATE_SCALES = (
     *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
     *("pressure", "angular_velocity", "unit"),
+    "unit",
     *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
@@ -76,8 +88,10 @@ ENERGY_STATES = (8, 9)
 DRIVE_STATE = 10
 DRIVE_STATES = tuple(range(DRIVE_STATE, DRIVE_STATE + drives.STATE_COUNT))
 assert len(DRIVE_STATES) == 3, "the drive's states are named above, three of them"
+#: Index of the accumulator's fill x = V_oil / V0 (model/accumulator.py; 0 without one).
+ACCUMULATOR_STATE = STATE_NAMES.index("accumulator_fill")
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
-LEDGER_STATES = DRIVE_STATE + drives.STATE_COUNT
+LEDGER_STATES = STATE_NAMES.index("battery_drawn")
 BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
 LIFT_WORK = LEDGER_STATES + len(INTEGRALS) - 1
 #: The stepping takes the substeps that :func:`stiffness_rate` asks for.
@@ -114,6 +128,15 @@ BODY_FIELDS = (
     "f_external",  # F_ext, N, positive extending (eq. 11)
     "payload_inertia",  # the payload's share of inertia, mb L1^2, kg m^2 (eq. 8; with_payload)
     "payload_weight",  # the payload's share of weight_coeff, mb L1 g, N m
+    # the accumulator (model/accumulator.py, docs/model.md "Accumulator"): all 0 without one, its size 1
+    "acc_on",  # 1.0 with an accumulator, 0.0 without
+    "acc_piston",  # 1.0 on the piston-side line
+    "acc_supply",  # 1.0 on the drive's supply line
+    "acc_size",  # V0, m^3 (1.0 without one: nothing divides by 0)
+    "acc_precharge",  # p0, Pa
+    "acc_exponent",  # n
+    "acc_k",  # K of its orifice, m^3/(s Pa^0.5) (eq. A3)
+    "acc_slope",  # K / sqrt(p_tr): its orifice's steepest dQ/dp, m^3/(s Pa)
 )
 
 #: Values derived once from :class:`Parameters` (floats, or arrays for a batch): the boom's,
@@ -145,7 +168,24 @@ def constants(p: Parameters) -> Constants:
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
     )
-    return Constants(*body, *drives.constants(p)[:])  # [:]: a plain tuple, which numba joins to one
+    on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
+    piston = on if p.accumulator_position == "piston" else 0.0
+    size = p.accumulator_gas_volume_m3 if on else 1.0  # (computed apart: numba builds no tuple around a branch)
+    k_acc = on * orifice_coefficient(
+        p.discharge_coefficient, piston_area_m2(p.accumulator_orifice_diameter_m), p.density_kg_m3
+    )
+    slope = k_acc / math.sqrt(p.transition_pressure_pa)
+    acc = (
+        on,
+        piston,
+        on - piston,
+        size,
+        on * p.accumulator_precharge_pa,
+        p.accumulator_polytropic_exponent,
+        k_acc,
+        slope,
+    )
+    return Constants(*body, *acc, *drives.constants(p)[:])  # [:]: a plain tuple, which numba joins to one
 
 
 @jitable
@@ -173,10 +213,16 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     p1 = max(p1, p.tank_pressure_pa)  # an external force that more than carries the boom: no holding pressure
     if q1 <= p.cylinder_min_length_m or not drives.holds_oil(p.drive):
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom; or no oil: a drive's housing
-    z_d = drives.initial_state(p.drive, drives.constants(p))
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2]] + [0.0] * len(
-        INTEGRALS
-    )
+    d = drives.constants(p)
+    z_d = drives.initial_state(p.drive, d)
+    # the accumulator holds its line's pressure (eq. A1): the piston chamber's, or the supply line's
+    line = p1 if p.accumulator_position == "piston" else drives.node_pressure(z_d, d)
+    fill = 0.0
+    if p.accumulator_gas_volume_m3 > 0.0:
+        fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], fill] + [
+        0.0
+    ] * len(INTEGRALS)
 
 
 class Terms(NamedTuple):
@@ -204,6 +250,9 @@ class Terms(NamedTuple):
     acc: Num  # rod acceleration, m/s^2 (eq. 11)
     loss: Num  # power dissipated between the drive and the chambers (valve, load-holding valve, reliefs), W
     supply: Supply  # the drive: its states' rates, its flows and pressures, its pump and motor (model/drives)
+    acc_flow: Num  # flow into the accumulator, m^3/s (eq. A3; 0 without one)
+    acc_gas: Num  # its gas's pressure, Pa (eq. A1)
+    acc_line: Num  # its line's pressure, Pa
 
 
 @jitable
@@ -235,11 +284,18 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
+    # the accumulator on the piston chamber or the drive's supply line (eq. A1-A4)
+    acc_flow, acc_gas, acc_line = 0.0 * p1, 0.0 * p1, 0.0 * p1
+    if in_use(c.acc_on):
+        fill = y[ACCUMULATOR_STATE]
+        acc_gas = accumulator.gas_pressure_pa(fill, c.acc_precharge, c.acc_exponent, xp)
+        acc_line = c.acc_piston * p1 + c.acc_supply * drives.node_pressure(drive_states(y), c)
+        acc_flow = c.acc_on * accumulator.port_flow_m3_s(fill, acc_line, acc_gas, c.acc_k, c.transition2, xp)
     # the drive (model/drives, the set's ``drive``): its flows into the lines, its states' rates
-    supply = drives.supply(drive_states(y), u, x, q1, v, p1, p2, c, xp)
+    supply = drives.supply(drive_states(y), u, x, q1, v, p1, p2, c, xp, c.acc_supply * acc_flow)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
-    q_in1 = supply.q_a - q_r1  # Q_1 into the piston chamber
+    q_in1 = supply.q_a - q_r1 - c.acc_piston * acc_flow  # Q_1 into the piston chamber
     q_in2 = supply.q_b - q_r2  # -Q_2 of eq. 13: into the rod chamber
     vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
     dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
@@ -257,10 +313,11 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     dk = lever_derivative(q1, c.a, c.b, xp)
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
-    loss = supply.power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
+    # all not delivered to a chamber (or to an accumulator on the piston-side line)
+    loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
-        *(k, dk, cos_alpha, acc, loss, supply),
+        *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line),
     )
 
 
@@ -268,15 +325,20 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
 def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     """H: the energy stored in the drive, J: kinetic and potential energy of boom and
     payload, spring, seal bristles, end stops, and the compression of the oil
-    V (p - p_tank)^2 / (2 E) in each chamber, and what the drive stores (drives.energy:
-    fixed_pump's supply line). Its change is checked against W."""
+    V (p - p_tank)^2 / (2 E) in each chamber, what the drive stores (drives.energy:
+    fixed_pump's supply line) and the accumulator's gas (eq. A5). Its change is checked against W."""
     q1, v, s = y[0], y[1], y[7]
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
+    gas = 0.0 * q1
+    if in_use(c.acc_on):  # eq. A5
+        fill = y[ACCUMULATOR_STATE]
+        gas = c.acc_on * accumulator.gas_energy_j(fill, c.acc_precharge, c.acc_exponent, c.acc_size, c.p_tank, xp)
     return (
-        0.5 * c.inertia * k * k * v * v  # T (eq. 8)
+        gas
+        + 0.5 * c.inertia * k * k * v * v  # T (eq. 8)
         + c.weight_coeff * sin_boom_angle(q1, c.a, c.b, c.h, xp)  # V: the moment of eq. 6 integrated over alpha
         + 0.5 * c.spring * (q1 - c.spring_free) * (q1 - c.spring_free)
         + 0.5 * c.static * c.presliding * s * s
@@ -304,6 +366,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + c.stop_k * (d_high - d_low) * v
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
         + drives.energy_rate(drive_states(y), t.supply, c)
+        + (t.acc_gas - c.p_tank) * t.acc_flow  # the accumulator's gas (eq. A5, A6)
     )
 
 
@@ -327,6 +390,7 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.supply.rate,
         terms.supply.rate2,
         terms.supply.rate3,
+        accumulator.fill_rate_1_s(terms.acc_flow, c.acc_size),  # eq. A2
         *integral_rates(_ledger_of(y, c, terms, xp)),
     )
 
@@ -372,6 +436,11 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     rate = larger(rate, own)
+    if in_use(c.acc_on):  # the accumulator's orifice between its gas spring and its line's oil spring
+        line = c.acc_piston * stiff1 + c.acc_supply * c.bulk_modulus / c.line_volume
+        fill = y[ACCUMULATOR_STATE]
+        acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
+        rate = larger(rate, c.acc_on * acc)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -427,6 +496,8 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_RETURNED + 16],  # rotor_power_j
         y[BATTERY_RETURNED + 17],  # kinetic_power_j
         y[BATTERY_RETURNED + 18],  # potential_power_j
+        y[BATTERY_RETURNED + 19],  # accumulator_loss_j
+        y[BATTERY_RETURNED + 20],  # gas_power_j
         void1,  # void1
         void2,  # void2
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
@@ -499,7 +570,9 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         c.p_ambient,
         c.f_external,
     )  # eq. D28
-    return assemble(electric_chain(terms.supply, c, xp), terms.supply, cylinder)  # eq. D26, D29
+    acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
+    gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
+    return assemble(electric_chain(terms.supply, c, xp), terms.supply, cylinder, acc_loss, gas_power)  # eq. D26, D29
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:

@@ -275,8 +275,12 @@ if numba is not None:  # the type and its operations exist where compiled code r
             return each
 
     # exp(+-0) = 1 exactly: a chamber's volume within the stroke takes exp of 0 (physical.
-    # chamber_volumes): 8 calls of a block's derivative, 32 of an RK4 step, nearly always 0
-    for _function, _at_zero in ((math.exp, 1.0), (math.sin, math.nan), (math.cos, math.nan), (math.acos, math.nan)):
+    # chamber_volumes): 8 calls of a block's derivative, 32 of an RK4 step, nearly always 0;
+    # log and expm1: the accumulator's gas (model/accumulator.py), expm1(+-0) = +-0
+    for _function, _at_zero in (
+        *((math.exp, 1.0), (math.sin, math.nan), (math.cos, math.nan), (math.acos, math.nan)),
+        *((math.log, math.nan), (math.expm1, math.nan)),
+    ):
         _per_lane(_function, _at_zero)
 
     @overload(np.any)

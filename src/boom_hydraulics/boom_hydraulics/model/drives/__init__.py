@@ -15,6 +15,14 @@ for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
   states stand still whatever the load (a linear model leaves them out);
 - ``CYLINDER_OIL`` (optional, True if absent): whether its cylinder holds oil; a drive without
   (electro_mechanical) keeps the chambers at tank pressure, where :func:`holds_oil` starts them.
+- ``SUPPLY_NODE`` (optional, False if absent): whether it has a supply line, an oil volume with
+  a pressure state of its own between pump and valve (fixed_pump), that an accumulator can sit on
+  (parameters.SUPPLY_LINE_DRIVES names them). Such a drive's ``supply`` takes one more, last
+  argument ``q_draw``: a flow drawn from that node by an element beside the valve (the
+  accumulator, m^3/s; its line's state rate and ``line_oil_work`` count it out, and its power
+  (p_s - p_t) q_draw is the drawing element's ledger terms), and it offers
+  ``node_pressure(z, d)``: the node's pressure, Pa (:func:`node_pressure`). The other drives
+  see no draw (:func:`supply` passes none).
 
 :data:`DRIVES` registers them; the functions below call the set's drive (compiled code picks
 no function from a dict of modules, so each names the registered drives once, in order).
@@ -31,6 +39,7 @@ from typing import Any
 
 from ...jit import jitable
 from ..parameters import DRIVES as DRIVE_CHOICES
+from ..parameters import SUPPLY_LINE_DRIVES
 from . import electro_mechanical, fixed_pump, load_sensing, pressure_compensated, pump_controlled
 from .constants import DriveConstants, Supply, chosen, constants, drive_index, in_use
 
@@ -94,16 +103,27 @@ def _nothing(zero: Num) -> Supply:
 
 @jitable(inline="always")
 def supply(
-    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
+    z: tuple,
+    u: Num,
+    opening: Num,
+    q1: Num,
+    v: Num,
+    p1_pa: Num,
+    p2_pa: Num,
+    d: DriveConstants,
+    xp: ModuleType = math,
+    q_draw: Num = 0.0,
 ) -> Supply:
-    """The set's drive at one instant (each drive's ``supply``; a batch: each set's)."""
+    """The set's drive at one instant (each drive's ``supply``; a batch: each set's); ``q_draw``
+    the flow an element beside the valve draws from the supply node of a drive that has one
+    (``SUPPLY_NODE``), m^3/s: 0 for the others."""
     s = _nothing(0.0 * p1_pa)
     w = uses(d, 0)
     if in_use(w):
         s = chosen(s, pressure_compensated.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     w = uses(d, 1)
     if in_use(w):
-        s = chosen(s, fixed_pump.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
+        s = chosen(s, fixed_pump.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp, q_draw), w)
     w = uses(d, 2)
     if in_use(w):
         s = chosen(s, load_sensing.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
@@ -114,6 +134,19 @@ def supply(
     if in_use(w):
         s = chosen(s, electro_mechanical.supply(z, u, opening, q1, v, p1_pa, p2_pa, d, xp), w)
     return s
+
+
+#: Whether each registered drive has a supply node (``SUPPLY_NODE``), in the registry's order.
+_NODE = tuple(bool(getattr(module, "SUPPLY_NODE", False)) for module in DRIVES.values())
+assert tuple(n for n, node in zip(DRIVES, _NODE) if node) == SUPPLY_LINE_DRIVES, "parameters.SUPPLY_LINE_DRIVES"
+
+
+@jitable
+def node_pressure(z: tuple, d: DriveConstants) -> Num:
+    """The pressure of the set's drive's supply node (``node_pressure`` of a drive with
+    ``SUPPLY_NODE``), Pa; tank pressure for a drive without one."""
+    w = uses(d, 1)
+    return d.p_tank + w * (fixed_pump.node_pressure(z, d) - d.p_tank)
 
 
 @jitable(inline="always")
@@ -193,6 +226,7 @@ __all__ = (
     "holds_oil",
     "in_use",
     "initial_state",
+    "node_pressure",
     "stiffness",
     "supply",
 )

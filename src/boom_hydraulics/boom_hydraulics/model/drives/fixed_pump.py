@@ -40,6 +40,8 @@ VALVE = True
 #: Whether the supply holds its pressure whatever the load, its states standing still (a linear
 #: model leaves them out: analysis/operating_point).
 STEADY_SUPPLY = False
+#: The supply line is a node an accumulator can sit on: :func:`supply` takes the flow it draws.
+SUPPLY_NODE = True
 
 
 @jitable
@@ -78,21 +80,36 @@ def main_relief_flow_m3_s(p_line_pa: Num, d: DriveConstants) -> Num:
 
 
 @jitable
+def node_pressure(z: tuple, d: DriveConstants) -> Num:
+    """The supply line's pressure, p_s = max(z_s, p_cav), Pa (eq. D13)."""
+    return chamber_pressure_pa(z[0], d.p_cav)
+
+
+@jitable
 def supply(
-    z: tuple, u: Num, opening: Num, q1: Num, v: Num, p1_pa: Num, p2_pa: Num, d: DriveConstants, xp: ModuleType = math
+    z: tuple,
+    u: Num,
+    opening: Num,
+    q1: Num,
+    v: Num,
+    p1_pa: Num,
+    p2_pa: Num,
+    d: DriveConstants,
+    xp: ModuleType = math,
+    q_draw: Num = 0.0,
 ) -> Supply:
     """The drive at its states ``z`` (the line's state z[0]; the motor's z[1], z[2]): the valve at
     the line's pressure, its open centre if it has one (eq. D66), the line's state rate (eq. D13),
     the pump at the motor's speed (w_n; speed on demand: |x| w_n, eq. D62) and the main relief's
-    loss."""
-    ps = chamber_pressure_pa(z[0], d.p_cav)
+    loss. ``q_draw``: what an accumulator on the line takes from it, m^3/s (eq. A3)."""
+    ps = node_pressure(z, d)
     valve = paths(opening, ps, p1_pa, p2_pa, d, xp)
     q_centre, centre_loss = centre_flow(opening, ps, d, xp)  # eq. D66 (0 with a closed centre)
     m = motor_speed.motor(z, opening, abs(opening) * d.speed, d)  # eq. D62: the spool sets the speed
     dp = ps - d.p_tank
     q_pump = delivered_flow_m3_s(d.displacement, m.speed, dp, d.pump_leak)  # eq. D1
     q_relief = main_relief_flow_m3_s(ps, d)
-    net = q_pump - valve.q_in - q_relief - q_centre
+    net = q_pump - valve.q_in - q_relief - q_centre - q_draw
     rate = chamber_state_rate(d.bulk_modulus, d.line_volume, net, 0.0, z[0], d.p_cav)  # eq. D13
     pumped = pump_point(d.displacement, m.speed, dp, q_pump, d, xp)
     zero = 0.0 * dp
