@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..model import hoses
 from ..model.drives import DRIVES
 from ..model.geometry import lever_rad_per_m
 from ..model.mechanics import effective_mass_kg
@@ -40,29 +41,44 @@ if TYPE_CHECKING:
 #: The states of the linear model: the physical model's states that act on the dynamics, then
 #: those of the drive (:func:`states_of`: a drive whose supply stands still adds none).
 STATES: tuple[int, ...] = tuple(
-    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
+    i
+    for i, kind in enumerate(MODEL.STATE_SCALES)
+    if kind != "energy" and i not in MODEL.DRIVE_STATES and i not in MODEL.HOSE_STATES
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
 
 
-def states_of(p: Parameters) -> tuple[int, ...]:
-    """The model states of the linear model of ``p``: :data:`STATES` and the drive's own (its
-    ``STATE_NAMES``), unless its supply stands still (``STEADY_SUPPLY``)."""
+def _drive_states(p: Parameters) -> int:
+    """How many of the drive's own states the linear model keeps: its ``STATE_NAMES``, or none
+    where its supply stands still (``STEADY_SUPPLY``)."""
     drive = DRIVES[p.drive]
-    return STATES + (() if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)])
+    return 0 if drive.STEADY_SUPPLY else len(drive.STATE_NAMES)
+
+
+def _hoses(p: Parameters) -> bool:
+    """Whether ``p`` has hoses (model/hoses.py: their states join the linear model)."""
+    return p.hose_length_m > 0.0
+
+
+def states_of(p: Parameters) -> tuple[int, ...]:
+    """The model states of the linear model of ``p``: :data:`STATES`, the drive's own (its
+    ``STATE_NAMES``) unless its supply stands still (``STEADY_SUPPLY``), and the hoses' where
+    there are hoses (hoses.STATE_NAMES)."""
+    hose = MODEL.HOSE_STATES if _hoses(p) else ()
+    return STATES + MODEL.DRIVE_STATES[: _drive_states(p)] + hose
 
 
 def state_names_of(p: Parameters) -> tuple[str, ...]:
-    """The names of :func:`states_of`: the model's, then the drive's own."""
-    own = DRIVES[p.drive].STATE_NAMES[: len(states_of(p)) - len(STATES)]
-    return STATE_NAMES + tuple(own)
+    """The names of :func:`states_of`: the model's, the drive's own, the hoses'."""
+    own = DRIVES[p.drive].STATE_NAMES[: _drive_states(p)]
+    return STATE_NAMES + tuple(own) + (hoses.STATE_NAMES if _hoses(p) else ())
 
 
 def state_units_of(p: Parameters) -> tuple[str, ...]:
     """The units of :func:`states_of`, in their order."""
-    own = DRIVES[p.drive].STATE_UNITS[: len(states_of(p)) - len(STATES)]
-    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own)
+    own = DRIVES[p.drive].STATE_UNITS[: _drive_states(p)]
+    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own) + (hoses.STATE_UNITS if _hoses(p) else ())
 
 
 #: The outputs (model state components), with their units.
@@ -82,7 +98,7 @@ def _state_scales(p: Parameters) -> list[float]:
     """The size of each state of :func:`states_of`, for differences and eigenvector shares: by
     the model's scale of each of :data:`STATES`, then by the drive's of its own."""
     sizes = scale_sizes(p)
-    own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES)]
+    own = DRIVES[p.drive].STATE_SCALES[: _drive_states(p)] + (hoses.STATE_SCALES if _hoses(p) else ())
     return [sizes[MODEL.STATE_SCALES[i]] for i in STATES] + [sizes[kind] for kind in own]
 
 
@@ -186,13 +202,15 @@ class LinearModel:
         return -(self.C @ z[:, :k]) @ np.linalg.solve(s[:k, :k], b)[:, 0] + self.D[:, 0]
 
 
-def hydraulic_eigenvalue(a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES) -> np.ndarray:
+def hydraulic_eigenvalue(
+    a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES, sizes: Sequence[float] | None = None
+) -> np.ndarray:
     """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n) over the
     states ``names``: of the oscillatory modes, the one whose eigenvector moves the rod's
     velocity most against the other states (each in units of its scale); nan where every mode
     is real."""
     values, vectors = np.linalg.eig(a)
-    scales = np.array(_state_scales(p)[: len(names)])
+    scales = np.array(_state_scales(p)[: len(names)] if sizes is None else sizes)
     scaled = np.abs(vectors) * scales[:, None]
     share = scaled[..., names.index("v"), :] / np.sum(scaled, axis=-2)
     share = np.where(values.imag > 0.0, share, -1.0)
@@ -202,11 +220,19 @@ def hydraulic_eigenvalue(a: np.ndarray, p: Parameters, names: Sequence[str] = ST
 
 
 def _jacobian(
-    c: Any, state: Sequence[Any], opening: Any, side: int, p: Parameters, xp: Any = math, states: Sequence[int] = STATES
+    c: Any,
+    state: Sequence[Any],
+    opening: Any,
+    side: int,
+    p: Parameters,
+    xp: Any = math,
+    states: Sequence[int] = STATES,
+    sizes: Sequence[float] | None = None,
 ) -> np.ndarray:
     """[A | B]: the derivative's Jacobian over the linear model's ``states`` and the command at
-    ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
-    scales = _state_scales(p)[: len(states)]
+    ``state`` (floats, or arrays of a batch with ``xp=numpy``); ``sizes`` the states' scales
+    (default: :func:`_state_scales`)."""
+    scales = _state_scales(p)[: len(states)] if sizes is None else list(sizes)
 
     def f(x: list) -> list:
         y = list(state)
@@ -245,8 +271,12 @@ def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarr
     sets = [params[k] for k in chosen]
     q1 = np.array([0.5 * (p.cylinder_min_length_m + p.cylinder_max_length_m) for p in sets])
     y, c, ok = centred_batch(sets, q1)
-    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np)[..., :, : len(STATES)]
-    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0]), np.nan)
+    states = STATES + (MODEL.HOSE_STATES if any(_hoses(p) for p in sets) else ())  # a hose's modes join
+    kinds = scale_sizes(sets[0])
+    sizes = [kinds[MODEL.STATE_SCALES[i]] for i in states]
+    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np, states, sizes)[..., :, : len(states)]
+    names = [MODEL.STATE_NAMES[i] for i in states]
+    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0], names, sizes), np.nan)
     size = np.abs(lam)
     frequency[chosen] = size / (2 * math.pi)
     damping[chosen] = -lam.real / size

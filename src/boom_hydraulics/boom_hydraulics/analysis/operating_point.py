@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..model import MODELS
+from ..model import MODELS, hoses
 from ..model.control import full_opening_rate
 from ..model.drives import DRIVES
 from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
@@ -177,8 +177,12 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     unknowns, equations = (*unknowns, *own), (*equations, *own)
     sizes = scale_sizes(p)
     scales.update({i: sizes[kind] for i, kind in zip(own, drive.STATE_SCALES)})
+    if p.hose_length_m > 0.0:  # the hoses' states settle too (model/hoses.py)
+        unknowns, equations = (*unknowns, *MODEL.HOSE_STATES), (*equations, *MODEL.HOSE_STATES)
+        scales.update({i: sizes[kind] for i, kind in zip(MODEL.HOSE_STATES, hoses.STATE_SCALES)})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
+        _hoses_at(y0, c.s1 * y0[V], -c.s2 * y0[V])
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731
     y, ok = steady(derivative, y0, unknowns, equations, [scales[i] for i in unknowns])
     if not ok and opening == 0.0 and own:
@@ -212,6 +216,15 @@ def settled(p: Parameters, q1_m: float, scales: Sequence[float], equations: Sequ
     return y, ok
 
 
+def _hoses_at(y: list, flow_a: Any, flow_b: Any) -> None:
+    """Sets the hoses' states of ``y`` to the chambers' pressures and the flows ``flow_a`` into the
+    piston chamber, ``flow_b`` into the rod chamber: Newton's start (hoses.STATE_NAMES' order)."""
+    n = hoses.SEGMENTS
+    for first, pressure, flow in ((MODEL.HOSE_STATE, y[P1], flow_a), (MODEL.HOSE_STATE + hoses.LINE_B, y[P2], flow_b)):
+        y[first : first + n] = [pressure] * n
+        y[first + n : first + 2 * n] = [flow] * n
+
+
 def _motion_guess(c: Any, q1_m: float, opening: float) -> tuple[float, float, float, float]:
     """Velocity, pressures and seal deflection of a quasi-static meter-in/meter-out pair (the
     feedforward's plant model, model.control.full_opening_rate) at ``opening``: Newton's start."""
@@ -238,5 +251,11 @@ def centred_batch(params: Sequence[Parameters], q1_m: np.ndarray) -> tuple[list[
         for column in zip(*(MODEL.initial_state(p, float(q)) for p, q in zip(params, q1_m)))
     ]
     scales = _scales(params[0])
-    y, ok = steady(lambda y: MODEL.derivative(0.0, y, c, 0.0, np), y0, *CENTRED, [scales[P1], scales[P2]])
+    unknowns, equations = CENTRED
+    sizes = [scales[P1], scales[P2]]
+    if any(p.hose_length_m > 0.0 for p in params):  # the hoses' states settle too (model/hoses.py)
+        unknowns, equations = (*unknowns, *MODEL.HOSE_STATES), (*equations, *MODEL.HOSE_STATES)
+        kinds = scale_sizes(params[0])
+        sizes += [kinds[kind] for kind in hoses.STATE_SCALES]
+    y, ok = steady(lambda y: MODEL.derivative(0.0, y, c, 0.0, np), y0, unknowns, equations, sizes)
     return y, c, np.asarray(ok) & np.all(np.isfinite(y), axis=0)

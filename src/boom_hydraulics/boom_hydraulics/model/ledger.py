@@ -3,7 +3,7 @@
 Every joule the battery gives ends in one term (eq. D29):
 
     P_batt + P_res = P_R + P_m + P_sb + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
-                     + P_fr + P_stop + P_amb + P_ext + P_oil + dT_rot/dt + dT/dt + dPi/dt
+                     + P_fr + P_stop + P_amb + P_ext + P_oil + dT_rot/dt + dT/dt + dPi/dt + P_line
 
 - sources: the battery's chemical power P_batt = U I (negative while it takes power back)
   and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
@@ -11,13 +11,13 @@ Every joule the battery gives ends in one term (eq. D29):
   and auxiliaries, drawn whatever the load), pump (volumetric and
   hydro-mechanical), main relief, valve throttling (the 4/3 valve and load-holding valve,
   or the EHA's checks), leakage (the valve paths' laminar part and the load-holding
-  valve's seat), port reliefs;
+  valve's seat), port reliefs, the hoses' friction (P_line, at the end: eq. H6);
 - work on the surroundings: seal friction, the end stops (and the chamber that shrinks in
   them), the ambient pressure on the rod's end (relative to tank pressure), the external
   rod force (P_ext = -F_ext v: negative where the surroundings push the rod the way it moves);
-- stored: what the oil takes in (chambers and supply line: compression, and the void while
-  cavitating), the kinetic energy of the drive's rotors, the kinetic and the potential
-  energy (weight and spring).
+- stored: what the oil takes in (chambers, hoses and supply line: compression, and the void
+  while cavitating; the hoses' flow's kinetic energy), the kinetic energy of the drive's
+  rotors, the kinetic and the potential energy (weight and spring).
 
 The hydraulic terms count pressures above tank pressure, as the model's energies do. Each
 link of the chain balances on its own (eq. D26-D28); their sum is eq. D29, an identity of
@@ -60,10 +60,11 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("end_stop_work", "W", "work", "work into the end stops and the chambers they shrink"),
     ("ambient_work", "W", "work", "work against the ambient pressure on the rod's end, above tank pressure"),
     ("external_work", "W", "work", "work against the external rod force, -F_ext v (negative: it drives the rod)"),
-    ("oil_work", "W", "stored", "what the oil of chambers and supply line takes in (compression, voids)"),
+    ("oil_work", "W", "stored", "what the oil of chambers, hoses and supply line takes in (compression, voids, flow)"),
     ("rotor_power", "W", "stored", "rate of the kinetic energy of the drive's motor and pump rotors"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
+    ("line_loss", "W", "loss", "the hoses' friction between the drive's ports and the chambers (eq. H6)"),
 )
 TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
 #: The terms that supply energy; every other term takes it.
@@ -92,6 +93,7 @@ class Ledger(NamedTuple):
     rotor_power: Num
     kinetic_power: Num
     potential_power: Num
+    line_loss: Num
 
 
 assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
@@ -209,9 +211,10 @@ def cylinder_side(
 
 
 @jitable
-def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
+def assemble(chain: Chain, s: Supply, cylinder: Cylinder, hose_oil_work: Num, hose_loss: Num) -> Ledger:
     """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
-    valve or checks, relief and line) and the cylinder."""
+    valve or checks, relief and line), the hoses (what their oil takes in and their friction,
+    eq. H6; 0 without hoses) and the cylinder."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
@@ -228,10 +231,11 @@ def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
         cylinder.end_stop_work,
         cylinder.ambient_work,
         cylinder.external_work,
-        cylinder.oil_work + s.line_oil_work,
+        cylinder.oil_work + s.line_oil_work + hose_oil_work,
         s.rotor_power,
         cylinder.kinetic_power,
         cylinder.potential_power,
+        hose_loss,
     )
 
 
@@ -259,6 +263,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.rotor_power
         - ledger.kinetic_power
         - ledger.potential_power
+        - ledger.line_loss
     )
 
 
@@ -295,6 +300,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.rotor_power,
         ledger.kinetic_power,
         ledger.potential_power,
+        ledger.line_loss,
         pos(ledger.potential_power),
     )
 
