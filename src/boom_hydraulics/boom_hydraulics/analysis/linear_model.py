@@ -291,11 +291,15 @@ def effective_mass_at(p: Parameters, q1_m: Any, xp: Any = math) -> Any:
 
 def oil_spring_frequency_rad_s(p: Parameters, q1_m: float, seals: bool = False) -> float:
     """sqrt(E S1^2 / (m V1) + E S2^2 / (m V2)) at rod length ``q1_m``, rad/s: the cylinder's mass
-    between its two oil columns, V1 and V2 the chamber volumes there (eq. 12, 13); with
+    between its two oil columns, V1 and V2 the chamber volumes there (eq. 12, 13), each with its
+    hose's oil beside it at the hose's K_eff where there are hoses (their lumped limit); with
     ``seals``, plus their presliding stiffness F_s / z_ba (the LuGre bristles near rest)."""
     c = MODEL.constants(p)
     v1, v2, _, _ = chamber_volumes(q1_m, c)
     stiffness = c.bulk_modulus * (c.s1 * c.s1 / v1 + c.s2 * c.s2 / v2)
+    if c.hose_on:  # each hose's oil a lumped volume at K_eff beside its chamber (eq. H1: the low-frequency limit)
+        hose = c.hose_chamber_share / c.hose_modulus
+        stiffness = c.s1 * c.s1 / (v1 / c.bulk_modulus + hose) + c.s2 * c.s2 / (v2 / c.bulk_modulus + hose)
     if seals:
         stiffness += c.static / c.presliding
     return math.sqrt(stiffness / effective_mass_at(p, q1_m))
