@@ -750,18 +750,21 @@ class Parameters:
         "L: length of each of the two hoses from the drive's ports (valve or EHA pump) to the chambers, one "
         "for both (they run side by side from the valve bank to the cylinder); 0: no hoses, their oil lumped in "
         "the dead volumes (today's model). Their oil (N - 1/2) A L is taken out of piston_dead_volume_m3 and "
-        "rod_dead_volume_m3, which include the hoses (eq. H1-H6); physical mode",
+        "rod_dead_volume_m3, which include the hoses (eq. H1-H6); physical mode; set at start (the lines' oil "
+        "is their state)",
         low=0.0,
         low_inclusive=True,
         high=100.0,
+        start_only=True,
     )
     hose_inner_diameter_m: float = _plant(
         0.0095,
         "m",
         "d: inner diameter of the hoses: 9.5 mm, SAE J517 100R2AT -6 (3/8 in, DN10 of ISO 1436), 3.9 m/s at "
-        "the 16.6 L/min of the paper's boom lifting (Fig. 8), inside the 2-5 m/s of pressure lines",
+        "the 16.6 L/min of the paper's boom lifting (Fig. 8), inside the 2-5 m/s of pressure lines; set at start",
         low=0.0,
         high=0.5,
+        start_only=True,
     )
     hose_wall_modulus_pa: float = _plant(
         2.4e9,
