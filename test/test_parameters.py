@@ -207,6 +207,8 @@ def test_plant_fault_numbers_the_first_check_that_fails_and_its_line_is_the_erro
         9: {"mode": "paper", "drive": "fixed_pump"},
         10: {"static_friction_n": 0.5 * base.coulomb_friction_n},
         11: {"accumulator_gas_volume_m3": 1e-3, "accumulator_position": "supply"},
+        12: {"mode": "paper", "hose_length_m": 0.5},
+        13: {"hose_length_m": 2.0},
     }
     assert plant_fault(base) == 0
     assert set(faults) == set(range(1, len(PLANT_FAULTS) + 1))

@@ -29,6 +29,7 @@ STIFF = {"bulk_modulus_pa": 1.6e9, "piston_dead_volume_m3": 1e-5, "rod_dead_volu
 JIT = accelerate.available()
 #: LSODA's absolute tolerance by the kind of each state component (physical.STATE_SCALES).
 ATOL = {"length": 1e-10, "velocity": 1e-10, "pressure": 1e-2, "angular_velocity": 1e-8, "unit": 1e-10, "energy": 1e-6}
+ATOL["flow"] = 1e-12  # the hoses' flows (model/hoses.py), m^3/s
 
 
 def reference(p: Parameters, every_s: float = 0.01, duration_s: float = 9.0) -> dict[str, np.ndarray]:

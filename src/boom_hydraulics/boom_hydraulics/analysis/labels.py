@@ -42,6 +42,7 @@ TERM_WORDS: dict[str, str] = {
     "potential_power": "potential energy (net)",
     "accumulator_loss": "accumulator orifice",
     "gas_power": "accumulator gas (net)",
+    "line_loss": "hose friction",
 }
 
 #: Sweep columns that are not parameters, in words.

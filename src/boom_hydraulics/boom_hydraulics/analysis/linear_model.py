@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 STATES: tuple[int, ...] = tuple(
     i
     for i, kind in enumerate(MODEL.STATE_SCALES)
-    if kind != "energy" and i not in MODEL.DRIVE_STATES and i != MODEL.ACCUMULATOR_STATE
+    if kind != "energy" and i not in MODEL.DRIVE_STATES and i not in MODEL.ELEMENT_UNITS
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
@@ -52,25 +52,20 @@ STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "brist
 def states_of(p: Parameters) -> tuple[int, ...]:
     """The model states of the linear model of ``p``: :data:`STATES`, the drive's own (its
     ``STATE_NAMES``) unless its supply stands still (``STEADY_SUPPLY``), then the model elements'
-    that are on (:func:`element_states_of`)."""
+    that are on (physical.element_states: an accumulator's fill, the hoses')."""
     drive = DRIVES[p.drive]
     own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
-    return STATES + own + element_states_of(p)
-
-
-def element_states_of(p: Parameters) -> tuple[int, ...]:
-    """The states of the model elements that ``p`` switches on: the accumulator's fill."""
-    return (MODEL.ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
+    return STATES + own + MODEL.element_states(p)
 
 
 def _own_names(p: Parameters, table: str) -> tuple[str, ...]:
     """The drive's states' names (``table`` STATE_NAMES) or units (STATE_UNITS) that
-    :func:`states_of` keeps, then the elements' (model names; unit 1)."""
-    elements = element_states_of(p)
+    :func:`states_of` keeps, then the elements' (model names and units)."""
+    elements = MODEL.element_states(p)
     count = len(states_of(p)) - len(STATES) - len(elements)
     drive = tuple(getattr(DRIVES[p.drive], table)[:count])
     if table == "STATE_UNITS":
-        return drive + tuple("1" for _ in elements)
+        return drive + tuple(MODEL.ELEMENT_UNITS[i] for i in elements)
     return drive + tuple(MODEL.STATE_NAMES[i] for i in elements)
 
 
@@ -101,7 +96,7 @@ def _state_scales(p: Parameters) -> list[float]:
     """The size of each state of :func:`states_of`, for differences and eigenvector shares: by
     the model's scale of each of :data:`STATES`, then by the drive's of its own."""
     sizes = scale_sizes(p)
-    elements = element_states_of(p)
+    elements = MODEL.element_states(p)
     own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES) - len(elements)]
     return (
         [sizes[MODEL.STATE_SCALES[i]] for i in STATES]
@@ -237,8 +232,9 @@ def _jacobian(
     states: Sequence[int] = STATES,
     sizes: Sequence[float] | None = None,
 ) -> np.ndarray:
-    """[A | B]: the derivative's Jacobian over the linear model's ``states`` (of sizes ``sizes``,
-    by default ``p``'s) and the command at ``state`` (floats, or arrays of a batch with ``xp=numpy``)."""
+    """[A | B]: the derivative's Jacobian over the linear model's ``states`` and the command at
+    ``state`` (floats, or arrays of a batch with ``xp=numpy``); ``sizes`` the states' scales
+    (default: :func:`_state_scales`)."""
     scales = _state_scales(p)[: len(states)] if sizes is None else list(sizes)
 
     def f(x: list) -> list:
@@ -278,13 +274,13 @@ def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarr
     sets = [params[k] for k in chosen]
     q1 = np.array([0.5 * (p.cylinder_min_length_m + p.cylinder_max_length_m) for p in sets])
     y, c, ok = centred_batch(sets, q1)
-    # an accumulator's fill where any set has one (a set without: a row and column of zeros)
-    elements = max((element_states_of(p) for p in sets), key=len)
+    # the elements' states where any set has them (a set without: rows and columns that stand still)
+    elements = tuple(sorted({i for p in sets for i in MODEL.element_states(p)}))
     states = STATES + elements
-    n = len(states)
-    sizes = _state_scales(sets[0])[: len(STATES)] + [scale_sizes(sets[0])[MODEL.STATE_SCALES[i]] for i in elements]
-    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np, states, sizes)[..., :, :n]
-    names = STATE_NAMES + tuple(MODEL.STATE_NAMES[i] for i in elements)
+    kinds = scale_sizes(sets[0])
+    sizes = [kinds[MODEL.STATE_SCALES[i]] for i in states]
+    a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np, states, sizes)[..., :, : len(states)]
+    names = [MODEL.STATE_NAMES[i] for i in states]
     lam = np.where(ok, hydraulic_eigenvalue(a, sets[0], names, sizes), np.nan)
     size = np.abs(lam)
     frequency[chosen] = size / (2 * math.pi)
@@ -300,11 +296,15 @@ def effective_mass_at(p: Parameters, q1_m: Any, xp: Any = math) -> Any:
 
 def oil_spring_frequency_rad_s(p: Parameters, q1_m: float, seals: bool = False) -> float:
     """sqrt(E S1^2 / (m V1) + E S2^2 / (m V2)) at rod length ``q1_m``, rad/s: the cylinder's mass
-    between its two oil columns, V1 and V2 the chamber volumes there (eq. 12, 13); with
+    between its two oil columns, V1 and V2 the chamber volumes there (eq. 12, 13), each with its
+    hose's oil beside it at the hose's K_eff where there are hoses (their lumped limit); with
     ``seals``, plus their presliding stiffness F_s / z_ba (the LuGre bristles near rest)."""
     c = MODEL.constants(p)
     v1, v2, _, _ = chamber_volumes(q1_m, c)
     stiffness = c.bulk_modulus * (c.s1 * c.s1 / v1 + c.s2 * c.s2 / v2)
+    if c.hose_on:  # each hose's oil a lumped volume at K_eff beside its chamber (eq. H1: the low-frequency limit)
+        hose = c.hose_chamber_share / c.hose_modulus
+        stiffness = c.s1 * c.s1 / (v1 / c.bulk_modulus + hose) + c.s2 * c.s2 / (v2 / c.bulk_modulus + hose)
     if seals:
         stiffness += c.static / c.presliding
     return math.sqrt(stiffness / effective_mass_at(p, q1_m))

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..model import MODELS
+from ..model import MODELS, hoses
 from ..model.control import full_opening_rate
 from ..model.drives import DRIVES
 from ..model.geometry import boom_angle_rad, lever_rad_per_m, outside_stroke
@@ -174,14 +174,15 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     # a drive whose supply does not stand still: its own states settle too (their rates 0)
     drive = DRIVES[p.drive]
     own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
-    # an accumulator's fill settles too (its flow 0: the gas at its line's pressure)
-    elements = (MODEL.ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
+    # the model elements' states settle too (an accumulator's flow 0: its gas at its line's pressure)
+    elements = MODEL.element_states(p)
     unknowns, equations = (*unknowns, *own, *elements), (*equations, *own, *elements)
     sizes = scale_sizes(p)
     scales.update({i: sizes[kind] for i, kind in zip(own, drive.STATE_SCALES)})
     scales.update({i: sizes[MODEL.STATE_SCALES[i]] for i in elements})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
+        _hoses_at(y0, c.s1 * y0[V], -c.s2 * y0[V])
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731
     y, ok = steady(derivative, y0, unknowns, equations, [scales[i] for i in unknowns])
     if not ok and opening == 0.0 and own:
@@ -215,6 +216,15 @@ def settled(p: Parameters, q1_m: float, scales: Sequence[float], equations: Sequ
     return y, ok
 
 
+def _hoses_at(y: list, flow_a: Any, flow_b: Any) -> None:
+    """Sets the hoses' states of ``y`` to the chambers' pressures and the flows ``flow_a`` into the
+    piston chamber, ``flow_b`` into the rod chamber: Newton's start (hoses.STATE_NAMES' order)."""
+    n = hoses.SEGMENTS
+    for first, pressure, flow in ((MODEL.HOSE_STATE, y[P1], flow_a), (MODEL.HOSE_STATE + hoses.LINE_B, y[P2], flow_b)):
+        y[first : first + n] = [pressure] * n
+        y[first + n : first + 2 * n] = [flow] * n
+
+
 def _motion_guess(c: Any, q1_m: float, opening: float) -> tuple[float, float, float, float]:
     """Velocity, pressures and seal deflection of a quasi-static meter-in/meter-out pair (the
     feedforward's plant model, model.control.full_opening_rate) at ``opening``: Newton's start."""
@@ -241,9 +251,10 @@ def centred_batch(params: Sequence[Parameters], q1_m: np.ndarray) -> tuple[list[
         for column in zip(*(MODEL.initial_state(p, float(q)) for p, q in zip(params, q1_m)))
     ]
     scales = _scales(params[0])
-    # an accumulator's fill settles too where any set has one (a set without: its row of zeros holds it)
-    elements = (MODEL.ACCUMULATOR_STATE,) if any(p.accumulator_gas_volume_m3 > 0.0 for p in params) else ()
+    # the elements' states settle too where any set has them (a set without: their rows of zeros hold them)
+    elements = tuple(sorted({i for p in params for i in MODEL.element_states(p)}))
     unknowns, equations = (*CENTRED[0], *elements), (*CENTRED[1], *elements)
-    sizes = [scales[P1], scales[P2], *(1.0 for _ in elements)]  # the fill's scale: unit
+    kinds = scale_sizes(params[0])
+    sizes = [scales[P1], scales[P2], *(kinds[MODEL.STATE_SCALES[i]] for i in elements)]
     y, ok = steady(lambda y: MODEL.derivative(0.0, y, c, 0.0, np), y0, unknowns, equations, sizes)
     return y, c, np.asarray(ok) & np.all(np.isfinite(y), axis=0)

@@ -4,7 +4,7 @@ Every joule the battery gives ends in one term (eq. D29):
 
     P_batt + P_res = P_R + P_m + P_sb + P_v + P_hm + P_mr + P_valve + P_leak + P_pr
                      + P_fr + P_stop + P_amb + P_ext + P_oil + dT_rot/dt + dT/dt + dPi/dt
-                     + P_acc + dE_gas/dt
+                     + P_acc + dE_gas/dt + P_line
 
 - sources: the battery's chemical power P_batt = U I (negative while it takes power back)
   and the EHA's low-pressure reservoir, P_res (relative to tank pressure);
@@ -12,15 +12,16 @@ Every joule the battery gives ends in one term (eq. D29):
   and auxiliaries, drawn whatever the load), pump (volumetric and
   hydro-mechanical), main relief, valve throttling (the 4/3 valve and load-holding valve,
   or the EHA's checks), leakage (the valve paths' laminar part and the load-holding
-  valve's seat), port reliefs;
+  valve's seat), port reliefs, the hoses' friction (P_line, at the end: eq. H6);
 - work on the surroundings: seal friction, the end stops (and the chamber that shrinks in
   them), the ambient pressure on the rod's end (relative to tank pressure), the external
   rod force (P_ext = -F_ext v: negative where the surroundings push the rod the way it moves);
-- stored: what the oil takes in (chambers and supply line: compression, and the void while
-  cavitating), the kinetic energy of the drive's rotors, the kinetic and the potential
-  energy (weight and spring);
+- stored: what the oil takes in (chambers, hoses and supply line: compression, and the void
+  while cavitating; the hoses' flow's kinetic energy), the kinetic energy of the drive's
+  rotors, the kinetic and the potential energy (weight and spring);
 - the accumulator (off by default): its orifice's throttling P_acc (a loss) and the rate of
-  its gas's energy dE_gas/dt (stored), eq. A6.
+  its gas's energy dE_gas/dt (stored), eq. A6;
+- the hoses (off by default): their friction P_line (a loss), eq. H6.
 
 The hydraulic terms count pressures above tank pressure, as the model's energies do. Each
 link of the chain balances on its own (eq. D26-D28); their sum is eq. D29, an identity of
@@ -63,12 +64,13 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("end_stop_work", "W", "work", "work into the end stops and the chambers they shrink"),
     ("ambient_work", "W", "work", "work against the ambient pressure on the rod's end, above tank pressure"),
     ("external_work", "W", "work", "work against the external rod force, -F_ext v (negative: it drives the rod)"),
-    ("oil_work", "W", "stored", "what the oil of chambers and supply line takes in (compression, voids)"),
+    ("oil_work", "W", "stored", "what the oil of chambers, hoses and supply line takes in (compression, voids, flow)"),
     ("rotor_power", "W", "stored", "rate of the kinetic energy of the drive's motor and pump rotors"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
     ("accumulator_loss", "W", "loss", "throttling in the accumulator's connecting orifice"),
     ("gas_power", "W", "stored", "rate of the accumulator gas's energy: polytropic work from its pre-charge"),
+    ("line_loss", "W", "loss", "the hoses' friction between the drive's ports and the chambers (eq. H6)"),
 )
 TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
 #: The terms that supply energy; every other term takes it.
@@ -99,6 +101,7 @@ class Ledger(NamedTuple):
     potential_power: Num
     accumulator_loss: Num
     gas_power: Num
+    line_loss: Num
 
 
 assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
@@ -216,10 +219,19 @@ def cylinder_side(
 
 
 @jitable
-def assemble(chain: Chain, s: Supply, cylinder: Cylinder, accumulator_loss: Num, gas_power: Num) -> Ledger:
+def assemble(
+    chain: Chain,
+    s: Supply,
+    cylinder: Cylinder,
+    accumulator_loss: Num,
+    gas_power: Num,
+    hose_oil_work: Num,
+    hose_loss: Num,
+) -> Ledger:
     """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
-    valve or checks, relief and line), the cylinder and the accumulator (its orifice's
-    throttling and its gas's rate, eq. A6; 0 without one)."""
+    valve or checks, relief and line), the hoses (what their oil takes in and their friction,
+    eq. H6; 0 without hoses), the cylinder and the accumulator (its orifice's throttling and
+    its gas's rate, eq. A6; 0 without one)."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
@@ -236,12 +248,13 @@ def assemble(chain: Chain, s: Supply, cylinder: Cylinder, accumulator_loss: Num,
         cylinder.end_stop_work,
         cylinder.ambient_work,
         cylinder.external_work,
-        cylinder.oil_work + s.line_oil_work,
+        cylinder.oil_work + s.line_oil_work + hose_oil_work,
         s.rotor_power,
         cylinder.kinetic_power,
         cylinder.potential_power,
         accumulator_loss,
         gas_power,
+        hose_loss,
     )
 
 
@@ -271,6 +284,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.potential_power
         - ledger.accumulator_loss
         - ledger.gas_power
+        - ledger.line_loss
     )
 
 
@@ -309,6 +323,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.potential_power,
         ledger.accumulator_loss,
         ledger.gas_power,
+        ledger.line_loss,
         pos(ledger.potential_power),
     )
 

@@ -215,6 +215,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # potential_power_j
         zero + math.nan,  # accumulator_loss_j
         zero + math.nan,  # gas_power_j
+        zero + math.nan,  # line_loss_j
         zero,  # void1
         zero,  # void2
         1.0 * (zero != zero),  # at_end_stop

@@ -29,6 +29,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..jit import jitable
 from .geometry import outside_stroke, triangle_bounds_m
+from .hoses import NODE_SEGMENTS, SEGMENTS
 
 MODES = ("physical", "paper")
 #: The integration methods, by name, with what each is. The solver's registry
@@ -794,6 +795,47 @@ class Parameters:
         choices=("piston", "supply"),
         start_only=True,
     )
+    # --- hoses: lines with waves between the drive's ports and the chambers (docs/model.md, "Hoses") ---
+    hose_length_m: float = _plant(
+        0.0,
+        "m",
+        "L: length of each of the two hoses from the drive's ports (valve or EHA pump) to the chambers, one "
+        "for both (they run side by side from the valve bank to the cylinder); 0: no hoses, their oil lumped in "
+        "the dead volumes (today's model). Their oil (N - 1/2) A L is taken out of piston_dead_volume_m3 and "
+        "rod_dead_volume_m3, which include the hoses (eq. H1-H6); physical mode; set at start (the lines' oil "
+        "is their state)",
+        low=0.0,
+        low_inclusive=True,
+        high=100.0,
+        start_only=True,
+    )
+    hose_inner_diameter_m: float = _plant(
+        0.0095,
+        "m",
+        "d: inner diameter of the hoses: 9.5 mm, SAE J517 100R2AT -6 (3/8 in, DN10 of ISO 1436), 3.9 m/s at "
+        "the 16.6 L/min of the paper's boom lifting (Fig. 8), inside the 2-5 m/s of pressure lines; set at start",
+        low=0.0,
+        high=0.5,
+        start_only=True,
+    )
+    hose_wall_modulus_pa: float = _plant(
+        2.4e9,
+        "Pa",
+        "K_wall: the hose wall's compliance as a bulk modulus, 1 / K_eff = 1 / bulk_modulus_pa + 1 / K_wall "
+        "(eq. H1): d / (2 dd/dp) with dd/dp = 2e-12 m/Pa, the pressure-diameter coefficient Simscape's "
+        "Hydraulic Pipeline block takes for a hose, on the 9.5 mm bore (a steel-braided SAE 100R2 hose is "
+        "stiffer than textile, Johnston et al., J. Vib. Acoust. 132 (2010) 021011)",
+        low=0.0,
+        high=1.0e12,
+    )
+    oil_viscosity_m2_s: float = _plant(
+        3.2e-5,
+        "m^2/s",
+        "nu: the oil's kinematic viscosity, for the hoses' laminar friction R = 128 rho nu l / (pi d^4) "
+        "(eq. H3): ISO VG 32 at 40 C, 32 cSt (ISO 3448)",
+        low=0.0,
+        high=0.1,
+    )
 
     # --- closed-loop position control (see model/control.py) ------------------------------
     control_position_gain_1_rad: float = _controller(
@@ -1056,6 +1098,10 @@ PLANT_FAULTS = (
     "({p.coulomb_friction_n} N): breakaway friction is the larger one",
     "accumulator_position 'supply' needs a drive with a supply line (" + ", ".join(SUPPLY_LINE_DRIVES) + "); "
     "drive '{p.drive}' has none: set accumulator_position: piston or accumulator_gas_volume_m3: 0",
+    "hose_length_m ({p.hose_length_m} m) needs physical mode: the paper's model has no lines; set hose_length_m: 0",
+    "the hoses' oil ({p.hose_length_m} m of {p.hose_inner_diameter_m} m bore, less the half segment a chamber "
+    "keeps) must be less than piston_dead_volume_m3 ({p.piston_dead_volume_m3} m^3) and rod_dead_volume_m3 "
+    "({p.rod_dead_volume_m3} m^3), which include the hoses; shorten the hoses or raise the dead volumes",
 )
 #: The names PLANT_FAULTS gives the lengths of :func:`stroke_limits_m`, in its order.
 STROKE_LIMITS = ("q_low", "q_high", "lo", "hi")
@@ -1107,6 +1153,11 @@ def plant_fault(p: Parameters) -> int:
         return 10
     if p.accumulator_gas_volume_m3 > 0.0 and p.accumulator_position == "supply" and not has_supply_line(p.drive):
         return 11
+    if not physical and p.hose_length_m > 0.0:
+        return 12
+    hose_oil = NODE_SEGMENTS / SEGMENTS * 0.25 * math.pi * p.hose_inner_diameter_m**2 * p.hose_length_m  # eq. H1
+    if physical and hose_oil >= min(p.piston_dead_volume_m3, p.rod_dead_volume_m3):
+        return 13
     return 0
 
 

@@ -29,7 +29,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
-from . import accumulator, drives
+from . import accumulator, drives, hoses
 from .drives.constants import DriveConstants, Supply, in_use
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
@@ -74,12 +74,14 @@ STATE_NAMES = (
     "drive_state_2",
     "drive_state_3",
     "accumulator_fill",
+    *hoses.STATE_NAMES,
     *INTEGRALS,
 )
 STATE_SCALES = (
     *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
     *("pressure", "angular_velocity", "unit"),
     "unit",
+    *hoses.STATE_SCALES,
     *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
@@ -90,6 +92,21 @@ DRIVE_STATES = tuple(range(DRIVE_STATE, DRIVE_STATE + drives.STATE_COUNT))
 assert len(DRIVE_STATES) == 3, "the drive's states are named above, three of them"
 #: Index of the accumulator's fill x = V_oil / V0 (model/accumulator.py; 0 without one).
 ACCUMULATOR_STATE = STATE_NAMES.index("accumulator_fill")
+#: Index of the hoses' first state (hoses.STATE_NAMES: line A's, then line B's), and all of them.
+HOSE_STATE = STATE_NAMES.index(hoses.STATE_NAMES[0])
+HOSE_STATES = tuple(range(HOSE_STATE, HOSE_STATE + len(hoses.STATE_NAMES)))
+_HA, _HB, _N = HOSE_STATE, HOSE_STATE + hoses.LINE_B, hoses.SEGMENTS
+#: The units of the model elements' states (a linear model's columns).
+ELEMENT_UNITS = {ACCUMULATOR_STATE: "1", **dict(zip(HOSE_STATES, hoses.STATE_UNITS))}
+
+
+def element_states(p: Parameters) -> tuple[int, ...]:
+    """The states of the model elements ``p`` switches on (the others stand still): the
+    accumulator's fill (model/accumulator.py), the hoses' (model/hoses.py)."""
+    accumulator_on = (ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
+    return accumulator_on + (HOSE_STATES if p.hose_length_m > 0.0 else ())
+
+
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
 LEDGER_STATES = STATE_NAMES.index("battery_drawn")
 BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
@@ -128,6 +145,7 @@ BODY_FIELDS = (
     "f_external",  # F_ext, N, positive extending (eq. 11)
     "payload_inertia",  # the payload's share of inertia, mb L1^2, kg m^2 (eq. 8; with_payload)
     "payload_weight",  # the payload's share of weight_coeff, mb L1 g, N m
+    *hoses.HoseConstants._fields,  # the hoses (model/hoses.py; hose_on 0: none)
     # the accumulator (model/accumulator.py, docs/model.md "Accumulator"): all 0 without one, its size 1
     "acc_on",  # 1.0 with an accumulator, 0.0 without
     "acc_piston",  # 1.0 on the piston-side line
@@ -153,6 +171,10 @@ def constants(p: Parameters) -> Constants:
     """Derived constants of one parameter set (compiled code calls it too: the native FMU).
     Each value that branches is computed before the call: numba compiles no keyword argument
     that branches."""
+    hose = hoses.hose_constants(
+        *(p.hose_length_m, p.hose_inner_diameter_m, p.hose_wall_modulus_pa, p.oil_viscosity_m2_s),
+        *(p.bulk_modulus_pa, p.density_kg_m3),
+    )  # the hoses' oil leaves the dead volumes, which include it (eq. H1)
     lag = 1.0 if p.spool_time_constant_s > 0.0 else 0.0
     inv_tau = lag / p.spool_time_constant_s if lag else 0.0
     coulomb_ratio = max(p.coulomb_friction_n / p.static_friction_n, 1e-3) if p.static_friction_n > 0.0 else 1.0
@@ -160,13 +182,15 @@ def constants(p: Parameters) -> Constants:
         *(p.a_m, p.b_m, p.support_height_m, boom_inertia_kgm2(p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m)),
         (0.5 * p.boom_mass_kg + p.payload_mass_kg) * p.boom_length_m * p.gravity_m_s2,
         *(piston_area_m2(p.piston_diameter_m), annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)),
-        *(p.cylinder_min_length_m, p.cylinder_max_length_m, p.piston_dead_volume_m3, p.rod_dead_volume_m3),
+        *(p.cylinder_min_length_m, p.cylinder_max_length_m),
+        *(p.piston_dead_volume_m3 - hose.hose_chamber_share, p.rod_dead_volume_m3 - hose.hose_chamber_share),
         *(lag, inv_tau, p.ambient_pressure_pa, p.relief_pressure_pa, p.relief_rated_flow_m3_s / p.relief_range_pa),
         *(coulomb_ratio, p.static_friction_n, p.stribeck_velocity_m_s, p.friction_presliding_m),
         *(p.friction_presliding_damping_n_s_m, p.viscous_friction_n_s_m, p.spring_stiffness_n_m),
         *(p.spring_free_length_m, p.end_stop_stiffness_n_m, p.end_stop_damping_n_s_m2, p.external_rod_force_n),
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
+        *hose,
     )
     on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
     piston = on if p.accumulator_position == "piston" else 0.0
@@ -220,9 +244,9 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     fill = 0.0
     if p.accumulator_gas_volume_m3 > 0.0:
         fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], fill] + [
-        0.0
-    ] * len(INTEGRALS)
+    lines = [p1] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS + [p2] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS  # at rest
+    body = [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], fill]
+    return body + lines + [0.0] * len(INTEGRALS)
 
 
 class Terms(NamedTuple):
@@ -253,6 +277,8 @@ class Terms(NamedTuple):
     acc_flow: Num  # flow into the accumulator, m^3/s (eq. A3; 0 without one)
     acc_gas: Num  # its gas's pressure, Pa (eq. A1)
     acc_line: Num  # its line's pressure, Pa
+    hose_a: hoses.Line  # the hose from port A to the piston chamber (its rates 0 without hoses)
+    hose_b: hoses.Line  # from port B to the rod chamber
 
 
 @jitable
@@ -277,6 +303,13 @@ def drive_states(y: list) -> tuple:
     return (y[DRIVE_STATE], y[DRIVE_STATE + 1], y[DRIVE_STATE + 2])
 
 
+@jitable
+def hose_states(y: list, first: int) -> tuple:
+    """(node states, flows) of the hose whose states start at ``first`` (_HA or _HB)."""
+    nodes = (y[first], y[first + 1], y[first + 2], y[first + 3])
+    return nodes, (y[first + 4], y[first + 5], y[first + 6], y[first + 7])
+
+
 @jitable(inline="always")
 def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     """Every intermediate quantity of one evaluation, shared by derivative and observe."""
@@ -291,12 +324,20 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         acc_gas = accumulator.gas_pressure_pa(fill, c.acc_precharge, c.acc_exponent, xp)
         acc_line = c.acc_piston * p1 + c.acc_supply * drives.node_pressure(drive_states(y), c)
         acc_flow = c.acc_on * accumulator.port_flow_m3_s(fill, acc_line, acc_gas, c.acc_k, c.transition2, xp)
+    za, qa = hose_states(y, _HA)
+    zb, qb = hose_states(y, _HB)
+    on = c.hose_on  # with hoses the drive sees its ports' pressures, the hoses' first nodes (eq. H4)
+    port_a = p1 + on * (chamber_pressure_pa(za[0], c.p_cav) - p1)
+    port_b = p2 + on * (chamber_pressure_pa(zb[0], c.p_cav) - p2)
     # the drive (model/drives, the set's ``drive``): its flows into the lines, its states' rates
-    supply = drives.supply(drive_states(y), u, x, q1, v, p1, p2, c, xp, c.acc_supply * acc_flow)
+    supply = drives.supply(drive_states(y), u, x, q1, v, port_a, port_b, c, xp, c.acc_supply * acc_flow)
+    hose_a = hoses.line(za, qa, supply.q_a, p1, c, c.p_cav, c.p_tank)  # eq. H4-H6
+    hose_b = hoses.line(zb, qb, supply.q_b, p2, c, c.p_cav, c.p_tank)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
-    q_in1 = supply.q_a - q_r1 - c.acc_piston * acc_flow  # Q_1 into the piston chamber
-    q_in2 = supply.q_b - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    # Q_1 into the piston chamber: the drive's (or its hose's) less the relief and an accumulator on it
+    q_in1 = supply.q_a + on * (hose_a.end_flow - supply.q_a) - q_r1 - c.acc_piston * acc_flow
+    q_in2 = supply.q_b + on * (hose_b.end_flow - supply.q_b) - q_r2  # -Q_2 of eq. 13: into the rod chamber
     vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
     dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
     dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
@@ -315,9 +356,10 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     # all not delivered to a chamber (or to an accumulator on the piston-side line)
     loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
+    loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
-        *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line),
+        *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line, hose_a, hose_b),
     )
 
 
@@ -345,7 +387,15 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
+        + c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))  # eq. H6
     )
+
+
+@jitable
+def _hose_energy(y: list, first: int, c: Constants) -> Num:
+    """What the hose whose states start at ``first`` stores, J (hoses.line_energy)."""
+    z, q = hose_states(y, first)
+    return hoses.line_energy(z, q, c, c.p_cav, c.p_tank)
 
 
 @jitable
@@ -367,6 +417,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
         + drives.energy_rate(drive_states(y), t.supply, c)
         + (t.acc_gas - c.p_tank) * t.acc_flow  # the accumulator's gas (eq. A5, A6)
+        + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
     )
 
 
@@ -391,8 +442,16 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.supply.rate2,
         terms.supply.rate3,
         accumulator.fill_rate_1_s(terms.acc_flow, c.acc_size),  # eq. A2
+        *_hose_rates(terms.hose_a, c.hose_on),
+        *_hose_rates(terms.hose_b, c.hose_on),
         *integral_rates(_ledger_of(y, c, terms, xp)),
     )
+
+
+@jitable
+def _hose_rates(h: hoses.Line, on: Num) -> tuple:
+    """The rates of one hose's states (hoses.STATE_NAMES' order), 0 without hoses."""
+    return (on * h.dz0, on * h.dz1, on * h.dz2, on * h.dz3, on * h.dq1, on * h.dq2, on * h.dq3, on * h.dq4)
 
 
 @jitable
@@ -410,14 +469,18 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     opening = larger(abs(u), abs(y[4]))  # the spool moves between its position and the command
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
+    # with hoses the drive feeds their port nodes (half a segment each), and their waves count
+    port = c.hose_on * hoses.port_stiffness(c)
+    port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
+    waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
     # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate
-    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, stiff1, stiff2, dt, c, xp)
+    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, port1, port2, dt, c, xp)
     # a relief valve counts where the chamber's pressure can reach it within this step
     inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
-    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1)
-    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2)
+    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1) + c.hose_on * (port1 - stiff1) * g_a  # the port node's
+    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2) + c.hose_on * (port2 - stiff2) * g_b
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     mass = c.inertia * k * k  # the boom's inertia at the rod
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
@@ -441,6 +504,7 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
         fill = y[ACCUMULATOR_STATE]
         acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
         rate = larger(rate, c.acc_on * acc)
+    rate = larger(rate, waves)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -498,6 +562,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_RETURNED + 18],  # potential_power_j
         y[BATTERY_RETURNED + 19],  # accumulator_loss_j
         y[BATTERY_RETURNED + 20],  # gas_power_j
+        y[BATTERY_RETURNED + 21],  # line_loss_j
         void1,  # void1
         void2,  # void2
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
@@ -572,7 +637,10 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     )  # eq. D28
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
-    return assemble(electric_chain(terms.supply, c, xp), terms.supply, cylinder, acc_loss, gas_power)  # eq. D26, D29
+    hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6
+    hose_loss = c.hose_on * (terms.hose_a.loss + terms.hose_b.loss)
+    chain = electric_chain(terms.supply, c, xp)
+    return assemble(chain, terms.supply, cylinder, acc_loss, gas_power, hose_oil, hose_loss)  # eq. D26, D29
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:

@@ -44,7 +44,7 @@ FOLLOW_HORIZON_S = 1.0e9
 def scale_sizes(p: Parameters) -> dict[str, float]:
     """The natural size of a state of each scale (a model's or a drive's STATE_SCALES): 1 m,
     1 m/s, 1, 1 kJ, the supply pressure, the pump's speed."""
-    return dict(_SCALES, pressure=p.supply_pressure_pa, angular_velocity=p.pump_speed_rad_s)
+    return dict(_SCALES, pressure=p.supply_pressure_pa, angular_velocity=p.pump_speed_rad_s, flow=p.pump_max_flow_m3_s)
 
 
 def absolute_tolerances(p: Parameters) -> list[float]:
