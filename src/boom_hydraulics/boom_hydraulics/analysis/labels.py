@@ -40,6 +40,7 @@ TERM_WORDS: dict[str, str] = {
     "rotor_power": "rotor kinetic energy (net)",
     "kinetic_power": "kinetic energy (net)",
     "potential_power": "potential energy (net)",
+    "structural_loss": "structural damping of the boom",
 }
 
 #: Sweep columns that are not parameters, in words.

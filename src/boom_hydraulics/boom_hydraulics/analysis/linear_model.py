@@ -40,29 +40,46 @@ if TYPE_CHECKING:
 #: The states of the linear model: the physical model's states that act on the dynamics, then
 #: those of the drive (:func:`states_of`: a drive whose supply stands still adds none).
 STATES: tuple[int, ...] = tuple(
-    i for i, kind in enumerate(MODEL.STATE_SCALES) if kind != "energy" and i not in MODEL.DRIVE_STATES
+    i
+    for i, kind in enumerate(MODEL.STATE_SCALES)
+    if kind != "energy" and i not in MODEL.DRIVE_STATES and i not in MODEL.BOOM_STATES
 )
 STATE_NAMES: tuple[str, ...] = tuple(MODEL.STATE_NAMES[i] for i in STATES)
 STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "bristle": "1"}
+#: The elastic boom's states (docs/model.md, "Elastic boom"), their units and scales.
+BOOM_STATE_UNITS = ("m", "m/s")
+BOOM_STATE_SCALES = ("length", "velocity")
+
+
+def _drive_states(p: Parameters) -> tuple[int, ...]:
+    """The drive's own states (its ``STATE_NAMES``), unless its supply stands still (``STEADY_SUPPLY``)."""
+    drive = DRIVES[p.drive]
+    return () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
+
+
+def boom_states(p: Parameters) -> tuple[int, ...]:
+    """The elastic boom's states (its tip deflection and rate) where it is on (EI > 0), else none."""
+    return MODEL.BOOM_STATES if p.boom_bending_stiffness_n_m2 > 0.0 else ()
 
 
 def states_of(p: Parameters) -> tuple[int, ...]:
-    """The model states of the linear model of ``p``: :data:`STATES` and the drive's own (its
-    ``STATE_NAMES``), unless its supply stands still (``STEADY_SUPPLY``)."""
-    drive = DRIVES[p.drive]
-    return STATES + (() if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)])
+    """The model states of the linear model of ``p``: :data:`STATES`, the drive's own (its
+    ``STATE_NAMES``) unless its supply stands still (``STEADY_SUPPLY``), and the elastic
+    boom's where it is on."""
+    return STATES + _drive_states(p) + boom_states(p)
 
 
 def state_names_of(p: Parameters) -> tuple[str, ...]:
-    """The names of :func:`states_of`: the model's, then the drive's own."""
-    own = DRIVES[p.drive].STATE_NAMES[: len(states_of(p)) - len(STATES)]
-    return STATE_NAMES + tuple(own)
+    """The names of :func:`states_of`: the model's, the drive's own, the elastic boom's."""
+    own = DRIVES[p.drive].STATE_NAMES[: len(_drive_states(p))]
+    return STATE_NAMES + tuple(own) + tuple(MODEL.STATE_NAMES[i] for i in boom_states(p))
 
 
 def state_units_of(p: Parameters) -> tuple[str, ...]:
     """The units of :func:`states_of`, in their order."""
-    own = DRIVES[p.drive].STATE_UNITS[: len(states_of(p)) - len(STATES)]
-    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own)
+    own = DRIVES[p.drive].STATE_UNITS[: len(_drive_states(p))]
+    boom = BOOM_STATE_UNITS[: len(boom_states(p))]
+    return tuple(STATE_UNITS[n] for n in STATE_NAMES) + tuple(own) + boom
 
 
 #: The outputs (model state components), with their units.
@@ -82,7 +99,7 @@ def _state_scales(p: Parameters) -> list[float]:
     """The size of each state of :func:`states_of`, for differences and eigenvector shares: by
     the model's scale of each of :data:`STATES`, then by the drive's of its own."""
     sizes = scale_sizes(p)
-    own = DRIVES[p.drive].STATE_SCALES[: len(states_of(p)) - len(STATES)]
+    own = DRIVES[p.drive].STATE_SCALES[: len(_drive_states(p))] + BOOM_STATE_SCALES[: len(boom_states(p))]
     return [sizes[MODEL.STATE_SCALES[i]] for i in STATES] + [sizes[kind] for kind in own]
 
 

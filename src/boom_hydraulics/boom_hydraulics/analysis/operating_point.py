@@ -177,6 +177,10 @@ def operating_point(p: Parameters, q1_m: float, opening: float = 0.0) -> Operati
     unknowns, equations = (*unknowns, *own), (*equations, *own)
     sizes = scale_sizes(p)
     scales.update({i: sizes[kind] for i, kind in zip(own, drive.STATE_SCALES)})
+    # the elastic boom's deflection settles too (docs/model.md, "Elastic boom"): its rates 0
+    boom = MODEL.BOOM_STATES if p.boom_bending_stiffness_n_m2 > 0.0 else ()
+    unknowns, equations = (*unknowns, *boom), (*equations, *boom)
+    scales.update({i: sizes[kind] for i, kind in zip(boom, ("length", "velocity"))})
     if opening != 0.0:
         y0[V], y0[P1], y0[P2], y0[BRISTLE] = _motion_guess(c, q1_m, opening)
     derivative = lambda y: MODEL.derivative(0.0, y, c, opening)  # noqa: E731

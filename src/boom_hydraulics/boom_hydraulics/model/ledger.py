@@ -64,6 +64,7 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("rotor_power", "W", "stored", "rate of the kinetic energy of the drive's motor and pump rotors"),
     ("kinetic_power", "W", "stored", "rate of the kinetic energy of boom and payload"),
     ("potential_power", "W", "stored", "rate of the potential energy of boom, payload and spring"),
+    ("structural_loss", "W", "loss", "structural damping of the elastic boom's bending mode"),
 )
 TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
 #: The terms that supply energy; every other term takes it.
@@ -92,6 +93,7 @@ class Ledger(NamedTuple):
     rotor_power: Num
     kinetic_power: Num
     potential_power: Num
+    structural_loss: Num
 
 
 assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
@@ -209,9 +211,10 @@ def cylinder_side(
 
 
 @jitable
-def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
+def assemble(chain: Chain, s: Supply, cylinder: Cylinder, structural_loss: Num = 0.0) -> Ledger:
     """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
-    valve or checks, relief and line) and the cylinder."""
+    valve or checks, relief and line), the cylinder and the elastic boom's structural damping
+    (docs/model.md, "Elastic boom")."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
@@ -232,6 +235,7 @@ def assemble(chain: Chain, s: Supply, cylinder: Cylinder) -> Ledger:
         s.rotor_power,
         cylinder.kinetic_power,
         cylinder.potential_power,
+        structural_loss,
     )
 
 
@@ -259,6 +263,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.rotor_power
         - ledger.kinetic_power
         - ledger.potential_power
+        - ledger.structural_loss
     )
 
 
@@ -295,6 +300,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.rotor_power,
         ledger.kinetic_power,
         ledger.potential_power,
+        ledger.structural_loss,
         pos(ledger.potential_power),
     )
 

@@ -27,7 +27,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
-from . import drives
+from . import drives, elastic_boom
 from .drives.constants import DriveConstants, Supply
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
@@ -40,9 +40,10 @@ from .geometry import (
     piston_area_m2,
     sin_boom_angle,
     static_rod_force_of,
+    xi,
 )
 from .hydraulics import chamber_pressure_pa, chamber_state_rate, larger, pos, relief_flow, void_volume_m3
-from .ledger import INTEGRALS, Ledger, assemble, cylinder_side, electric_chain, integral_rates
+from .ledger import INTEGRALS, Cylinder, Ledger, assemble, cylinder_side, electric_chain, integral_rates
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
 from .parameters import Parameters
@@ -63,11 +64,14 @@ STATE_NAMES = (
     "drive_state",
     "drive_state_2",
     "drive_state_3",
+    "boom_deflection",  # eta: the elastic boom's tip deflection, m (docs/model.md, "Elastic boom")
+    "boom_deflection_rate",  # eta', m/s
     *INTEGRALS,
 )
 STATE_SCALES = (
     *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
     *("pressure", "angular_velocity", "unit"),
+    *("length", "velocity"),
     *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
@@ -76,8 +80,11 @@ ENERGY_STATES = (8, 9)
 DRIVE_STATE = 10
 DRIVE_STATES = tuple(range(DRIVE_STATE, DRIVE_STATE + drives.STATE_COUNT))
 assert len(DRIVE_STATES) == 3, "the drive's states are named above, three of them"
+#: Indices of the elastic boom's states: its tip deflection eta and its rate (elastic_boom).
+BOOM_STATE = STATE_NAMES.index("boom_deflection")
+BOOM_STATES = (BOOM_STATE, BOOM_STATE + 1)
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
-LEDGER_STATES = DRIVE_STATE + drives.STATE_COUNT
+LEDGER_STATES = STATE_NAMES.index("battery_drawn")
 BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
 LIFT_WORK = LEDGER_STATES + len(INTEGRALS) - 1
 #: The stepping takes the substeps that :func:`stiffness_rate` asks for.
@@ -114,6 +121,13 @@ BODY_FIELDS = (
     "f_external",  # F_ext, N, positive extending (eq. 11)
     "payload_inertia",  # the payload's share of inertia, mb L1^2, kg m^2 (eq. 8; with_payload)
     "payload_weight",  # the payload's share of weight_coeff, mb L1 g, N m
+    # the elastic boom (docs/model.md, "Elastic boom"; elastic_boom): 1.0 on (EI > 0), 0.0 off
+    "boom_on",
+    "boom_stiffness",  # k_eta = 3 EI / L1^3, N/m (eq. E3)
+    "boom_damping_ratio",  # zeta
+    "boom_mass",  # m1, kg
+    "boom_length",  # L1, m
+    "gravity",  # g, m/s^2
 )
 
 #: Values derived once from :class:`Parameters` (floats, or arrays for a batch): the boom's,
@@ -144,14 +158,43 @@ def constants(p: Parameters) -> Constants:
         *(p.spring_free_length_m, p.end_stop_stiffness_n_m, p.end_stop_damping_n_s_m2, p.external_rod_force_n),
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
+        *_boom_constants(p),
     )
     return Constants(*body, *drives.constants(p)[:])  # [:]: a plain tuple, which numba joins to one
 
 
 @jitable
+def _boom_constants(p: Parameters) -> tuple:
+    """The elastic boom's constants (eq. E3), in the order of BODY_FIELDS from ``boom_on``."""
+    on = 1.0 if p.boom_bending_stiffness_n_m2 > 0.0 else 0.0
+    stiffness = elastic_boom.modal_stiffness_n_m(p.boom_bending_stiffness_n_m2, p.boom_length_m)
+    return (on, stiffness, p.boom_damping_ratio, p.boom_mass_kg, p.boom_length_m, p.gravity_m_s2)
+
+
+class BoomMasses(NamedTuple):
+    """The elastic boom's masses with the payload now on the hook (eq. E3; elastic_boom.modal_masses)."""
+
+    coupling: Num  # m_c, kg m (0 off)
+    modal: Num  # m_eta, kg
+    participation: Num  # S, kg (0 off)
+    payload: Num  # the payload on the hook, kg
+
+
+@jitable
+def boom_masses(c: Constants) -> BoomMasses:
+    """:class:`BoomMasses` of the constants ``c``: the payload on the hook is what J holds beside
+    the boom's m1 L1^2 / 3 (eq. 8), so that with_payload's share carries over."""
+    length2 = c.boom_length * c.boom_length
+    payload = (c.inertia - c.boom_mass * length2 / 3.0) / length2  # eq. 8
+    coupling, modal, participation = elastic_boom.modal_masses(c.boom_mass, payload, c.boom_length)
+    return BoomMasses(c.boom_on * coupling, modal, c.boom_on * participation, payload)
+
+
+@jitable
 def with_payload(c: Constants, share: Num) -> Constants:
     """The constants ``c`` (of the whole payload_mass_kg) with ``share`` of the payload on the
-    hook (0: released): its inertia and weight scaled (eq. 8, 9), the rest unchanged."""
+    hook (0: released): its inertia and weight scaled (eq. 8, 9; the elastic boom's masses
+    follow J, see :func:`boom_masses`), the rest unchanged."""
     off = 1.0 - share
     return Constants(*c[:3], c.inertia - off * c.payload_inertia, c.weight_coeff - off * c.payload_weight, *c[5:])
 
@@ -174,9 +217,10 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     if q1 <= p.cylinder_min_length_m or not drives.holds_oil(p.drive):
         p1 = p.tank_pressure_pa  # parked: the stop carries the boom; or no oil: a drive's housing
     z_d = drives.initial_state(p.drive, drives.constants(p))
-    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2]] + [0.0] * len(
-        INTEGRALS
-    )
+    eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
+    return [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], eta, 0.0] + [
+        0.0
+    ] * len(INTEGRALS)
 
 
 class Terms(NamedTuple):
@@ -204,6 +248,10 @@ class Terms(NamedTuple):
     acc: Num  # rod acceleration, m/s^2 (eq. 11)
     loss: Num  # power dissipated between the drive and the chambers (valve, load-holding valve, reliefs), W
     supply: Supply  # the drive: its states' rates, its flows and pressures, its pump and motor (model/drives)
+    f_rod: Num  # every force on the rod but the boom's, N (eq. 11)
+    sin_alpha: Num
+    boom_acc: Num  # eta'', the elastic boom's, m/s^2 (eq. E6)
+    boom_damping: Num  # c_eta, N s/m (eq. E5)
 
 
 @jitable
@@ -257,10 +305,19 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     dk = lever_derivative(q1, c.a, c.b, xp)
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
+    # the elastic boom's mode (elastic_boom, eq. E4-E7): 0 and the rod's acceleration untouched when off
+    sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
+    m = boom_masses(c)
+    damping = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+    boom_acc, extra = elastic_boom.accelerations(
+        *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, y[BOOM_STATE], y[BOOM_STATE + 1]),
+        *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
+    )
+    acc = acc + extra
     loss = supply.power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
-        *(k, dk, cos_alpha, acc, loss, supply),
+        *(k, dk, cos_alpha, acc, loss, supply, f_rod, sin_alpha, boom_acc, damping),
     )
 
 
@@ -283,6 +340,18 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
+        + _boom_energy(y, c, k * v, xp)  # the elastic boom's mode (eq. E1, E2)
+    )
+
+
+@jitable
+def _boom_energy(y: list, c: Constants, alpha_rate: Num, xp: ModuleType) -> Num:
+    """The elastic boom's share of H: the mode's kinetic and potential energy (eq. E1, E2), J; 0 off."""
+    eta, eta_rate = y[BOOM_STATE], y[BOOM_STATE + 1]
+    cos_alpha = cos_boom_angle(y[0], c.a, c.b, c.h, xp)
+    m = boom_masses(c)
+    return elastic_boom.kinetic_energy_j(alpha_rate, eta_rate, m.coupling, m.modal) + elastic_boom.potential_energy_j(
+        eta, cos_alpha, m.participation * c.gravity, c.boom_stiffness
     )
 
 
@@ -304,6 +373,26 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + c.stop_k * (d_high - d_low) * v
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
         + drives.energy_rate(drive_states(y), t.supply, c)
+        + _boom_kinetic_power(y, t, c)
+        + _boom_potential_power(y, t, c)
+    )
+
+
+@jitable
+def _boom_kinetic_power(y: list, t: Terms, c: Constants) -> Num:
+    """d/dt of the elastic boom's kinetic energy (eq. E1), W; 0 off."""
+    v = y[1]
+    alpha_acc = t.lever * t.acc + t.lever_slope * v * v
+    m = boom_masses(c)
+    return elastic_boom.kinetic_power_w(t.lever * v, alpha_acc, y[BOOM_STATE + 1], t.boom_acc, m.coupling, m.modal)
+
+
+@jitable
+def _boom_potential_power(y: list, t: Terms, c: Constants) -> Num:
+    """d/dt of the elastic boom's potential energy (eq. E2), W; 0 off."""
+    weight = boom_masses(c).participation * c.gravity
+    return elastic_boom.potential_power_w(
+        t.lever * y[1], y[BOOM_STATE], y[BOOM_STATE + 1], t.sin_alpha, t.cos_alpha, weight, c.boom_stiffness
     )
 
 
@@ -327,6 +416,8 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.supply.rate,
         terms.supply.rate2,
         terms.supply.rate3,
+        y[BOOM_STATE + 1],
+        terms.boom_acc,
         *integral_rates(_ledger_of(y, c, terms, xp)),
     )
 
@@ -355,7 +446,9 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     chamber1 = stiff1 * (g_a + c.g_relief * relief_near1)
     chamber2 = stiff2 * (g_b + c.g_relief * relief_near2)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
-    mass = c.inertia * k * k  # the boom's inertia at the rod
+    # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
+    m = boom_masses(c)
+    mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
     contact = (q1 < c.q_min + reach) | (q1 > c.q_max - reach)
     penetration = pos(c.q_min - q1) + pos(q1 - c.q_max) + reach
@@ -372,6 +465,9 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     rate = larger(rate, own)
+    boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, c.boom_damping_ratio, xp)
+    # (the elastic boom's mode, 0 off)
+    rate = larger(rate, boom)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -427,8 +523,12 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_RETURNED + 16],  # rotor_power_j
         y[BATTERY_RETURNED + 17],  # kinetic_power_j
         y[BATTERY_RETURNED + 18],  # potential_power_j
+        y[BATTERY_RETURNED + 19],  # structural_loss_j
         void1,  # void1
         void2,  # void2
+        y[BOOM_STATE],  # boom_deflection
+        y[BOOM_STATE + 1],  # boom_deflection_rate
+        *_hinge_force(y, c, terms, xp),  # hinge_force_x, hinge_force_z
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
         1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
@@ -471,6 +571,21 @@ def ledger(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> Le
     return _ledger_of(y, c, _terms(y, c, u, xp), xp)
 
 
+@jitable
+def _hinge_force(y: list, c: Constants, t: Terms, xp: ModuleType) -> tuple:
+    """The hinge pin's force on the boom at O in the boom's frame (elastic_boom.hinge_force_n, eq. E8), N."""
+    q1, v = y[0], y[1]
+    m = boom_masses(c)
+    x = xi(q1, c.a, c.b)
+    rod_axial = (c.a - c.b * x) / q1  # the rod's direction, base A to eye K, in the boom's frame (eq. 1)
+    rod_normal = c.b * xp.sqrt(1.0 - x * x) / q1
+    return elastic_boom.hinge_force_n(
+        *(t.lever * v, t.lever * t.acc + t.lever_slope * v * v, y[BOOM_STATE], y[BOOM_STATE + 1], t.boom_acc),
+        *(t.sin_alpha, t.cos_alpha, t.f_rod, rod_axial, rod_normal, c.boom_mass + m.payload),
+        *(c.weight_coeff / c.gravity, m.participation, c.gravity),
+    )
+
+
 @jitable(inline="always")
 def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     """:func:`ledger` from the terms of the evaluation at ``y``."""
@@ -499,7 +614,13 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         c.p_ambient,
         c.f_external,
     )  # eq. D28
-    return assemble(electric_chain(terms.supply, c, xp), terms.supply, cylinder)  # eq. D26, D29
+    boom = Cylinder(
+        *cylinder[:6],
+        cylinder.kinetic_power + _boom_kinetic_power(y, terms, c),
+        cylinder.potential_power + _boom_potential_power(y, terms, c),
+    )  # the elastic boom's mode (eq. E1, E2), 0 off
+    structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
+    return assemble(electric_chain(terms.supply, c, xp), terms.supply, boom, structural)  # eq. D26, D29
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:

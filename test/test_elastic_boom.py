@@ -1,0 +1,194 @@
+"""The elastic boom (docs/model.md, "Elastic boom"): its first bending mode against the
+Euler-Bernoulli cantilever with a tip mass, its static tip deflection against P L^3 / (3 EI),
+its energy in the ledger, and nothing moved where it is off."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from conftest import CONFIG
+from scipy.optimize import brentq
+
+from boom_hydraulics.analysis import linear_model as lm
+from boom_hydraulics.analysis.operating_point import operating_point
+from boom_hydraulics.model import config, elastic_boom, ledger, physical
+from boom_hydraulics.model.geometry import boom_angle_rad, lever_rad_per_m
+from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import commands
+from boom_hydraulics.solve.simulator import Simulator
+
+#: The 1 t loader crane (config/loader_crane_1t.yaml), its boom elastic.
+CRANE = config.load(CONFIG / "loader_crane_1t.yaml")
+EI = CRANE.boom_bending_stiffness_n_m2
+L = CRANE.boom_length_m
+
+
+def cantilever_root(mass_ratio: float) -> float:
+    """beta L, the first root of the Euler-Bernoulli cantilever with a tip mass M (mass_ratio =
+    M / (rho A L)): 1 + cos(bL) cosh(bL) + r bL (cos(bL) sinh(bL) - sin(bL) cosh(bL)) = 0."""
+
+    def equation(b: float) -> float:
+        return (
+            1.0
+            + math.cos(b) * math.cosh(b)
+            + mass_ratio * b * (math.cos(b) * math.sinh(b) - math.sin(b) * math.cosh(b))
+        )
+
+    return brentq(equation, 1e-3, 1.8752, xtol=1e-14)
+
+
+def exact_frequency_rad_s(boom_mass_kg: float, payload_kg: float) -> float:
+    """omega_1 = (beta L)^2 sqrt(EI / (rho A L^4)) of the cantilever with its tip mass."""
+    b = cantilever_root(payload_kg / boom_mass_kg)
+    return b * b * math.sqrt(EI / (boom_mass_kg * L**3))
+
+
+def assumed_mode_frequency_rad_s(boom_mass_kg: float, payload_kg: float) -> float:
+    """sqrt(k_eta / m_eta) of the module's own modal stiffness and mass (eq. E3), rotation held."""
+    _, modal, _ = elastic_boom.modal_masses(boom_mass_kg, payload_kg, L)
+    return math.sqrt(elastic_boom.modal_stiffness_n_m(EI, L) / modal)
+
+
+#: Rayleigh's quotient with the static tip-load shape over-estimates omega_1 (it is an upper
+#: bound); the error is largest without a tip mass: sqrt(3 / (33/140)) / 1.87510^2 - 1 = 1.46 %,
+#: and falls as the tip mass dominates (the shape is then the exact static one).
+RAYLEIGH_ERROR = math.sqrt(3.0 * 140.0 / 33.0) / 1.8751040687**2 - 1.0
+
+
+@pytest.mark.parametrize("payload_kg", [0.0, 50.0, 200.0, 1000.0])
+def test_the_first_mode_is_the_cantilever_with_its_tip_mass_from_above(payload_kg):
+    boom_kg = CRANE.boom_mass_kg
+    exact = exact_frequency_rad_s(boom_kg, payload_kg)
+    error = assumed_mode_frequency_rad_s(boom_kg, payload_kg) / exact - 1.0
+    assert 0.0 <= error <= RAYLEIGH_ERROR + 1e-9, error
+    if payload_kg == 0.0:
+        assert error == pytest.approx(RAYLEIGH_ERROR, rel=1e-6)  # the textbook 3.5675 against 3.5160
+    if payload_kg >= 10.0 * boom_kg:
+        assert error < 1e-3  # a tip mass ten times the boom's: the static shape is nearly exact
+
+
+def _two_masses_hz(params: Parameters, q1_m: float) -> np.ndarray:
+    """The two modes of the boom on its oil springs with its bending mode (eq. E1-E5, 12, 13):
+    det(K - w^2 M) = 0, M = [[J, m_c], [m_c, m_eta]], K = diag(E (S1^2/V1 + S2^2/V2) / k^2, k_eta), Hz."""
+    c = physical.constants(params)
+    v1, v2, _, _ = physical.chamber_volumes(q1_m, c)
+    k = lever_rad_per_m(q1_m, c.a, c.b)
+    oil = c.bulk_modulus * (c.s1**2 / v1 + c.s2**2 / v2) / k**2  # the oil's stiffness at the boom, N m/rad
+    coupling, modal, _ = elastic_boom.modal_masses(params.boom_mass_kg, params.payload_mass_kg, L)
+    mass = np.array([[c.inertia, coupling], [coupling, modal]])
+    return np.sqrt(scipy.linalg.eigh(np.diag([oil, c.boom_stiffness]), mass, eigvals_only=True)) / (2 * math.pi)
+
+
+@pytest.mark.parametrize("bulk_modulus_pa", [1.0e9, 1.0e11])
+def test_linearize_finds_the_boom_on_its_oil_coupled_to_its_bending_mode(bulk_modulus_pa):
+    """The linear model's two oscillating modes are those of the two-mass model above to 0.3 %
+    (what it leaves out: the weight's geometric stiffness, S g / k_eta of 1.7 % times sin(alpha),
+    and the valve's flows). With real oil (1 GPa) the tonne rings at 2.66 Hz, the boom's root on
+    the oil beneath it at 125 Hz; with oil a hundred times stiffer the rotation is held and the
+    bending mode comes within 0.6 % of the clamped sqrt(k_eta / m_eta), so within the Rayleigh
+    bound (plus that) of the Euler-Bernoulli cantilever with the tonne at its tip."""
+    params = with_updates(CRANE, bulk_modulus_pa=bulk_modulus_pa, static_friction_n=0.0, coulomb_friction_n=0.0)
+    q1 = 0.5 * (params.cylinder_min_length_m + params.cylinder_max_length_m)
+    model = lm.linearize(operating_point(params, q1))
+    assert model.state_names[-2:] == ("boom_deflection", "boom_deflection_rate")
+    ringing = [m.natural_frequency_hz for m in model.modes() if m.oscillatory]
+    assert len(ringing) == 2
+    assert ringing == pytest.approx(list(_two_masses_hz(params, q1)), rel=3e-3)
+    if bulk_modulus_pa >= 1.0e11:
+        clamped = assumed_mode_frequency_rad_s(params.boom_mass_kg, params.payload_mass_kg) / (2 * math.pi)
+        assert ringing[0] == pytest.approx(clamped, rel=6e-3) and ringing[0] < clamped
+        exact = exact_frequency_rad_s(params.boom_mass_kg, params.payload_mass_kg) / (2 * math.pi)
+        assert abs(ringing[0] / exact - 1.0) < RAYLEIGH_ERROR + 6e-3
+    # off, the linear model keeps today's states
+    assert "boom_deflection" not in lm.state_names_of(with_updates(CRANE, boom_bending_stiffness_n_m2=0.0))
+
+
+def test_a_held_boom_settles_to_the_static_tip_deflection():
+    """The valve closed, the empty boom at rest bent by its own weight; the tonne is hung on
+    its tip and the boom rings down (20 % damping, to settle fast). At rest its tip deflects by
+    P L^3 / (3 EI) under the payload's weight normal to the boom, P = mb g cos(alpha), plus
+    q L^4 / (8 EI) under its own weight (both exact for the mode's static shape)."""
+    params = with_updates(CRANE, boom_damping_ratio=0.2, payload_mass_kg=0.0)
+    sim = Simulator(params)
+    empty = sim.outputs()["boom_deflection"]
+    sim.set_payload_mass(CRANE.payload_mass_kg)
+    sim.step(0.0, 3000)
+    out = sim.outputs()
+    cos_alpha = math.cos(out["alpha"])
+    g = params.gravity_m_s2
+    tip_load = CRANE.payload_mass_kg * g * cos_alpha
+    distributed = params.boom_mass_kg * g * cos_alpha / L
+    assert empty == pytest.approx(-distributed * L**4 / (8 * EI), rel=1e-3)
+    assert out["boom_deflection"] == pytest.approx(
+        -(tip_load * L**3 / (3 * EI) + distributed * L**4 / (8 * EI)), rel=2e-3
+    )
+    assert abs(out["boom_deflection_rate"]) < 1e-5
+    # the tonne's own share: P L^3 / (3 EI), 16.6 mm for this box at the horizontal
+    assert tip_load * L**3 / (3 * EI) == pytest.approx(0.0166 * cos_alpha, rel=0.01)
+
+
+def test_the_ledger_closes_with_the_elastic_boom_on_over_the_loader_cycle():
+    """The loader cycle with the tonne: the ledger's integrals balance to 0.5 % of the battery's
+    energy, the stored terms are the change of the boom's energy with its mode's, the structural
+    damping took energy, and the stepping's energy check (W against H) held throughout."""
+    params = with_updates(CRANE, **commands.scenario("loader", 0.0, CRANE))
+    sim = Simulator(params)
+    c = physical.constants(params)
+    start = list(sim.y)
+    out = sim.run(8.0, commands.from_parameters(params), every=10)
+    end = list(sim.y)
+    integrals = dict(zip(ledger.INTEGRALS, end[physical.LEDGER_STATES :], strict=True))
+    energies = ledger.energies_of(integrals)
+    assert energies["imbalance_ratio"] < 0.005, energies
+    assert integrals["structural_loss"] > 0.0
+    stored = integrals["kinetic_power"] + integrals["potential_power"]
+    assert stored == pytest.approx(_mechanical(end, c) - _mechanical(start, c), abs=1e-4 * integrals["lift_work"])
+    assert abs(sim.energy_residual()) < 1e-3 * integrals["battery_drawn"]
+    # the tip rang while the boom moved: its deflection left the static one by millimetres
+    swing = np.ptp(out["boom_deflection"] - _static_deflection(params, out["q1"]))
+    assert swing > 1e-3
+
+
+def _mechanical(y: list, c: physical.Constants) -> float:
+    """Kinetic and potential energy of boom and payload with the bending mode's (eq. 8, 9, E1, E2), J."""
+    k = lever_rad_per_m(y[0], c.a, c.b)
+    alpha = boom_angle_rad(y[0], c.a, c.b, c.h)
+    rigid = 0.5 * c.inertia * (k * y[1]) ** 2 + c.weight_coeff * math.sin(alpha)
+    return rigid + 0.5 * c.spring * (y[0] - c.spring_free) ** 2 + physical._boom_energy(y, c, k * y[1], math)
+
+
+def _static_deflection(params: Parameters, q1: np.ndarray) -> np.ndarray:
+    return np.array([elastic_boom.static_deflection_m(params, float(q)) for q in q1])
+
+
+def test_off_the_mode_stays_still_and_the_rod_moves_as_the_rigid_boom_bit_for_bit():
+    """EI = 0 (the default): the boom's states' rates are exactly 0 and every other rate is the
+    rigid boom's (mechanics.acceleration_at_lever's, with no term added) at random states."""
+    p = Parameters()
+    c = physical.constants(p)
+    assert p.boom_bending_stiffness_n_m2 == 0.0 and c.boom_on == 0.0
+    rng = np.random.default_rng(5)
+    from boom_hydraulics.model.mechanics import acceleration_at_lever
+
+    for _ in range(20):
+        y = physical.initial_state(p, rng.uniform(p.cylinder_min_length_m, p.cylinder_max_length_m))
+        y[1], y[2], y[3] = rng.uniform(-0.3, 0.3), rng.uniform(1e6, 1e7), rng.uniform(1e5, 1e6)
+        t = physical._terms(y, c, rng.uniform(-1, 1), math)
+        d = physical.derivative(0.0, y, c, 0.3)
+        assert d[physical.BOOM_STATE] == 0.0 and d[physical.BOOM_STATE + 1] == 0.0
+        rigid = acceleration_at_lever(y[1], t.f_rod, c.inertia, c.weight_coeff * t.cos_alpha, t.lever, t.lever_slope)
+        assert t.acc == rigid  # bit for bit
+        assert physical.ledger(0.0, y, c, 0.3).structural_loss == 0.0
+    assert physical.initial_state(p)[physical.BOOM_STATE] == 0.0
+
+
+def test_the_static_deflection_is_the_module_s_equilibrium():
+    """initial_state's eta zeroes the mode's rate with the boom at rest (eq. E5)."""
+    y = physical.initial_state(CRANE)
+    alpha = boom_angle_rad(y[0], CRANE.a_m, CRANE.b_m, CRANE.support_height_m)
+    _, _, participation = elastic_boom.modal_masses(CRANE.boom_mass_kg, CRANE.payload_mass_kg, L)
+    k = elastic_boom.modal_stiffness_n_m(EI, L)
+    assert y[physical.BOOM_STATE] == pytest.approx(-participation * CRANE.gravity_m_s2 * math.cos(alpha) / k)
