@@ -141,11 +141,15 @@ def structural_loss_w(eta_rate_m_s: Num, damping: Num) -> Num:
 
 @jitable
 def fastest_rate(
-    inertia: Num, coupling: Num, modal_mass: Num, stiffness: Num, damping_ratio: Num, xp: ModuleType = math
+    inertia: Num, coupling: Num, modal_mass: Num, stiffness: Num, damping: Num, xp: ModuleType = math
 ) -> Num:
-    """The mode's fastest rate, 1/s: its frequency with the rotation free,
-    sqrt(k_eta J / (J m_eta - m_c^2)) (above the clamped sqrt(k_eta / m_eta)), times 1 + 2 zeta."""
-    return xp.sqrt(stiffness * inertia / (inertia * modal_mass - coupling * coupling)) * (1.0 + 2.0 * damping_ratio)
+    """A bound on the mode's eigenvalues, 1/s: with the rotation free its mass is
+    m_f = (J m_eta - m_c^2) / J (below m_eta), its frequency sqrt(k_eta / m_f) and its damping
+    rate c_eta / m_f; a damped oscillator's |lambda| is at most the sum of the two. (With a
+    heavy tip mass m_f is small: the root turns under the payload, which stays put, and the
+    structural damping makes that motion a fast, overdamped one.)"""
+    free = (inertia * modal_mass - coupling * coupling) / inertia  # m_f
+    return xp.sqrt(stiffness / free) + damping / free
 
 
 @jitable

@@ -213,8 +213,13 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # rotor_power_j
         zero + math.nan,  # kinetic_power_j
         zero + math.nan,  # potential_power_j
+        zero + math.nan,  # structural_loss_j
         zero,  # void1
         zero,  # void2
+        zero,  # boom_deflection: a rigid boom
+        zero,  # boom_deflection_rate
+        zero,  # hinge_force_x: not modelled in paper mode
+        zero,  # hinge_force_z
         1.0 * (zero != zero),  # at_end_stop
         1.0 * (y[2] < 0.0),  # cavitation
         1.0 * (zero != zero),  # relief_open

@@ -465,9 +465,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     rate = larger(rate, own)
-    boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, c.boom_damping_ratio, xp)
-    # (the elastic boom's mode, 0 off)
-    rate = larger(rate, boom)
+    # the elastic boom's mode, beside the oil springs against the boom with the mode free (0 off)
+    damping_boom = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+    boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, damping_boom, xp)
+    rate = larger(rate, xp.sqrt(stiffness / mass) + boom)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
