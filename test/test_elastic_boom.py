@@ -4,12 +4,13 @@ its energy in the ledger, and nothing moved where it is off."""
 
 from __future__ import annotations
 
+import io
 import math
 
 import numpy as np
 import pytest
 import scipy.linalg
-from conftest import CONFIG
+from conftest import BOOM_SIM, CONFIG
 from scipy.optimize import brentq
 
 from boom_hydraulics.analysis import linear_model as lm
@@ -195,3 +196,160 @@ def test_the_static_deflection_is_the_module_s_equilibrium():
     _, _, participation = elastic_boom.modal_masses(CRANE.boom_mass_kg, CRANE.payload_mass_kg, L)
     k = elastic_boom.modal_stiffness_n_m(EI, L)
     assert y[physical.BOOM_STATE] == pytest.approx(-participation * CRANE.gravity_m_s2 * math.cos(alpha) / k)
+
+
+# --- through ROS: the node with the 1 t crane (its boom elastic) -------------------------------
+
+
+def _ros_tip(robot, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """(the boom_tip frame's position, the rigid boom's tip) in base_link, x and z (yourdfpy FK)."""
+    pivot = robot.get_transform("boom", "base_link")[:3, 3]
+    tip = robot.get_transform("boom_tip", "base_link")[:3, 3]
+    return tip[[0, 2]], pivot[[0, 2]] + L * np.array([math.cos(alpha), math.sin(alpha)])
+
+
+@pytest.mark.usefixtures("ros_context")
+def test_through_ros_the_tip_frame_moves_by_the_deflection_and_the_hinge_force_is_published(nodes, client):
+    """The node with the 1 t crane: its URDF's boom_tip joint is prismatic, joint_states gives
+    it the tip's deflection, so that the tip frame (as robot_state_publisher computes it from
+    both) lies off the rigid boom's tip by exactly that, normal to the boom; a lift makes the tip
+    swing. hinge_wrench in frame boom holds the boom at rest: the pin's normal force is the
+    weight's less what the cylinder's takes at the rod eye, M_g / a (eq. E4, E8 at rest)."""
+    if BOOM_SIM is None:
+        pytest.skip("boom_sim not on PATH (run through tools/with-env)")
+    yourdfpy = pytest.importorskip("yourdfpy")
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    node = nodes.start("command_timeout_s:=0.5", config_file="loader_crane_1t.yaml")
+    descriptions: list[String] = []
+    wrenches: list[WrenchStamped] = []
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    client.node.create_subscription(String, "robot_description", descriptions.append, latched)
+    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    client.node.create_subscription(WrenchStamped, "hinge_wrench", wrenches.append, reliable)
+    assert client.spin_until(lambda: descriptions and wrenches and len(client.joints) > 3), node.poll()
+    robot = yourdfpy.URDF.load(
+        io.StringIO(descriptions[-1].data), build_scene_graph=True, load_meshes=False, build_collision_scene_graph=False
+    )
+    joints = client.joints[-1]
+    assert list(joints.name) == ["boom_joint", "cylinder_barrel_joint", "cylinder_joint", "boom_tip_joint"]
+    values = dict(zip(joints.name, joints.position))
+    robot.update_cfg(values)
+    alpha, eta = values["boom_joint"], values["boom_tip_joint"]
+    tip, rigid = _ros_tip(robot, alpha)
+    assert eta < -0.01  # bent by the tonne: 16.6 mm cos(alpha) and the boom's own weight
+    assert tip - rigid == pytest.approx(eta * np.array([-math.sin(alpha), math.cos(alpha)]), abs=1e-9)
+    # at rest, the pin's force normal to the boom (the rigid statics within the mode's share)
+    wrench = wrenches[-1]
+    assert wrench.header.frame_id == "boom" and wrench.wrench.torque.y == 0.0
+    g, mass = CRANE.gravity_m_s2, CRANE.boom_mass_kg + CRANE.payload_mass_kg
+    first_moment = (0.5 * CRANE.boom_mass_kg + CRANE.payload_mass_kg) * L
+    normal = mass * g * math.cos(alpha) - first_moment * g * math.cos(alpha) / CRANE.a_m
+    assert wrench.wrench.force.z == pytest.approx(normal, rel=0.02)
+    # a lift: the tip swings about its static deflection, and its frame with it
+    client.handshake()
+    swung = []
+
+    def swinging() -> bool:
+        j = client.joints[-1]
+        swung.append(dict(zip(j.name, j.position))["boom_tip_joint"])
+        return max(swung) - min(swung) > 1e-3
+
+    assert client.spin_until(swinging, opening=1.0), (min(swung), max(swung))
+
+
+def test_the_markers_draw_the_boom_to_its_deflected_tip():
+    """The boom marker runs from the pivot to the tip moved by the deflection normal to the boom,
+    the payload hangs there; a rigid boom's (no deflection in the outputs: an older bag) are as before."""
+    from boom_hydraulics.bags.markers import CraneMarkers
+    from boom_hydraulics.model.kinematics import chain, pivot_xz
+
+    crane = CraneMarkers(CRANE)
+    c = chain(CRANE, 1.8, 0.0)
+    out = {"p1": 1e7, "p2": 1e5, "void1": 0.0, "void2": 0.0}
+    rigid = {m.id: m for m in crane.fields(out, c)}
+    bent = {m.id: m for m in crane.fields({**out, "boom_deflection": -0.02}, c)}
+    shift = np.subtract(bent[2].position, rigid[2].position)  # the payload (marker id 2)
+    assert shift == pytest.approx([0.02 * math.sin(c.boom_rad), 0.0, -0.02 * math.cos(c.boom_rad)], abs=1e-12)
+    o = pivot_xz(CRANE)
+    middle = np.array([bent[1].position[0], bent[1].position[2]])  # the boom's middle, half-way to the tip
+    tip = np.array([bent[2].position[0], bent[2].position[2] + crane._drawing.payload_radius])
+    assert middle == pytest.approx((np.array(o) + tip) / 2, abs=1e-12)
+
+
+def test_live_shows_the_tip_ringing_in_its_plot_and_frames_and_boom_resim_repeats_its_bag(tmp_path):
+    """boom-sim live with the 1 t crane: joint_states carries boom_tip_joint (the layout's tip
+    plot), /tf moves boom_tip by it, a lift makes the tip ring; the bag it records, fed through
+    boom-resim, gives the recorded run again (to within one tick's motion, as test_live's)."""
+    import json
+    import subprocess
+    import sys
+
+    from foxglove_client import FoxgloveClient, LiveServer
+
+    from boom_hydraulics.bags.reading import read_drive_states
+
+    layout = json.loads((CONFIG.parent / "src" / "boom_hydraulics" / "foxglove" / "boom_crane.json").read_text())
+    (path,) = layout["configById"]["Plot!boom_tip"]["paths"]
+    assert path["value"] == "/joint_states.position[3]"
+    bag = tmp_path / "elastic_bag"
+    live = LiveServer("--config", str(CONFIG / "loader_crane_1t.yaml"), "--record", str(bag), "--max-catch-up-s", "10")
+    try:
+        with FoxgloveClient(live.port) as client:
+            client.subscribe("/tf")
+            _, frames = client.next_message("/tf")
+            (tip,) = [t for t in frames.transforms if t.child_frame_id == "boom_tip"]
+            assert tip.header.frame_id == "boom" and tip.transform.translation.x == pytest.approx(L)
+            assert tip.transform.translation.z < -0.01  # the tonne bends it
+            client.subscribe("/joint_states")
+            _, joints = client.next_message("/joint_states")
+            assert list(joints.name)[3] == "boom_tip_joint" and joints.position[3] < -0.01
+            client.advertise(1, "/commands", "json", "std_msgs/msg/Float64MultiArray")
+            client.publish(1, {"data": [0.8]})
+            start = joints.position[3]
+            client.until("/joint_states", lambda j: abs(j.position[3] - start) > 1e-3)  # it rings as it lifts
+            client.publish(1, {"data": [0.0]})
+    finally:
+        live.interrupt()
+        status, _, err = live.wait()
+    assert status == 0, err
+    again = tmp_path / "again"
+    resim = subprocess.run(
+        [sys.executable, "-m", "boom_hydraulics.cli.resim", str(bag), "--out", str(again)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert resim.returncode == 0, resim.stderr
+    recorded, repeated = read_drive_states(bag), read_drive_states(again)
+    assert len(repeated["q1"]) == len(recorded["q1"])
+    assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 0.3 / 100.0  # 0.3 m/s for 1/100 s at most
+
+
+def test_a_sweep_takes_the_bending_stiffness_as_an_axis(tmp_path):
+    """boom-sweep --vary boom_bending_stiffness_n_m2: the rigid and the elastic 1 t crane side by
+    side, both run through (the batch kernel steps the mode), and they differ."""
+    import csv
+
+    from conftest import run_tool
+
+    out = tmp_path / "sweep"
+    args = ["--config", CONFIG / "loader_crane_1t.yaml", "--vary", f"boom_bending_stiffness_n_m2=0,{EI}"]
+    result = run_tool("boom-sweep", *args, "--duration", "1.5", "--lift-angle-deg", "8", "--no-plots", "--out", out)
+    assert result.returncode == 0, result.stderr
+    with (out / "results.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [float(r["boom_bending_stiffness_n_m2"]) for r in rows] == [0.0, EI]
+    assert {r["status"] for r in rows} == {"ok"}
+    assert float(rows[0]["peak_pressure_pa"]) != float(rows[1]["peak_pressure_pa"])
+
+
+def test_the_fmu_offers_the_elastic_boom_s_parameters():
+    """The FMU's parameters are the solvers' plant parameters: the elastic boom's among them
+    (set through FMI as any other; docs/fmu.md)."""
+    from boom_hydraulics.fmu import interface
+
+    names = {v.name: v for v in interface.PARAMETERS}
+    assert names["boom_bending_stiffness_n_m2"].unit == "N m^2" and "boom_damping_ratio" in names
