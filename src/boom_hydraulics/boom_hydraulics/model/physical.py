@@ -437,18 +437,20 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     opening = larger(abs(u), abs(y[4]))  # the spool moves between its position and the command
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
-    # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate
-    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, stiff1, stiff2, dt, c, xp)
+    k = lever_rad_per_m(q1, c.a, c.b, xp)
+    # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
+    m = boom_masses(c)
+    mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
+    # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate (with the elastic
+    # boom's light root at the rod against a spring of its own; none off)
+    light = mass + (1.0 - c.boom_on) * 1e300
+    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, stiff1, stiff2, dt, c, xp, light)
     # a relief valve counts where the chamber's pressure can reach it within this step
     inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
     chamber1 = stiff1 * (g_a + c.g_relief * relief_near1)
     chamber2 = stiff2 * (g_b + c.g_relief * relief_near2)
-    k = lever_rad_per_m(q1, c.a, c.b, xp)
-    # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
-    m = boom_masses(c)
-    mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
     contact = (q1 < c.q_min + reach) | (q1 > c.q_max - reach)
     penetration = pos(c.q_min - q1) + pos(q1 - c.q_max) + reach
