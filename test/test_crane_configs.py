@@ -95,9 +95,11 @@ def test_the_loader_cycle_lifts_the_tonne_and_puts_it_down_with_every_drive(cran
     # boom has settled; the payload dropped off the hook at once (a step of 9.8 kN at the tip) may
     # pull p1 to vapour for a moment, and the load-sensing pump, lagging behind the lowering
     # command, lets the rod chamber starve for a few hundredths of a second (docs/loader-crane.md)
+    # (the elastic boom rings after the release, and load sensing's p1 touches vapour in its swings
+    # for about a second: docs/loader-crane.md)
     cavitation = out["cavitation"].astype(bool)
     assert not cavitation[(t < release) | (t > release + 0.5)].any() or drive == "load_sensing"
-    assert not cavitation[(t < lower) | (t > release + 0.5)].any()
+    assert not cavitation[(t < lower) | (t > release + (1.2 if drive == "load_sensing" else 0.5))].any()
     assert cavitation[t < release].sum() * (t[1] - t[0]) < 0.1
     integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
     assert ledger.energies_of(integrals)["imbalance_ratio"] < 0.005

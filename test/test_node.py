@@ -433,7 +433,10 @@ def test_recording_holds_every_published_and_received_message(nodes, client, tmp
             if connection.topic == "/drive_state":  # logged when published, stamped with its instant
                 stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
                 assert stamp - 1_000_000 <= timestamp, (stamp, timestamp)
-    per_tick = {counts[t] for t in ("/drive_state", "/joint_states", "/piston_pressure", "/rod_pressure", "/rod_force")}
+    per_tick = {
+        counts[t]
+        for t in ("/drive_state", "/joint_states", "/piston_pressure", "/rod_pressure", "/rod_force", "/hinge_wrench")
+    }
     assert len(per_tick) == 1 and per_tick.pop() > 100
     # every command the node received, once, in order: a best-effort subscription (sensor data
     # QoS) may lose some on a loaded machine before the node takes them, never after

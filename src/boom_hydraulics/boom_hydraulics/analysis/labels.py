@@ -43,6 +43,7 @@ TERM_WORDS: dict[str, str] = {
     "accumulator_loss": "accumulator orifice",
     "gas_power": "accumulator gas (net)",
     "line_loss": "hose friction",
+    "structural_loss": "structural damping of the boom",
 }
 
 #: Sweep columns that are not parameters, in words.

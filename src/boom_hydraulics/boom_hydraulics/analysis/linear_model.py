@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 #: The states of the linear model: the physical model's states that act on the dynamics, then
 #: those of the drive (:func:`states_of`: a drive whose supply stands still adds none) and of the
-#: model elements that are on (the accumulator's).
+#: model elements that are on (the accumulator's, the hoses', the elastic boom's).
 STATES: tuple[int, ...] = tuple(
     i
     for i, kind in enumerate(MODEL.STATE_SCALES)
@@ -52,7 +52,7 @@ STATE_UNITS = {"q1": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "x_v": "1", "brist
 def states_of(p: Parameters) -> tuple[int, ...]:
     """The model states of the linear model of ``p``: :data:`STATES`, the drive's own (its
     ``STATE_NAMES``) unless its supply stands still (``STEADY_SUPPLY``), then the model elements'
-    that are on (physical.element_states: an accumulator's fill, the hoses')."""
+    that are on (physical.element_states: an accumulator's fill, the hoses', the elastic boom's)."""
     drive = DRIVES[p.drive]
     own = () if drive.STEADY_SUPPLY else MODEL.DRIVE_STATES[: len(drive.STATE_NAMES)]
     return STATES + own + MODEL.element_states(p)

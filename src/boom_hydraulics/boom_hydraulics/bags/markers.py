@@ -88,6 +88,8 @@ class CraneMarkers:
         (:func:`..model.kinematics.chain` of its rod length), in the order they are published."""
         p, d, o, a = self.params, self._drawing, self._pivot, self._base
         tip = along_boom_xz(p, c.boom_rad, p.boom_length_m)
+        bent = float(out.get("boom_deflection", 0.0))  # the elastic boom's tip, normal to the boom
+        tip = (tip[0] - bent * math.sin(c.boom_rad), tip[1] + bent * math.cos(c.boom_rad))
         ux, uz = math.cos(c.barrel_rad), math.sin(c.barrel_rad)
         rod_start = c.rod_m - d.rod_length
         eye = (a[0] + c.rod_m * ux, a[1] + c.rod_m * uz)

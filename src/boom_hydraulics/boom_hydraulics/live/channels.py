@@ -45,13 +45,14 @@ JOINTS = Outlet("/joint_states", JOINT_STATE)
 PISTON = Outlet("/piston_pressure", FLUID_PRESSURE)
 ROD = Outlet("/rod_pressure", FLUID_PRESSURE)
 FORCE = Outlet("/rod_force", "geometry_msgs/msg/WrenchStamped")
+HINGE = Outlet("/hinge_wrench", "geometry_msgs/msg/WrenchStamped")
 MARKERS = Outlet(f"{NODE}/markers", "visualization_msgs/msg/MarkerArray")
 SETPOINT = Outlet(f"{NODE}/setpoint", JOINT_STATE)
 DESCRIPTION = Outlet("/robot_description", "std_msgs/msg/String", latched=True)
 DIAGNOSTICS = Outlet("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
 TF = Outlet("/tf", TF_MESSAGE, recorded=False)
 TF_STATIC = Outlet("/tf_static", TF_MESSAGE, latched=True, recorded=False)
-OUTLETS = (DRIVE, JOINTS, PISTON, ROD, FORCE, MARKERS, SETPOINT, DESCRIPTION, DIAGNOSTICS, TF, TF_STATIC)
+OUTLETS = (DRIVE, JOINTS, PISTON, ROD, FORCE, HINGE, MARKERS, SETPOINT, DESCRIPTION, DIAGNOSTICS, TF, TF_STATIC)
 
 
 def schema_text(msgtype: str) -> str:

@@ -29,12 +29,25 @@ from ..bags.encoding import message, setpoint_cdr, to_cdr
 from ..errors import ConfigError, SimulationError
 from ..model.geometry import outside_stroke
 from ..model.parameters import Parameters
-from ..model.robot_description import JOINTS, urdf
+from ..model.robot_description import JOINTS, TIP_JOINT, urdf
 from ..model.setpoints import move
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from . import parameters as live_parameters
-from .channels import DESCRIPTION, DIAGNOSTICS, DRIVE, FORCE, MARKERS, PISTON, ROD, SETPOINT, TF, TF_STATIC, Outlet
+from .channels import (
+    DESCRIPTION,
+    DIAGNOSTICS,
+    DRIVE,
+    FORCE,
+    HINGE,
+    MARKERS,
+    PISTON,
+    ROD,
+    SETPOINT,
+    TF,
+    TF_STATIC,
+    Outlet,
+)
 from .channels import JOINTS as JOINT_STATES
 from .clock import LiveClock
 from .frames import Joint, joints, moving_frames, static_frames
@@ -42,7 +55,7 @@ from .recording import LiveRecording
 from .steering import Steer
 
 #: The state topics in the order of :func:`~..bags.messages.state_messages` (the markers after them).
-STATE_OUTLETS = (DRIVE, JOINT_STATES, PISTON, ROD, FORCE)
+STATE_OUTLETS = (DRIVE, JOINT_STATES, PISTON, ROD, FORCE, HINGE)
 MARKERS_HZ = 20.0  # as the node: markers are for eyes, not for control
 DIAGNOSTICS_PERIOD_S = 1.0  # wall time, as the node's timer
 NOTICE_PERIOD_S = 1.0  # the same notice goes to stderr at most this often
@@ -152,7 +165,9 @@ class LiveRun:
         if self.drive.followed is not None:  # the controller drove in this tick: its setpoint now
             tick.append((SETPOINT, setpoint_cdr(JOINTS[0], *self.drive.followed.at(self.sim.t), stamp_ns)))
         c = messages.joints(values)
-        tick.append((TF, moving_frames(self._joints, dict(zip(JOINTS, (c.boom_rad, c.barrel_rad, c.rod_m))), stamp_ns)))
+        at = dict(zip(JOINTS, (c.boom_rad, c.barrel_rad, c.rod_m)))
+        at[TIP_JOINT] = values[messages.AT["boom_deflection"]]  # the elastic boom's tip (a moving joint where it is on)
+        tick.append((TF, moving_frames(self._joints, at, stamp_ns)))
         return tick
 
     def publish_state(self) -> None:

@@ -71,6 +71,7 @@ TERMS: tuple[tuple[str, str, str, str], ...] = (
     ("accumulator_loss", "W", "loss", "throttling in the accumulator's connecting orifice"),
     ("gas_power", "W", "stored", "rate of the accumulator gas's energy: polytropic work from its pre-charge"),
     ("line_loss", "W", "loss", "the hoses' friction between the drive's ports and the chambers (eq. H6)"),
+    ("structural_loss", "W", "loss", "structural damping of the elastic boom's bending mode"),
 )
 TERM_NAMES = tuple(name for name, _, _, _ in TERMS)
 #: The terms that supply energy; every other term takes it.
@@ -102,6 +103,7 @@ class Ledger(NamedTuple):
     accumulator_loss: Num
     gas_power: Num
     line_loss: Num
+    structural_loss: Num
 
 
 assert Ledger._fields == TERM_NAMES, "TERMS and Ledger must name the same terms in one order"
@@ -227,11 +229,13 @@ def assemble(
     gas_power: Num,
     hose_oil_work: Num,
     hose_loss: Num,
+    structural_loss: Num,
 ) -> Ledger:
     """The whole ledger from its links (eq. D29): the electric chain, the drive (its pump,
     valve or checks, relief and line), the hoses (what their oil takes in and their friction,
-    eq. H6; 0 without hoses), the cylinder and the accumulator (its orifice's throttling and
-    its gas's rate, eq. A6; 0 without one)."""
+    eq. H6; 0 without hoses), the cylinder, the accumulator (its orifice's throttling and
+    its gas's rate, eq. A6; 0 without one) and the elastic boom's structural damping
+    (docs/model.md, "Elastic boom"; 0 for a rigid boom)."""
     return Ledger(
         chain.battery_power,
         s.reservoir_power,
@@ -255,6 +259,7 @@ def assemble(
         accumulator_loss,
         gas_power,
         hose_loss,
+        structural_loss,
     )
 
 
@@ -285,6 +290,7 @@ def residual_w(ledger: Ledger) -> Num:
         - ledger.accumulator_loss
         - ledger.gas_power
         - ledger.line_loss
+        - ledger.structural_loss
     )
 
 
@@ -324,6 +330,7 @@ def integral_rates(ledger: Ledger) -> tuple:
         ledger.accumulator_loss,
         ledger.gas_power,
         ledger.line_loss,
+        ledger.structural_loss,
         pos(ledger.potential_power),
     )
 

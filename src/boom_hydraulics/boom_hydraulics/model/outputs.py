@@ -50,6 +50,18 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     *LEDGER_OUTPUTS,
     ("void1", "m^3", "void (gas and vapour) volume in the piston chamber while it cavitates"),
     ("void2", "m^3", "void volume in the rod chamber while it cavitates"),
+    ("boom_deflection", "m", "elastic boom: the tip's deflection normal to the boom, up positive (0: rigid)"),
+    ("boom_deflection_rate", "m/s", "elastic boom: the tip deflection's rate"),
+    (
+        "hinge_force_x",
+        "N",
+        "force of the hinge pin on the boom at its pivot O, along the boom to the tip (0 in paper mode)",
+    ),
+    (
+        "hinge_force_z",
+        "N",
+        "force of the hinge pin on the boom at O, normal to the boom, up at alpha = 0 (0 in paper mode)",
+    ),
     ("at_end_stop", "bool", "rod against an end stop"),
     ("cavitation", "bool", "a chamber at the cavitation floor"),
     ("relief_open", "bool", "a relief valve passes flow"),

@@ -216,8 +216,13 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         zero + math.nan,  # accumulator_loss_j
         zero + math.nan,  # gas_power_j
         zero + math.nan,  # line_loss_j
+        zero + math.nan,  # structural_loss_j
         zero,  # void1
         zero,  # void2
+        zero,  # boom_deflection: a rigid boom
+        zero,  # boom_deflection_rate
+        zero,  # hinge_force_x: not modelled in paper mode
+        zero,  # hinge_force_z
         1.0 * (zero != zero),  # at_end_stop
         1.0 * (y[2] < 0.0),  # cavitation
         1.0 * (zero != zero),  # relief_open

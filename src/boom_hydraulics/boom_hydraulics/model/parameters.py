@@ -186,6 +186,27 @@ class Parameters:
         high=1.0e7,
     )
 
+    # --- elastic boom (docs/model.md, "Elastic boom") --------------------------------------
+    boom_bending_stiffness_n_m2: float = _plant(
+        0.0,
+        "N m^2",
+        "EI: the boom's bending stiffness in the lifting plane, for its first bending mode (a cantilever from the "
+        "hinge with the payload at the tip); 0: a rigid boom (off). Steel E = 210 GPa (Roark's Formulas for Stress "
+        "and Strain, table of elastic constants) times the section's I, for a box (B H^3 - (B - 2t)(H - 2t)^3) / 12",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0e12,
+    )
+    boom_damping_ratio: float = _plant(
+        0.02,
+        "",
+        "zeta: structural damping ratio of the boom's bending mode (with boom_bending_stiffness_n_m2 > 0): welded "
+        "steel at working stress 2-3 % (Newmark and Hall, in Chopra, Dynamics of Structures, Table 11.2.1)",
+        low=0.0,
+        low_inclusive=True,
+        high=1.0,
+    )
+
     # --- cylinder ------------------------------------------------------------------------
     piston_diameter_m: float = _plant(0.04, "m", "D: piston diameter (S1 = pi D^2 / 4)", low=0.0, high=1.0)
     rod_diameter_m: float = _plant(

@@ -29,7 +29,7 @@ from types import ModuleType
 from typing import Any, NamedTuple
 
 from ..jit import jitable
-from . import accumulator, drives, hoses
+from . import accumulator, drives, elastic_boom, hoses
 from .drives.constants import DriveConstants, Supply, in_use
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
@@ -42,6 +42,7 @@ from .geometry import (
     piston_area_m2,
     sin_boom_angle,
     static_rod_force_of,
+    xi,
 )
 from .hydraulics import (
     chamber_pressure_pa,
@@ -52,7 +53,7 @@ from .hydraulics import (
     relief_flow,
     void_volume_m3,
 )
-from .ledger import INTEGRALS, Ledger, assemble, cylinder_side, electric_chain, integral_rates
+from .ledger import INTEGRALS, Cylinder, Ledger, assemble, cylinder_side, electric_chain, integral_rates
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
 from .parameters import Parameters
@@ -75,6 +76,8 @@ STATE_NAMES = (
     "drive_state_3",
     "accumulator_fill",
     *hoses.STATE_NAMES,
+    "boom_deflection",  # eta: the elastic boom's tip deflection, m (docs/model.md, "Elastic boom")
+    "boom_deflection_rate",  # eta', m/s
     *INTEGRALS,
 )
 STATE_SCALES = (
@@ -82,6 +85,7 @@ STATE_SCALES = (
     *("pressure", "angular_velocity", "unit"),
     "unit",
     *hoses.STATE_SCALES,
+    *("length", "velocity"),
     *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
@@ -96,15 +100,24 @@ ACCUMULATOR_STATE = STATE_NAMES.index("accumulator_fill")
 HOSE_STATE = STATE_NAMES.index(hoses.STATE_NAMES[0])
 HOSE_STATES = tuple(range(HOSE_STATE, HOSE_STATE + len(hoses.STATE_NAMES)))
 _HA, _HB, _N = HOSE_STATE, HOSE_STATE + hoses.LINE_B, hoses.SEGMENTS
+#: Indices of the elastic boom's states: its tip deflection eta and its rate (elastic_boom).
+BOOM_STATE = STATE_NAMES.index("boom_deflection")
+BOOM_STATES = (BOOM_STATE, BOOM_STATE + 1)
 #: The units of the model elements' states (a linear model's columns).
-ELEMENT_UNITS = {ACCUMULATOR_STATE: "1", **dict(zip(HOSE_STATES, hoses.STATE_UNITS))}
+ELEMENT_UNITS = {
+    ACCUMULATOR_STATE: "1",
+    **dict(zip(HOSE_STATES, hoses.STATE_UNITS)),
+    **dict(zip(BOOM_STATES, ("m", "m/s"))),
+}
 
 
 def element_states(p: Parameters) -> tuple[int, ...]:
     """The states of the model elements ``p`` switches on (the others stand still): the
-    accumulator's fill (model/accumulator.py), the hoses' (model/hoses.py)."""
+    accumulator's fill (model/accumulator.py), the hoses' (model/hoses.py), the elastic boom's
+    (model/elastic_boom.py)."""
     accumulator_on = (ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
-    return accumulator_on + (HOSE_STATES if p.hose_length_m > 0.0 else ())
+    hoses_on = HOSE_STATES if p.hose_length_m > 0.0 else ()
+    return accumulator_on + hoses_on + (BOOM_STATES if p.boom_bending_stiffness_n_m2 > 0.0 else ())
 
 
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
@@ -146,6 +159,13 @@ BODY_FIELDS = (
     "payload_inertia",  # the payload's share of inertia, mb L1^2, kg m^2 (eq. 8; with_payload)
     "payload_weight",  # the payload's share of weight_coeff, mb L1 g, N m
     *hoses.HoseConstants._fields,  # the hoses (model/hoses.py; hose_on 0: none)
+    # the elastic boom (docs/model.md, "Elastic boom"; elastic_boom): 1.0 on (EI > 0), 0.0 off
+    "boom_on",
+    "boom_stiffness",  # k_eta = 3 EI / L1^3, N/m (eq. E3)
+    "boom_damping_ratio",  # zeta
+    "boom_mass",  # m1, kg
+    "boom_length",  # L1, m
+    "gravity",  # g, m/s^2
     # the accumulator (model/accumulator.py, docs/model.md "Accumulator"): all 0 without one, its size 1
     "acc_on",  # 1.0 with an accumulator, 0.0 without
     "acc_piston",  # 1.0 on the piston-side line
@@ -191,6 +211,7 @@ def constants(p: Parameters) -> Constants:
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
         *hose,
+        *_boom_constants(p),
     )
     on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
     piston = on if p.accumulator_position == "piston" else 0.0
@@ -213,9 +234,37 @@ def constants(p: Parameters) -> Constants:
 
 
 @jitable
+def _boom_constants(p: Parameters) -> tuple:
+    """The elastic boom's constants (eq. E3), in the order of BODY_FIELDS from ``boom_on``."""
+    on = 1.0 if p.boom_bending_stiffness_n_m2 > 0.0 else 0.0
+    stiffness = elastic_boom.modal_stiffness_n_m(p.boom_bending_stiffness_n_m2, p.boom_length_m)
+    return (on, stiffness, p.boom_damping_ratio, p.boom_mass_kg, p.boom_length_m, p.gravity_m_s2)
+
+
+class BoomMasses(NamedTuple):
+    """The elastic boom's masses with the payload now on the hook (eq. E3; elastic_boom.modal_masses)."""
+
+    coupling: Num  # m_c, kg m (0 off)
+    modal: Num  # m_eta, kg
+    participation: Num  # S, kg (0 off)
+    payload: Num  # the payload on the hook, kg
+
+
+@jitable
+def boom_masses(c: Constants) -> BoomMasses:
+    """:class:`BoomMasses` of the constants ``c``: the payload on the hook is what J holds beside
+    the boom's m1 L1^2 / 3 (eq. 8), so that with_payload's share carries over."""
+    length2 = c.boom_length * c.boom_length
+    payload = (c.inertia - c.boom_mass * length2 / 3.0) / length2  # eq. 8
+    coupling, modal, participation = elastic_boom.modal_masses(c.boom_mass, payload, c.boom_length)
+    return BoomMasses(c.boom_on * coupling, modal, c.boom_on * participation, payload)
+
+
+@jitable
 def with_payload(c: Constants, share: Num) -> Constants:
     """The constants ``c`` (of the whole payload_mass_kg) with ``share`` of the payload on the
-    hook (0: released): its inertia and weight scaled (eq. 8, 9), the rest unchanged."""
+    hook (0: released): its inertia and weight scaled (eq. 8, 9; the elastic boom's masses
+    follow J, see :func:`boom_masses`), the rest unchanged."""
     off = 1.0 - share
     return Constants(*c[:3], c.inertia - off * c.payload_inertia, c.weight_coeff - off * c.payload_weight, *c[5:])
 
@@ -245,8 +294,9 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     if p.accumulator_gas_volume_m3 > 0.0:
         fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
     lines = [p1] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS + [p2] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS  # at rest
+    eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
     body = [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], fill]
-    return body + lines + [0.0] * len(INTEGRALS)
+    return body + lines + [eta, 0.0] + [0.0] * len(INTEGRALS)
 
 
 class Terms(NamedTuple):
@@ -279,6 +329,10 @@ class Terms(NamedTuple):
     acc_line: Num  # its line's pressure, Pa
     hose_a: hoses.Line  # the hose from port A to the piston chamber (its rates 0 without hoses)
     hose_b: hoses.Line  # from port B to the rod chamber
+    f_rod: Num  # every force on the rod but the boom's, N (eq. 11)
+    sin_alpha: Num
+    boom_acc: Num  # eta'', the elastic boom's, m/s^2 (eq. E6)
+    boom_damping: Num  # c_eta, N s/m (eq. E5)
 
 
 @jitable
@@ -354,12 +408,22 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     dk = lever_derivative(q1, c.a, c.b, xp)
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
+    # the elastic boom's mode (elastic_boom, eq. E4-E7): 0 and the rod's acceleration untouched when off
+    sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
+    m = boom_masses(c)
+    damping = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+    boom_acc, extra = elastic_boom.accelerations(
+        *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, y[BOOM_STATE], y[BOOM_STATE + 1]),
+        *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
+    )
+    acc = acc + extra
     # all not delivered to a chamber (or to an accumulator on the piston-side line)
     loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
     loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
         *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line, hose_a, hose_b),
+        *(f_rod, sin_alpha, boom_acc, damping),
     )
 
 
@@ -388,6 +452,18 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
         + c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))  # eq. H6
+        + _boom_energy(y, c, k * v, xp)  # the elastic boom's mode (eq. E1, E2)
+    )
+
+
+@jitable
+def _boom_energy(y: list, c: Constants, alpha_rate: Num, xp: ModuleType) -> Num:
+    """The elastic boom's share of H: the mode's kinetic and potential energy (eq. E1, E2), J; 0 off."""
+    eta, eta_rate = y[BOOM_STATE], y[BOOM_STATE + 1]
+    cos_alpha = cos_boom_angle(y[0], c.a, c.b, c.h, xp)
+    m = boom_masses(c)
+    return elastic_boom.kinetic_energy_j(alpha_rate, eta_rate, m.coupling, m.modal) + elastic_boom.potential_energy_j(
+        eta, cos_alpha, m.participation * c.gravity, c.boom_stiffness
     )
 
 
@@ -418,6 +494,26 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + drives.energy_rate(drive_states(y), t.supply, c)
         + (t.acc_gas - c.p_tank) * t.acc_flow  # the accumulator's gas (eq. A5, A6)
         + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
+        + _boom_kinetic_power(y, t, c)
+        + _boom_potential_power(y, t, c)
+    )
+
+
+@jitable
+def _boom_kinetic_power(y: list, t: Terms, c: Constants) -> Num:
+    """d/dt of the elastic boom's kinetic energy (eq. E1), W; 0 off."""
+    v = y[1]
+    alpha_acc = t.lever * t.acc + t.lever_slope * v * v
+    m = boom_masses(c)
+    return elastic_boom.kinetic_power_w(t.lever * v, alpha_acc, y[BOOM_STATE + 1], t.boom_acc, m.coupling, m.modal)
+
+
+@jitable
+def _boom_potential_power(y: list, t: Terms, c: Constants) -> Num:
+    """d/dt of the elastic boom's potential energy (eq. E2), W; 0 off."""
+    weight = boom_masses(c).participation * c.gravity
+    return elastic_boom.potential_power_w(
+        t.lever * y[1], y[BOOM_STATE], y[BOOM_STATE + 1], t.sin_alpha, t.cos_alpha, weight, c.boom_stiffness
     )
 
 
@@ -444,6 +540,8 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         accumulator.fill_rate_1_s(terms.acc_flow, c.acc_size),  # eq. A2
         *_hose_rates(terms.hose_a, c.hose_on),
         *_hose_rates(terms.hose_b, c.hose_on),
+        y[BOOM_STATE + 1],
+        terms.boom_acc,
         *integral_rates(_ledger_of(y, c, terms, xp)),
     )
 
@@ -473,16 +571,20 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     port = c.hose_on * hoses.port_stiffness(c)
     port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
     waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
-    # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate
-    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, port1, port2, dt, c, xp)
+    k = lever_rad_per_m(q1, c.a, c.b, xp)
+    # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
+    m = boom_masses(c)
+    mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
+    # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate (with the elastic
+    # boom's light root at the rod against a spring of its own; none off)
+    light = mass + (1.0 - c.boom_on) * 1e300
+    g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, port1, port2, dt, c, xp, light)
     # a relief valve counts where the chamber's pressure can reach it within this step
     inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
     chamber1 = stiff1 * (g_a + c.g_relief * relief_near1) + c.hose_on * (port1 - stiff1) * g_a  # the port node's
     chamber2 = stiff2 * (g_b + c.g_relief * relief_near2) + c.hose_on * (port2 - stiff2) * g_b
-    k = lever_rad_per_m(q1, c.a, c.b, xp)
-    mass = c.inertia * k * k  # the boom's inertia at the rod
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
     contact = (q1 < c.q_min + reach) | (q1 > c.q_max - reach)
     penetration = pos(c.q_min - q1) + pos(q1 - c.q_max) + reach
@@ -505,6 +607,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
         acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
         rate = larger(rate, c.acc_on * acc)
     rate = larger(rate, waves)
+    # the elastic boom's mode, beside the oil springs against the boom with the mode free (0 off)
+    damping_boom = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+    boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, damping_boom, xp)
+    rate = larger(rate, xp.sqrt(stiffness / mass) + boom)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -563,8 +669,12 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_RETURNED + 19],  # accumulator_loss_j
         y[BATTERY_RETURNED + 20],  # gas_power_j
         y[BATTERY_RETURNED + 21],  # line_loss_j
+        y[BATTERY_RETURNED + 22],  # structural_loss_j
         void1,  # void1
         void2,  # void2
+        y[BOOM_STATE],  # boom_deflection
+        y[BOOM_STATE + 1],  # boom_deflection_rate
+        *_hinge_force(y, c, terms, xp),  # hinge_force_x, hinge_force_z
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
         1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
@@ -607,6 +717,21 @@ def ledger(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> Le
     return _ledger_of(y, c, _terms(y, c, u, xp), xp)
 
 
+@jitable
+def _hinge_force(y: list, c: Constants, t: Terms, xp: ModuleType) -> tuple:
+    """The hinge pin's force on the boom at O in the boom's frame (elastic_boom.hinge_force_n, eq. E8), N."""
+    q1, v = y[0], y[1]
+    m = boom_masses(c)
+    x = xi(q1, c.a, c.b)
+    rod_axial = (c.a - c.b * x) / q1  # the rod's direction, base A to eye K, in the boom's frame (eq. 1)
+    rod_normal = c.b * xp.sqrt(1.0 - x * x) / q1
+    return elastic_boom.hinge_force_n(
+        *(t.lever * v, t.lever * t.acc + t.lever_slope * v * v, y[BOOM_STATE], y[BOOM_STATE + 1], t.boom_acc),
+        *(t.sin_alpha, t.cos_alpha, t.f_rod, rod_axial, rod_normal, c.boom_mass + m.payload),
+        *(c.weight_coeff / c.gravity, m.participation, c.gravity),
+    )
+
+
 @jitable(inline="always")
 def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     """:func:`ledger` from the terms of the evaluation at ``y``."""
@@ -635,12 +760,18 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         c.p_ambient,
         c.f_external,
     )  # eq. D28
+    boom = Cylinder(
+        *cylinder[:6],
+        cylinder.kinetic_power + _boom_kinetic_power(y, terms, c),
+        cylinder.potential_power + _boom_potential_power(y, terms, c),
+    )  # the elastic boom's mode (eq. E1, E2), 0 off
+    structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
     hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6
     hose_loss = c.hose_on * (terms.hose_a.loss + terms.hose_b.loss)
     chain = electric_chain(terms.supply, c, xp)
-    return assemble(chain, terms.supply, cylinder, acc_loss, gas_power, hose_oil, hose_loss)  # eq. D26, D29
+    return assemble(chain, terms.supply, boom, acc_loss, gas_power, hose_oil, hose_loss, structural)  # eq. D26, D29
 
 
 def observe(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> dict[str, Num]:

@@ -4,6 +4,8 @@ The closed chain is cut open into a tree (see :mod:`kinematics`):
 
     base_link (column foot)
     ├── boom_joint (revolute at O, axis -y)          -> boom ── boom_tip -> payload
+    │     (boom_tip_joint: fixed; prismatic along the boom's z with the elastic boom on, its
+    │      value the tip's deflection, docs/model.md "Elastic boom")
     │                                                        └─ boom_rod_mount (K, fixed)
     └── cylinder_barrel_joint (revolute at A, axis -y) -> cylinder_barrel
         └── cylinder_joint (prismatic along x, q1)       -> cylinder_rod ── rod_eye (fixed)
@@ -30,6 +32,9 @@ from .kinematics import base_xz, chain, pivot_height_m
 ROBOT_NAME = "boom_crane"
 BASE_FRAME = "base_link"
 JOINTS = ("boom_joint", "cylinder_barrel_joint", "cylinder_joint")
+#: The boom tip's joint: prismatic along the boom's z where the elastic boom is on (joint_states
+#: then names it after :data:`JOINTS`, its value the tip's deflection, m), else fixed.
+TIP_JOINT = "boom_tip_joint"
 #: ros2_control's hardware interface for JointState topics (package
 #: joint_state_topic_hardware_interface of ros-controls/topic_based_hardware_interfaces).
 HARDWARE_PLUGIN = "joint_state_topic_hardware_interface/JointStateTopicSystem"
@@ -89,8 +94,21 @@ def _link(name: str, body: str = "", mass_kg: float = 0.0, com_xyz: str = "0 0 0
     return f'  <link name="{name}">\n{body}{inertial}  </link>\n'
 
 
-def _joint(name: str, kind: str, parent: str, child: str, xyz: str, limits: tuple[float, float] | None = None) -> str:
-    axis = {"revolute": "0 -1 0", "prismatic": "1 0 0"}.get(kind)
+def elastic(p: Any) -> bool:
+    """Whether Parameters ``p`` have the elastic boom on (its tip a moving joint, :data:`TIP_JOINT`)."""
+    return p.boom_bending_stiffness_n_m2 > 0.0
+
+
+def _joint(
+    name: str,
+    kind: str,
+    parent: str,
+    child: str,
+    xyz: str,
+    limits: tuple[float, float] | None = None,
+    axis: str | None = None,
+) -> str:
+    axis = axis or {"revolute": "0 -1 0", "prismatic": "1 0 0"}.get(kind)
     text = f'  <joint name="{name}" type="{kind}">\n    <parent link="{parent}"/>\n    <child link="{child}"/>\n'
     text += f'    <origin xyz="{xyz}" rpy="0 0 0"/>\n'
     if axis:
@@ -163,7 +181,17 @@ def urdf(p: Any, commands_topic: str = JOINT_COMMANDS_TOPIC, states_topic: str =
             p.boom_mass_kg,
             _xyz(p.boom_length_m / 2),
         ),
-        _joint("boom_tip_joint", "fixed", "boom", "boom_tip", _xyz(p.boom_length_m)),
+        _joint(TIP_JOINT, "fixed", "boom", "boom_tip", _xyz(p.boom_length_m))
+        if not elastic(p)
+        else _joint(
+            TIP_JOINT,
+            "prismatic",
+            "boom",
+            "boom_tip",
+            _xyz(p.boom_length_m),
+            (-0.2 * p.boom_length_m, 0.2 * p.boom_length_m),
+            "0 0 1",
+        ),
         _link("boom_tip"),
         _joint("payload_joint", "fixed", "boom_tip", "payload", _xyz(0, 0, -payload_radius)),
         _link(

@@ -138,6 +138,7 @@ class BoomSimNode(Node):
         self.p1_pub = self.create_publisher(FluidPressure, "piston_pressure", state_qos)
         self.p2_pub = self.create_publisher(FluidPressure, "rod_pressure", state_qos)
         self.force_pub = self.create_publisher(WrenchStamped, "rod_force", state_qos)
+        self.hinge_pub = self.create_publisher(WrenchStamped, "hinge_wrench", state_qos)
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
         self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
         self.energy_pub = self.create_publisher(EnergyLedger, "~/energy", state_qos)
@@ -158,7 +159,17 @@ class BoomSimNode(Node):
         self._ticks = 0
         self._messages = messages.TickMessages(self.sim.params)
         # in the order TickMessages.state packs them
-        self._state_pubs = (self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.markers_pub)
+        self._state_pubs = (
+            *(
+                self.state_pub,
+                self.joint_pub,
+                self.p1_pub,
+                self.p2_pub,
+                self.force_pub,
+                self.hinge_pub,
+                self.markers_pub,
+            ),
+        )
         self._description_due = False  # a parameter change asks for robot_description again
         self._checked: Any = None  # the model parameters on_set checked, for post_set to apply
         self._undeclared_refusal: str | None = None  # before_set's refusal of a name not declared, for on_set
@@ -282,7 +293,7 @@ class BoomSimNode(Node):
 
     def _begin_recording(self) -> None:
         """Open the bag, if asked for, at the time origin: every topic this node publishes."""
-        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.diag_pub]
+        pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.hinge_pub, self.diag_pub]
         pubs += [self.markers_pub, self.setpoint_pub, self.energy_pub, self.events_pub]
         pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
         if self.recording.pending:

@@ -427,7 +427,7 @@ def usage() -> str:
         "(sensor_msgs/JointState: boom_joint's position and velocity, as ros2_control's JointState",
         "topic hardware interface sends them); serves the action ~/move_boom",
         "(boom_hydraulics_msgs/MoveBoom); publishes drive_state, joint_states, piston_pressure,",
-        "rod_pressure, rod_force, robot_description, ~/markers and /diagnostics.",
+        "rod_pressure, rod_force, hinge_wrench, robot_description, ~/markers and /diagnostics.",
         "With use_sim_time:=true (rclpy's standard parameter) it follows /clock.",
         "",
         "Node parameters (* = at start only; read_only once running):",

@@ -192,9 +192,20 @@ def _plus(a: tuple, w: Num, b: tuple) -> tuple:
 
 @jitable
 def stiffness(
-    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+    z: tuple,
+    u: Num,
+    opening: Num,
+    stiff1: Num,
+    stiff2: Num,
+    dt: float,
+    d: DriveConstants,
+    xp: ModuleType = math,
+    rod_mass_kg: Num = 1e300,
 ) -> tuple[Num, Num, Num]:
-    """(dQ/dp the drive gives line A, line B; its own fastest rate): each drive's ``stiffness``."""
+    """(dQ/dp the drive gives line A, line B; its own fastest rate): each drive's ``stiffness``.
+    ``rod_mass_kg``: the boom's inertia at the rod where it is light (the elastic boom's root,
+    docs/model.md "Elastic boom"; 1e300, none, by default), which a drive that holds the rod
+    with a spring of its own (electro_mechanical's screw) counts against it."""
     zero = 0.0 * stiff1
     g = (zero, zero, zero)
     w = uses(d, 0)
@@ -211,7 +222,7 @@ def stiffness(
         g = _plus(g, w, pump_controlled.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
     w = uses(d, 4)
     if in_use(w):
-        g = _plus(g, w, electro_mechanical.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp))
+        g = _plus(g, w, electro_mechanical.stiffness(z, u, opening, stiff1, stiff2, dt, d, xp, rod_mass_kg))
     return g
 
 

@@ -151,17 +151,27 @@ def energy_rate(z: tuple, s: Supply, d: DriveConstants) -> Num:
 
 @jitable
 def stiffness(
-    z: tuple, u: Num, opening: Num, stiff1: Num, stiff2: Num, dt: float, d: DriveConstants, xp: ModuleType = math
+    z: tuple,
+    u: Num,
+    opening: Num,
+    stiff1: Num,
+    stiff2: Num,
+    dt: float,
+    d: DriveConstants,
+    xp: ModuleType = math,
+    rod_mass_kg: Num = 1e300,
 ) -> tuple[Num, Num, Num]:
     """(dQ/dp into line A, line B: none, the housing only breathes; the fastest rate of its own
     states): the speed controller on the rotor, the rotor against the screw's spring and the
-    friction's bristle, the compliance's damping on the rotor, and the bristle's relaxation at
-    the speed the step may reach."""
+    friction's bristle, the compliance's damping on the rotor, the bristle's relaxation at
+    the speed the step may reach, and the screw's spring against ``rod_mass_kg`` (a light
+    boom's root at the rod: the elastic boom's; 1e300 by default, which adds nothing)."""
     r2 = d.ema_ratio * d.ema_ratio
     level = d.ema_brake_torque + d.ema_ratio * (abs(d.ema_friction_mean) + abs(d.ema_friction_skew)) * abs(z[0])
     spring = xp.sqrt((d.ema_stiffness * r2 + level / PRESLIDING_RAD) / d.ema_inertia)
     damping = (d.ema_damping * r2 + PRESLIDING_DAMPING_S * level / PRESLIDING_RAD) / d.ema_inertia
     speed = abs(z[1]) + abs(u) * d.speed
     own = d.ema_speed_gain / d.ema_inertia + spring + damping + speed / PRESLIDING_RAD
+    own = own + xp.sqrt(d.ema_stiffness / rod_mass_kg)  # the screw against a light boom at the rod
     zero = 0.0 * own
     return zero, zero, own
