@@ -115,9 +115,23 @@ def element_states(p: Parameters) -> tuple[int, ...]:
     """The states of the model elements ``p`` switches on (the others stand still): the
     accumulator's fill (model/accumulator.py), the hoses' (model/hoses.py), the elastic boom's
     (model/elastic_boom.py)."""
-    accumulator_on = (ACCUMULATOR_STATE,) if p.accumulator_gas_volume_m3 > 0.0 else ()
-    hoses_on = HOSE_STATES if p.hose_length_m > 0.0 else ()
+    accumulator_on = (ACCUMULATOR_STATE,) if accumulator_volume_m3(p) > 0.0 else ()
+    hoses_on = HOSE_STATES if hose_length_m(p) > 0.0 else ()
     return accumulator_on + hoses_on + (BOOM_STATES if p.boom_bending_stiffness_n_m2 > 0.0 else ())
+
+
+@jitable
+def accumulator_volume_m3(p: Parameters) -> float:
+    """The accumulator's size V0 in the model: ``p``'s, or 0 (none) with a drive without oil,
+    whose lines it would sit on (the electro-mechanical actuator)."""
+    return p.accumulator_gas_volume_m3 if drives.holds_oil(p.drive) else 0.0
+
+
+@jitable
+def hose_length_m(p: Parameters) -> float:
+    """The hoses' length in the model: ``p``'s, or 0 (none) with a drive without oil (the
+    electro-mechanical actuator has no lines)."""
+    return p.hose_length_m if drives.holds_oil(p.drive) else 0.0
 
 
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
@@ -192,7 +206,7 @@ def constants(p: Parameters) -> Constants:
     Each value that branches is computed before the call: numba compiles no keyword argument
     that branches."""
     hose = hoses.hose_constants(
-        *(p.hose_length_m, p.hose_inner_diameter_m, p.hose_wall_modulus_pa, p.oil_viscosity_m2_s),
+        *(hose_length_m(p), p.hose_inner_diameter_m, p.hose_wall_modulus_pa, p.oil_viscosity_m2_s),
         *(p.bulk_modulus_pa, p.density_kg_m3),
     )  # the hoses' oil leaves the dead volumes, which include it (eq. H1)
     lag = 1.0 if p.spool_time_constant_s > 0.0 else 0.0
@@ -213,9 +227,10 @@ def constants(p: Parameters) -> Constants:
         *hose,
         *_boom_constants(p),
     )
-    on = 1.0 if p.accumulator_gas_volume_m3 > 0.0 else 0.0
+    volume = accumulator_volume_m3(p)
+    on = 1.0 if volume > 0.0 else 0.0
     piston = on if p.accumulator_position == "piston" else 0.0
-    size = p.accumulator_gas_volume_m3 if on else 1.0  # (computed apart: numba builds no tuple around a branch)
+    size = volume if on else 1.0  # (computed apart: numba builds no tuple around a branch)
     k_acc = on * orifice_coefficient(
         p.discharge_coefficient, piston_area_m2(p.accumulator_orifice_diameter_m), p.density_kg_m3
     )
@@ -291,7 +306,7 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     # the accumulator holds its line's pressure (eq. A1): the piston chamber's, or the supply line's
     line = p1 if p.accumulator_position == "piston" else drives.node_pressure(z_d, d)
     fill = 0.0
-    if p.accumulator_gas_volume_m3 > 0.0:
+    if accumulator_volume_m3(p) > 0.0:
         fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
     lines = [p1] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS + [p2] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS  # at rest
     eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
