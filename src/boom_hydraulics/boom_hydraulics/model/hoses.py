@@ -30,8 +30,13 @@ Num = Any  # float or numpy.ndarray
 
 #: Segments per line: 2 N states per line (N node pressures, N flows), 4 N for both lines.
 SEGMENTS = 4
+assert SEGMENTS == 4, "line() and line_energy() are written out for four segments"
 #: The hoses' states: line A's node pressures (port first), its flows (port side first), then line B's.
-STATE_NAMES = tuple(f"hose_{line}_{kind}{k}" for line in ("a", "b") for kind in ("p", "q") for k in range(SEGMENTS))
+STATE_NAMES = tuple(
+    name
+    for line in ("a", "b")
+    for name in (*(f"hose_{line}_p{k}" for k in range(SEGMENTS)), *(f"hose_{line}_q{k + 1}" for k in range(SEGMENTS)))
+)
 STATE_SCALES = tuple(kind for _ in ("a", "b") for kind in ("pressure",) * SEGMENTS + ("flow",) * SEGMENTS)
 STATE_UNITS = tuple(unit for _ in ("a", "b") for unit in ("Pa",) * SEGMENTS + ("m^3/s",) * SEGMENTS)
 #: Where line B's states start among :data:`STATE_NAMES`.

@@ -224,7 +224,7 @@ def constants(p: Parameters) -> Constants:
         *(p.spring_free_length_m, p.end_stop_stiffness_n_m, p.end_stop_damping_n_s_m2, p.external_rod_force_n),
         boom_inertia_kgm2(0.0, p.payload_mass_kg, p.boom_length_m),
         p.payload_mass_kg * p.boom_length_m * p.gravity_m_s2,
-        *hose,
+        *hose[:],  # [:]: a plain tuple (numba joins no named tuple to one)
         *_boom_constants(p),
     )
     volume = accumulator_volume_m3(p)
