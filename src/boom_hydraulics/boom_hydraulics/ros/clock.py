@@ -82,6 +82,7 @@ class NodeClock:
         self.origin_shift_s = 0.0  # how far dropped backlogs moved the time origin of command stamps
         self.seen_s = 0.0  # the latest ROS time the loop saw (FOLLOWED)
         self.read_s = 0.0  # the ROS time the last :meth:`follow` read
+        self.taken_ns = 0  # the /clock the node's executor took last, after the commands before it (FOLLOWED)
 
     @property
     def follows(self) -> bool:
@@ -100,10 +101,22 @@ class NodeClock:
         """Simulated seconds per second of the clock followed: 1 on the ROS clock."""
         return 1.0 if self.follows else self.rtf
 
+    def take(self, clock_ns: int) -> None:
+        """A /clock message, as the node's executor takes it after the command topics' messages
+        of the same turn (its subscription is the node's last)."""
+        self.taken_ns = clock_ns
+
+    def followed_ns(self) -> int:
+        """FOLLOWED: the ROS clock as far as the node may step, ns: no further than the /clock its
+        executor has taken after the commands that came before it. On a starved node rclpy's
+        clock is the newest /clock while commands sent before it still wait their turn (one
+        message per topic per turn of the executor): stepping to it would pass their stamps."""
+        return min(self.ros_clock.now().nanoseconds, self.taken_ns)
+
     def pace_clock_s(self) -> float:
         """The clock simulated time follows: the ROS clock (FOLLOWED) or the steady clock."""
         if self.follows:
-            return self.ros_clock.now().nanoseconds * 1e-9
+            return self.followed_ns() * 1e-9
         return time.monotonic()
 
     def set_pace(self, rate_hz: float, real_time_factor: float, max_catch_up_s: float) -> None:
@@ -117,7 +130,7 @@ class NodeClock:
         resume, a new real-time factor and a jump back of the ROS clock."""
         self.pacer.restart(self.pace_clock_s(), self.sim.step_count)
         # command stamps are sim time when the node owns the clock, else ROS time mapped to sim time
-        now_ns = self.ros_clock.now().nanoseconds
+        now_ns = self.followed_ns() if self.follows else self.ros_clock.now().nanoseconds
         self.origin_ns = 0 if self.publishes else now_ns - round(self.sim.t * 1e9)
         self.seen_s = now_ns * 1e-9
 
@@ -129,7 +142,7 @@ class NodeClock:
 
     def follow(self) -> Follow:
         """FOLLOWED: whether the loop may step now, and what the ROS clock did."""
-        now = self.read_s = self.ros_clock.now().nanoseconds * 1e-9
+        now = self.read_s = self.followed_ns() * 1e-9
         if now <= 0.0:
             return Follow.WAIT
         if self.seen_s <= 0.0:

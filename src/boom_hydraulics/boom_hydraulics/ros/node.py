@@ -231,6 +231,12 @@ class BoomSimNode(Node):
             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
         )
 
+        if mode is ClockMode.FOLLOWED:
+            # the node's last subscription: in each turn of the executor the command topics' messages
+            # are taken before the /clock that came after them, and the loop steps no further (clock.followed_ns)
+            self.create_subscription(
+                Clock, "/clock", self.on_clock, QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+            )
         self.clock.restart()
         self.diag_timer = self.create_timer(1.0, self.on_second)
         self.loop = threading.Thread(target=self.run_loop, name="boom_sim_loop", daemon=True)
@@ -456,6 +462,11 @@ class BoomSimNode(Node):
         self._changed_at_ns = self.clock.sim_instant_ns()
 
     # --- commands -------------------------------------------------------------------------
+    @_locked
+    def on_clock(self, msg: Clock) -> None:
+        """/clock, taken after the commands that came before it (use_sim_time): how far the loop may step."""
+        self.clock.take(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+
     @_locked
     def on_command(self, data: bytes, info: dict) -> None:
         self.commands.on_valve_command(data, info)
