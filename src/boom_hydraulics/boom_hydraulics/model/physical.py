@@ -2,7 +2,8 @@
 
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
 s (seal bristle deflection / presliding displacement), W (J), |W| (J), the drive's states
-(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own),
+(drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own), the hoses' (hoses.STATE_NAMES:
+each line's node pressures and flows, their rates 0 without hoses),
 then the energy ledger's integrals (J, ledger.INTEGRALS: battery drawn and returned, every
 loss, work and stored term, and the lift's work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
@@ -28,7 +29,7 @@ from typing import Any, NamedTuple
 
 from ..jit import jitable
 from . import drives, hoses
-from .drives.constants import DriveConstants, Supply
+from .drives.constants import DriveConstants, Supply, in_use
 from .end_stops import end_stop_energy_j, end_stop_force_n
 from .friction import bristle_rate, seal_friction_n, stribeck_decay, stribeck_level
 from .geometry import (
@@ -81,7 +82,7 @@ assert len(DRIVE_STATES) == 3, "the drive's states are named above, three of the
 #: Index of the hoses' first state (hoses.STATE_NAMES: line A's, then line B's), and all of them.
 HOSE_STATE = STATE_NAMES.index(hoses.STATE_NAMES[0])
 HOSE_STATES = tuple(range(HOSE_STATE, HOSE_STATE + len(hoses.STATE_NAMES)))
-_HA, _HB, _N = HOSE_STATE, HOSE_STATE + hoses.LINE_B, hoses.SEGMENTS
+_HA, _HB = HOSE_STATE, HOSE_STATE + hoses.LINE_B
 #: Index of the first of the ledger's integrals (ledger.INTEGRALS, in its order).
 LEDGER_STATES = STATE_NAMES.index("battery_drawn")
 BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
@@ -257,19 +258,25 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     p1 = chamber_pressure_pa(y[2], c.p_cav)
     p2 = chamber_pressure_pa(y[3], c.p_cav)
     x = c.lag * x_v + (1.0 - c.lag) * u  # spool position seen by the flow paths
-    za, qa = hose_states(y, _HA)
-    zb, qb = hose_states(y, _HB)
     on = c.hose_on  # with hoses the drive sees its ports' pressures, the hoses' first nodes (eq. H4)
-    port_a = p1 + on * (chamber_pressure_pa(za[0], c.p_cav) - p1)
-    port_b = p2 + on * (chamber_pressure_pa(zb[0], c.p_cav) - p2)
+    port_a, port_b = p1, p2
+    if in_use(on):
+        port_a = p1 + on * (chamber_pressure_pa(y[_HA], c.p_cav) - p1)
+        port_b = p2 + on * (chamber_pressure_pa(y[_HB], c.p_cav) - p2)
     # the drive (model/drives, the set's ``drive``): its flows into the lines, its states' rates
     supply = drives.supply(drive_states(y), u, x, q1, v, port_a, port_b, c, xp)
-    hose_a = hoses.line(za, qa, supply.q_a, p1, c, c.p_cav, c.p_tank)  # eq. H4-H6
-    hose_b = hoses.line(zb, qb, supply.q_b, p2, c, c.p_cav, c.p_tank)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
-    q_in1 = supply.q_a + on * (hose_a.end_flow - supply.q_a) - q_r1  # Q_1 into the piston chamber
-    q_in2 = supply.q_b + on * (hose_b.end_flow - supply.q_b) - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    q_in1 = supply.q_a - q_r1  # Q_1 into the piston chamber
+    q_in2 = supply.q_b - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    hose_a = hose_b = hoses.idle(0.0 * p1)
+    if in_use(on):  # the chambers take the hoses' last flows (eq. H4-H6)
+        za, qa = hose_states(y, _HA)
+        zb, qb = hose_states(y, _HB)
+        hose_a = hoses.line(za, qa, supply.q_a, p1, c, c.p_cav, c.p_tank)
+        hose_b = hoses.line(zb, qb, supply.q_b, p2, c, c.p_cav, c.p_tank)
+        q_in1 = supply.q_a + on * (hose_a.end_flow - supply.q_a) - q_r1
+        q_in2 = supply.q_b + on * (hose_b.end_flow - supply.q_b) - q_r2
     vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
     dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
     dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
@@ -287,7 +294,8 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     loss = supply.power - (p1 - c.p_tank) * q_in1 - (p2 - c.p_tank) * q_in2  # all not delivered to a chamber
-    loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
+    if in_use(on):
+        loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
         *(k, dk, cos_alpha, acc, loss, supply, hose_a, hose_b),
@@ -305,7 +313,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     p2 = chamber_pressure_pa(y[3], c.p_cav)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
-    return (
+    stored = (
         0.5 * c.inertia * k * k * v * v  # T (eq. 8)
         + c.weight_coeff * sin_boom_angle(q1, c.a, c.b, c.h, xp)  # V: the moment of eq. 6 integrated over alpha
         + 0.5 * c.spring * (q1 - c.spring_free) * (q1 - c.spring_free)
@@ -313,8 +321,10 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
-        + c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))  # eq. H6
     )
+    if in_use(c.hose_on):  # eq. H6
+        stored = stored + c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))
+    return stored
 
 
 @jitable
@@ -334,7 +344,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     g1, g2 = t.p1 - c.p_tank, t.p2 - c.p_tank
     dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
     dp2 = t.dz2 * (y[3] > c.p_cav)
-    return (
+    rate = (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
         + c.weight_coeff * t.cos_alpha * k * v
         + c.spring * (q1 - c.spring_free) * v
@@ -342,8 +352,10 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + c.stop_k * (d_high - d_low) * v
         + (t.vol1 * g1 * dp1 + t.vol2 * g2 * dp2 + 0.5 * (t.dvol1 * g1 * g1 + t.dvol2 * g2 * g2) * v) / c.bulk_modulus
         + drives.energy_rate(drive_states(y), t.supply, c)
-        + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
     )
+    if in_use(c.hose_on):
+        rate = rate + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
+    return rate
 
 
 @jitable
@@ -385,8 +397,9 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     The fastest modes: a chamber against its open orifice in the laminar region
     (E / V dQ/dp), the oil springs, seals, end stop and spring against the boom's effective
     mass (sqrt(k / m)), the seal and end-stop damping (c / m), the seals' relaxation when
-    sliding (|v| / (z_ba r)), the spool lag (1 / tau), and the drive's own (drives.stiffness:
-    how stiffly it holds each line, and its states' fastest rate). An explicit method is stable
+    sliding (|v| / (z_ba r)), the spool lag (1 / tau), the drive's own (drives.stiffness:
+    how stiffly it holds each line, and its states' fastest rate), and with hoses their port
+    nodes against the drive and their highest wave mode (hoses.line_rate_1_s). An explicit method is stable
     when dt times this stays inside its stability region (see integrators.Method).
     """
     q1, v = y[0], y[1]
@@ -394,17 +407,22 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
     # with hoses the drive feeds their port nodes (half a segment each), and their waves count
-    port = c.hose_on * hoses.port_stiffness(c)
-    port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
-    waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
+    port1, port2, waves = stiff1, stiff2, 0.0 * stiff1
+    if in_use(c.hose_on):
+        port = c.hose_on * hoses.port_stiffness(c)
+        port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
+        waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
     # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate
     g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, port1, port2, dt, c, xp)
     # a relief valve counts where the chamber's pressure can reach it within this step
     inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
-    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1) + c.hose_on * (port1 - stiff1) * g_a  # the port node's
-    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2) + c.hose_on * (port2 - stiff2) * g_b
+    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1)
+    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2)
+    if in_use(c.hose_on):  # the drive's flow against the port node's oil
+        chamber1 = chamber1 + c.hose_on * (port1 - stiff1) * g_a
+        chamber2 = chamber2 + c.hose_on * (port2 - stiff2) * g_b
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     mass = c.inertia * k * k  # the boom's inertia at the rod
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
@@ -423,7 +441,8 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     rate = larger(rate, own)
-    rate = larger(rate, waves)
+    if in_use(c.hose_on):
+        rate = larger(rate, waves)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
 
@@ -552,7 +571,7 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         c.p_ambient,
         c.f_external,
     )  # eq. D28
-    hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6
+    hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6 (0 without hoses)
     hose_loss = c.hose_on * (terms.hose_a.loss + terms.hose_b.loss)
     return assemble(electric_chain(terms.supply, c, xp), terms.supply, cylinder, hose_oil, hose_loss)  # eq. D26, D29
 
