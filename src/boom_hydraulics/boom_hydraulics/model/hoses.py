@@ -158,6 +158,12 @@ def line(
 
 
 @jitable
+def idle(zero: Num) -> Line:
+    """A line without a hose: every field ``zero`` (0.0, or zeros shaped as a batch's)."""
+    return Line(zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero)
+
+
+@jitable
 def line_energy(z: tuple, q: tuple, c: Any, p_cav: Num, p_tank: Num) -> Num:
     """What the line stores above tank pressure, J: its oil's compression V (p - p_t)^2 / (2 K_eff)
     per node and its flows' kinetic energy I q^2 / 2 (eq. H6)."""

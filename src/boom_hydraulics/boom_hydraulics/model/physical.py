@@ -3,7 +3,9 @@
 State y = [q1 (m), v (m/s), z1 (Pa), z2 (Pa), x_v (spool, -1..1), E_supply (J), E_loss (J),
 s (seal bristle deflection / presliding displacement), W (J), |W| (J), the drive's states
 (drives.STATE_COUNT: z_d, z_d2, z_d3, each drive naming its own), the accumulator's fill
-(model/accumulator.py; 0 without one), then the energy ledger's integrals (J,
+(model/accumulator.py; 0 without one), the hoses' (hoses.STATE_NAMES: each line's node
+pressures and flows, their rates 0 without hoses), the elastic boom's (its tip deflection and
+rate, 0 for a rigid boom), then the energy ledger's integrals (J,
 ledger.INTEGRALS: battery drawn and returned, every loss, work and stored term, and the lift's
 work)].
 z1, z2 are the chamber pressures while the chambers are full of liquid; below the cavitation
@@ -99,7 +101,7 @@ ACCUMULATOR_STATE = STATE_NAMES.index("accumulator_fill")
 #: Index of the hoses' first state (hoses.STATE_NAMES: line A's, then line B's), and all of them.
 HOSE_STATE = STATE_NAMES.index(hoses.STATE_NAMES[0])
 HOSE_STATES = tuple(range(HOSE_STATE, HOSE_STATE + len(hoses.STATE_NAMES)))
-_HA, _HB, _N = HOSE_STATE, HOSE_STATE + hoses.LINE_B, hoses.SEGMENTS
+_HA, _HB = HOSE_STATE, HOSE_STATE + hoses.LINE_B
 #: Indices of the elastic boom's states: its tip deflection eta and its rate (elastic_boom).
 BOOM_STATE = STATE_NAMES.index("boom_deflection")
 BOOM_STATES = (BOOM_STATE, BOOM_STATE + 1)
@@ -393,20 +395,26 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         acc_gas = accumulator.gas_pressure_pa(fill, c.acc_precharge, c.acc_exponent, xp)
         acc_line = c.acc_piston * p1 + c.acc_supply * drives.node_pressure(drive_states(y), c)
         acc_flow = c.acc_on * accumulator.port_flow_m3_s(fill, acc_line, acc_gas, c.acc_k, c.transition2, xp)
-    za, qa = hose_states(y, _HA)
-    zb, qb = hose_states(y, _HB)
     on = c.hose_on  # with hoses the drive sees its ports' pressures, the hoses' first nodes (eq. H4)
-    port_a = p1 + on * (chamber_pressure_pa(za[0], c.p_cav) - p1)
-    port_b = p2 + on * (chamber_pressure_pa(zb[0], c.p_cav) - p2)
+    port_a, port_b = p1, p2
+    if in_use(on):
+        port_a = p1 + on * (chamber_pressure_pa(y[_HA], c.p_cav) - p1)
+        port_b = p2 + on * (chamber_pressure_pa(y[_HB], c.p_cav) - p2)
     # the drive (model/drives, the set's ``drive``): its flows into the lines, its states' rates
     supply = drives.supply(drive_states(y), u, x, q1, v, port_a, port_b, c, xp, c.acc_supply * acc_flow)
-    hose_a = hoses.line(za, qa, supply.q_a, p1, c, c.p_cav, c.p_tank)  # eq. H4-H6
-    hose_b = hoses.line(zb, qb, supply.q_b, p2, c, c.p_cav, c.p_tank)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
     q_r2 = relief_flow(p2, c.p_relief, c.g_relief)
     # Q_1 into the piston chamber: the drive's (or its hose's) less the relief and an accumulator on it
-    q_in1 = supply.q_a + on * (hose_a.end_flow - supply.q_a) - q_r1 - c.acc_piston * acc_flow
-    q_in2 = supply.q_b + on * (hose_b.end_flow - supply.q_b) - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    q_in1 = supply.q_a - q_r1 - c.acc_piston * acc_flow
+    q_in2 = supply.q_b - q_r2  # -Q_2 of eq. 13: into the rod chamber
+    hose_a = hose_b = hoses.idle(0.0 * p1)
+    if in_use(on):  # the chambers take the hoses' last flows (eq. H4-H6)
+        za, qa = hose_states(y, _HA)
+        zb, qb = hose_states(y, _HB)
+        hose_a = hoses.line(za, qa, supply.q_a, p1, c, c.p_cav, c.p_tank)
+        hose_b = hoses.line(zb, qb, supply.q_b, p2, c, c.p_cav, c.p_tank)
+        q_in1 = q_in1 + on * (hose_a.end_flow - supply.q_a)
+        q_in2 = q_in2 + on * (hose_b.end_flow - supply.q_b)
     vol1, vol2, dvol1, dvol2 = chamber_volumes(q1, c, xp)
     dz1 = chamber_state_rate(c.bulk_modulus, vol1, q_in1, dvol1 * v, y[2], c.p_cav)  # eq. 12
     dz2 = chamber_state_rate(c.bulk_modulus, vol2, q_in2, dvol2 * v, y[3], c.p_cav)  # eq. 13
@@ -434,7 +442,8 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     acc = acc + extra
     # all not delivered to a chamber (or to an accumulator on the piston-side line)
     loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
-    loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
+    if in_use(on):
+        loss -= on * (hose_a.oil_work + hose_a.loss + hose_b.oil_work + hose_b.loss)  # nor kept by a hose
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
         *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line, hose_a, hose_b),
@@ -457,8 +466,12 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     if in_use(c.acc_on):  # eq. A5
         fill = y[ACCUMULATOR_STATE]
         gas = c.acc_on * accumulator.gas_energy_j(fill, c.acc_precharge, c.acc_exponent, c.acc_size, c.p_tank, xp)
+    lines = 0.0 * q1
+    if in_use(c.hose_on):  # eq. H6
+        lines = c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))
     return (
         gas
+        + lines
         + 0.5 * c.inertia * k * k * v * v  # T (eq. 8)
         + c.weight_coeff * sin_boom_angle(q1, c.a, c.b, c.h, xp)  # V: the moment of eq. 6 integrated over alpha
         + 0.5 * c.spring * (q1 - c.spring_free) * (q1 - c.spring_free)
@@ -466,7 +479,6 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
-        + c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))  # eq. H6
         + _boom_energy(y, c, k * v, xp)  # the elastic boom's mode (eq. E1, E2)
     )
 
@@ -583,9 +595,11 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     stiff1, stiff2 = c.bulk_modulus / vol1, c.bulk_modulus / vol2
     # with hoses the drive feeds their port nodes (half a segment each), and their waves count
-    port = c.hose_on * hoses.port_stiffness(c)
-    port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
-    waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
+    port1, port2, waves = stiff1, stiff2, 0.0 * stiff1
+    if in_use(c.hose_on):
+        port = c.hose_on * hoses.port_stiffness(c)
+        port1, port2 = stiff1 + c.hose_on * (port - stiff1), stiff2 + c.hose_on * (port - stiff2)
+        waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
     m = boom_masses(c)
@@ -598,8 +612,11 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     inflow = c.max_flow  # the most the valve can feed a chamber
     relief_near1 = y[2] + stiff1 * (inflow + c.s1 * abs(v)) * dt > c.p_relief
     relief_near2 = y[3] + stiff2 * (inflow + c.s2 * abs(v)) * dt > c.p_relief
-    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1) + c.hose_on * (port1 - stiff1) * g_a  # the port node's
-    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2) + c.hose_on * (port2 - stiff2) * g_b
+    chamber1 = stiff1 * (g_a + c.g_relief * relief_near1)
+    chamber2 = stiff2 * (g_b + c.g_relief * relief_near2)
+    if in_use(c.hose_on):  # the drive's flow against the port node's oil
+        chamber1 = chamber1 + c.hose_on * (port1 - stiff1) * g_a
+        chamber2 = chamber2 + c.hose_on * (port2 - stiff2) * g_b
     reach = abs(v) * dt + 1e-4  # an end stop within reach of this step counts
     contact = (q1 < c.q_min + reach) | (q1 > c.q_max - reach)
     penetration = pos(c.q_min - q1) + pos(q1 - c.q_max) + reach
@@ -621,7 +638,8 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
         fill = y[ACCUMULATOR_STATE]
         acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
         rate = larger(rate, c.acc_on * acc)
-    rate = larger(rate, waves)
+    if in_use(c.hose_on):
+        rate = larger(rate, waves)
     # the elastic boom's mode, beside the oil springs against the boom with the mode free (0 off)
     damping_boom = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
     boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, damping_boom, xp)
@@ -783,7 +801,7 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
-    hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6
+    hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6 (0 without hoses)
     hose_loss = c.hose_on * (terms.hose_a.loss + terms.hose_b.loss)
     chain = electric_chain(terms.supply, c, xp)
     return assemble(chain, terms.supply, boom, acc_loss, gas_power, hose_oil, hose_loss, structural)  # eq. D26, D29
