@@ -112,3 +112,15 @@ def test_a_target_exactly_at_an_end_of_the_stroke_is_reachable_and_one_past_it_i
     for angle in (low - 1e-9, high + 1e-9):
         why = geometry.outside_stroke(P, angle, what="goal")
         assert why is not None and why.startswith(f"goal {angle:.4f} rad") and f"[{low:.4f}, {high:.4f}] rad" in why
+
+
+def test_the_holding_pressure_is_the_force_over_the_piston_area_with_nothing_on_the_rod_side():
+    """(F + p2 S2) / S1 to the last digits (no rounding to whole pascals); with the defaults,
+    nothing on the rod side; a rod-side pressure without a rod acts on the whole piston."""
+    force = 4863.0
+    s1 = math.pi * 0.04**2 / 4.0
+    assert geometry.holding_pressure_pa(force, 0.04) == pytest.approx(force / s1, rel=1e-14)
+    assert geometry.holding_pressure_pa(force, 0.04, rod_side_pressure_pa=2e5) == pytest.approx(
+        force / s1 + 2e5, rel=1e-14
+    )
+    assert geometry.holding_pressure_pa(force, 0.04, rod_diameter_m=0.022) == pytest.approx(force / s1, rel=1e-14)
