@@ -72,3 +72,23 @@ def test_the_efficiency_is_shaft_over_electrical_motoring_and_electrical_over_sh
         assert electric_motor.efficiency(torque, speed, m) == pytest.approx(
             electric_motor.input_power_w(torque, speed, m) / (torque * speed), rel=1e-14
         )
+
+
+def test_at_the_lowest_efficiency_allowed_the_rated_loss_is_the_rated_shaft_power():
+    """motor_efficiency's range starts at 0.5 (parameters): there L_r = T_r w_r (1 / 0.5 - 1) =
+    T_r w_r, the rated point draws twice its shaft power, and generating returns nothing."""
+    m = electric_motor.loss_coefficients(RATED_N_M, RATED_RAD_S, 0.5, COPPER, CURRENT, EDDY, WINDAGE, STANDBY_W)
+    rated_shaft_w = RATED_N_M * RATED_RAD_S
+    assert electric_motor.machine_loss_w(RATED_N_M, RATED_RAD_S, m) + STANDBY_W == pytest.approx(rated_shaft_w)
+    assert electric_motor.efficiency(RATED_N_M, RATED_RAD_S, m) == pytest.approx(0.5, rel=1e-13)
+    assert electric_motor.efficiency(-RATED_N_M, RATED_RAD_S, m) == pytest.approx(0.0, abs=1e-13)
+
+
+def test_motoring_is_any_positive_shaft_power_however_small_and_generating_any_negative_one():
+    m = coefficients()
+    speed = 310.0
+    for shaft_w in (0.5, -0.5):  # half a watt either way
+        torque = shaft_w / speed
+        drawn = electric_motor.input_power_w(torque, speed, m)
+        expected = shaft_w / drawn if shaft_w > 0.0 else drawn / shaft_w
+        assert electric_motor.efficiency(torque, speed, m) == pytest.approx(expected, rel=1e-12)
