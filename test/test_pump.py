@@ -65,3 +65,12 @@ def test_a_variable_pump_strokes_to_deliver_the_flow_and_cover_its_leakage():
     stroke = pump.stroke_for_flow_m3_rad(flow, w, dp, leakage)
     assert stroke == pytest.approx((flow + leakage * dp) / w, rel=1e-15)  # D4
     assert pump.delivered_flow_m3_s(stroke, w, dp, leakage) == pytest.approx(flow, rel=1e-13)
+
+
+def test_efficiencies_at_the_low_ends_of_their_ranges_give_their_leakage_and_friction():
+    """A worn pump: eta_v 0.4 leaks 60 % of its full flow at the rated pressure rise; eta_hm at
+    its range's end, 0.5, needs a friction torque as large as the ideal one, c_f = 1."""
+    assert pump.leakage_conductance(0.4, MAX_FLOW_M3_S, RATED_DP_PA) * RATED_DP_PA == pytest.approx(
+        0.6 * MAX_FLOW_M3_S, rel=1e-14
+    )
+    assert pump.torque_loss_ratio(0.5) == 1.0
