@@ -1,6 +1,7 @@
 # boom_hydraulics: two commands for a newcomer (see README).
 #   make run    set up if needed, then run the node with the default scenario
 #   make test   set up if needed, check the import floors, then run the whole test suite
+#   make mutants MODULE=model/friction.py [TESTS="test/..."]   mutation testing of one module
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
@@ -26,7 +27,7 @@ PACKAGE := src/boom_hydraulics/boom_hydraulics
 KERNEL_SOURCES := $(wildcard $(PACKAGE)/model/*.py $(PACKAGE)/solve/*.py) $(PACKAGE)/jit.py config/default.yaml
 CACHE_THERE := $(shell read -r folder 2>/dev/null < $(WARM_STAMP) && { [ "$$folder" = none ] || [ -d "$$folder" ]; } && echo yes)
 
-.PHONY: setup run node test lint imports bench clean FORCE
+.PHONY: setup run node test lint imports bench mutants clean FORCE
 
 setup: $(BUILD_STAMP) $(BYTECODE_STAMP) $(WARM_STAMP)
 
@@ -82,6 +83,20 @@ imports: setup
 bench: setup
 	$(WITH_ENV) python bench/bench_model.py
 
+# Mutation testing of one module (tools/mutants; docs/architecture.md, "Mutation testing"): not
+# part of test or CI. The tester, cosmic-ray, in a venv of its own (its pins are not the project's);
+# nice, one mutant at a time.
+MUTANTS_VENV := .venv-mutants
+MUTANTS_STAMP := $(MUTANTS_VENV)/.boom-mutants-stamp
+$(MUTANTS_STAMP): requirements-mutants.txt
+	@test -x $(MUTANTS_VENV)/bin/python || $(PYTHON) -m venv $(MUTANTS_VENV)
+	$(MUTANTS_VENV)/bin/python -m pip install --disable-pip-version-check -q --no-deps -r requirements-mutants.txt
+	@touch $@
+
+mutants: $(BUILD_STAMP) $(BYTECODE_STAMP) $(MUTANTS_STAMP)
+	nice -n 15 $(WITH_ENV) python tools/mutants --tester $(MUTANTS_VENV)/bin \
+		$(if $(TIMEOUT),--timeout $(TIMEOUT)) -- "$(MODULE)" $(TESTS)
+
 clean:
-	rm -rf build install log $(VENV)
+	rm -rf build install log $(VENV) $(MUTANTS_VENV)
 	find src -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from boom_hydraulics.model.parameters import Parameters
-from boom_hydraulics.solve.command_queue import CommandedDrive, CommandQueue
+from boom_hydraulics.solve.command_queue import CommandedDrive, CommandQueue, stale, valve_opening
 from boom_hydraulics.solve.simulation import Simulator
 
 
@@ -30,6 +30,61 @@ def test_past_and_present_commands_apply_at_once_and_the_queue_is_bounded():
     q.apply_due(0.0, 0.001, lambda u, at: applied.append(u))
     assert applied == [0.2, 0.3] and len(q) == 0
     assert q.steps_until_next(0.0, 0.001, 7) == 7
+
+
+def test_a_command_exactly_half_a_step_ahead_applies_at_this_step_and_one_past_it_at_the_next():
+    """The rule's boundary: due at the first step that starts within half a step of its stamp."""
+    dt = 0.001
+    for n, at_s in ((3, 3.5 * dt), (4, 3.5 * dt + 0.01 * dt), (0, 0.5 * dt), (1, 0.5 * dt + 0.01 * dt)):
+        q = CommandQueue()
+        q.push(at_s, 0.7)
+        assert q.steps_until_next(0.0, dt, 100) == max(1, n)  # the steps that run before it is due
+        applied: list[int] = []
+        for k in range(6):
+            q.apply_due(k * dt, dt, lambda u, at, k=k, applied=applied: applied.append(k))
+        assert applied == [n]
+    q = CommandQueue()
+    q.push(0.0505, 0.7)  # 50.5 steps ahead, but at most the limit asked for
+    assert q.steps_until_next(0.0, dt, 20) == 20 and q.steps_until_next(0.0, dt, 80) == 50
+    assert q.steps_until_next(0.047, dt, 80) == 3
+    assert q.steps_until_next(0.2, dt, 80) == 1  # overdue: the next step
+
+
+def test_an_opening_is_clamped_to_the_valves_range_and_a_non_finite_one_ignored():
+    assert valve_opening(0.4, "physical") == 0.4 and valve_opening(-0.4, "physical") == -0.4
+    assert valve_opening(1.0, "physical") == 1.0 and valve_opening(-1.0, "physical") == -1.0  # the ends
+    assert valve_opening(1.5, "physical") == 1.0 and valve_opening(-1.5, "physical") == -1.0  # past them
+    assert valve_opening(-0.4, "paper") == 0.0 and valve_opening(0.0, "paper") == 0.0  # paper: [0, 1]
+    assert valve_opening(0.4, "paper") == 0.4 and valve_opening(1.5, "paper") == 1.0
+    for bad in (float("nan"), float("inf"), float("-inf")):
+        assert valve_opening(bad, "physical") is None and valve_opening(bad, "paper") is None
+
+
+def test_a_command_as_old_as_the_timeout_when_received_is_stale_and_a_younger_one_is_not():
+    assert stale(1.0, 1.25, 0.25)  # exactly the timeout old: stale
+    assert not stale(1.0, 1.2499, 0.25)  # a hair younger: applied
+    assert not stale(1.0, 1.0, 0.25) and not stale(1.3, 1.0, 0.25)  # now, or stamped ahead
+    assert not stale(1.0, 1e6, 0.0)  # timeout 0: never stale
+
+
+def test_the_valve_closes_at_the_first_step_within_half_a_step_of_the_command_timeout():
+    """A manual command holds for ``timeout_s`` of simulated time, then the spring centres the
+    valve: the step that starts within dt/2 of the deadline runs closed, the one before open."""
+    sim = Simulator(Parameters())
+    drive = CommandedDrive(sim, timeout_s=0.0052)  # deadline 5.2 ms: the step at 5 ms runs closed
+    drive.push(0.0, 0.6)
+    openings = []
+    for _ in range(8):
+        drive.advance(1)
+        openings.append(sim.u)
+    assert openings == [0.6] * 5 + [0.0] * 3
+    drive.push(sim.t, 0.6)
+    drive.advance(20)  # in one call, the same rule: it closes at the deadline within the call
+    assert sim.u == 0.0 and drive.current == 0.0
+    untimed = CommandedDrive(Simulator(Parameters()))  # timeout 0: it holds
+    untimed.push(0.0, 0.6)
+    untimed.advance(30)
+    assert untimed.current == 0.6 and untimed.sim.u == 0.6
 
 
 def test_the_drive_follows_a_path_and_a_valve_command_overrides_the_controller():
