@@ -586,8 +586,10 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     The fastest modes: a chamber against its open orifice in the laminar region
     (E / V dQ/dp), the oil springs, seals, end stop and spring against the boom's effective
     mass (sqrt(k / m)), the seal and end-stop damping (c / m), the seals' relaxation when
-    sliding (|v| / (z_ba r)), the spool lag (1 / tau), and the drive's own (drives.stiffness:
-    how stiffly it holds each line, and its states' fastest rate). An explicit method is stable
+    sliding (|v| / (z_ba r)), the spool lag (1 / tau), the drive's own (drives.stiffness:
+    how stiffly it holds each line, and its states' fastest rate), with hoses their port nodes
+    against the drive and their highest wave (hoses.line_rate_1_s), an accumulator behind its
+    orifice and the elastic boom's mode. An explicit method is stable
     when dt times this stays inside its stability region (see integrators.Method).
     """
     q1, v = y[0], y[1]
