@@ -285,12 +285,9 @@ def test_live_shows_the_tip_ringing_in_its_plot_and_frames_and_boom_resim_repeat
     plot), /tf moves boom_tip by it, a lift makes the tip ring; the bag it records, fed through
     boom-resim, gives the recorded run again (to within one tick's motion, as test_live's)."""
     import json
-    import subprocess
-    import sys
 
+    from bag_checks import check_resim_within_a_tick
     from foxglove_client import FoxgloveClient, LiveServer
-
-    from boom_hydraulics.bags.reading import read_drive_states
 
     layout = json.loads((CONFIG.parent / "src" / "boom_hydraulics" / "foxglove" / "boom_crane.json").read_text())
     (path,) = layout["configById"]["Plot!boom_tip"]["paths"]
@@ -316,17 +313,7 @@ def test_live_shows_the_tip_ringing_in_its_plot_and_frames_and_boom_resim_repeat
         live.interrupt()
         status, _, err = live.wait()
     assert status == 0, err
-    again = tmp_path / "again"
-    resim = subprocess.run(
-        [sys.executable, "-m", "boom_hydraulics.cli.resim", str(bag), "--out", str(again)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert resim.returncode == 0, resim.stderr
-    recorded, repeated = read_drive_states(bag), read_drive_states(again)
-    assert len(repeated["q1"]) == len(recorded["q1"])
-    assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 0.3 / 100.0  # 0.3 m/s for 1/100 s at most
+    check_resim_within_a_tick(bag, tmp_path / "again")
 
 
 def test_a_sweep_takes_the_bending_stiffness_as_an_axis(tmp_path):

@@ -9,20 +9,18 @@ import math
 import select
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from bag_checks import check_bag
+from bag_checks import check_bag, check_resim_within_a_tick
 from conftest import small_tmpfs
 from foxglove_client import ROOT, WS_PROTOCOL_OFFER, FoxgloveClient, LiveServer
 from rosbags.typesys import Stores, get_typestore
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from boom_hydraulics.bags.reading import read_drive_states
 from boom_hydraulics.model import config
 
 pytestmark = pytest.mark.skipif(shutil.which("boom-sim") is None, reason="boom-sim not on PATH (tools/with-env)")
@@ -241,19 +239,8 @@ def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_pat
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["custom_data"]["node"] == "/boom_sim" and info["ros_distro"] == "jazzy"
     # boom-resim takes it as one of the node's bags: the commands and the parameter change through
-    # the model again give the recorded run, to within the motion of one tick (an unstamped command
-    # acts at the first step after it arrived; its log time is when it arrived)
-    again = tmp_path / "again"
-    resim = subprocess.run(
-        [sys.executable, "-m", "boom_hydraulics.cli.resim", str(bag), "--out", str(again)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert resim.returncode == 0, resim.stderr
-    recorded, repeated = read_drive_states(bag), read_drive_states(again)
-    assert len(repeated["q1"]) == len(recorded["q1"])
-    assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 0.3 / 100.0  # 0.3 m/s for 1/100 s at most
+    # the model again give the recorded run, to within the motion of one tick
+    check_resim_within_a_tick(bag, tmp_path / "again")
 
 
 def test_the_parameters_offered_are_the_ones_the_node_declares():
