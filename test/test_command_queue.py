@@ -87,6 +87,22 @@ def test_the_valve_closes_at_the_first_step_within_half_a_step_of_the_command_ti
     assert untimed.current == 0.6 and untimed.sim.u == 0.6
 
 
+def test_a_timed_command_closes_at_the_same_step_in_one_advance_as_step_by_step():
+    """The rule does not depend on how many steps a call asks for: a command's timeout inside a
+    long advance closes the valve at the step it closes stepped one at a time."""
+    for timeout_s in (0.0052, 0.0149, 0.011):
+        stepped, whole = (CommandedDrive(Simulator(Parameters()), timeout_s=timeout_s) for _ in range(2))
+        for d in (stepped, whole):
+            d.push(0.0, 0.6)
+        openings = []
+        for _ in range(25):
+            stepped.advance(1)
+            openings.append(stepped.sim.u)
+        whole.advance(25)
+        assert openings.count(0.6) == round(timeout_s / 0.001)  # open until the step within dt/2 of it
+        assert whole.sim.y == pytest.approx(stepped.sim.y, rel=1e-12, abs=1e-15)
+
+
 def test_the_drive_follows_a_path_and_a_valve_command_overrides_the_controller():
     from boom_hydraulics.model.setpoints import move
 
