@@ -432,14 +432,16 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     # the elastic boom's mode (elastic_boom, eq. E4-E7): 0 and the rod's acceleration untouched when off
-    sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
-    m = boom_masses(c)
-    damping = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
-    boom_acc, extra = elastic_boom.accelerations(
-        *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, y[BOOM_STATE], y[BOOM_STATE + 1]),
-        *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
-    )
-    acc = acc + extra
+    sin_alpha, boom_acc, damping = 0.0 * q1, 0.0 * q1, 0.0 * q1
+    if in_use(c.boom_on):
+        sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
+        m = boom_masses(c)
+        damping = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+        boom_acc, extra = elastic_boom.accelerations(
+            *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, y[BOOM_STATE], y[BOOM_STATE + 1]),
+            *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
+        )
+        acc = acc + extra
     # all not delivered to a chamber (or to an accumulator on the piston-side line)
     loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
     if in_use(on):
@@ -466,9 +468,11 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     if in_use(c.acc_on):  # eq. A5
         fill = y[ACCUMULATOR_STATE]
         gas = c.acc_on * accumulator.gas_energy_j(fill, c.acc_precharge, c.acc_exponent, c.acc_size, c.p_tank, xp)
-    lines = 0.0 * q1
+    lines, mode = 0.0 * q1, 0.0 * q1
     if in_use(c.hose_on):  # eq. H6
         lines = c.hose_on * (_hose_energy(y, _HA, c) + _hose_energy(y, _HB, c))
+    if in_use(c.boom_on):  # the elastic boom's mode (eq. E1, E2)
+        mode = c.boom_on * _boom_energy(y, c, k * v, xp)
     return (
         gas
         + lines
@@ -479,7 +483,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
         + end_stop_energy_j(q1, c.q_min, c.q_max, c.stop_k)
         + (vol1 * (p1 - c.p_tank) * (p1 - c.p_tank) + vol2 * (p2 - c.p_tank) * (p2 - c.p_tank)) / (2.0 * c.bulk_modulus)
         + drives.energy(drive_states(y), c, xp)  # the drive's own: fixed_pump's line, rotors
-        + _boom_energy(y, c, k * v, xp)  # the elastic boom's mode (eq. E1, E2)
+        + mode
     )
 
 
@@ -511,6 +515,9 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     g1, g2 = t.p1 - c.p_tank, t.p2 - c.p_tank
     dp1 = t.dz1 * (y[2] > c.p_cav)  # the pressure stands still at the floor
     dp2 = t.dz2 * (y[3] > c.p_cav)
+    mode = 0.0 * q1
+    if in_use(c.boom_on):  # the elastic boom's mode (eq. E1, E2)
+        mode = c.boom_on * (_boom_kinetic_power(y, t, c) + _boom_potential_power(y, t, c))
     return (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
         + c.weight_coeff * t.cos_alpha * k * v
@@ -521,8 +528,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + drives.energy_rate(drive_states(y), t.supply, c)
         + (t.acc_gas - c.p_tank) * t.acc_flow  # the accumulator's gas (eq. A5, A6)
         + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
-        + _boom_kinetic_power(y, t, c)
-        + _boom_potential_power(y, t, c)
+        + mode
     )
 
 
@@ -604,11 +610,15 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
         waves = c.hose_on * hoses.line_rate_1_s(c, larger(stiff1, stiff2), xp)
     k = lever_rad_per_m(q1, c.a, c.b, xp)
     # the boom's inertia at the rod; the elastic boom's mode, free to bend, takes m_c^2 / m_eta off it
-    m = boom_masses(c)
-    mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
+    mass, light, boom = c.inertia * k * k, 1e300 + 0.0 * q1, 0.0 * q1
+    if in_use(c.boom_on):
+        m = boom_masses(c)
+        mass = (c.inertia - m.coupling * m.coupling / m.modal) * k * k
+        light = mass + (1.0 - c.boom_on) * 1e300
+        damping_boom = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+        boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, damping_boom, xp)
     # the drive: how stiffly it holds each line (dQ/dp), and its own fastest rate (with the elastic
     # boom's light root at the rod against a spring of its own; none off)
-    light = mass + (1.0 - c.boom_on) * 1e300
     g_a, g_b, own = drives.stiffness(drive_states(y), u, opening, port1, port2, dt, c, xp, light)
     # a relief valve counts where the chamber's pressure can reach it within this step
     inflow = c.max_flow  # the most the valve can feed a chamber
@@ -643,8 +653,6 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     if in_use(c.hose_on):
         rate = larger(rate, waves)
     # the elastic boom's mode, beside the oil springs against the boom with the mode free (0 off)
-    damping_boom = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
-    boom = elastic_boom.fastest_rate(c.inertia, m.coupling, m.modal, c.boom_stiffness, damping_boom, xp)
     rate = larger(rate, xp.sqrt(stiffness / mass) + boom)
     return larger(rate, c.inv_tau + 0.0 * q1)
 
@@ -795,12 +803,14 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
         c.p_ambient,
         c.f_external,
     )  # eq. D28
-    boom = Cylinder(
-        *cylinder[:6],
-        cylinder.kinetic_power + _boom_kinetic_power(y, terms, c),
-        cylinder.potential_power + _boom_potential_power(y, terms, c),
-    )  # the elastic boom's mode (eq. E1, E2), 0 off
-    structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
+    boom, structural = cylinder, 0.0 * terms.acc
+    if in_use(c.boom_on):
+        boom = Cylinder(
+            *cylinder[:6],
+            cylinder.kinetic_power + _boom_kinetic_power(y, terms, c),
+            cylinder.potential_power + _boom_potential_power(y, terms, c),
+        )  # the elastic boom's mode (eq. E1, E2), 0 off
+        structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
     hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6 (0 without hoses)
