@@ -350,6 +350,8 @@ class Terms(NamedTuple):
     sin_alpha: Num
     boom_acc: Num  # eta'', the elastic boom's, m/s^2 (eq. E6)
     boom_damping: Num  # c_eta, N s/m (eq. E5)
+    boom_kinetic: Num  # d/dt of the elastic boom's mode's kinetic energy (eq. E1), W; 0 off
+    boom_potential: Num  # d/dt of its potential energy (eq. E2), W; 0 off
 
 
 @jitable
@@ -432,7 +434,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     # the elastic boom's mode (elastic_boom, eq. E4-E7): 0 and the rod's acceleration untouched when off
-    sin_alpha, boom_acc, damping = 0.0 * q1, 0.0 * q1, 0.0 * q1
+    sin_alpha, boom_acc, damping, boom_kinetic, boom_potential = 0.0 * q1, 0.0 * q1, 0.0 * q1, 0.0 * q1, 0.0 * q1
     if in_use(c.boom_on):
         sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
         m = boom_masses(c)
@@ -442,6 +444,13 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
             *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
         )
         acc = acc + extra
+        eta, eta_rate = y[BOOM_STATE], y[BOOM_STATE + 1]
+        alpha_acc = k * acc + dk * v * v
+        boom_kinetic = elastic_boom.kinetic_power_w(k * v, alpha_acc, eta_rate, boom_acc, m.coupling, m.modal)
+        weight = m.participation * c.gravity
+        boom_potential = elastic_boom.potential_power_w(
+            k * v, eta, eta_rate, sin_alpha, cos_alpha, weight, c.boom_stiffness
+        )
     # all not delivered to a chamber (or to an accumulator on the piston-side line)
     loss = supply.power - (p1 - c.p_tank) * (q_in1 + c.acc_piston * acc_flow) - (p2 - c.p_tank) * q_in2
     if in_use(on):
@@ -449,7 +458,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
         *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line, hose_a, hose_b),
-        *(f_rod, sin_alpha, boom_acc, damping),
+        *(f_rod, sin_alpha, boom_acc, damping, boom_kinetic, boom_potential),
     )
 
 
@@ -517,7 +526,7 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
     dp2 = t.dz2 * (y[3] > c.p_cav)
     mode = 0.0 * q1
     if in_use(c.boom_on):  # the elastic boom's mode (eq. E1, E2)
-        mode = c.boom_on * (_boom_kinetic_power(y, t, c) + _boom_potential_power(y, t, c))
+        mode = c.boom_on * (t.boom_kinetic + t.boom_potential)
     return (
         c.inertia * k * v * (k * t.acc + t.lever_slope * v * v)
         + c.weight_coeff * t.cos_alpha * k * v
@@ -529,24 +538,6 @@ def _energy_rate(y: list, c: Constants, t: Terms) -> Num:
         + (t.acc_gas - c.p_tank) * t.acc_flow  # the accumulator's gas (eq. A5, A6)
         + c.hose_on * (t.hose_a.energy_rate + t.hose_b.energy_rate)
         + mode
-    )
-
-
-@jitable
-def _boom_kinetic_power(y: list, t: Terms, c: Constants) -> Num:
-    """d/dt of the elastic boom's kinetic energy (eq. E1), W; 0 off."""
-    v = y[1]
-    alpha_acc = t.lever * t.acc + t.lever_slope * v * v
-    m = boom_masses(c)
-    return elastic_boom.kinetic_power_w(t.lever * v, alpha_acc, y[BOOM_STATE + 1], t.boom_acc, m.coupling, m.modal)
-
-
-@jitable
-def _boom_potential_power(y: list, t: Terms, c: Constants) -> Num:
-    """d/dt of the elastic boom's potential energy (eq. E2), W; 0 off."""
-    weight = boom_masses(c).participation * c.gravity
-    return elastic_boom.potential_power_w(
-        t.lever * y[1], y[BOOM_STATE], y[BOOM_STATE + 1], t.sin_alpha, t.cos_alpha, weight, c.boom_stiffness
     )
 
 
@@ -807,8 +798,8 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     if in_use(c.boom_on):
         boom = Cylinder(
             *cylinder[:6],
-            cylinder.kinetic_power + _boom_kinetic_power(y, terms, c),
-            cylinder.potential_power + _boom_potential_power(y, terms, c),
+            cylinder.kinetic_power + terms.boom_kinetic,
+            cylinder.potential_power + terms.boom_potential,
         )  # the elastic boom's mode (eq. E1, E2), 0 off
         structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
