@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import boom_hydraulics
+from boom_hydraulics.analysis import labels
 from boom_hydraulics.model import MODELS, Model
 from boom_hydraulics.model.drives import DRIVES
 from boom_hydraulics.model.parameters import METHODS, MODES, describe
@@ -58,9 +59,6 @@ def test_the_methods_come_from_one_registry():
 
 
 PACKAGE = Path(boom_hydraulics.__file__).resolve().parent
-#: Where a drive is registered outside model/drives (docs/drives.md): the words a plot's legend
-#: gives it.
-REGISTRATION = (PACKAGE / "analysis" / "labels.py",)
 #: A registered drive's name as a word (in a string, a name or a module path).
 DRIVE_WORD = re.compile(r"\b(?:" + "|".join(map(re.escape, DRIVES)) + r")\b")
 
@@ -103,15 +101,21 @@ def names_of_drives(path: Path) -> list[str]:
 
 
 def test_a_drive_is_one_module_that_the_model_the_solver_and_the_analysis_never_name():
-    """model/physical.py, solve/*.py and analysis/*.py reach a drive only through the registry
-    (model/drives: supply, energy, energy_rate, stiffness, initial_state, and the drives'
-    flags such as VALVE): no drive's name in their code, no import of a drive's module. So a
-    new drive touches model/drives and its registration only (docs/drives.md)."""
-    sources = [PACKAGE / "model" / "physical.py", *sorted((PACKAGE / "solve").glob("*.py"))]
-    sources += [path for path in sorted((PACKAGE / "analysis").glob("*.py")) if path not in REGISTRATION]
-    assert len(sources) > 20  # the folders were found
+    """model/physical.py, the ledger, solve, analysis, sweeps, resim, the FMU and calibration
+    reach a drive only through the registry (model/drives: supply, energy, energy_rate,
+    stiffness, initial_state, LABEL, and the drives' flags such as VALVE): no drive's name in
+    their code, no import of a drive's module. So a new drive touches model/drives and parameters only."""
+    sources = [PACKAGE / "model" / "physical.py", PACKAGE / "model" / "ledger.py"]
+    for floor in ("solve", "analysis", "sweeps", "resim", "fmu", "calibration"):
+        sources += sorted((PACKAGE / floor).glob("*.py"))
+    assert len(sources) > 60  # the folders were found
     assert [where for path in sources for where in names_of_drives(path)] == []
-    # the check sees a drive where one is named: the registry, and its registration for plots
+    # the check sees a drive where one is named: the registry
     registry = names_of_drives(PACKAGE / "model" / "drives" / "__init__.py")
     assert {where.rsplit(" ", 1)[-1] for where in registry} == set(DRIVES)
-    assert {where.rsplit(" ", 1)[-1] for where in names_of_drives(*REGISTRATION)} == set(DRIVES)
+
+
+def test_a_plot_names_each_drive_by_its_own_label():
+    """The legend's words for a drive come from its module (LABEL), so a new drive brings its own."""
+    assert labels.DRIVE_WORDS == {name: module.LABEL for name, module in DRIVES.items()}
+    assert all(labels.drive_words(name) == DRIVES[name].LABEL != name for name in DRIVES)

@@ -7,16 +7,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from ..model import parameters
+from ..model import drives, parameters
 
-#: The drives (parameters.DRIVES) as a legend names them.
-DRIVE_WORDS: dict[str, str] = {
-    "pressure_compensated": "pressure compensated",
-    "fixed_pump": "fixed pump",
-    "load_sensing": "load sensing",
-    "pump_controlled": "EHA (pump controlled)",
-    "electro_mechanical": "EMA (ball screw)",
-}
+#: The drives (parameters.DRIVES) as a legend names them: each drive module's LABEL.
+DRIVE_WORDS: dict[str, str] = {name: module.LABEL for name, module in drives.DRIVES.items()}
 
 #: The energy ledger's terms (model.ledger.TERMS but its sources), the lift's work and the
 #: battery's returned energy, as a breakdown's legend names them.

@@ -3,6 +3,7 @@
 A drive is everything between the battery and the cylinder's two lines: motor, pump and,
 for the valve drives, the 4/3 valve (model/valve.py). Each drive module offers:
 
+- ``LABEL``: what a plot's legend calls it;
 - ``STATE_NAMES`` (at most :data:`STATE_COUNT` states of its own), ``STATE_SCALES`` (the
   model's error control) and ``STATE_UNITS``;
 - ``initial_state(d)``: its states at the start, a tuple of :data:`STATE_COUNT`;

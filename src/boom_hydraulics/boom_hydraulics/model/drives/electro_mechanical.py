@@ -34,6 +34,8 @@ from .constants import DriveConstants, Supply
 
 Num = Any  # float or numpy.ndarray
 
+#: What a plot's legend calls the drive (analysis/labels.py).
+LABEL = "EMA (ball screw)"
 #: The drive's states: the screw's spring force F_k (N, held to the model's pressure scale:
 #: its tolerance is a fraction of a newton), the motor's speed w (rad/s) and the friction's
 #: bristle s (-1..1).

@@ -30,6 +30,8 @@ from .constants import DriveConstants, Supply, pump_point
 
 Num = Any  # float or numpy.ndarray
 
+#: What a plot's legend calls the drive (analysis/labels.py).
+LABEL = "fixed pump"
 #: The drive's states: the supply line's liquid state z_s (its pressure above the floor), Pa; the
 #: motor's speed and idle_stop's demand memory (motor_speed).
 STATE_NAMES = ("supply_line_state", *motor_speed.STATE_NAMES)

@@ -27,6 +27,8 @@ from .pressure_compensated import stiffness as _valve_stiffness
 
 Num = Any  # float or numpy.ndarray
 
+#: What a plot's legend calls the drive (analysis/labels.py).
+LABEL = "load sensing"
 #: The drive's states: the pump's pressure setting, which follows the load with a lag, Pa; the
 #: motor's speed and idle_stop's demand memory (motor_speed).
 STATE_NAMES = ("pump_pressure", *motor_speed.STATE_NAMES)

@@ -26,6 +26,8 @@ from .constants import DriveConstants, Supply, in_use, pump_point
 
 Num = Any  # float or numpy.ndarray
 
+#: What a plot's legend calls the drive (analysis/labels.py).
+LABEL = "pressure compensated"
 #: The drive's states: the pressure the compensator holds (a constant here), Pa; the motor's
 #: speed and idle_stop's demand memory (motor_speed; standing still under the constant strategy).
 STATE_NAMES = ("supply_pressure", *motor_speed.STATE_NAMES)

@@ -34,6 +34,8 @@ from .constants import DriveConstants, Supply, pump_point
 
 Num = Any  # float or numpy.ndarray
 
+#: What a plot's legend calls the drive (analysis/labels.py).
+LABEL = "EHA (pump controlled)"
 #: The drive's states: the motor's (and pump's) speed, rad/s, and the integral of its speed
 #: loop, rad/s (with the torque limit on, eq. D52; else it stays 0).
 STATE_NAMES = ("motor_speed", "speed_loop_integral")
