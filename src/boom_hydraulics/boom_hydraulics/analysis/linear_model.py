@@ -172,7 +172,9 @@ class LinearModel:
 
     def hydraulic_mode(self) -> Mode | None:
         """The oscillation of the boom on its oil springs (see :func:`hydraulic_eigenvalue`)."""
-        lam = hydraulic_eigenvalue(self.A[None], self.point.params, self.state_names)[0]
+        p = self.point.params
+        tip = p.boom_length_m * lever_rad_per_m(self.point.q1_m, p.a_m, p.b_m)
+        lam = hydraulic_eigenvalue(self.A[None], p, self.state_names, tip_m_per_m=tip)[0]
         if not np.isfinite(lam):
             return None
         size = abs(lam)
@@ -206,16 +208,32 @@ class LinearModel:
 
 
 def hydraulic_eigenvalue(
-    a: np.ndarray, p: Parameters, names: Sequence[str] = STATE_NAMES, sizes: Sequence[float] | None = None
+    a: np.ndarray,
+    p: Parameters,
+    names: Sequence[str] = STATE_NAMES,
+    sizes: Sequence[float] | None = None,
+    tip_m_per_m: Any = None,
 ) -> np.ndarray:
     """The hydraulic mode's eigenvalue of each matrix of the stack ``a`` (..., n, n) over the
     states ``names`` (of sizes ``sizes``, by default those of ``p``'s :func:`states_of`): of the
-    oscillatory modes, the one whose eigenvector moves the rod's velocity most against the other
-    states (each in units of its scale); nan where every mode is real."""
+    oscillatory modes, the one whose eigenvector moves the boom's tip most against the other
+    states (each in units of its scale); nan where every mode is real. The tip moves with the
+    rod's velocity v (a rigid boom: the mode of the rod's velocity), and with the elastic boom's
+    deflection rate too: L1 k(q1) v + eta' across the boom at its tip (docs/model.md, "Elastic
+    boom"), ``tip_m_per_m`` being L1 k(q1), the rigid tip's speed per unit of the rod's (one per
+    matrix; needed where ``names`` hold the deflection).
+    By the rod alone the elastic crane's mode was its boom's root ringing on the oil beneath it
+    (125 Hz), where the tonne at the tip stays put; the tonne's ringing is the one it shows."""
     values, vectors = np.linalg.eig(a)
     scales = np.array(_state_scales(p)[: len(names)] if sizes is None else sizes)
     scaled = np.abs(vectors) * scales[:, None]
-    share = scaled[..., names.index("v"), :] / np.sum(scaled, axis=-2)
+    v = names.index("v")
+    tip = scaled[..., v, :]
+    if "boom_deflection_rate" in names:  # the tip across the boom: its rotation's and its bending's
+        lever = np.asarray(tip_m_per_m, dtype=float)
+        across = lever[..., None] * vectors[..., v, :] + vectors[..., names.index("boom_deflection_rate"), :]
+        tip = np.abs(across) * scales[v]
+    share = tip / np.sum(scaled, axis=-2)
     share = np.where(values.imag > 0.0, share, -1.0)
     best = np.argmax(share, axis=-1)
     lam = np.take_along_axis(values, best[..., None], axis=-1)[..., 0]
@@ -281,7 +299,8 @@ def mid_stroke_modes(params: Sequence[Parameters]) -> tuple[np.ndarray, np.ndarr
     sizes = [kinds[MODEL.STATE_SCALES[i]] for i in states]
     a = _jacobian(c, y, np.zeros(len(sets)), FORWARD, sets[0], np, states, sizes)[..., :, : len(states)]
     names = [MODEL.STATE_NAMES[i] for i in states]
-    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0], names, sizes), np.nan)
+    tip = np.array([p.boom_length_m * lever_rad_per_m(q, p.a_m, p.b_m) for p, q in zip(sets, q1)])
+    lam = np.where(ok, hydraulic_eigenvalue(a, sets[0], names, sizes, tip), np.nan)
     size = np.abs(lam)
     frequency[chosen] = size / (2 * math.pi)
     damping[chosen] = -lam.real / size
