@@ -16,11 +16,12 @@ The scenario (``--scenario``) reaches the node the way a user's would:
   setting the node's ``payload_mass_kg`` (to that share of the params file's) at the
   release. It needs ``mode: physical``.
 
-The scenario starts half a second of the node's clock after its first state (moved on to
-an instant of its energy ledger) and lasts until the node's clock has passed its end; the
-analysis covers that window of the node's clock alone (the node runs longer around it: its
-start, its stop). A cycle whose commands the node received but whose valve did not follow
-them throughout is one line and exit status 1.
+The scenario starts half a second of the node's clock after the node's time origin, the
+instant of its simulated time 0 (moved on to an instant of its energy ledger), and lasts
+until the node's clock has passed its end; the analysis covers that window of the node's
+clock alone (the node runs longer around it: its start, its stop). A cycle whose commands
+the node received but whose valve did not follow them throughout is one line and exit status
+1.
 
 The node runs in a ROS domain of boom-demo's own (:mod:`.domains`), unless ROS_DOMAIN_ID is
 set, so that two demos on one machine do not take each other's commands.
@@ -150,6 +151,10 @@ SETTLE_NS = 150_000_000
 #: takes one message per topic per turn; the clock it would see otherwise is the newest,
 #: however many commands still wait).
 LOCKSTEP_PERIODS = 2
+#: How long the clock boom-demo serves may stand where it waits for the node's first state
+#: before it runs on, s of wall time (a safety net: the node began its run at the clock's first
+#: instant, so its states come before; were its origin later, it would publish none there).
+FIRST_STATE_WAIT_S = 30.0
 
 
 class ScenarioDriver(Node):
@@ -164,8 +169,10 @@ class ScenarioDriver(Node):
         serve_clock: bool,
         period_ns: int,
         state_period_ns: int,
+        recording: Callable[[], bool] = lambda: True,
     ) -> None:
         super().__init__("boom_demo")
+        self.recording = recording  # whether the node has begun its run (its bag is there)
         self.scenario = scenario
         self.period_ns = period_ns
         self.state_period_ns = state_period_ns  # how often the node publishes its state, ns of its clock
@@ -178,8 +185,15 @@ class ScenarioDriver(Node):
         )
         self._clock_origin = (time.time_ns(), time.monotonic_ns())
         self._clock_ns = 0  # the /clock served last (it never goes back)
-        self.first_ns: int | None = None  # the stamp of the node's first state: the scenario's time base
-        self.create_subscription(DriveState, "drive_state", self.on_state, qos)
+        # the served clock stands at its first instant until discovery has matched the node (see
+        # discovered()) and the node has begun its run (its first /clock: it opens its bag then), so
+        # that the node takes that instant as its time origin, whatever its start's timing
+        self._held = serve_clock
+        self._capped_at, self._uncapped = 0.0, False  # see clock_limit_ns
+        # the node's time origin, the scenario's time base (see origin_of): its first state's stamp
+        # where the node's origin is not known
+        self.first_ns: int | None = None
+        self.states = self.create_subscription(DriveState, "drive_state", self.on_state, qos)
         logs = QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -206,10 +220,15 @@ class ScenarioDriver(Node):
         at :meth:`clock_limit_ns` while boom-demo or the node is behind (a busy machine), so that
         the node never reaches a command's stamp before it has the command."""
         if self.clock_pub is not None:
-            wall_ns, steady_ns = self._clock_origin
-            now_ns = wall_ns + time.monotonic_ns() - steady_ns
+            if self._held and self.discovered() and self.recording():  # the clock runs on from its first instant
+                self._held, self._clock_origin = False, (self._clock_origin[0], time.monotonic_ns())
+            origin_ns, steady_ns = self._clock_origin
+            now_ns = origin_ns if self._held else origin_ns + time.monotonic_ns() - steady_ns
             limit = self.clock_limit_ns()
             self._clock_ns = max(self._clock_ns, now_ns if limit is None else min(now_ns, limit))
+            if self.first_ns is None and limit is not None and self._clock_ns >= limit:
+                self._capped_at = self._capped_at or time.monotonic()
+                self._uncapped = time.monotonic() - self._capped_at > FIRST_STATE_WAIT_S
             msg = Clock()
             msg.clock.sec, msg.clock.nanosec = divmod(self._clock_ns, 1_000_000_000)
             self.clock_pub.publish(msg)
@@ -217,14 +236,17 @@ class ScenarioDriver(Node):
     def clock_limit_ns(self) -> int | None:
         """How far the served clock may go now (None: no limit): :data:`LOCKSTEP_PERIODS` of the
         node's publishing beyond its latest state, and before the scenario begins, to
-        :data:`LEAD_NS` less the longest of :data:`AHEAD_NS` after the node's first state; while a
+        the scenario's start less the longest of :data:`AHEAD_NS` (before the node's first state
+        has come, the start from the clock's first instant, unless the node has published
+        nothing for :data:`FIRST_STATE_WAIT_S` there);
+        while a
         cycle's commands are sent, to the stamp of the last one sent. A work cycle's goals are not
         stamped: only the lockstep once it began."""
-        if self.first_ns is None:
-            return None
+        if self.first_ns is None:  # (the node's states at most to there, before boom-demo has one)
+            return None if self.clock_pub is None or self._uncapped else self._clock_origin[0] + LEAD_NS - max(AHEAD_NS)
         lockstep = self.now_ns + LOCKSTEP_PERIODS * self.state_period_ns
         if not self.start_ns or self._settle_at_ns is not None:  # (held until the start is settled)
-            return min(lockstep, self.first_ns + LEAD_NS - max(AHEAD_NS))
+            return min(lockstep, (self.start_ns or self.first_ns + LEAD_NS) - max(AHEAD_NS))
         if isinstance(self.scenario, WorkCycle):
             return lockstep
         next_ns = self.start_ns + self.sent[0] * self.period_ns
@@ -239,28 +261,54 @@ class ScenarioDriver(Node):
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         self.now_ns = max(self.now_ns, stamp_ns)
         if self.first_ns is None:
-            self.first_ns = stamp_ns
+            self.first_ns = self.origin_of(stamp_ns)
+
+    def origin_of(self, stamp_ns: int) -> int:
+        """The node's time origin, from the stamp of the first of its states boom-demo received.
+        The node publishes a state every ``state_period_ns`` of simulated time from its origin
+        (docs/ros-api.md): on its own clock (publish_clock) the origin is 0; on the clock
+        boom-demo serves, it is the instant the clock stood at until discovery matched, which the
+        node took as its first /clock (its run began there). A first state off that grid (a node
+        whose origin is not known) leaves the stamp itself. So the scenario starts at
+        the same simulated time of the node's, whichever of its states came first (discovery
+        may match after the node's first states: the boom's settling at the start then moved
+        a figure's last digit)."""
+        origin_ns = self._clock_origin[0] if self.clock_pub is not None else 0
+        on_grid = stamp_ns >= origin_ns and (stamp_ns - origin_ns) % self.state_period_ns == 0
+        return origin_ns if on_grid else stamp_ns
+
+    def discovered(self) -> bool:
+        """Whether discovery has matched the node with boom-demo: its clock (where served) and
+        state, and its valve_command subscription or move_boom action and parameter services."""
+        if self.clock_pub is not None and self.clock_pub.get_subscription_count() == 0:
+            return False
+        if self.states.get_publisher_count() == 0:
+            return False
+        if isinstance(self.scenario, WorkCycle):
+            return self.moves.server_is_ready() and self.payload.services_are_ready()
+        return self.pub.get_subscription_count() > 0
 
     def ready(self) -> bool:
         """Whether the node has published its state and takes the scenario: serves its goals and
         parameters, or has its valve_command subscription matched to boom-demo's publisher (the
         cycle's first commands, sent before discovery had matched them, were lost, and one of
         the first stamp's arrived after it: 'the valve followed them in only 99 %')."""
-        if self.state is None:
-            return False
-        if isinstance(self.scenario, WorkCycle):
-            return self.moves.server_is_ready() and self.payload.services_are_ready()
-        return self.pub.get_subscription_count() > 0
+        return self.state is not None and self.discovered()
 
     def on_ledger(self, msg: EnergyLedger) -> None:
         self.ledger_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
     def begin(self, duration_ns: int, ledger_period_ns: int) -> None:
-        """The scenario starts :data:`LEAD_NS` after the node's first state (not after whenever
-        boom-demo got to it: the node's state at the start would depend on the machine's load),
-        moved on to the next instant of the node's energy ledger (every ``ledger_period_ns``)
-        once :data:`SETTLE_NS` has passed (see :meth:`settle`), and lasts ``duration_ns``."""
+        """The scenario starts :data:`LEAD_NS` after the node's time origin (:meth:`origin_of`;
+        not after whenever boom-demo got to it: the node's state at the start would depend on
+        the machine's load), or after its latest state where the node's own clock ran too near
+        that start before discovery matched (a busy machine: the first commands would be
+        late), moved on to the next instant of the node's energy ledger (every
+        ``ledger_period_ns``) once :data:`SETTLE_NS` has passed (see :meth:`settle`), and lasts
+        ``duration_ns``."""
         base = self.now_ns if self.first_ns is None else self.first_ns
+        if base + LEAD_NS - max(AHEAD_NS) < self.clock_ns():
+            base = self.clock_ns()
         self._settle_at_ns = base + SETTLE_NS
         self._duration_ns, self._ledger_period_ns = duration_ns, ledger_period_ns
         self.start_ns = base + LEAD_NS
@@ -480,7 +528,13 @@ def demo(argv: list[str] | None) -> int:
     try:
         ledger_ns = ledger_period_ns(given) if given.get("mode", "physical") != "paper" else 0  # (none in paper mode)
         state_ns = round(1e9 / publish_rate_hz(given))
-        driven = _drive(node_proc, stopper, scenario, duration_s, serve_clock, (period_ns, state_ns), ledger_ns)
+
+        def recording() -> bool:  # whether the node has begun its run: its new bag is there
+            return bool(set(args.bags.glob("*_boom_sim")) - before)
+
+        driven = _drive(
+            node_proc, stopper, scenario, duration_s, serve_clock, (period_ns, state_ns), ledger_ns, recording
+        )
     finally:  # also when driving failed: the node finishes its bag before boom-demo ends
         stopper.stop_node()
         node_status = node_proc.wait()  # as long as the node takes; signals meanwhile are passed on
@@ -572,15 +626,16 @@ def _analyze(bag: Path, driven: Driven, cycle: tuple[tuple[float, float], ...] |
 def _drive(
     node_proc: subprocess.Popen, stopper: Stopper, scenario: tuple[tuple[float, float], ...] | WorkCycle,
     duration_s: float, serve_clock: bool, periods_ns: tuple[int, int], ledger_period_ns: int,
+    recording: Callable[[], bool],
 ) -> Driven:  # fmt: skip
     """Wait for the node's first state, then drive it through ``scenario`` until its clock has
     passed ``duration_s`` from the scenario's start, printing the state every half second of
     it. The status is None when done or stopped; an exit status when the node ended, refused
     a step of the scenario, or its clock stood still. ``periods_ns``: the cycle's commands' and
-    the node's states'."""
+    the node's states'; ``recording``: whether the node has begun its run (see ScenarioDriver)."""
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Stopper handles the signals
     period_ns, state_period_ns = periods_ns
-    driver = ScenarioDriver(scenario, serve_clock, period_ns, state_period_ns)
+    driver = ScenarioDriver(scenario, serve_clock, period_ns, state_period_ns, recording)
     try:
         print(
             "boom-demo: starting boom_sim (a start without the compiled model in the cache compiles it: a minute "
