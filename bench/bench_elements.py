@@ -87,7 +87,7 @@ def main() -> int:
         for name, (checkout, config, settings) in runs.items():
             us, substeps = us_per_step(checkout, config, settings, args.steps, 3)
             best[name], most[name] = min(best[name], us), max(most[name], substeps)
-            print(f"round {k + 1}: {name}: {best[name]:.2f} us/step, at most {substeps} substeps", flush=True)
+            print(f"round {k + 1}: {name}: {us:.2f} us/step, {substeps} substeps at most", flush=True)
     pairs = [
         ("default (every element off)", "default, here", "default, other", "1.00x (nothing when off)"),
         ("1 t crane, the three off", "1 t crane off, here", "1 t crane, other", "1.00x (nothing when off)"),
