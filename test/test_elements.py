@@ -6,14 +6,17 @@ test_hoses.py and test_elastic_boom.py."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from conftest import CONFIG
 
+from boom_hydraulics.analysis.jacobian import jacobian
 from boom_hydraulics.model import config, ledger, physical
 from boom_hydraulics.model.parameters import with_updates
-from boom_hydraulics.solve import commands
-from boom_hydraulics.solve.simulator import Simulator
+from boom_hydraulics.solve import commands, integrators
+from boom_hydraulics.solve.simulator import Simulator, scale_sizes
 
 CRANE = config.load(CONFIG / "loader_crane_1t.yaml")
 
@@ -58,3 +61,32 @@ def test_a_drive_without_oil_leaves_the_accumulator_and_hoses_out(drive):
     y = physical.initial_state(params)
     rates = physical.derivative(0.0, y, c, 0.5)
     assert all(rates[i] == 0.0 for i in (physical.ACCUMULATOR_STATE, *physical.HOSE_STATES))
+
+
+@pytest.mark.parametrize("opening", [0.6, 0.0])
+def test_the_stability_bound_with_all_three_on_covers_the_fastest_mode_and_its_substeps_keep_rk4_stable(opening):
+    """The stepping's bound (physical.stiffness_rate) with the three on, against the Jacobian's
+    eigenvalues at the crane's start (by differences of the model's derivative): at least the
+    largest |lambda| (the hoses' highest wave, about 3700 1/s), and rk4 in the substeps it asks
+    for keeps every decaying mode inside its stability region (|R(h lambda)| <= 1): a tighter
+    bound that let a mode out would make the run ring up and stop on its energy balance."""
+    c = physical.constants(CRANE)
+    y = physical.initial_state(CRANE)
+    dt = CRANE.time_step_s
+    # the energy integrals feed back into nothing: the states that move the model
+    moving = [i for i, kind in enumerate(physical.STATE_SCALES) if kind != "energy"]
+    sizes = scale_sizes(CRANE)
+
+    def rates(x):
+        z = list(y)
+        for i, value in zip(moving, x, strict=True):
+            z[i] = value
+        d = physical.derivative(0.0, z, c, opening)
+        return [d[i] for i in moving]
+
+    lam = np.linalg.eigvals(jacobian(rates, [y[i] for i in moving], [sizes[physical.STATE_SCALES[i]] for i in moving]))
+    bound = physical.stiffness_rate(y, c, opening, dt)
+    assert bound >= np.max(np.abs(lam)) > 3000.0  # the waves are there, and the bound covers them
+    substeps = math.ceil(dt * bound / integrators.METHODS["rk4"].stability_limit)
+    z = lam[lam.real < 0.0] * dt / substeps
+    assert np.max(np.abs(1.0 + z + z**2 / 2.0 + z**3 / 6.0 + z**4 / 24.0)) <= 1.0

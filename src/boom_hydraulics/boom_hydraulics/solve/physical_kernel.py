@@ -22,13 +22,16 @@ import numpy as np
 from .. import jit
 from ..jit import jitable, kernel, prange
 from ..model import (
+    accumulator,
     battery,
     control,
     drives,
+    elastic_boom,
     electric_motor,
     end_stops,
     friction,
     geometry,
+    hoses,
     hydraulics,
     kinematics,
     ledger,
@@ -48,7 +51,9 @@ SOURCES = [
     *jit.module_sources(jit, geometry, hydraulics, friction, end_stops, mechanics, control, setpoints, outputs),
     *jit.module_sources(kinematics),
     *jit.module_sources(pump, electric_motor, battery, ledger, valve),
+    *jit.module_sources(accumulator, hoses, elastic_boom),  # the model elements physical compiles in
     *jit.module_sources(drives, sys.modules[drives.constants.__module__], *drives.DRIVES.values()),
+    *jit.module_sources(*(sys.modules[f"{drives.__name__}.{name}"] for name in ("motor_speed", "eha_motor"))),
     *jit.module_sources(model, integrators, lanes, stepping, profiles, streaming, run),
     Path(__file__).resolve(),
 ]
