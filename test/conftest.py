@@ -133,18 +133,22 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 #: The test files that take longest (``--durations=0`` of a run on 2 busy cores: 20 s and more
 #: each), longest first. They are handed to the workers before the others, so that no worker is
 #: left running a long file while the rest are done; a file missing here only runs later.
+#: test_demo_cycle.py, about 120 s of node runs on a quiet machine (the longest file), first.
 LONGEST_FIRST = (
+    "test_demo_cycle.py",
     "test_fmu.py",
+    "test_calibrate_noisy.py",
     "test_fmu_in_process.py",
     "test_node.py",
     "test_sweep_cli.py",
+    "test_calibrate.py",
+    "test_python_page.py",
     "test_node_bags.py",
     "test_node_clock.py",
     "test_node_stamps.py",
     "test_node_motion.py",
     "test_stepping.py",
     "test_demo.py",
-    "test_demo_cycle.py",
     "test_studies.py",
     "test_node_parameters.py",
     "test_tool_outputs.py",

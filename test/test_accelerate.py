@@ -43,13 +43,16 @@ def test_compiled_path_reports_leaving_the_geometry():
     assert 1.7 < sim.y[0] < 1.8  # the last finite state is kept
 
 
+#: A compiled run in a new process: the paper model's rk4 steps (the smallest kernel that goes
+#: through jit.kernel's cache as the physical model's do, compiled in a fraction of its time).
 _COMPILED_RUN = """
-from boom_hydraulics.model.parameters import Parameters
+import sys
+from boom_hydraulics.model import config
 from boom_hydraulics.solve import accelerate
 from boom_hydraulics.solve.simulation import Simulator
-sim = Simulator(Parameters(), jit=True)
-sim.step(0.5, 300)
-stats = accelerate.stepper("physical", "rk4").stats
+sim = Simulator(config.load(sys.argv[1]), jit=True)
+sim.step(1.0, 1000)
+stats = accelerate.stepper("paper", "rk4").stats
 print(repr(sim.y[0]), sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), stats.cache_path)
 """
 
@@ -60,7 +63,11 @@ def _compiled_run(env: dict) -> tuple[str, int, int, str]:
     import sys
 
     result = subprocess.run(
-        [sys.executable, "-c", _COMPILED_RUN], env={**os.environ, **env}, capture_output=True, text=True, timeout=300
+        [sys.executable, "-c", _COMPILED_RUN, str(CONFIG / "paper_fig8.yaml")],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert result.returncode == 0, result.stderr
     q1, hits, misses, path = result.stdout.split()
@@ -74,7 +81,7 @@ def test_the_compiled_model_is_cached_on_disk_and_a_new_process_loads_it(tmp_pat
     assert (again[1], again[2]) == (1, 0)  # loaded, not compiled
     assert first[0] == again[0]  # bit for bit the same step
     (folder,) = [f for f in tmp_path.iterdir() if first[3].startswith(str(f))]  # keyed on a hash of the sources
-    assert list(folder.rglob("physical_kernel.steps_rk4-*.nbi"))
+    assert list(folder.rglob("paper_kernel.steps_rk4-*.nbi"))
 
 
 def test_the_cache_folder_follows_every_source_of_the_kernel(tmp_path, monkeypatch):
@@ -102,7 +109,7 @@ def test_an_unwritable_cache_folder_falls_back_and_still_compiles(tmp_path):
     blocked = tmp_path / "a_file"
     blocked.write_text("")  # a folder cannot be made under a file, whoever runs this
     q1, hits, misses, path = _compiled_run({"BOOM_HYDRAULICS_CACHE": str(blocked / "cache")})
-    assert float(q1) > 1.37 and hits + misses == 1
+    assert float(q1) > 1.5 and hits + misses == 1  # lifted from its initial 1.37 m; compiled (or loaded)
     assert not path.startswith(str(blocked))
 
 

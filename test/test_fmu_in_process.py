@@ -6,6 +6,7 @@ the FMU in a Python of its own, so that the two compile beside each other.)"""
 from __future__ import annotations
 
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -19,15 +20,18 @@ ROS2 = {"method": "ros2", "time_step_s": 0.002}
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str], list[str], list[str]]:
-    """A ros2 FMU written by write_fmu in this process: its path, the folder's files after, and
-    sys.path before and after."""
+def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str], list[str], list[str], Path]:
+    """A ros2 FMU written by write_fmu in this process, numba compiling its code afresh into an
+    empty cache folder (test_fmu.py's boom-sim export may load its rk4 code from the user's
+    cache): its path, the folder's files after, sys.path before and after, and the cache folder."""
     from boom_hydraulics.fmu.export import write_fmu
 
-    folder = tmp_path_factory.mktemp("ros2")
+    folder, cache = tmp_path_factory.mktemp("ros2"), tmp_path_factory.mktemp("cache")
     before = list(sys.path)
-    write_fmu(with_updates(Parameters(), **ROS2), folder / "boom_drive.fmu")
-    return folder / "boom_drive.fmu", sorted(p.name for p in folder.iterdir()), before, list(sys.path)
+    with pytest.MonkeyPatch.context() as patch:  # (the kernels the tests step took their folder at import)
+        patch.setenv("BOOM_HYDRAULICS_CACHE", str(cache))
+        write_fmu(with_updates(Parameters(), **ROS2), folder / "boom_drive.fmu")
+    return folder / "boom_drive.fmu", sorted(p.name for p in folder.iterdir()), before, list(sys.path), cache
 
 
 def _lifted_and_lowered(path: Path, name: str, changes: dict | None = None) -> list[float]:
@@ -61,7 +65,7 @@ def _lifted_and_lowered(path: Path, name: str, changes: dict | None = None) -> l
 def test_a_ros2_fmu_steps_as_the_simulator_and_its_export_leaves_nothing_behind(exported) -> None:
     """An FMU exported in this process with ros2 lifts and lowers as the Simulator does, to the
     bit; the export changes no sys.path and leaves nothing beside the FMU."""
-    path, files, path_before, path_after = exported
+    path, files, path_before, path_after, _ = exported
     assert path_after == path_before
     assert files == ["boom_drive.fmu"]
     params = with_updates(Parameters(), **ROS2)
@@ -92,4 +96,33 @@ def test_the_drives_and_their_settings_chosen_before_initialization_step_as_the_
     sim = Simulator(params)
     sim.step(1.0, round(1.0 / params.time_step_s))
     sim.step(-1.0, round(1.0 / params.time_step_s))
+    assert got == [sim.outputs()[name] for name in OUTPUTS]
+
+
+def test_a_second_export_takes_the_compiled_code_from_the_cache(exported, tmp_path, monkeypatch) -> None:
+    """numba's object file, cached by the first export, is what the next export of the method
+    links, with other parameters too (they are the FMU's start values, not its code): nothing
+    is compiled, and the binary is the first one's but for what the parameters change; another
+    method is not taken from it."""
+    from boom_hydraulics.fmu import export, native
+
+    path, _, _, _, cache = exported
+    monkeypatch.setenv("BOOM_HYDRAULICS_CACHE", str(cache))
+    cached = native.cached_object_path("ros2")
+    assert cached is not None and cached.is_relative_to(cache) and cached.exists()
+    assert native.cached_object_path("rk4") != cached
+
+    def compiles(method: str) -> None:
+        raise AssertionError(f"compiled {method} again")
+
+    monkeypatch.setattr(native, "entry", compiles)
+    export.write_fmu(with_updates(Parameters(), **ROS2), tmp_path / "again.fmu")
+    with zipfile.ZipFile(path) as first, zipfile.ZipFile(tmp_path / "again.fmu") as again:
+        assert again.read("binaries/linux64/boom_drive.so") == first.read("binaries/linux64/boom_drive.so")
+    heavier = with_updates(Parameters(), **ROS2, payload_mass_kg=150.0)
+    export.write_fmu(heavier, tmp_path / "heavier.fmu")
+    got = _lifted_and_lowered(tmp_path / "heavier.fmu", "heavier")
+    sim = Simulator(heavier)
+    sim.step(1.0, 500)
+    sim.step(-1.0, 500)
     assert got == [sim.outputs()[name] for name in OUTPUTS]

@@ -15,7 +15,9 @@ of Parameters, then every string field as the index of its value among its choic
 compiled code reads a row as :class:`Surrogate`, a named tuple of the same fields that the
 model's functions read as they read Parameters (:func:`surrogate_of`). numba's code
 library hands back the object file it compiled (a private API, used by numba's own cache:
-``_get_compiled_object``, checked against numba 0.68, pinned in requirements.txt). The
+``_get_compiled_object``, checked against numba 0.68, pinned in requirements.txt), which
+is cached on disk beside the kernels (:func:`cached_object_path`), so that a later export
+of the method links it without compiling again. The
 C wrapper (native/fmi2_slave.c) calls the object's C-ABI wrapper (``cfunc.<mangled name>``)
 as ``boom_native``, by an assembler label that export.py writes. Compiled code that raises
 calls a few Python C-API and numba runtime functions on its way out; the C wrapper defines
@@ -29,8 +31,12 @@ the operation's result (0: the compiled code raised).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import hashlib
+import os
 from collections import namedtuple
+from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
@@ -195,15 +201,75 @@ def entry(method: str) -> Any:
 NUMBA_VERSION = "0.68.1"
 
 
+def cache_sources() -> list[Path]:
+    """Every source the entry point may compile into itself (the model's and the stepping's
+    modules, jit.py and this one): the on-disk cache of its object file is keyed on them."""
+    from .. import jit
+
+    return sorted(
+        {*(jit.PACKAGE / "model").glob("*.py"), *(jit.PACKAGE / "solve").glob("*.py"), jit.PACKAGE / "jit.py",
+         Path(__file__).resolve()}
+    )  # fmt: skip
+
+
+def cached_object_path(method: str) -> Path | None:
+    """Where the object file of ``method``'s entry point is cached: in the kernels' cache folder
+    for :func:`cache_sources` (jit.cache_folder: keyed on their text, numba's and Python's
+    versions), named after the method and the machine code numba compiles for (its target and
+    CPU, as numba keys its own cache); None where no cache folder can be written."""
+    from numba.core.registry import cpu_target
+
+    from .. import jit
+
+    folder = jit.cache_folder(cache_sources())
+    if folder is None:
+        return None
+    target = repr(cpu_target.target_context.codegen().magic_tuple()).encode()
+    return folder / f"fmu-{method}-{hashlib.sha256(target).hexdigest()[:12]}.o"
+
+
+def _read_cached(path: Path | None) -> tuple[bytes, str] | None:
+    """The object file and its wrapper's name cached at ``path`` (the name, a line, then the
+    object's bytes); None where there is none or it cannot be read."""
+    try:
+        data = path.read_bytes() if path is not None else b""
+    except OSError:
+        return None
+    name, newline, code = data.partition(b"\n")
+    if not newline or not code.startswith(b"\x7fELF") or not name.isascii():
+        return None
+    return code, name.decode("ascii")
+
+
+def _write_cached(path: Path | None, code: bytes, name: str) -> None:
+    """Cache ``code`` at ``path`` whole or not at all (a temporary renamed); a cache that cannot
+    be written is left out (the next export compiles again)."""
+    if path is None:
+        return
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(name.encode("ascii") + b"\n" + code)
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
 def object_code(method: str) -> tuple[bytes, str]:
     """The ELF object file numba compiled :func:`entry` of ``method`` into, and the name of
-    its C-ABI wrapper; ConfigError where numba is missing or cannot hand the object back."""
+    its C-ABI wrapper; ConfigError where numba is missing or cannot hand the object back.
+    numba compiles it once per machine and version of the sources (about 20 s on 2 cores):
+    later exports read it from the on-disk cache (:func:`cached_object_path`)."""
     from .. import jit
 
     if jit.numba is None:
         raise ConfigError(
             "boom-sim fmu compiles the model with numba, which this Python lacks; install requirements.txt"
         )
+    path = cached_object_path(method)
+    cached = _read_cached(path)
+    if cached is not None:
+        return cached
     compiled = entry(method)
     try:
         code = compiled._library._get_compiled_object()
@@ -212,4 +278,5 @@ def object_code(method: str) -> tuple[bytes, str]:
             f"numba {jit.numba.__version__} does not hand back the compiled object file ({exc}); "
             f"boom-sim fmu needs numba {NUMBA_VERSION} (requirements.txt)"
         ) from None
+    _write_cached(path, code, compiled.native_name)
     return code, compiled.native_name
