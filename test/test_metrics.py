@@ -172,3 +172,17 @@ def test_metrics_of_a_closed_loop_scenario_follow_its_move():
     assert m["target_overshoot_deg"] == pytest.approx(math.degrees(0.05))
     assert m["worst_target_error_deg"] == pytest.approx(0.0, abs=1e-9)
     assert math.isnan(analysis.metrics(signals)["target_overshoot_deg"])  # open loop: no move
+
+
+def test_a_lift_without_an_opening_command_is_timed_from_the_first_sample():
+    signals = _ramp(delay_samples=3)
+    signals["u"] = np.zeros(len(signals["t"]))  # the rod moved with no command (a recorded bag without one)
+    assert analysis.metrics(signals)["time_to_target_s"] == pytest.approx(1.2, abs=1e-9)
+
+
+def test_a_downward_step_overshoots_below_its_target():
+    t, alpha = _step(0.1)
+    down = 0.9 - alpha  # from 0.7 rad to 0.2 rad, 0.05 rad below it at 1 s
+    figures = analysis.step_response(t, down, target_rad=0.2, start_rad=0.7)
+    assert figures["overshoot"] == pytest.approx(0.1)
+    assert figures["settling_s"] == pytest.approx(2.0)

@@ -145,3 +145,10 @@ def test_a_design_within_flat_of_the_best_along_an_axis_names_no_end():
     two = ["drive", "piston_diameter_m"]
     assert range_edges(table, two, 0, score=np.array([1000.0, 3000.0, 1000.0])) == line
     assert range_edges(table, two, 0, score=np.array([1000.0, 1000.0, 3000.0])) == []
+
+
+def test_a_column_without_a_finite_value_names_no_end():
+    table = {"piston_diameter_m": np.array([math.nan, math.nan]), "payload_mass_kg": np.array([10.0, 20.0])}
+    assert range_edges(table, ["piston_diameter_m", "payload_mass_kg"], 1) == [
+        "payload_mass_kg: best at the upper end 20; extend the range above 20"
+    ]

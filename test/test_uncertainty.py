@@ -161,3 +161,11 @@ def test_no_interval_without_more_samples_than_values():
     assert np.isfinite(half).all()
     cov, _ = covariance(jac4, _alternating(4), [slice(0, 4)], [1.0])
     assert half == pytest.approx(stats.t.ppf(0.975, 1) * np.sqrt(np.diag(cov)), rel=1e-12)
+
+
+def test_one_degree_of_freedom_in_closed_form():
+    # n = 2, p = 1: r = +-1, mean square 1; B = 1 * 2 * 2/1, A = 2: variance 4/4 = 1.
+    cov, _ = covariance(np.ones((2, 1)), np.array([1.0, -1.0]), [slice(0, 2)], [1.0])
+    assert cov[0, 0] == pytest.approx(1.0, rel=1e-12)
+    half, _ = half_widths(np.ones((2, 1)), np.array([1.0, -1.0]), [slice(0, 2)], [1.0])
+    assert half[0] == pytest.approx(12.706204736, rel=1e-9)  # Student's t, 97.5 %, 1 degree of freedom
