@@ -169,3 +169,29 @@ def test_one_degree_of_freedom_in_closed_form():
     assert cov[0, 0] == pytest.approx(1.0, rel=1e-12)
     half, _ = half_widths(np.ones((2, 1)), np.array([1.0, -1.0]), [slice(0, 2)], [1.0])
     assert half[0] == pytest.approx(12.706204736, rel=1e-9)  # Student's t, 97.5 %, 1 degree of freedom
+
+
+def test_fewer_samples_than_values_have_no_interval():
+    jac = np.column_stack([np.ones(2), np.arange(2.0), np.arange(2.0) ** 2])
+    half, correlation = half_widths(jac, np.array([0.5, -0.5]), [slice(0, 2)], [1.0])
+    assert (half == math.inf).all() and (correlation == np.eye(3)).all()
+
+
+def test_a_value_all_but_orthogonal_to_an_unseen_direction_is_known():
+    """Two values seen only as their sum and a third whose share of that blind direction is 1e-4
+    (1e-8 of its variance, below the 1e-6 that counts as blind): the third is known."""
+    n = 10
+    t = np.linspace(0.0, 1.0, n)
+    jac = np.column_stack([np.ones(n), t, t + 1.4e-4])  # c2 - c1 = 1.4e-4 c0: blind along (1.4e-4, 1, -1)
+    half, _ = half_widths(jac, _alternating(n), [slice(0, n)], [1.0])
+    assert math.isfinite(half[0]) and half[1] == math.inf and half[2] == math.inf
+
+
+def test_a_correlated_residual_below_the_floor_keeps_its_correlation():
+    n = 64
+    slow = np.where((np.arange(n) // 8) % 2 == 0, 1.0, -1.0)
+    jac = np.ones((n, 1))
+    quiet, _ = covariance(jac, 0.1 * slow, [slice(0, n)], [1.0])  # a tenth of the noise: raised to half
+    floor, _ = covariance(jac, 0.5 * slow, [slice(0, n)], [1.0])
+    assert quiet[0, 0] == pytest.approx(floor[0, 0], rel=1e-12)
+    assert quiet[0, 0] == pytest.approx(0.25 * inflation(slow) / (n - 1), rel=1e-12)
