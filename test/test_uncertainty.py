@@ -148,6 +148,8 @@ def test_a_value_the_signals_do_not_see_has_an_infinite_interval():
     assert np.isfinite(half).all() and half[1] > 1e6 * half[0]
     blind = np.column_stack([np.ones(n), 1e-11 * t])
     assert half_widths(blind, _alternating(n), [slice(0, n)], [1.0])[0][1] == math.inf
+    # blind is relative to the best-seen direction, not an absolute size: in pascals, say
+    assert half_widths(1e6 * blind, _alternating(n), [slice(0, n)], [1.0])[0][1] == math.inf
     nothing = np.zeros((n, 2))
     assert (half_widths(nothing, _alternating(n), [slice(0, n)], [1.0])[0] == math.inf).all()
 
