@@ -58,6 +58,9 @@ def test_the_interval_of_a_mean_is_students_t_over_root_n():
     assert LEVEL == 0.95
     assert half[0] == pytest.approx(stats.t.ppf(0.975, n - 1) / 3.0, rel=1e-12)
     assert correlation.tolist() == [[1.0]]
+    # a value seen weakly (every singular value below 1) is seen all the same: 10 times as wide
+    faint, _ = half_widths(0.1 * jac, _alternating(n), [slice(0, n)], [1.0])
+    assert faint[0] == pytest.approx(10.0 * half[0], rel=1e-12)
     cov, blind = covariance(jac, _alternating(n), [slice(0, n)], [1.0])
     assert cov[0, 0] == pytest.approx(1.0 / 9.0, rel=1e-12) and not blind.any()
 
