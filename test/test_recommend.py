@@ -238,3 +238,11 @@ def test_the_table_says_when_no_design_qualifies_and_marks_who_is_off_the_front(
 )  # fmt: skip
 def test_a_table_cell_for_people(value, shown):
     assert format_value(value) == shown
+
+
+def test_the_table_shows_the_ten_best_by_default():
+    table = _table(12, lift_energy_j=np.arange(12.0, 0.0, -1.0))
+    lines = format_table(recommend(table, [])).splitlines()
+    assert "12 of 12 designs meet every constraint; the 10 with the least lift energy" in lines[2]
+    ranks = [line.split()[:2] for line in lines[4:]]
+    assert ranks == [[str(k + 1), str(11 - k)] for k in range(10)]  # rank, point: the least energy first
