@@ -23,7 +23,7 @@ def _ramp(delay_samples: int = 3, t0: float = 1.0) -> dict[str, np.ndarray]:
     u = np.where(np.arange(n) >= delay_samples, 1.0, 0.0)
     moving = np.clip(np.arange(n) - delay_samples, 0, 10) / 10.0  # 0 .. 1 in ten samples
     q1 = 0.2 + LIFT_M * moving
-    supply = 2000.0 * (t - t0)
+    supply = 2000.3 * (t - t0)
     return {
         "t": t,
         "q1": q1,
@@ -196,6 +196,6 @@ def test_the_first_move_starts_at_the_first_sample_of_its_window_and_ends_before
     m = analysis.move_metrics(p, {"t": t, "alpha": alpha})
     assert m["start_deg"] == pytest.approx(math.degrees(0.2))  # the sample at 1.05 s
     assert m["target_error_deg"] == pytest.approx(0.0, abs=1e-12)  # 4 s is the next move's
-    # sampled before the move and at the next one's start only: nothing of this move
-    none = analysis.move_metrics(p, {"t": np.array([0.0, 0.5, 4.0]), "alpha": np.array([0.1, 0.1, 0.4])})
+    # sampled before the move and from the next one's start only: nothing of this move
+    none = analysis.move_metrics(p, {"t": np.array([0.0, 0.5, 4.0, 4.5]), "alpha": np.array([0.1, 0.1, 0.4, 0.3])})
     assert all(math.isnan(v) for v in none.values())
