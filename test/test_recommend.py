@@ -19,6 +19,7 @@ from boom_hydraulics.sweeps.recommend import (
     format_table,
     format_value,
     parse_constraint,
+    qualifying,
     recommend,
     worst_case,
 )
@@ -71,6 +72,8 @@ def test_a_constraint_passes_the_rows_it_does_not_apply_to():
     table = _table(3, relief_s=[0.5, 0.5, 0.0], worst_target_error_deg=[math.nan, 0.2, 0.2])
     assert c.applies(table).tolist() == [False, True, True]
     assert c.holds(table).tolist() == [True, False, True]
+    table["relief_s"] = np.array([0.0, 0.0, 0.5])  # where it does not apply a row passes, met or not
+    assert c.holds(table).tolist() == [True, True, False]
     assert Constraint("relief_s", "==", 0.0).applies(table).tolist() == [True, True, True]
 
 
@@ -107,6 +110,9 @@ def test_rank_by_each_figure_in_its_direction():
     # most cycles first; a run that gave back more than it drew (inf) is the best, NaN is no rank
     assert recommend(table, [], rank_by="cycles_per_charge").rows.tolist() == [2, 1, 0]
     assert recommend(table, [], rank_by="lift_time_s").rows.tolist() == [3, 2, 0, 1]
+    battery = _table(3, battery_energy_j=[5e3, 2e3, 9e3], peak_battery_power_w=[3e3, 8e3, 1e3])
+    assert recommend(battery, [], rank_by="battery_energy_j").rows.tolist() == [1, 0, 2]  # the least first
+    assert recommend(battery, [], rank_by="peak_battery_power_w").rows.tolist() == [2, 0, 1]
     assert RANKINGS["cycles_per_charge"][0] is True and not RANKINGS["lift_energy_j"][0]
     with pytest.raises(ConfigError, match="--rank-by speed: choose lift_energy_j, battery_energy_j, cycles_per"):
         recommend(table, [], rank_by="speed")
@@ -246,3 +252,39 @@ def test_the_table_shows_the_ten_best_by_default():
     assert "12 of 12 designs meet every constraint; the 10 with the least lift energy" in lines[2]
     ranks = [line.split()[:2] for line in lines[4:]]
     assert ranks == [[str(k + 1), str(11 - k)] for k in range(10)]  # rank, point: the least energy first
+
+
+def test_only_ok_points_qualify_whatever_their_figures():
+    table = _table(4, status=np.array(["ok", "incomplete", "failed", "invalid"]))
+    assert qualifying(table, []).tolist() == [True, False, False, False]
+    assert qualifying(table, [], ["d"], across=["d"]).tolist() == [False] * 4  # one design: every point counts
+
+
+def test_across_every_varied_parameter_the_whole_sweep_is_one_design():
+    table = _table(3, payload_mass_kg=[0.0, 100.0, 200.0], lift_energy_j=[1.0, 3.0, 2.0])
+    rec = recommend(table, [], ["payload_mass_kg"], across=["payload_mass_kg"])
+    assert rec.columns == ("design",) and rec.rows.tolist() == [0]
+    assert rec.table["lift_energy_j"].tolist() == [3.0] and rec.table["points"].tolist() == [3]
+
+
+def test_a_constraint_every_one_of_many_designs_meets_names_no_failure():
+    table = _table(300, lift_time_s=np.linspace(1.0, 2.0, 300))
+    lines = failing(recommend(table, [Constraint("lift_time_s", "<", 9.0, "too slow")]))
+    assert lines[1] == "  lift_time_s < 9                  300 of 300"
+
+
+def test_each_column_of_the_table_in_its_display_unit():
+    table = _table(
+        1,
+        lift_energy_j=[12_300.0],
+        lift_time_s=[1.25],
+        peak_pressure_pa=[18.5e6],
+        min_pressure_pa=[0.35e6],
+        overshoot_m=[0.0042],
+        damping_ratio=[0.125],
+        cavitation_s=[0.03],
+        battery_energy_j=[45_600.0],
+        cycles_per_charge=[321.0],
+    )
+    lines = format_table(recommend(table, [])).splitlines()
+    assert lines[4].split() == ["1", "0", "12.3", "1.25", "18.5", "0.35", "4.2", "0.125", "0.03", "45.6", "321", "*"]
