@@ -152,3 +152,12 @@ def test_a_column_without_a_finite_value_names_no_end():
     assert range_edges(table, ["piston_diameter_m", "payload_mass_kg"], 1) == [
         "payload_mass_kg: best at the upper end 20; extend the range above 20"
     ]
+
+
+def test_a_best_at_the_upper_end_flat_against_a_smaller_design_names_no_end():
+    table = {"piston_diameter_m": np.array([0.05, 0.07, 0.09])}
+    axes = ["piston_diameter_m"]
+    assert range_edges(table, axes, 2, score=np.array([2000.0, 1000.5, 1000.0])) == []
+    assert range_edges(table, axes, 2, score=np.array([2000.0, 1500.0, 1000.0])) == [
+        "piston_diameter_m: best at the upper end 0.09; extend the range above 0.09"
+    ]
