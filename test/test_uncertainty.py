@@ -200,3 +200,10 @@ def test_a_correlated_residual_below_the_floor_keeps_its_correlation():
     floor, _ = covariance(jac, 0.5 * slow, [slice(0, n)], [1.0])
     assert quiet[0, 0] == pytest.approx(floor[0, 0], rel=1e-12)
     assert quiet[0, 0] == pytest.approx(0.25 * inflation(slow) / (n - 1), rel=1e-12)
+
+
+def test_how_many_samples_count_as_one_does_not_depend_on_the_residuals_size():
+    slow = np.where((np.arange(64) // 8) % 2 == 0, 1.0, -1.0)
+    assert inflation(slow) > 2.0
+    for scale in (1e-3, 0.1, 1e4):  # a residual in units of a small noise, or of a large one
+        assert inflation(scale * slow) == pytest.approx(inflation(slow), rel=1e-12)
