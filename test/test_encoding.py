@@ -82,7 +82,7 @@ def _outputs() -> dict[str, float]:
     return out
 
 
-@pytest.mark.parametrize("frame_id", ["base_link", "crane_2/base"])
+@pytest.mark.parametrize("frame_id", ["base_link", "crane_2/base", "arm"])  # (sorting after and before base_link)
 def test_a_drive_state_carries_each_output_in_its_own_field(frame_id):
     out = _outputs()
     data = drive_state_cdr(out, 12 * 10**9 + 5, frame_id)
@@ -157,3 +157,12 @@ def test_a_parameter_event_reads_in_rclpy_as_in_rosbags():
     assert event.stamp.nanosec == 1 and [p.name for p in event.changed_parameters] == ["gain", "times_s"]
     assert event.changed_parameters[0].value.double_value == math.pi
     assert list(event.changed_parameters[1].value.double_array_value) == [0.5]
+
+
+def test_a_nested_message_is_taken_as_given_and_our_own_messages_default_alike():
+    header = message("std_msgs/msg/Header", frame_id="camera")
+    assert message("sensor_msgs/msg/CameraInfo", header=header).header is header
+    ledger = message("boom_hydraulics_msgs/msg/EnergyLedger")
+    assert ledger.terms == [] and len(ledger.power_w) == 0 and ledger.power_w.dtype == np.float64
+    image = message("sensor_msgs/msg/Image")  # an unsigned sequence (its name sorts after "string")
+    assert image.data.dtype == np.uint8 and len(image.data) == 0
