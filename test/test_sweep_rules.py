@@ -170,3 +170,15 @@ def test_only_a_design_equal_in_every_other_column_is_a_neighbour_along_an_axis(
     table = {"piston_diameter_m": np.array([0.05, 0.07, 0.07]), other: np.array([100.0, 100.0, 50.0])}
     lines = range_edges(table, ["piston_diameter_m", other], 0, score=np.array([1000.0, 3000.0, 1000.0]))
     assert "piston_diameter_m: best at the lower end 0.05; extend the range below 0.05" in lines
+
+
+def test_the_pressure_rule_says_its_limit_in_megapascals_to_the_digit():
+    (rule,) = [c for c in Rules(max_pressure_pa=18.5e6).constraints() if c.metric == "peak_pressure_pa"]
+    assert rule.why == "a chamber pressure above 18.5 MPa"
+
+
+def test_range_edges_of_axes_named_on_the_command_line():
+    # names built at run time (not the interned literals of a test): the operator's seed is no range
+    operator, gain = "".join(["oper", "ator"]), "".join(["my_", "gain"])
+    table = {operator: np.array([1, 2, 3]), gain: np.array([0.0, 1.0, 2.0])}
+    assert range_edges(table, [operator, gain], 0) == ["my_gain: best at the lower end 0; extend the range below 0"]
