@@ -165,10 +165,10 @@ def test_a_best_at_the_upper_end_flat_against_a_smaller_design_names_no_end():
 
 @pytest.mark.parametrize("other", ["boom_mass_kg", "supply_pressure_pa"])  # named before and after the axis
 def test_only_a_design_equal_in_every_other_column_is_a_neighbour_along_an_axis(other):
-    """The 0.07 m piston that scores as well as the best has another (and a smaller) boom mass or
-    supply pressure: it is no neighbour of the best along the diameter, which is at its end."""
-    table = {"piston_diameter_m": np.array([0.05, 0.07, 0.07]), other: np.array([100.0, 100.0, 50.0])}
-    lines = range_edges(table, ["piston_diameter_m", other], 0, score=np.array([1000.0, 3000.0, 1000.0]))
+    """The 0.07 m pistons that score as well as the best have another (a smaller, a larger) boom mass
+    or supply pressure: it is no neighbour of the best along the diameter, which is at its end."""
+    table = {"piston_diameter_m": np.array([0.05, 0.07, 0.07, 0.07]), other: np.array([100.0, 100.0, 50.0, 150.0])}
+    lines = range_edges(table, ["piston_diameter_m", other], 0, score=np.array([1000.0, 3000.0, 1000.0, 1000.0]))
     assert "piston_diameter_m: best at the lower end 0.05; extend the range below 0.05" in lines
 
 
