@@ -311,18 +311,48 @@ def test_a_reset_closes_the_valve_and_forgets_the_commands_waiting():
     assert drive.sim.u == 0.0
 
 
-def test_the_controller_starts_afresh_from_a_state_reset_under_it():
-    """The boom put elsewhere while the controller drives (the node's reset service, keeping the
-    clock): the controller goes on from the new state, as the drive taken step by step does."""
+@pytest.mark.parametrize("where", [0.25, 0.75])
+def test_the_controller_starts_afresh_from_a_state_reset_under_it(where):
+    """The boom put elsewhere, lower or higher, while the controller drives (the node's reset
+    service, keeping the clock): the controller goes on from the new state, as the drive taken
+    step by step does."""
     from boom_hydraulics.model.setpoints import SetpointPath
 
     p = Parameters()
     sims = Simulator(p), Simulator(p)
     drive, stepped = CommandedDrive(sims[0]), SteppedDrive(sims[1])
-    longer = 0.5 * (p.initial_length_m + p.cylinder_max_length_m)
+    length = p.cylinder_min_length_m + where * (p.cylinder_max_length_m - p.cylinder_min_length_m)
     for d in (drive, stepped):
         d.follow(SetpointPath.of([0.0], [float(d.sim.outputs()["alpha"]) + 0.1]))
         d.advance(30)
-        d.sim.reset(longer, keep_time=True)
+        d.sim.reset(length, keep_time=True)
         d.advance(30)
     assert sims[0].y == pytest.approx(sims[1].y, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("opening", [-1.0, 1.0, -0.25])
+def test_a_command_at_either_end_of_the_valve_times_out_as_any_other(opening):
+    drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.003)
+    drive.push(0.0, opening)
+    openings = []
+    for _ in range(5):
+        drive.advance(1)
+        openings.append(drive.sim.u)
+    assert openings == [opening] * 3 + [0.0] * 2
+
+
+def test_the_same_goal_sent_again_is_not_settled_until_the_controller_says_so():
+    """A goal equal to the one followed, sent again (a new path with the same knots): the
+    controller starts afresh on it, so the move is not settled until it says so again."""
+    from boom_hydraulics.model.setpoints import SetpointPath
+
+    drive = CommandedDrive(Simulator(Parameters()))
+    target = float(drive.sim.outputs()["alpha"])
+    drive.follow(SetpointPath.of([0.0], [target]))
+    for _ in range(50):
+        drive.advance(10)
+        if drive.holding:
+            break
+    assert drive.holding
+    drive.follow(SetpointPath.of([0.0], [target]))
+    assert not drive.holding

@@ -58,7 +58,7 @@ def test_what_the_valve_dissipates_is_what_the_pump_delivers_less_what_reaches_t
     opening: float, p1: float, holding: float
 ) -> None:
     v = valve.paths(opening, PS, p1, P2, drive(holding))
-    assert v.throttling + v.leakage == pytest.approx(balance(v, p1), rel=1e-10)
+    assert v.throttling + v.leakage == pytest.approx(balance(v, p1), rel=1e-10, abs=0.0)
     assert v.throttling >= -1e-12 * v.leakage  # none but rounding where only leakage flows
     assert v.leakage > 0.0
 
@@ -68,9 +68,9 @@ def test_raising_feeds_a_through_the_check_and_drains_b() -> None:
     q_pa, q_at, q_pb, q_bt = spool(0.6, d)
     v = valve.paths(0.6, PS, P1, P2, d)
     seat = d.seat_leak * (P1 - PT)
-    assert v.q_a == pytest.approx(q_pa - q_at - seat, rel=TIGHT)
-    assert v.q_b == pytest.approx(q_pb - q_bt, rel=TIGHT)
-    assert v.q_in == pytest.approx(q_pa + q_pb, rel=TIGHT)
+    assert v.q_a == pytest.approx(q_pa - q_at - seat, rel=TIGHT, abs=0.0)
+    assert v.q_b == pytest.approx(q_pb - q_bt, rel=TIGHT, abs=0.0)
+    assert v.q_in == pytest.approx(q_pa + q_pb, rel=TIGHT, abs=0.0)
     assert v.leakage == pytest.approx(
         d.leak * ((PS - P1) ** 2 + (P1 - PT) ** 2 + (PS - P2) ** 2 + (P2 - PT) ** 2) + d.seat_leak * (P1 - PT) ** 2,
         rel=TIGHT,
@@ -92,9 +92,9 @@ def test_lowering_pilots_the_load_holding_valve_open_smoothly_until_5_percent(op
     assert q_pa - q_at < 0.0
     v = valve.paths(opening, PS, 1.5e7, P2, d)
     seat = d.seat_leak * (1.5e7 - PT)
-    assert v.q_a == pytest.approx(pilot * (q_pa - q_at) - seat, rel=TIGHT)
-    assert v.q_in == pytest.approx(pilot * q_pa + q_pb, rel=TIGHT)
-    assert v.q_b == pytest.approx(q_pb - q_bt, rel=TIGHT)
+    assert v.q_a == pytest.approx(pilot * (q_pa - q_at) - seat, rel=TIGHT, abs=0.0)
+    assert v.q_in == pytest.approx(pilot * q_pa + q_pb, rel=TIGHT, abs=0.0)
+    assert v.q_b == pytest.approx(q_pb - q_bt, rel=TIGHT, abs=0.0)
     dp_pa, dp_at = PS - 1.5e7, 1.5e7 - PT
     assert v.leakage == pytest.approx(
         d.leak * (pilot * (dp_pa**2 + dp_at**2) + (PS - P2) ** 2 + (P2 - PT) ** 2) + d.seat_leak * dp_at**2, rel=TIGHT
@@ -110,16 +110,18 @@ def test_without_a_load_holding_valve_a_passes_both_ways_and_nothing_leaks_throu
     for opening in (0.0, -0.0125, -0.4):
         q_pa, q_at, _, _ = spool(opening, d, p1=1.5e7)
         v = valve.paths(opening, PS, 1.5e7, P2, d)
-        assert v.q_a == pytest.approx(q_pa - q_at, rel=TIGHT)
+        assert v.q_a == pytest.approx(q_pa - q_at, rel=TIGHT, abs=0.0)
         dp_pa, dp_at = PS - 1.5e7, 1.5e7 - PT
-        assert v.leakage == pytest.approx(d.leak * (dp_pa**2 + dp_at**2 + (PS - P2) ** 2 + (P2 - PT) ** 2), rel=TIGHT)
+        assert v.leakage == pytest.approx(
+            d.leak * (dp_pa**2 + dp_at**2 + (PS - P2) ** 2 + (P2 - PT) ** 2), rel=TIGHT, abs=0.0
+        )
 
 
 def test_a_closed_load_holding_valve_holds_the_load_but_for_its_seat() -> None:
     d = drive(leak=0.0)
     v = valve.paths(0.0, PS, 1.5e7, P2, d)
-    assert v.q_a == pytest.approx(-d.seat_leak * (1.5e7 - PT), rel=TIGHT)
-    assert v.leakage == pytest.approx(d.seat_leak * (1.5e7 - PT) ** 2, rel=TIGHT)
+    assert v.q_a == pytest.approx(-d.seat_leak * (1.5e7 - PT), rel=TIGHT, abs=0.0)
+    assert v.leakage == pytest.approx(d.seat_leak * (1.5e7 - PT) ** 2, rel=TIGHT, abs=0.0)
     assert v.throttling == pytest.approx(0.0, abs=1e-9)
 
 
@@ -130,26 +132,26 @@ def test_valve_paths_run_on_arrays_as_on_floats() -> None:
     for i, opening in enumerate(openings):
         one = valve.paths(float(opening), PS, P1, P2, d)
         for got, want in zip(arrays, one, strict=True):
-            assert got[i] == pytest.approx(want, rel=TIGHT)
+            assert got[i] == pytest.approx(want, rel=TIGHT, abs=0.0)
 
 
 def test_laminar_slope_is_the_open_paths_laminar_slope_plus_two_leaks() -> None:
     d = drive()
-    assert valve.laminar_slope(0.5, d) == pytest.approx(0.5 * K / math.sqrt(P_TR) + 2e-13, rel=TIGHT)
+    assert valve.laminar_slope(0.5, d) == pytest.approx(0.5 * K / math.sqrt(P_TR) + 2e-13, rel=TIGHT, abs=0.0)
     # it is the slope of the flow into A at equal pressures: P->A's K x / sqrt(p_tr) + G, A->T's G
     dp = 1.0
     q = [valve.paths(0.5, PS, PS + s * dp, P2, drive(holding=0.0)).q_a for s in (-1.0, 1.0)]
-    assert (q[0] - q[1]) / (2 * dp) == pytest.approx(valve.laminar_slope(0.5, d), rel=1e-6)
+    assert (q[0] - q[1]) / (2 * dp) == pytest.approx(valve.laminar_slope(0.5, d), rel=1e-6, abs=0.0)
 
 
 @pytest.mark.parametrize(("flow", "drop"), [(1e-3, 5e5), (2.5e-4, 1e5), (1e-3, P_TR)])
 def test_an_open_centre_passes_the_flow_it_is_sized_for_at_its_pressure_drop(flow: float, drop: float) -> None:
     k_c = valve.centre_coefficient(flow, drop, P_TR)
-    assert hydraulics.orifice_flow(k_c, drop, P_TR * P_TR) == pytest.approx(flow, rel=TIGHT)
+    assert hydraulics.orifice_flow(k_c, drop, P_TR * P_TR) == pytest.approx(flow, rel=TIGHT, abs=0.0)
     d = drive(k_centre=k_c)
     q, loss = valve.centre_flow(0.0, PT + drop, d)
-    assert q == pytest.approx(flow, rel=TIGHT)
-    assert loss == pytest.approx(drop * flow, rel=TIGHT)
+    assert q == pytest.approx(flow, rel=TIGHT, abs=0.0)
+    assert loss == pytest.approx(drop * flow, rel=TIGHT, abs=0.0)
 
 
 # spool opening -> the open centre's share of its area: 1 - |x| / x_c down to 0 at x_c = 0.2
@@ -176,6 +178,6 @@ def test_the_centre_slope_is_the_centre_flow_s_slope_at_equal_pressures() -> Non
     d = drive()
     dp = 1.0
     slope = (valve.centre_flow(0.05, PT + dp, d)[0] - valve.centre_flow(0.05, PT - dp, d)[0]) / (2 * dp)
-    assert slope == pytest.approx(valve.centre_slope(0.05, d), rel=1e-6)
+    assert slope == pytest.approx(valve.centre_slope(0.05, d), rel=1e-6, abs=0.0)
     arrays = valve.centre_flow(np.array([0.05, -0.1]), PT + 5e5, d, np)
-    assert arrays[0][1] == pytest.approx(valve.centre_flow(-0.1, PT + 5e5, d)[0], rel=TIGHT)
+    assert arrays[0][1] == pytest.approx(valve.centre_flow(-0.1, PT + 5e5, d)[0], rel=TIGHT, abs=0.0)
