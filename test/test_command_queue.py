@@ -228,13 +228,15 @@ def test_the_controller_keeps_the_payload_a_whole_run_left_on_the_hook():
     assert sim.energy_residual() == pytest.approx(reference.energy_residual(), abs=1e-9)
 
 
-def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch):
+@pytest.mark.parametrize("horizon_s", [0.055, 0.3055])
+def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch, horizon_s):
     """The controller's run is FOLLOW_HORIZON_S long (years); past its end the drive begins
-    another and takes every step asked for, rather than standing still or losing steps."""
+    another and takes every step asked for, rather than standing still or losing steps (a run
+    of 55 steps, not a whole number of ticks, and one of 305, whose count of passes is no small int)."""
     from boom_hydraulics.model.setpoints import SetpointPath
     from boom_hydraulics.solve import simulator
 
-    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", 0.055)  # 55 steps: not a whole number of ticks
+    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", horizon_s)
     sim = Simulator(Parameters())
     drive = CommandedDrive(sim)
     start = float(sim.outputs()["alpha"])
@@ -356,3 +358,9 @@ def test_the_same_goal_sent_again_is_not_settled_until_the_controller_says_so():
     assert drive.holding
     drive.follow(SetpointPath.of([0.0], [target]))
     assert not drive.holding
+
+
+def test_a_drive_keeps_the_valve_closed_until_its_first_command():
+    drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.5)
+    drive.advance(5)
+    assert drive.current == 0.0 and drive.sim.u == 0.0
