@@ -364,3 +364,13 @@ def test_a_drive_keeps_the_valve_closed_until_its_first_command():
     drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.5)
     drive.advance(5)
     assert drive.current == 0.0 and drive.sim.u == 0.0
+
+
+def test_a_drive_takes_ten_thousand_future_commands_by_default_and_without_a_timeout_holds_the_valve():
+    drive = CommandedDrive(Simulator(Parameters()))
+    assert all(drive.push(1.0 + k * 1e-3, 0.1) for k in range(10_000))
+    assert not drive.push(20.0, 0.2)  # one past the bound
+    drive.queue.clear()
+    drive.push(0.0, 0.6)
+    drive.advance(1100)  # past a second: no timeout unless one is given
+    assert drive.current == 0.6 and drive.sim.u == 0.6
