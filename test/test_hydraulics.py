@@ -182,12 +182,15 @@ def test_the_supply_holds_its_setting_while_the_pump_keeps_up() -> None:
 
 
 @pytest.mark.parametrize("opening", [1.0, 0.5, -0.5, -1.0])
-def test_the_supply_falls_to_the_pressure_at_which_the_open_path_takes_the_pump_maximum(opening: float) -> None:
+@pytest.mark.parametrize(("p1", "p2"), [(P1, P2), (7_654_321.3, 2_345_678.7)])  # round, and as a run gives them
+def test_the_supply_falls_to_the_pressure_at_which_the_open_path_takes_the_pump_maximum(
+    opening: float, p1: float, p2: float
+) -> None:
     q_max = 2e-4  # less than the path takes at p_set
-    fed = P1 if opening > 0 else P2
-    p = h.supply_pressure(opening, PS, P1, P2, K, TR2, q_max)
+    fed = p1 if opening > 0 else p2
+    p = h.supply_pressure(opening, PS, p1, p2, K, TR2, q_max)
     assert p < PS
     assert K * abs(opening) * _orifice(p - fed) == pytest.approx(q_max, rel=1e-9, abs=0.0)
-    p_arr = h.supply_pressure(np.array([opening, 0.0]), PS, P1, P2, K, TR2, q_max, np)
+    p_arr = h.supply_pressure(np.array([opening, 0.0]), PS, p1, p2, K, TR2, q_max, np)
     assert p_arr[0] == pytest.approx(p, rel=TIGHT, abs=0.0)
     assert p_arr[1] == PS
