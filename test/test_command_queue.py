@@ -297,8 +297,10 @@ def test_a_command_times_out_at_the_step_within_half_a_step_of_its_deadline_exac
         assert drive.sim.step_count == 12
         if steps == 1:
             assert openings == [0.6] * open_steps + [0.0] * (12 - open_steps)
+            stepped = drive.sim.y
         else:
             assert drive.current == 0.0
+            assert drive.sim.y == pytest.approx(stepped, rel=1e-12, abs=1e-15)  # the same steps open
 
 
 def test_a_reset_closes_the_valve_and_forgets_the_commands_waiting():
@@ -374,3 +376,10 @@ def test_a_drive_takes_ten_thousand_future_commands_by_default_and_without_a_tim
     drive.push(0.0, 0.6)
     drive.advance(1100)  # past a second: no timeout unless one is given
     assert drive.current == 0.6 and drive.sim.u == 0.6
+
+
+def test_the_steps_before_the_next_command_count_to_the_earliest_queued_whatever_the_order_sent():
+    q = CommandQueue()
+    q.push(0.0030, 0.5)
+    q.push(0.0104, 1.0)  # sent after, due later
+    assert q.steps_until_next(0.0, 0.001, 100) == 3
