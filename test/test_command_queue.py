@@ -228,13 +228,15 @@ def test_the_controller_keeps_the_payload_a_whole_run_left_on_the_hook():
     assert sim.energy_residual() == pytest.approx(reference.energy_residual(), abs=1e-9)
 
 
-def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch):
+@pytest.mark.parametrize("horizon_s", [0.055, 0.3055])
+def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch, horizon_s):
     """The controller's run is FOLLOW_HORIZON_S long (years); past its end the drive begins
-    another and takes every step asked for, rather than standing still or losing steps."""
+    another and takes every step asked for, rather than standing still or losing steps (a run
+    of 55 steps, not a whole number of ticks, and one of 305, whose count of passes is no small int)."""
     from boom_hydraulics.model.setpoints import SetpointPath
     from boom_hydraulics.solve import simulator
 
-    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", 0.055)  # 55 steps: not a whole number of ticks
+    monkeypatch.setattr(simulator, "FOLLOW_HORIZON_S", horizon_s)
     sim = Simulator(Parameters())
     drive = CommandedDrive(sim)
     start = float(sim.outputs()["alpha"])
@@ -243,3 +245,141 @@ def test_the_controller_goes_on_past_the_end_of_its_run(monkeypatch):
         drive.advance(10)
     assert sim.step_count == 1000 and sim.t == pytest.approx(1.0)
     assert sim.outputs()["alpha"] > start + 0.08  # lifted towards the target, run after run
+
+
+def test_the_default_queue_takes_ten_thousand_future_commands_and_refuses_the_next():
+    """The documented bound (max_pending, 10 000 by default): exactly at it, then one past it."""
+    q = CommandQueue()
+    assert all(q.push(1.0 + k * 1e-3, 0.1) for k in range(10_000))
+    assert len(q) == 10_000
+    assert not q.push(20.0, 0.2)
+    assert len(q) == 10_000
+
+
+def test_new_physical_parameters_keep_the_controller_whatever_string_names_the_mode():
+    """A mode read from a file or a ROS parameter is a string of its own, not the literal in the
+    code: physical mode keeps the controller driving, with the new parameters."""
+    from boom_hydraulics.model.parameters import with_updates
+    from boom_hydraulics.model.setpoints import SetpointPath
+
+    sim = Simulator(Parameters())
+    drive = CommandedDrive(sim)
+    drive.follow(SetpointPath.of([0.0], [0.3]))
+    mode = "".join(["phys", "ical"])  # equal to "physical", another object
+    sim.set_parameters(with_updates(sim.params, mode=mode, payload_mass_kg=150.0))
+    drive.parameters_changed()
+    assert drive.loop is not None and drive.loop.path.at(0.0)[0] == pytest.approx(0.3)
+
+
+def test_a_command_far_older_than_the_timeout_is_stale_and_paper_mode_read_from_a_file_clamps_to_0_1():
+    assert stale(0.0, 5.0, 0.25)  # 20 timeouts old
+    assert stale(1.0, 1.2500001, 0.25)  # one past the timeout
+    paper = "".join(["pa", "per"])  # equal to "paper", another object (as read from a file)
+    assert valve_opening(-0.4, paper) == 0.0 and valve_opening(1.5, paper) == 1.0
+
+
+@pytest.mark.parametrize(
+    ("timeout_s", "open_steps"),
+    [(0.0055, 5), (0.0055 + 1e-13, 6), (0.0045, 4), (0.00551, 6), (0.0005, 0), (0.00051, 1)],
+)
+def test_a_command_times_out_at_the_step_within_half_a_step_of_its_deadline_exactly_and_a_hair_past(
+    timeout_s, open_steps
+):
+    """The boundary of the timeout: a deadline exactly half a step after a step's start closes
+    the valve for that step; a hair (1e-13 s) later, for the next; taken in one advance or step by step."""
+    for steps in (1, 12):
+        drive = CommandedDrive(Simulator(Parameters()), timeout_s=timeout_s)
+        drive.push(0.0, 0.6)
+        openings = []
+        for _ in range(12 // steps):
+            drive.advance(steps)
+            openings.append(drive.sim.u)
+        assert drive.sim.step_count == 12
+        if steps == 1:
+            assert openings == [0.6] * open_steps + [0.0] * (12 - open_steps)
+            stepped = drive.sim.y
+        else:
+            assert drive.current == 0.0
+            assert drive.sim.y == pytest.approx(stepped, rel=1e-12, abs=1e-15)  # the same steps open
+
+
+def test_a_reset_closes_the_valve_and_forgets_the_commands_waiting():
+    drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.0)
+    drive.push(0.0, 0.6)
+    drive.push(0.004, -0.3)
+    drive.advance(2)
+    assert drive.current == 0.6
+    drive.reset()
+    assert drive.current == 0.0 and len(drive.queue) == 0 and drive.last_command_s is None
+    drive.advance(6)
+    assert drive.sim.u == 0.0
+
+
+@pytest.mark.parametrize("where", [0.25, 0.75])
+def test_the_controller_starts_afresh_from_a_state_reset_under_it(where):
+    """The boom put elsewhere, lower or higher, while the controller drives (the node's reset
+    service, keeping the clock): the controller goes on from the new state, as the drive taken
+    step by step does."""
+    from boom_hydraulics.model.setpoints import SetpointPath
+
+    p = Parameters()
+    sims = Simulator(p), Simulator(p)
+    drive, stepped = CommandedDrive(sims[0]), SteppedDrive(sims[1])
+    length = p.cylinder_min_length_m + where * (p.cylinder_max_length_m - p.cylinder_min_length_m)
+    for d in (drive, stepped):
+        d.follow(SetpointPath.of([0.0], [float(d.sim.outputs()["alpha"]) + 0.1]))
+        d.advance(30)
+        d.sim.reset(length, keep_time=True)
+        d.advance(30)
+    assert sims[0].y == pytest.approx(sims[1].y, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("opening", [-1.0, 1.0, -0.25])
+def test_a_command_at_either_end_of_the_valve_times_out_as_any_other(opening):
+    drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.003)
+    drive.push(0.0, opening)
+    openings = []
+    for _ in range(5):
+        drive.advance(1)
+        openings.append(drive.sim.u)
+    assert openings == [opening] * 3 + [0.0] * 2
+
+
+def test_the_same_goal_sent_again_is_not_settled_until_the_controller_says_so():
+    """A goal equal to the one followed, sent again (a new path with the same knots): the
+    controller starts afresh on it, so the move is not settled until it says so again."""
+    from boom_hydraulics.model.setpoints import SetpointPath
+
+    drive = CommandedDrive(Simulator(Parameters()))
+    target = float(drive.sim.outputs()["alpha"])
+    drive.follow(SetpointPath.of([0.0], [target]))
+    for _ in range(50):
+        drive.advance(10)
+        if drive.holding:
+            break
+    assert drive.holding
+    drive.follow(SetpointPath.of([0.0], [target]))
+    assert not drive.holding
+
+
+def test_a_drive_keeps_the_valve_closed_until_its_first_command():
+    drive = CommandedDrive(Simulator(Parameters()), timeout_s=0.5)
+    drive.advance(5)
+    assert drive.current == 0.0 and drive.sim.u == 0.0
+
+
+def test_a_drive_takes_ten_thousand_future_commands_by_default_and_without_a_timeout_holds_the_valve():
+    drive = CommandedDrive(Simulator(Parameters()))
+    assert all(drive.push(1.0 + k * 1e-3, 0.1) for k in range(10_000))
+    assert not drive.push(20.0, 0.2)  # one past the bound
+    drive.queue.clear()
+    drive.push(0.0, 0.6)
+    drive.advance(1100)  # past a second: no timeout unless one is given
+    assert drive.current == 0.6 and drive.sim.u == 0.6
+
+
+def test_the_steps_before_the_next_command_count_to_the_earliest_queued_whatever_the_order_sent():
+    q = CommandQueue()
+    q.push(0.0030, 0.5)
+    q.push(0.0104, 1.0)  # sent after, due later
+    assert q.steps_until_next(0.0, 0.001, 100) == 3
