@@ -176,3 +176,5 @@ def test_the_imbalance_counts_the_reservoir_as_a_source_and_its_ratio_is_over_wh
     assert idle["imbalance"] == pytest.approx(0.0, abs=1e-12) and idle["imbalance_ratio"] == 0.0
     lost = ledger.energies_of(zero | {"valve_loss": 3.0})  # nothing drawn: no ratio to give
     assert lost["imbalance"] == -3.0 and lost["imbalance_ratio"] == 0.0
+    little = ledger.energies_of(zero | {"battery_drawn": 0.5, "valve_loss": 0.4})  # under a joule drawn
+    assert little["imbalance_ratio"] == pytest.approx(0.2, rel=1e-12)

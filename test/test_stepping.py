@@ -679,3 +679,11 @@ def test_a_block_of_one_steps_its_substeps_at_their_own_times():
     block = stepping.advance_lanes(integrators.rk4_step, _clock, _rate_of, _stored, 2.0, (0.0,), (0.0, 0.0), 0.0, 0.3,
                                    3, 0.0, 8, 1, -1, 0.0)  # fmt: skip
     assert (block[1], block[2]) == (stepping.OK, 3) and block[3][0] == pytest.approx((2.3**2 - 4.0) / 2, rel=1e-14)
+
+
+def test_the_outcome_codes_are_distinct_and_zero_is_ok():
+    """A sweep's failed_why and the simulator's message read the code: OK is 0 (batch.py) and
+    no two outcomes, the geometry's (outcomes.OUT_OF_GEOMETRY) among them, share a code."""
+    assert stepping.OK == 0 and outcomes.OUTCOMES["ok"] == 0
+    codes = (stepping.OK, stepping.NONFINITE, stepping.ENERGY, stepping.TOO_STIFF, outcomes.OUT_OF_GEOMETRY)
+    assert len(set(codes)) == len(codes) and set(codes) == set(outcomes.OUTCOMES.values())
