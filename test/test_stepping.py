@@ -646,26 +646,32 @@ def test_a_halving_loop_takes_a_step_again_in_up_to_halved_most_substeps_and_no_
         (4000.0, 3, "rk4", -1, (stepping.OK, 3)),  # at least min_substeps
         (10000.0, 1, "rk4", -1, (stepping.OK, 4)),  # exactly at the most substeps
         (10000.1, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),  # one past
-        (1e30, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),  # no count of its own: the most + 1
+        (2.5e20, 1, "rk4", -1, (stepping.TOO_STIFF, 10**17)),  # below BEYOND: the count it needs
+        (2.5e21, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),  # at BEYOND: no count of its own, the most + 1
+        (1e30, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),
         (100.0, 1, "nan", -1, (stepping.NONFINITE, 1)),  # the state kept
+        (100.0, 1, "nan", 1, (stepping.NONFINITE, 1)),  # and not an energy failure
         (100.0, 1, "energy", 1, (stepping.ENERGY, 1)),  # the balance broken: the state kept
+        (100.0, 1, "energy", 0, (stepping.ENERGY, 1)),  # W the first state
         (100.0, 2, "energy", -1, (stepping.OK, 2)),  # unchecked
+        (100.0, 2, "balanced", 1, (stepping.OK, 2)),  # checked, and within the slack
     ],
 )
 def test_a_set_stepped_as_a_block_of_one_is_the_step_advance_takes(rate, min_substeps, step, energy_index, expected):
     """advance_lanes on one set (floats, interpreted) takes advance's step: the same outcome,
     substeps (or the substeps it would need) and state, the state kept where the step fails."""
 
-    def broken(fun, t, y, h, args):  # y' = -y, W and |W| staying 0 while H is 1e4 J
+    def kept(fun, t, y, h, args):  # y' = -y, W and |W| staying 0 (H: the constants' c[2])
         return (integrators.rk4_step(fun, t, y[:1], h, args)[0], *y[1:])
 
-    steps = {"rk4": integrators.rk4_step, "nan": _toy_step(0.0), "energy": broken}
-    y0 = (1.0, 0.0, 0.0) if step == "energy" else (1.0,)
+    steps = {"rk4": integrators.rk4_step, "nan": _toy_step(0.0), "energy": kept, "balanced": kept}
+    y0 = (1.0,) if step == "rk4" else (1.0, 0.0, 0.0)
 
     def stored(y, c):
-        return 1e4 * (len(y) == 3)
+        return c[2]
 
-    f = (steps[step], _decay, _rate_of, stored, 0.5, y0, (2.0, rate), 0.0, 1e-3, min_substeps, 2.5, 4)
+    c = (2.0, rate, 1e4 if step == "energy" else 0.5)  # 1e4 J from nowhere, or 0.5 J: within the slack
+    f = (steps[step], _decay, _rate_of, stored, 0.5, y0, c, 0.0, 1e-3, min_substeps, 2.5, 4)
     taken, outcome, most, y = stepping.advance(*f, 1, energy_index, 0.0)
     block = stepping.advance_lanes(*f, 1, energy_index, 0.0)
     assert (outcome, most) == expected and block[0] == 1 and (block[1], block[2]) == (outcome, most)
