@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from boom_hydraulics.model import pump, valve
-from boom_hydraulics.model.drives import constants, load_sensing, motor_speed, pressure_compensated
+from boom_hydraulics.model.drives import DRIVES, constants, load_sensing, motor_speed, pressure_compensated
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
 P = Parameters()
@@ -103,3 +103,19 @@ def test_load_sensing_starts_at_its_margin_and_its_fastest_rate_is_its_pumps_lag
     assert load_sensing.stiffness(z, 0.3, 0.3, 1e-3, 1e-3, 1e-3, D)[2] == 1.0 / P.load_sensing_time_constant_s
     quick = constants(with_updates(P, motor_strategy="speed_on_demand", motor_time_constant_s=0.001))
     assert load_sensing.stiffness(z, 0.3, 0.3, 1e-3, 1e-3, 1e-3, quick)[2] == pytest.approx(1000.0, rel=1e-12)
+    tight = D._replace(leak=0.0)  # a valve that leaks nothing, closed: its laminar slope is 0
+    assert load_sensing.stiffness(z, 0.0, 0.0, 1e-3, 1e-3, 1e-3, tight) == (0.0, 0.0, D.ls_inv_tau)
+
+
+def test_a_drive_is_steady_exactly_where_its_states_stand_still():
+    """STEADY_SUPPLY (a linear model leaves the drive's states out) holds for the drive whose
+    states' rates are 0 at the default constant speed, and only for it: load sensing's pump
+    pressure, the fixed pump's line, the motors of the EHA and the actuator move."""
+    moving = set()
+    for name, module in DRIVES.items():
+        d = constants(with_updates(P, drive=name))
+        s = module.supply(module.initial_state(d), 0.3, 0.3, 1.4, 0.05, 6e6, 1e5, d)
+        if (s.rate, s.rate2, s.rate3) != (0.0, 0.0, 0.0):
+            moving.add(name)
+        assert module.STEADY_SUPPLY == (name not in moving), name
+    assert moving == set(DRIVES) - {"pressure_compensated"}
