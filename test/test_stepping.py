@@ -505,10 +505,10 @@ def test_a_block_in_lock_step_stops_the_set_whose_stiffness_has_no_count_and_ste
             out[0, j], out[1, j], out[2, j] = lanes.lane(step[1], j), lanes.lane(step[2], j), lanes.lane(step[3][0], j)
         return out
 
-    decays, rates = np.array([2.0, 2.0, 3.0, 2.0]), np.array([100.0, math.nan, 5000.0, 2e30])
-    out = block_step(decays, rates)  # rates: 1 substep, no count known, 2 substeps, too many
+    decays, rates = np.array([2.0, 2.0, 3.0, 2.0]), np.array([100.0, math.nan, 8000.0, 2e30])
+    out = block_step(decays, rates)  # rates: 1 substep, no count known, 3 substeps, too many
     assert list(out[0]) == [stepping.OK, stepping.TOO_STIFF, stepping.OK, stepping.TOO_STIFF]
-    assert list(out[1]) == [1, 10_001, 2, 10_001]
+    assert list(out[1]) == [1, 10_001, 3, 10_001]
     assert out[2, 1] == out[2, 3] == 1.0  # kept
     for j in (0, 2):  # each as advance takes it alone, to the bit
         c = (float(decays[j]), float(rates[j]))
@@ -655,6 +655,7 @@ def test_a_halving_loop_takes_a_step_again_in_up_to_halved_most_substeps_and_no_
         (100.0, 1, "energy", 0, (stepping.ENERGY, 1)),  # W the first state
         (100.0, 2, "energy", -1, (stepping.OK, 2)),  # unchecked
         (100.0, 2, "balanced", 1, (stepping.OK, 2)),  # checked, and within the slack
+        (100.0, 1, "moved", 1, (stepping.OK, 1)),  # 1e4 J within 1 % of the 2e6 J moved either way
     ],
 )
 def test_a_set_stepped_as_a_block_of_one_is_the_step_advance_takes(rate, min_substeps, step, energy_index, expected):
@@ -664,13 +665,13 @@ def test_a_set_stepped_as_a_block_of_one_is_the_step_advance_takes(rate, min_sub
     def kept(fun, t, y, h, args):  # y' = -y, W and |W| staying 0 (H: the constants' c[2])
         return (integrators.rk4_step(fun, t, y[:1], h, args)[0], *y[1:])
 
-    steps = {"rk4": integrators.rk4_step, "nan": _toy_step(0.0), "energy": kept, "balanced": kept}
-    y0 = (1.0,) if step == "rk4" else (1.0, 0.0, 0.0)
+    steps = {"rk4": integrators.rk4_step, "nan": _toy_step(0.0), "energy": kept, "balanced": kept, "moved": kept}
+    y0 = (1.0,) if step == "rk4" else (1.0, 0.0, 2e6 if step == "moved" else 0.0)
 
     def stored(y, c):
         return c[2]
 
-    c = (2.0, rate, 1e4 if step == "energy" else 0.5)  # 1e4 J from nowhere, or 0.5 J: within the slack
+    c = (2.0, rate, 1e4 if step in ("energy", "moved") else 0.5)  # 1e4 J from nowhere, or 0.5 J: the slack
     f = (steps[step], _decay, _rate_of, stored, 0.5, y0, c, 0.0, 1e-3, min_substeps, 2.5, 4)
     taken, outcome, most, y = stepping.advance(*f, 1, energy_index, 0.0)
     block = stepping.advance_lanes(*f, 1, energy_index, 0.0)
@@ -693,3 +694,28 @@ def test_the_outcome_codes_are_distinct_and_zero_is_ok():
     assert stepping.OK == 0 and outcomes.OUTCOMES["ok"] == 0
     codes = (stepping.OK, stepping.NONFINITE, stepping.ENERGY, stepping.TOO_STIFF, outcomes.OUT_OF_GEOMETRY)
     assert len(set(codes)) == len(codes) and set(codes) == set(outcomes.OUTCOMES.values())
+
+
+def test_a_halving_loop_goes_on_halving_a_step_whose_balance_stays_broken_and_starts_from_its_least_substeps():
+    """A step whose energy balance holds only in substeps of 0.25 ms or less: from 1 substep it
+    is taken in 4 (the 2 of the first retry break the balance too); from min_substeps 2, in 4
+    (its first retry doubles the 2 it failed in); the result is Euler's at that step."""
+
+    def step(fun, t, y, h, args):
+        flowed = y[1] + (h * y[0] if h > 0.3e-3 else 0.0)  # a substep longer than 0.3 ms books energy from nowhere
+        return [y[0] - h * y[0], flowed, abs(flowed)]
+
+    def stored(y, c):
+        return 0.0
+
+    for least in (1, 2):
+        done, outcome, most, y = stepping.advance_halving(step, _decay, _rate_of, stored, 0.0, [1e4, 0.0, 0.0],
+                                                          (1.0, 0.0), 0.0, 1e-3, least, 0.0, 64, 3, 1, 0.0)  # fmt: skip
+        assert (done, outcome, most) == (3, stepping.OK, 4), least
+        assert y[0] == pytest.approx(1e4 * (1.0 - 0.25e-3) ** 12, rel=1e-12)
+
+
+def test_a_halving_loop_passes_a_too_stiff_step_on_even_where_it_may_not_halve():
+    """With at most 1 substep (no room to halve), a too stiff step stops as advance stops it."""
+    args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), (1.0, 1e4), 0.0, 1e-3, 1, 2.5, 1, 3, -1, 0.0)
+    assert stepping.advance_halving(*args) == stepping.advance(*args) == (0, stepping.TOO_STIFF, 4, (1.0,))
