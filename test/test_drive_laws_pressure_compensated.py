@@ -119,3 +119,12 @@ def test_a_drive_is_steady_exactly_where_its_states_stand_still():
             moving.add(name)
         assert module.STEADY_SUPPLY == (name not in moving), name
     assert moving == set(DRIVES) - {"pressure_compensated"}
+
+
+def test_a_valve_drive_reports_the_spool_position_its_paths_see():
+    """Supply.spool is the x_v output: the valve drives give the spool's position, either way."""
+    for name, module in DRIVES.items():
+        if module.VALVE:
+            d = constants(with_updates(P, drive=name))
+            for opening in (0.37, -0.61):
+                assert module.supply(module.initial_state(d), 0.9, opening, 1.4, 0.0, 6e6, 1e5, d).spool == opening
