@@ -6,6 +6,7 @@ rotors ask (eq. D64). docs/model.md, "Drives" and "Motor strategies"."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from boom_hydraulics.model import pump, valve
@@ -46,7 +47,9 @@ def test_a_slow_pump_holds_at_most_its_dead_heading_pressure_and_a_stopped_one_n
     assert 6e6 < at(P_N, 0.5 * P.pump_speed_rad_s, 1.0, 6e6, 1e5, WIDE) < wide  # half the flow: less drop
 
 
-@pytest.mark.parametrize(("opening", "p1_pa"), [(0.05, 6e6), (0.3, 6e6), (-0.2, 3e6), (0.0, 6e6)])
+@pytest.mark.parametrize(
+    ("opening", "p1_pa"), [(0.05, 6e6), (0.3, 6e6), (-0.2, 3e6), (0.0, 6e6), (0.6, 6e6), (1.0, 9e6)]
+)  # w_min for the first four, between w_min and w_n for the last two
 def test_speed_on_demand_turns_the_pump_at_the_speed_that_delivers_the_valves_flow_and_leakage(opening, p1_pa):
     """eq. D62: w = (Q_P + G_p dp) / D between w_min and w_n, Q_P what the valve's P paths take
     at the P port's pressure of the pump at full flow; at that speed the stroke delivers what
@@ -121,10 +124,35 @@ def test_a_drive_is_steady_exactly_where_its_states_stand_still():
     assert moving == set(DRIVES) - {"pressure_compensated"}
 
 
-def test_a_valve_drive_reports_the_spool_position_its_paths_see():
-    """Supply.spool is the x_v output: the valve drives give the spool's position, either way."""
+def test_a_valve_drive_reports_the_spool_position_its_paths_see_and_moves_the_rod_through_the_oil():
+    """Supply.spool is the x_v output: the valve drives give the spool's position, either way;
+    the chambers' pressures push the rod (cylinder 1) and the drive puts no force of its own on it."""
     for name, module in DRIVES.items():
         if module.VALVE:
             d = constants(with_updates(P, drive=name))
             for opening in (0.37, -0.61):
-                assert module.supply(module.initial_state(d), 0.9, opening, 1.4, 0.0, 6e6, 1e5, d).spool == opening
+                s = module.supply(module.initial_state(d), 0.9, opening, 1.4, 0.0, 6e6, 1e5, d)
+                assert (s.spool, s.cylinder, s.force) == (opening, 1.0, 0.0), name
+
+
+def _batch(*sets):
+    """The drives' constants of several sets as one batch (numpy arrays, a value per set)."""
+    return type(sets[0])(*(np.array([float(getattr(s, f)) for s in sets]) for f in sets[0]._fields))
+
+
+@pytest.mark.parametrize("name", ["pressure_compensated", "load_sensing", "fixed_pump"])
+def test_a_batch_of_sets_with_different_motor_strategies_gives_each_set_what_it_gives_alone(name):
+    """A sweep's block of sets mixes the motor's strategies: each set's Supply is its own run's
+    (the constant motor's P port is not the variable motor's, nor the other way round)."""
+    module = DRIVES[name]
+    sets = [
+        constants(with_updates(P, drive=name)),
+        constants(with_updates(P, drive=name, motor_strategy="speed_on_demand")),
+        constants(with_updates(P, drive=name, motor_strategy="idle_stop")),
+    ]
+    states = [(1.2e7, 0.0, 0.0), (1.2e7, 90.0, 0.0), (1.2e7, 120.0, 0.4)]
+    batch = module.supply(tuple(np.array(z) for z in zip(*states)), 0.4, 0.4, 1.4, 0.02, 6e6, 1e5, _batch(*sets), np)
+    for k, (d, z) in enumerate(zip(sets, states)):
+        alone = module.supply(z, 0.4, 0.4, 1.4, 0.02, 6e6, 1e5, d)
+        for field, value in zip(alone._fields, alone):
+            assert batch._asdict()[field][k] == pytest.approx(value, rel=1e-12, abs=1e-12), (name, k, field)
