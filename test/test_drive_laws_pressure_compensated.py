@@ -96,6 +96,8 @@ def test_the_drive_starts_at_p_n_with_its_motors_states_and_its_fastest_rate_is_
     assert pressure_compensated.stiffness((P_N, 0.0, 0.0), 0.3, 0.3, 1e-3, 1e-3, 1e-3, D) == (slope, slope, 0.0)
     rate = pressure_compensated.stiffness((P_N, 0.0, 0.0), 0.3, 0.3, 1e-3, 1e-3, 1e-3, LAGGING)[2]
     assert rate == motor_speed.fastest_rate(LAGGING) == 1.0 / P.motor_time_constant_s
+    tight = D._replace(leak=0.0)  # a valve that leaks nothing, closed: no slope, no rate at constant speed
+    assert pressure_compensated.stiffness((P_N, 0.0, 0.0), 0.0, 0.0, 1e-3, 1e-3, 1e-3, tight) == (0.0, 0.0, 0.0)
 
 
 def test_load_sensing_starts_at_its_margin_and_its_fastest_rate_is_its_pumps_lag_or_its_motors():
