@@ -697,9 +697,9 @@ def test_the_outcome_codes_are_distinct_and_zero_is_ok():
 
 
 def test_a_halving_loop_goes_on_halving_a_step_whose_balance_stays_broken_and_starts_from_its_least_substeps():
-    """A step whose energy balance holds only in substeps of 0.25 ms or less: from 1 substep it
+    """A step whose energy balance holds only in substeps of 0.3 ms or less: from 1 substep it
     is taken in 4 (the 2 of the first retry break the balance too); from min_substeps 2, in 4
-    (its first retry doubles the 2 it failed in); the result is Euler's at that step."""
+    and from 3, in 6 (the first retry doubles what failed); the result is Euler's at that step."""
 
     def step(fun, t, y, h, args):
         flowed = y[1] + (h * y[0] if h > 0.3e-3 else 0.0)  # a substep longer than 0.3 ms books energy from nowhere
@@ -708,11 +708,12 @@ def test_a_halving_loop_goes_on_halving_a_step_whose_balance_stays_broken_and_st
     def stored(y, c):
         return 0.0
 
-    for least in (1, 2):
+    for least, most_substeps in ((1, 4), (2, 4), (3, 6)):
         done, outcome, most, y = stepping.advance_halving(step, _decay, _rate_of, stored, 0.0, [1e4, 0.0, 0.0],
                                                           (1.0, 0.0), 0.0, 1e-3, least, 0.0, 64, 3, 1, 0.0)  # fmt: skip
-        assert (done, outcome, most) == (3, stepping.OK, 4), least
-        assert y[0] == pytest.approx(1e4 * (1.0 - 0.25e-3) ** 12, rel=1e-12)
+        assert (done, outcome, most) == (3, stepping.OK, most_substeps), least
+        h = 1e-3 / most_substeps
+        assert y[0] == pytest.approx(1e4 * (1.0 - h) ** (3 * most_substeps), rel=1e-12)
 
 
 def test_a_halving_loop_passes_a_too_stiff_step_on_even_where_it_may_not_halve():
