@@ -720,3 +720,12 @@ def test_a_halving_loop_passes_a_too_stiff_step_on_even_where_it_may_not_halve()
     """With at most 1 substep (no room to halve), a too stiff step stops as advance stops it."""
     args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), (1.0, 1e4), 0.0, 1e-3, 1, 2.5, 1, 3, -1, 0.0)
     assert stepping.advance_halving(*args) == stepping.advance(*args) == (0, stepping.TOO_STIFF, 4, (1.0,))
+
+
+def test_a_block_of_one_at_eulers_stability_limit_takes_the_substeps_advance_takes():
+    """Euler's limit is 1 (integrators.METHODS): dt x rate = 3 asks 3 substeps, in a block as alone."""
+    limit = integrators.METHODS["euler"].stability_limit
+    f = (integrators.euler_step, _decay, _rate_of, _stored, 0.0, (1.0,), (2.0, 3000.0), 0.0, 1e-3, 1, limit, 10, 1)
+    alone, block = stepping.advance(*f, -1, 0.0), stepping.advance_lanes(*f, -1, 0.0)
+    assert alone[1:3] == (block[1], block[2]) == (stepping.OK, 3) and block[3][0] == alone[3][0]
+    assert alone[3][0] == pytest.approx((1 - 2e-3 / 3) ** 3, rel=1e-15)
