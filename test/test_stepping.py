@@ -505,10 +505,10 @@ def test_a_block_in_lock_step_stops_the_set_whose_stiffness_has_no_count_and_ste
             out[0, j], out[1, j], out[2, j] = lanes.lane(step[1], j), lanes.lane(step[2], j), lanes.lane(step[3][0], j)
         return out
 
-    decays, rates = np.array([2.0, 2.0, 3.0, 2.0]), np.array([100.0, math.nan, 5000.0, 2e30])
-    out = block_step(decays, rates)  # rates: 1 substep, no count known, 2 substeps, too many
+    decays, rates = np.array([2.0, 2.0, 3.0, 2.0]), np.array([100.0, math.nan, 8000.0, 2e30])
+    out = block_step(decays, rates)  # rates: 1 substep, no count known, 3 substeps, too many
     assert list(out[0]) == [stepping.OK, stepping.TOO_STIFF, stepping.OK, stepping.TOO_STIFF]
-    assert list(out[1]) == [1, 10_001, 2, 10_001]
+    assert list(out[1]) == [1, 10_001, 3, 10_001]
     assert out[2, 1] == out[2, 3] == 1.0  # kept
     for j in (0, 2):  # each as advance takes it alone, to the bit
         c = (float(decays[j]), float(rates[j]))
@@ -528,3 +528,204 @@ def test_what_a_diverged_run_is_told_to_try_fits_its_method():
     assert "more substeps" in rk4 and "method ros2" in rk4
     assert outcomes.substeps_cause("rk4") == "stability bound"
     assert outcomes.substeps_cause("ros2") == "failed steps taken again in halves"
+
+
+# --- the stepping loop's limits, each exactly at and one past (toy models: fast interpreted) ---
+
+
+def test_the_energy_balance_holds_exactly_at_its_tolerance_and_breaks_one_past_it():
+    """|H - W - (H0 - W0)| may reach ENERGY_TOLERANCE |W| + ENERGY_SLACK_J and no more: with
+    W = 300 J (400 J moved either way) and H0 - W0 = 100 J, H = 405 J or 395 J holds, a nJ
+    beyond breaks; at rest (W = 0) the slack alone, 1 J, holds."""
+    assert (stepping.ENERGY_TOLERANCE, stepping.ENERGY_SLACK_J) == (0.01, 1.0)  # docs/model.md, "Stepping"
+    for stored in (405.0, 395.0):
+        assert not stepping.balance_broken(stored, 300.0, 400.0, 100.0)
+    for stored in (405.0 + 1e-9, 395.0 - 1e-9):
+        assert stepping.balance_broken(stored, 300.0, 400.0, 100.0)
+    assert not stepping.balance_broken(101.0, 0.0, 0.0, 100.0) and not stepping.balance_broken(99.0, 0.0, 0.0, 100.0)
+    assert stepping.balance_broken(101.0 + 1e-9, 0.0, 0.0, 100.0)
+    broken = stepping.balance_broken(np.array([405.0, 406.0]), 300.0, 400.0, 100.0)  # sets of a batch alike
+    assert list(broken) == [False, True]
+
+
+def _rk4_substeps(y: float, decay: float, h: float, count: int) -> float:
+    for j in range(count):
+        y = integrators.rk4_step(_decay, j * h, [y], h, ((decay, 0.0), 0.0))[0]
+    return y
+
+
+def test_a_step_at_its_most_substeps_is_taken_and_one_past_it_is_too_stiff():
+    """dt x rate / limit = 4 exactly with at most 4 substeps: the step is taken in 4 substeps;
+    a rate a hair higher needs 5 and stops; at least ``min_substeps`` are taken even where
+    the bound asks fewer."""
+    args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,))
+    at = stepping.advance(*args, (0.3, 16.0), 0.0, 0.5, 1, 2.0, 4, 2, -1, 0.0)
+    assert at[:3] == (2, stepping.OK, 4)
+    assert at[3][0] == pytest.approx(_rk4_substeps(_rk4_substeps(1.0, 0.3, 0.125, 4), 0.3, 0.125, 4), rel=1e-15)
+    past = stepping.advance(*args, (0.3, 16.000001), 0.0, 0.5, 1, 2.0, 4, 2, -1, 0.0)
+    assert past == (0, stepping.TOO_STIFF, 5, (1.0,))
+    least = stepping.advance(*args, (0.3, 16.0), 0.0, 0.5, 6, 2.0, 10, 1, -1, 0.0)
+    assert least[:3] == (1, stepping.OK, 6) and least[3][0] == pytest.approx(_rk4_substeps(1.0, 0.3, 0.5 / 6, 6))
+    assert stepping.advance_halving(*args, (0.3, 16.000001), 0.0, 0.5, 1, 2.0, 4, 2, -1, 0.0) == past
+
+
+def test_a_too_stiff_step_reports_its_count_below_the_bound_and_more_than_the_most_at_it():
+    """A bound just below BEYOND reports the substeps it needs; at BEYOND and past, the most
+    substeps + 1 (no count of its own); the halving loop passes the stop on as it is."""
+    args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,))
+    below = stepping.advance(*args, (1.0, 1e17), 0.0, 1.0, 1, 1.0, 100, 3, -1, 0.0)
+    assert below == (0, stepping.TOO_STIFF, 10**17, (1.0,))
+    at = stepping.advance(*args, (1.0, stepping.BEYOND), 0.0, 1.0, 1, 1.0, 100, 3, -1, 0.0)
+    assert at == (0, stepping.TOO_STIFF, 101, (1.0,))
+    for rate in (1e17, stepping.BEYOND, math.nan):
+        c = (1.0, rate)
+        halving = stepping.advance_halving(*args, c, 0.0, 1.0, 1, 1.0, 100, 3, -1, 0.0)
+        assert halving == stepping.advance(*args, c, 0.0, 1.0, 1, 1.0, 100, 3, -1, 0.0)
+
+
+def _clock(t, y, c, u):
+    """A model that reads the time: y' = t (rk4 integrates it exactly)."""
+    return (t,)
+
+
+def test_each_step_and_substep_is_taken_at_its_own_time_and_a_retried_one_at_its_steps():
+    """y' = t from t0 = 2 s over 4 steps of 0.25 s in 2 substeps each is (3^2 - 2^2) / 2 exactly;
+    the halving loop, whose whole steps fail from 2.2 s to 2.6 s, takes them again at their time."""
+    args = (_rate_of, _stored, 2.0, [0.0], (0.0, 0.0), 0.0, 0.25)
+    done, outcome, most, y = stepping.advance(integrators.rk4_step, _clock, *args, 2, 0.0, 8, 4, -1, 0.0)
+    assert (done, outcome, most) == (4, stepping.OK, 2) and y[0] == pytest.approx(2.5, rel=1e-14)
+
+    def step(fun, t, y, h, args):  # a whole step fails at 2.25 s and 2.5 s
+        return [math.nan] if h > 0.2 and 2.2 < t < 2.6 else integrators.rk4_step(fun, t, y, h, args)
+
+    done, outcome, most, y = stepping.advance_halving(step, _clock, *args, 1, 0.0, 8, 4, -1, 0.0)
+    assert (done, outcome, most) == (4, stepping.OK, 2) and y[0] == pytest.approx(2.5, rel=1e-14)
+
+
+def test_a_step_that_is_not_finite_stops_the_run_at_the_state_before_it():
+    """The third step gives NaN: two steps are taken, and the state is the second's."""
+
+    def step(fun, t, y, h, args):
+        return [math.nan] if t >= 2e-3 else integrators.euler_step(fun, t, y, h, args)
+
+    done, outcome, most, y = stepping.advance(step, _decay, _rate_of, _stored, 0.0, [1.0], (1.0, 0.0), 0.0, 1e-3, 1,
+                                              0.0, 8, 10, -1, 0.0)  # fmt: skip
+    assert (done, outcome, most) == (2, stepping.NONFINITE, 1) and y[0] == pytest.approx(0.999**2, rel=1e-15)
+
+
+def test_the_energy_check_reads_the_energy_state_wherever_it_is_even_first():
+    """energy_index 0 (W first, |W| next): a step that books 10 J from nowhere breaks the balance."""
+
+    def step(fun, t, y, h, args):
+        return [y[0] + 10.0, y[1] + 10.0]
+
+    def stored(y, c):
+        return 0.0
+
+    f = (step, _decay, _rate_of, stored, 0.0, [0.0, 0.0], (1.0, 0.0), 0.0, 1e-3, 1, 0.0, 8, 5)
+    assert stepping.advance(*f, 0, 0.0)[:2] == (0, stepping.ENERGY)
+    assert stepping.advance(*f, -1, 0.0)[:2] == (5, stepping.OK)
+
+
+@pytest.mark.parametrize(("bad_above_s", "outcome"), [(1.0 / 1000, stepping.OK), (1.0 / 2000, stepping.NONFINITE)])
+def test_a_halving_loop_takes_a_step_again_in_up_to_halved_most_substeps_and_no_more(bad_above_s, outcome):
+    """A step of 1 s that passes only in substeps of 1 ms is taken in HALVED_MOST = 1024 of them;
+    one that needs 2048 stops there, whatever ``max_substeps`` allows."""
+    assert stepping.HALVED_MOST == 1024
+    f = (_toy_step(bad_above_s), _decay, _rate_of, _stored)
+    done, got, most, y = stepping.advance_halving(*f, 0.0, [1.0], (1.0, 0.0), 0.0, 1.0, 1, 0.0, 10**6, 1, -1, 0.0)
+    assert (done, got, most) == (outcome == stepping.OK, outcome, 1024)
+    assert y[0] == (pytest.approx(math.exp(-1.0), rel=1e-3) if outcome == stepping.OK else 1.0)
+
+
+@pytest.mark.parametrize(
+    ("rate", "min_substeps", "step", "energy_index", "expected"),
+    [
+        (100.0, 1, "rk4", -1, (stepping.OK, 1)),
+        (4000.0, 1, "rk4", -1, (stepping.OK, 2)),  # by the bound
+        (4000.0, 3, "rk4", -1, (stepping.OK, 3)),  # at least min_substeps
+        (10000.0, 1, "rk4", -1, (stepping.OK, 4)),  # exactly at the most substeps
+        (10000.1, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),  # one past
+        (2.5e20, 1, "rk4", -1, (stepping.TOO_STIFF, 10**17)),  # below BEYOND: the count it needs
+        (2.5e21, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),  # at BEYOND: no count of its own, the most + 1
+        (1e30, 1, "rk4", -1, (stepping.TOO_STIFF, 5)),
+        (100.0, 1, "nan", -1, (stepping.NONFINITE, 1)),  # the state kept
+        (100.0, 1, "nan", 1, (stepping.NONFINITE, 1)),  # and not an energy failure
+        (100.0, 1, "energy", 1, (stepping.ENERGY, 1)),  # the balance broken: the state kept
+        (100.0, 1, "energy", 0, (stepping.ENERGY, 1)),  # W the first state
+        (100.0, 2, "energy", -1, (stepping.OK, 2)),  # unchecked
+        (100.0, 2, "balanced", 1, (stepping.OK, 2)),  # checked, and within the slack
+        (100.0, 1, "moved", 1, (stepping.OK, 1)),  # 1e4 J within 1 % of the 2e6 J moved either way
+    ],
+)
+def test_a_set_stepped_as_a_block_of_one_is_the_step_advance_takes(rate, min_substeps, step, energy_index, expected):
+    """advance_lanes on one set (floats, interpreted) takes advance's step: the same outcome,
+    substeps (or the substeps it would need) and state, the state kept where the step fails."""
+
+    def kept(fun, t, y, h, args):  # y' = -y, W and |W| staying 0 (H: the constants' c[2])
+        return (integrators.rk4_step(fun, t, y[:1], h, args)[0], *y[1:])
+
+    steps = {"rk4": integrators.rk4_step, "nan": _toy_step(0.0), "energy": kept, "balanced": kept, "moved": kept}
+    y0 = (1.0,) if step == "rk4" else (1.0, 0.0, 2e6 if step == "moved" else 0.0)
+
+    def stored(y, c):
+        return c[2]
+
+    c = (2.0, rate, 1e4 if step in ("energy", "moved") else 0.5)  # 1e4 J from nowhere, or 0.5 J: the slack
+    f = (steps[step], _decay, _rate_of, stored, 0.5, y0, c, 0.0, 1e-3, min_substeps, 2.5, 4)
+    taken, outcome, most, y = stepping.advance(*f, 1, energy_index, 0.0)
+    block = stepping.advance_lanes(*f, 1, energy_index, 0.0)
+    assert (outcome, most) == expected and block[0] == 1 and (block[1], block[2]) == (outcome, most)
+    assert list(block[3]) == pytest.approx(list(y), rel=1e-15) and taken == (outcome == stepping.OK)
+    if step == "rk4" and outcome == stepping.OK:
+        assert y[0] == pytest.approx(_rk4_substeps(1.0, 2.0, 1e-3 / most, most), rel=1e-15)
+
+
+def test_a_block_of_one_steps_its_substeps_at_their_own_times():
+    """advance_lanes on y' = t: three substeps of a 0.3 s step from t0 = 2 s integrate it exactly."""
+    block = stepping.advance_lanes(integrators.rk4_step, _clock, _rate_of, _stored, 2.0, (0.0,), (0.0, 0.0), 0.0, 0.3,
+                                   3, 0.0, 8, 1, -1, 0.0)  # fmt: skip
+    assert (block[1], block[2]) == (stepping.OK, 3) and block[3][0] == pytest.approx((2.3**2 - 4.0) / 2, rel=1e-14)
+
+
+def test_the_outcome_codes_are_distinct_and_zero_is_ok():
+    """A sweep's failed_why and the simulator's message read the code: OK is 0 (batch.py) and
+    no two outcomes, the geometry's (outcomes.OUT_OF_GEOMETRY) among them, share a code."""
+    assert stepping.OK == 0 and outcomes.OUTCOMES["ok"] == 0
+    codes = (stepping.OK, stepping.NONFINITE, stepping.ENERGY, stepping.TOO_STIFF, outcomes.OUT_OF_GEOMETRY)
+    assert len(set(codes)) == len(codes) and set(codes) == set(outcomes.OUTCOMES.values())
+
+
+def test_a_halving_loop_goes_on_halving_a_step_whose_balance_stays_broken_and_starts_from_its_least_substeps():
+    """A step whose energy balance holds only in substeps of 0.3 ms or less: from 1 substep it
+    is taken in 4 (the 2 of the first retry break the balance too); from min_substeps 2, in 4
+    and from 3, in 6 (the first retry doubles what failed); the result is Euler's at that step."""
+
+    def step(fun, t, y, h, args):
+        flowed = y[1] + (h * y[0] if h > 0.3e-3 else 0.0)  # a substep longer than 0.3 ms books energy from nowhere
+        return [y[0] - h * y[0], flowed, abs(flowed)]
+
+    def stored(y, c):
+        return 0.0
+
+    for least, most_substeps in ((1, 4), (2, 4), (3, 6)):
+        done, outcome, most, y = stepping.advance_halving(step, _decay, _rate_of, stored, 0.0, [1e4, 0.0, 0.0],
+                                                          (1.0, 0.0), 0.0, 1e-3, least, 0.0, 64, 3, 1, 0.0)  # fmt: skip
+        assert (done, outcome, most) == (3, stepping.OK, most_substeps), least
+        h = 1e-3 / most_substeps
+        assert y[0] == pytest.approx(1e4 * (1.0 - h) ** (3 * most_substeps), rel=1e-12)
+
+
+def test_a_halving_loop_passes_a_too_stiff_step_on_even_where_it_may_not_halve():
+    """With at most 1 substep (no room to halve), a too stiff step stops as advance stops it."""
+    args = (integrators.rk4_step, _decay, _rate_of, None, 0.0, (1.0,), (1.0, 1e4), 0.0, 1e-3, 1, 2.5, 1, 3, -1, 0.0)
+    assert stepping.advance_halving(*args) == stepping.advance(*args) == (0, stepping.TOO_STIFF, 4, (1.0,))
+
+
+def test_a_block_of_one_at_eulers_stability_limit_takes_the_substeps_advance_takes():
+    """Euler's limit is 1 (integrators.METHODS): dt x rate = 3 asks 3 substeps, in a block as alone."""
+    limit = integrators.METHODS["euler"].stability_limit
+    f = (integrators.euler_step, _decay, _rate_of, _stored, 0.0, (1.0,), (2.0, 3000.0), 0.0, 1e-3, 1, limit, 10, 1)
+    alone, block = stepping.advance(*f, -1, 0.0), stepping.advance_lanes(*f, -1, 0.0)
+    assert alone[1:3] == (block[1], block[2]) == (stepping.OK, 3) and block[3][0] == alone[3][0]
+    assert alone[3][0] == pytest.approx((1 - 2e-3 / 3) ** 3, rel=1e-15)
