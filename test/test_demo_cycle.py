@@ -182,6 +182,9 @@ def test_a_node_that_publishes_seldom_still_runs_the_cycle(tmp_path):
     result = _run(tmp_path / "bags", _params(tmp_path, publish_rate_hz=2.0))
     lift = float(re.search(r"lift ([0-9.]+) m", _figures(result)).group(1))
     assert lift == pytest.approx(0.38, abs=0.01)
+    # the served clock let the node reach its first state (half a second on), and the cycle
+    # started half a second after it (held short of it, the clock waited 30 s for a state)
+    assert _cycle_start_s(_only_bag(tmp_path / "bags")) == 1.0
 
 
 def _child_pid(parent: subprocess.Popen) -> int:

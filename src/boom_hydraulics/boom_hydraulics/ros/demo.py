@@ -237,13 +237,16 @@ class ScenarioDriver(Node):
         """How far the served clock may go now (None: no limit): :data:`LOCKSTEP_PERIODS` of the
         node's publishing beyond its latest state, and before the scenario begins, to
         the scenario's start less the longest of :data:`AHEAD_NS` (before the node's first state
-        has come, the start from the clock's first instant, unless the node has published
-        nothing for :data:`FIRST_STATE_WAIT_S` there);
+        has come, the start from the clock's first instant, or the node's first publishing
+        instant where that is later, unless the node has published nothing for
+        :data:`FIRST_STATE_WAIT_S` there);
         while a
         cycle's commands are sent, to the stamp of the last one sent. A work cycle's goals are not
         stamped: only the lockstep once it began."""
         if self.first_ns is None:  # (the node's states at most to there, before boom-demo has one)
-            return None if self.clock_pub is None or self._uncapped else self._clock_origin[0] + LEAD_NS - max(AHEAD_NS)
+            if self.clock_pub is None or self._uncapped:
+                return None
+            return self._clock_origin[0] + max(LEAD_NS - max(AHEAD_NS), self.state_period_ns)
         lockstep = self.now_ns + LOCKSTEP_PERIODS * self.state_period_ns
         if not self.start_ns or self._settle_at_ns is not None:  # (held until the start is settled)
             return min(lockstep, (self.start_ns or self.first_ns + LEAD_NS) - max(AHEAD_NS))
