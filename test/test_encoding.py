@@ -115,17 +115,14 @@ CHANGED = [
     ("times_s", 8, [0.5, 1.5]),
     ("names", 9, ["a", "bc"]),
 ]
+#: ParameterType -> the ParameterValue field that holds it, from the messages' own definitions
+#: (rcl_interfaces: PARAMETER_BOOL is bool_value, ..., PARAMETER_STRING_ARRAY string_array_value).
 FIELDS = {
-    1: "bool_value",
-    2: "integer_value",
-    3: "double_value",
-    4: "string_value",
-    5: "byte_array_value",
-    6: "bool_array_value",
-    7: "integer_array_value",
-    8: "double_array_value",
-    9: "string_array_value",
+    value: name.removeprefix("PARAMETER_").lower() + "_value"
+    for name, _, value in typestore().fielddefs["rcl_interfaces/msg/ParameterType"][0]
+    if name != "PARAMETER_NOT_SET"
 }
+assert set(FIELDS.values()) == {f for f, _ in typestore().fielddefs["rcl_interfaces/msg/ParameterValue"][1]} - {"type"}
 
 
 def test_a_parameter_event_carries_each_type_in_its_own_field_and_the_rest_empty():
