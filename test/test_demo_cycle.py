@@ -153,6 +153,15 @@ def test_two_demos_at_once_on_a_busy_machine_each_run_their_own_cycle_to_the_sam
         assert np.array_equal(headless[name], recorded[name]), name
 
 
+def test_a_params_file_that_turns_recording_off_is_refused_in_one_line(tmp_path):
+    """boom-demo analyses the node's bag, and its clock waits for the run's bag to begin: a params
+    file with record: false is one line and status 2 before any node starts."""
+    result = run_tool("boom-demo", "--params-file", _params(tmp_path, record=False), "--bags", tmp_path / "bags")
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.count("\n") == 1 and "record: false" in result.stderr, result.stderr
+    assert not (tmp_path / "bags").exists()
+
+
 def test_a_second_demo_in_the_same_given_domain_is_refused_in_one_line(tmp_path):
     """With ROS_DOMAIN_ID given, a second demo there would mix with the first: one line, exit 2,
     no node started; the first runs on."""

@@ -239,10 +239,8 @@ class ScenarioDriver(Node):
         the scenario's start less the longest of :data:`AHEAD_NS` (before the node's first state
         has come, the start from the clock's first instant, or the node's first publishing
         instant where that is later, unless the node has published nothing for
-        :data:`FIRST_STATE_WAIT_S` there);
-        while a
-        cycle's commands are sent, to the stamp of the last one sent. A work cycle's goals are not
-        stamped: only the lockstep once it began."""
+        :data:`FIRST_STATE_WAIT_S` there); while a cycle's commands are sent, to the stamp of
+        the last one sent. A work cycle's goals are not stamped: only the lockstep once it began."""
         if self.first_ns is None:  # (the node's states at most to there, before boom-demo has one)
             if self.clock_pub is None or self._uncapped:
                 return None
@@ -503,6 +501,12 @@ def demo(argv: list[str] | None) -> int:
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration_s:g}")
     before = set(args.bags.glob("*_boom_sim")) if args.bags.is_dir() else set()
+    given = _node_values(args.params_file)
+    if given.get("record") is False:  # (the run begins with its bag: the clock boom-demo serves waits for it)
+        raise ConfigError(
+            f"{args.params_file} sets record: false, but boom-demo analyses the bag the node records: remove it "
+            "(or run boom_sim yourself)"
+        )
 
     node_exe = shutil.which("boom_sim")
     if node_exe is None:
@@ -517,7 +521,6 @@ def demo(argv: list[str] | None) -> int:
     cmd = [node_exe, "--ros-args", "-p", f"record_folder:={args.bags}"]
     if args.params_file:
         cmd += ["--params-file", args.params_file]
-    given = _node_values(args.params_file)
     serve_clock = given.get("publish_clock") is not True
     period_ns = command_period_ns(given.get("command_timeout_s"))
     if serve_clock:  # (after the file: the last word)
