@@ -82,6 +82,9 @@ def test_the_motor_lags_its_target_and_its_rotors_take_torque_and_store_energy()
     assert tuple(fixed) == (W_N, 0.0, 0.0, 0.0, 0.0)
     idle = motor_speed.motor((0.0, 80.0, 0.4), 0.0, 0.0, IDLE)  # running, no demand: the memory runs down
     assert idle.memory_rate == pytest.approx(-1.0 / 2.0) and idle.speed_rate == pytest.approx((W_N - 80.0) / tau)
+    # on demand the memory (the third state, not the speed) heads back to 1 within tau_r (eq. D60)
+    asked = motor_speed.motor((0.0, 80.0, 0.4), 0.3, 100.0, IDLE)
+    assert asked.memory_rate == pytest.approx((1.0 - 0.4) / motor_speed.MEMORY_RESET_S, rel=1e-12)
 
 
 def test_without_a_lag_the_motor_is_at_its_target_and_neither_takes_torque_nor_stores_energy():
@@ -90,7 +93,20 @@ def test_without_a_lag_the_motor_is_at_its_target_and_neither_takes_torque_nor_s
     m = motor_speed.motor((0.0, 80.0, 0.0), 0.3, 100.0, quick)
     assert (m.speed, m.speed_rate, m.torque, m.rotor_power) == (100.0, 0.0, 0.0, 0.0)
     assert motor_speed.energy((0.0, 80.0, 0.0), quick) == 0.0
+    assert motor_speed.energy_rate((0.0, 80.0, 0.0), m.speed_rate, quick) == 0.0
     assert motor_speed.fastest_rate(quick) == 0.0
+
+
+def test_a_heavy_rotors_energy_rate_is_its_kinetic_power():
+    """J w w' for rotors of 2.5 kg m^2 (a large machine and pump, within the parameter's range):
+    the rate of J w^2 / 2 along w' = (100 - 80) / tau (eq. D64)."""
+    heavy = constants(
+        with_updates(P, motor_strategy="speed_on_demand", motor_time_constant_s=0.05, motor_rotor_inertia_kg_m2=2.5)
+    )
+    m = motor_speed.motor((0.0, 80.0, 0.0), 0.3, 100.0, heavy)
+    rate = motor_speed.energy_rate((0.0, 80.0, 0.0), m.speed_rate, heavy)
+    assert rate == pytest.approx(2.5 * 80.0 * 20.0 / 0.05, rel=1e-12)
+    assert rate == pytest.approx(m.rotor_power, rel=1e-12)
 
 
 def test_the_fastest_rate_is_the_speeds_lag_and_idle_stops_memory_reset():
