@@ -59,20 +59,11 @@ def _only_bag(bags: Path) -> Path:
 def _cycle_start_s(bag: Path) -> float:
     """When the cycle's first command is stamped, s of the node's simulated time (from the time
     origin its bag records)."""
-    from rosbags.highlevel import AnyReader
+    from boom_hydraulics.bags.reading import read_run_description
+    from boom_hydraulics.resim.recorded import read_run
 
-    from boom_hydraulics.bags.reading import read_custom_data
-    from boom_hydraulics.bags.run_description import RunDescription
-
-    origin_ns = RunDescription.origin_in(read_custom_data(bag))
-    with AnyReader([bag]) as reader:
-        commands = [c for c in reader.connections if c.topic == "/valve_command"]
-        stamps = [
-            (msg := reader.deserialize(raw, connection.msgtype)).header.stamp.sec * 1_000_000_000
-            + msg.header.stamp.nanosec
-            for connection, _, raw in reader.messages(connections=commands)
-        ]
-    return (min(stamps) - origin_ns) * 1e-9
+    run = read_run(bag, read_run_description(bag))
+    return (min(c.stamp_ns for c in run.commands if c.stamp_ns) - run.clock_origin_ns) * 1e-9
 
 
 @pytest.fixture
