@@ -10,8 +10,10 @@ table; no plots), in each checkout's own environment, the checkouts in turn in e
   (:data:`AS_BUILT`, config/battery_crane.yaml), in this checkout alone, set against the other
   checkout's today's answer.
 
-A design's rate is its simulated steps (of dt) per second of wall time; the ratio is this
-checkout's over the other's (1.0: as fast; the target for the new answer is at least 1/1.3).
+A design's rate is its simulated steps (of dt) per second of wall time, and per second of
+CPU time (the sweep process's and its threads', user and system: what a shared machine's load
+moves least); the ratios are this checkout's over the other's (1.0: as fast; the target for
+the new answer is at least 1/1.3).
 Each checkout's kernels are compiled before the first round. Prints a table and writes it
 to bench/results/answer-<date-time>.md; nothing is asserted (these machines are shared).
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -49,19 +52,27 @@ def drives_of(checkout: Path) -> tuple[str, ...]:
 AS_BUILT = "battery_crane.yaml"
 
 
-def sweep_s(checkout: Path, drives: tuple[str, ...], operators: int, config: str = "default.yaml") -> float:
-    """Seconds of one boom-sweep in ``checkout`` (its environment), start to finish."""
+def cpu_s() -> float:
+    """CPU seconds (user and system) of this process's children that have ended."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def sweep_s(
+    checkout: Path, drives: tuple[str, ...], operators: int, config: str = "default.yaml"
+) -> tuple[float, float]:
+    """(wall seconds, CPU seconds) of one boom-sweep in ``checkout`` (its environment), start to finish."""
     with tempfile.TemporaryDirectory(prefix="bench-answer-") as folder:
         args = [*with_env(checkout), "boom-sweep", "--config", str(checkout / "config" / config)]
         args += ["--scenario", "loader", "--operators", str(operators), "--duration", f"{DURATION_S:g}"]
         args += ["--vary", f"drive={','.join(drives)}", "--vary", CYLINDERS, "--across", "operator"]
         args += ["--out", str(Path(folder) / "s"), "--no-plots", "--no-progress"]
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), cpu_s()
         out = subprocess.run(args, cwd=checkout, capture_output=True, text=True)
-        seconds = time.perf_counter() - t0
+        seconds, cpu = time.perf_counter() - t0, cpu_s() - cpu0
     if out.returncode != 0:
         raise RuntimeError(f"boom-sweep in {checkout} failed: {out.stderr.strip().splitlines()[-1:]}")
-    return seconds
+    return seconds, cpu
 
 
 def designs(drives: tuple[str, ...], operators: int) -> int:
@@ -85,34 +96,43 @@ def main() -> int:
     # compile each checkout's kernels first (a sweep of one design each)
     for checkout in (ROOT, args.against):
         sweep_s(checkout, TODAYS_DRIVES[:1], 1)
-    rates: dict[tuple[str, Path], list[float]] = {("today", ROOT): [], ("today", args.against): [], ("new", ROOT): []}
+    keys = [("today", ROOT), ("today", args.against), ("new", ROOT)]
+    rates: dict[tuple[str, Path], list[float]] = {key: [] for key in keys}  # per second of wall time
+    cpu_rates: dict[tuple[str, Path], list[float]] = {key: [] for key in keys}  # per CPU second
     for n in range(args.rounds):
-        for (name, checkout), values in rates.items():
+        for name, checkout in keys:
             drives, config = runs[name]
-            seconds = sweep_s(checkout, drives, args.operators, config)
-            values.append(designs(drives, args.operators) * steps / seconds / 1e6)
-            print(f"round {n + 1}/{args.rounds}, {name} in {commit(checkout)}: {values[-1]:.3f} M steps/s", flush=True)
+            seconds, cpu = sweep_s(checkout, drives, args.operators, config)
+            total = designs(drives, args.operators) * steps / 1e6
+            rates[(name, checkout)].append(total / seconds)
+            cpu_rates[(name, checkout)].append(total / cpu)
+            print(
+                f"round {n + 1}/{args.rounds}, {name} in {commit(checkout)}: {total / seconds:.3f} M steps/s, "
+                f"{total / cpu:.3f} per CPU second",
+                flush=True,
+            )
     other = statistics.median(rates[("today", args.against)])
+    other_cpu = statistics.median(cpu_rates[("today", args.against)])
 
-    def row(what: str, values: list[float]) -> list[str]:
-        return [
-            what,
-            f"{statistics.median(values):.3f} ({min(values):.3f}-{max(values):.3f})",
-            f"{statistics.median(values) / other:.2f}",
-        ]
+    def spread(values: list[float]) -> str:
+        return f"{statistics.median(values):.3f} ({min(values):.3f}-{max(values):.3f})"
+
+    def row(what: str, key: tuple[str, Path]) -> list[str]:
+        wall, cpu = rates[key], cpu_rates[key]
+        ratios = f"{statistics.median(wall) / other:.2f}"
+        return [what, spread(wall), ratios, spread(cpu), f"{statistics.median(cpu) / other_cpu:.2f}"]
 
     header = [
         "sweep",
         "M steps of dt per second, median (smallest-largest)",
         f"ratio to {commit(args.against)}'s today's",
+        "M steps per CPU second",
+        "ratio (CPU)",
     ]
     rows = [
-        row(
-            f"today's answer ({len(TODAYS_DRIVES)} drives), {commit(args.against)} ({args.against.name})",
-            rates[("today", args.against)],
-        ),
-        row(f"today's answer ({len(TODAYS_DRIVES)} drives), {commit()} (this)", rates[("today", ROOT)]),
-        row(f"the new answer ({len(ours)} drives, config/{AS_BUILT}), {commit()}", rates[("new", ROOT)]),
+        row(f"today's answer ({len(TODAYS_DRIVES)} drives), {commit(args.against)} ({args.against.name})", keys[1]),
+        row(f"today's answer ({len(TODAYS_DRIVES)} drives), {commit()} (this)", keys[0]),
+        row(f"the new answer ({len(ours)} drives, config/{AS_BUILT}), {commit()}", keys[2]),
     ]
     title = (
         f"The answer's sweep: loader cycles of {DURATION_S:g} s at dt {DT_S * 1e3:g} ms, {args.operators} operators x "

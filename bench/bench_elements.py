@@ -13,7 +13,8 @@ checkouts in turn in each round:
 - *1 t crane, on*: config/loader_crane_1t.yaml as it ships (all three on) here, against
   the same other run (the target: at most 1.5 times).
 
-A figure is microseconds of wall time per step of dt, substeps included (the hoses' waves
+A figure is microseconds of the process's CPU time per step of dt (the stepping runs in the
+calling thread: what a shared machine's load moves least), substeps included (the hoses' waves
 may ask the stability bound for more), best of the rounds, with the most substeps one step
 took (the Simulator's most_substeps). Prints a table and writes it to
 bench/results/elements-<date-time>.md; nothing is asserted (these machines are shared).
@@ -47,10 +48,10 @@ sim.step(0.5, 10)
 best = float("inf")
 for _ in range(runs):
     sim.reset()
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     sim.step(0.6, steps // 2)
     sim.step(0.0, steps - steps // 2)
-    best = min(best, time.perf_counter() - t0)
+    best = min(best, time.process_time() - t0)
 print(best / steps * 1e6, sim.most_substeps)
 """
 
@@ -100,7 +101,8 @@ def main() -> int:
     ]  # fmt: skip
     publish_against(
         "elements",
-        "RK4 step with the accumulator, hoses and elastic boom, compiled, dt = 1 ms (us per step, best of the rounds)",
+        "RK4 step with the accumulator, hoses and elastic boom, compiled, dt = 1 ms "
+        "(CPU us per step, best of the rounds)",
         ["run", "here", "other checkout", "ratio", "target", "most substeps (here / other)"],
         rows,
         args.against,

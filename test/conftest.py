@@ -90,6 +90,10 @@ WARM_UP_LANES = (
         ("boom-sim", "run", "--config", CONFIG / "paper_fig8.yaml", "--duration", "0.01"),
         ("stepping", CONFIG / "paper_fig8.yaml", "rk4"),
         ("boom-sim", "run", "--config", CONFIG / "default.yaml", "--duration", "0.01", "--method", "ros2"),
+        # the physical model's rk4 with its elements' states (the 1 t crane's hoses, accumulator
+        # and elastic boom): its whole-run kernel and its stepping
+        ("boom-sim", "run", "--config", CONFIG / "loader_crane_1t.yaml", "--duration", "0.01"),
+        ("stepping", CONFIG / "loader_crane_1t.yaml", "rk4"),
     ),
 )
 

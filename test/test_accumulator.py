@@ -145,7 +145,7 @@ def _loader(p: Parameters, seconds: float = 18.5) -> tuple[dict[str, float], Sim
     for _ in range(round(seconds)):
         sim.run(1.0, commands.from_parameters(params), every=100)
         fills.append(float(sim.y[FILL]))
-    return dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True)), sim, fills
+    return physical.ledger_integrals(sim.y), sim, fills
 
 
 @pytest.mark.parametrize(

@@ -45,7 +45,7 @@ def test_the_loader_puts_its_payload_down_and_holds_the_lighter_boom_with_less_p
     # the cycle ends where it began, and the lifts rose by the cycle's 25 degrees
     assert math.degrees(alpha[-1] - alpha[0]) == pytest.approx(0.0, abs=0.5)
     assert math.degrees(alpha.max() - alpha[0]) == pytest.approx(duty_cycles.LOADER_RISE_DEG, abs=1.0)
-    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     assert ledger.energies_of(integrals)["imbalance_ratio"] < 0.005
     assert abs(sim.energy_residual()) < 1e-3 * integrals["battery_drawn"]  # the payload's energy left with it
 

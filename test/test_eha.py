@@ -27,7 +27,7 @@ def _run(drive: str, jit: bool | None = None) -> tuple[dict[str, float], dict[st
     sim = Simulator(params, jit=jit)
     start = list(sim.y)
     out = sim.run(8.0, commands.from_parameters(params), every=10)
-    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     return integrals, out, start, list(sim.y), params
 
 

@@ -60,7 +60,7 @@ def _run(profile: str, duration_s: float, **updates) -> tuple[dict[str, float], 
     sim = Simulator(params)
     start = list(sim.y)
     out = sim.run(duration_s, commands.from_parameters(params), every=1)
-    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     return integrals, out.columns, start, list(sim.y)
 
 

@@ -145,7 +145,7 @@ def test_the_ledger_closes_with_the_elastic_boom_on_over_the_loader_cycle():
     start = list(sim.y)
     out = sim.run(8.0, commands.from_parameters(params), every=10)
     end = list(sim.y)
-    integrals = dict(zip(ledger.INTEGRALS, end[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(end)
     energies = ledger.energies_of(integrals)
     assert energies["imbalance_ratio"] < 0.005, energies
     assert integrals["structural_loss"] > 0.0
@@ -358,5 +358,5 @@ def test_the_payload_released_from_the_tip_lets_the_boom_spring_up_and_the_ledge
     top = int(np.argmax(overshoot))
     assert overshoot[top] > 0.005  # it springs up past its rest ...
     assert overshoot[top:].min() < -0.002  # ... and back below it: it rings
-    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     assert ledger.energies_of(integrals)["imbalance_ratio"] < 0.005

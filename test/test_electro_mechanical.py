@@ -235,7 +235,7 @@ def test_over_a_loader_cycle_the_ema_follows_the_moves_and_the_ledger_balances()
     sim = Simulator(p, jit=False)
     start = list(sim.y)
     out = sim.run(18.5, commands.from_parameters(p), every=10)
-    integrals = dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     assert ledger.energies_of(integrals)["imbalance_ratio"] < 0.005
     alpha, ground = np.degrees(out["alpha"]), math.degrees(boom_angle_rad(start[0], p.a_m, p.b_m, p.support_height_m))
     assert alpha.max() == pytest.approx(ground + 25.0, abs=0.5) and alpha[-1] == pytest.approx(ground, abs=0.5)

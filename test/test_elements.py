@@ -41,7 +41,7 @@ def test_the_loader_cycle_with_all_three_on_keeps_its_energy_balance():
     params = with_updates(CRANE, **commands.scenario("loader", 0.0, CRANE))
     sim = Simulator(params)
     out = sim.run(18.5, commands.from_parameters(params), every=10)
-    integrals = dict(zip(ledger.INTEGRALS, list(sim.y)[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     energies = ledger.energies_of(integrals)
     assert energies["imbalance_ratio"] < 0.005, energies
     assert abs(sim.energy_residual()) < 1e-3 * integrals["battery_drawn"]
@@ -90,3 +90,22 @@ def test_the_stability_bound_with_all_three_on_covers_the_fastest_mode_and_its_s
     substeps = math.ceil(dt * bound / integrators.METHODS["rk4"].stability_limit)
     z = lam[lam.real < 0.0] * dt / substeps
     assert np.max(np.abs(1.0 + z + z**2 / 2.0 + z**3 / 6.0 + z**4 / 24.0)) <= 1.0
+
+
+def test_a_batch_steps_the_elements_states_where_one_of_its_sets_has_one_on():
+    """Compiled, the kernels step the state without the elements' states where every set has
+    them off (they stand still), and the whole state where one set of a batch has one on: that
+    set's hose flows move as they do interpreted, and the set beside it without hoses runs as
+    it does alone."""
+    from boom_hydraulics.solve.batch import run_sets
+
+    plain = config.load(CONFIG / "default.yaml")
+    hosed = with_updates(plain, hose_length_m=1.0)
+    lift = commands.constant(0.6)
+    together = run_sets([plain, hosed], 0.2, lift)
+    alone = run_sets([plain], 0.2, lift)
+    interpreted = run_sets([hosed], 0.2, lift, jit=False)
+    assert np.array_equal(together.states[0], alone.states[0])
+    flow_a = physical.HOSE_STATE + 4  # line A's first flow (hoses.STATE_NAMES)
+    assert physical.initial_state(hosed)[flow_a] == 0.0 < together.states[1][flow_a]
+    np.testing.assert_allclose(together.states[1], interpreted.states[0], rtol=1e-9, atol=1e-12)

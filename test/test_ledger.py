@@ -141,7 +141,7 @@ def _cycle(name: str) -> tuple[dict[str, float], list[float], list[float], physi
     start = list(sim.y)
     sim.run(9.0, commands.from_parameters(params), every=100)
     end = list(sim.y)
-    integrals = dict(zip(ledger.INTEGRALS, end[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(end)
     return integrals, start, end, physical.constants(params)
 
 

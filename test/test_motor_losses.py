@@ -145,7 +145,7 @@ def _run(params: Parameters, scenario: str, duration_s: float) -> tuple[dict[str
     params = with_updates(params, **commands.scenario(scenario, duration_s))
     sim = Simulator(params)
     sim.run(duration_s, commands.from_parameters(params), every=500)
-    integrals = dict(zip(ledger.INTEGRALS, list(sim.y)[physical.LEDGER_STATES :], strict=True))
+    integrals = physical.ledger_integrals(sim.y)
     return ledger.energies_of(integrals), sim.t
 
 

@@ -37,7 +37,7 @@ def _loader(**updates) -> tuple[dict[str, float], Simulator]:
     params = with_updates(base, **commands.scenario("loader", LOADER_S, base))
     sim = Simulator(params)
     sim.run(LOADER_S, commands.from_parameters(params), every=100)
-    return dict(zip(ledger.INTEGRALS, sim.y[physical.LEDGER_STATES :], strict=True)), sim
+    return physical.ledger_integrals(sim.y), sim
 
 
 @pytest.mark.parametrize("drive", VALVE_DRIVES)

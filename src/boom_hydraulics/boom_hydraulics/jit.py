@@ -88,6 +88,35 @@ if numba is not None:
         return of
 
 
+def tuple_like(row: Any, template: tuple) -> tuple:
+    """The first ``len(template)`` values of ``row`` (an array) as a tuple. Compiled, the size
+    is the type of ``template`` (a tuple of that many floats), so that a kernel that takes such
+    a template compiles once per size (the model's state with or without the model elements)."""
+    return tuple(row[i] for i in range(len(template)))
+
+
+def tuple_size(numba_type: Any) -> int | None:
+    """The size of a tuple as compiled code types it (a numba type), None for another type
+    (a list): for a typing function that decides on a state's size (:func:`compiled_as`)."""
+    return len(numba_type) if numba is not None and isinstance(numba_type, numba.types.BaseTuple) else None
+
+
+if numba is not None:
+
+    @overload(tuple_like)
+    def _tuple_like_compiled(row: Any, template: Any) -> Any:
+        """:func:`tuple_like` as compiled code runs it: numba's fixed-length tuple of an array."""
+        length = tuple_size(template)
+        if length is None:
+            return None
+        from numba.np.unsafe.ndarray import to_fixed_tuple
+
+        def of(row: Any, template: Any) -> Any:
+            return to_fixed_tuple(row, length)
+
+        return of
+
+
 def compiled_as(python_function: Callable[..., Any]) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register the decorated typing function (numba's ``overload``) as how compiled code
     runs ``python_function``, for the few primitives whose Python form numba cannot compile

@@ -48,7 +48,7 @@ def ledger_now(params: Any, t: float, y: list[float], constants: Any, u: float) 
     if params.mode != "physical":
         return None
     power = physical.ledger(t, y, constants, u)
-    energy = dict(zip(ledger.INTEGRALS, (float(v) for v in y[physical.LEDGER_STATES :]), strict=True))
+    energy = physical.ledger_integrals(y)
     soc = state_of_charge(
         params.battery_initial_soc,
         energy["battery_drawn"],

@@ -66,7 +66,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     step_count(params, args.duration, "--duration")  # a positive, finite duration a run can take
     if args.every < 1:
         raise ConfigError(f"--every must be >= 1, got {args.every}")
-    if accelerate.not_in_cache(accelerate.run_kernels(params.mode, params.method)):
+    if accelerate.not_in_cache(
+        accelerate.run_kernels(params.mode, params.method, 1, accelerate.with_elements([params]))
+    ):
         print(f"boom-sim: {accelerate.compiling_notice(params.mode, params.method, 'this run')}", file=sys.stderr)
     stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)
     first_q1, last_q1, rows, start = _stream_csv(Path(args.out), stream)

@@ -46,7 +46,8 @@ from ..model import physical as model
 from ..model.outputs import OUTPUT_NAMES
 from ..model.parameters import STROKE_LIMITS, Parameters, describe, plant_fault, stroke_limits_m
 from ..solve import integrators, stepping
-from ..solve.physical_kernel import constants_of, list_of, state_of
+from ..solve.kernel import state_of
+from ..solve.physical_kernel import WHOLE, constants_of, list_of
 
 try:  # numba is optional for the package; object_code says that the FMU needs it
     from numba.cpython.unsafe.tuple import tuple_setitem
@@ -117,6 +118,12 @@ Surrogate = namedtuple("Surrogate", ROW)  # type: ignore[misc]
 
 
 @jitable
+def whole_state(row: Any) -> tuple:
+    """The whole state (with the model elements') as a tuple, as the FMU keeps it."""
+    return state_of(row, WHOLE)
+
+
+@jitable
 def surrogate_of(row: Any) -> Any:
     """The Surrogate of ``row`` (an array of its doubles, its string codes checked in range)."""
     strings = _NO_STRINGS
@@ -135,7 +142,7 @@ def entry(method: str) -> Any:
     step = integrators.METHODS[method].step
     halving = integrators.METHODS[method].halving  # ros2: its stages are arrays, its state a list
     loop = stepping.advance_halving if halving else stepping.advance
-    state = list_of if halving else state_of
+    state = list_of if halving else whole_state
     constants, initial_state = model.constants, model.initial_state
     derivative, stiffness_rate, energy, outputs = model.derivative, model.stiffness_rate, model.energy, model.outputs
     within_triangle = geometry.within_triangle
@@ -173,14 +180,14 @@ def entry(method: str) -> Any:
             return 1 + outcome
         if op == OUTPUTS:  # a: state, b: constants, c: (t, u) -> d: outputs
             r = carray(c, (2,))
-            values = outputs(r[0], state_of(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))), r[1])
+            values = outputs(r[0], whole_state(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))), r[1])
             out = carray(d, (n_outputs,))
             for i in range(n_outputs):
                 out[i] = values[i]
             return 1
         if op == ENERGY:  # a: state, b: constants -> d: the stored energy H, J
             out = carray(d, (1,))
-            out[0] = energy(state_of(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))))
+            out[0] = energy(whole_state(carray(a, (n_state,))), constants_of(carray(b, (n_constants,))))
             return 1
         if op == WITHIN:  # a: (q1, a, b) -> whether q1 lies in the triangle of eq. 1
             r = carray(a, (3,))

@@ -30,7 +30,7 @@ import math
 from types import ModuleType
 from typing import Any, NamedTuple
 
-from ..jit import jitable
+from ..jit import compiled_as, jitable, tuple_size
 from . import accumulator, drives, elastic_boom, hoses
 from .drives.constants import DriveConstants, Supply, in_use
 from .end_stops import end_stop_energy_j, end_stop_force_n
@@ -76,19 +76,20 @@ STATE_NAMES = (
     "drive_state",
     "drive_state_2",
     "drive_state_3",
+    *INTEGRALS,
+    # the model elements' states, last: a state without them (BASE_SIZE) is the states above
     "accumulator_fill",
     *hoses.STATE_NAMES,
     "boom_deflection",  # eta: the elastic boom's tip deflection, m (docs/model.md, "Elastic boom")
     "boom_deflection_rate",  # eta', m/s
-    *INTEGRALS,
 )
 STATE_SCALES = (
     *("length", "velocity", "pressure", "pressure", "unit", "energy", "energy", "unit", "energy", "energy"),
     *("pressure", "angular_velocity", "unit"),
+    *("energy" for _ in INTEGRALS),
     "unit",
     *hoses.STATE_SCALES,
     *("length", "velocity"),
-    *("energy" for _ in INTEGRALS),
 )
 #: Indices of W and |W| in the state: the energy balance that the stepping checks.
 ENERGY_STATES = (8, 9)
@@ -96,8 +97,13 @@ ENERGY_STATES = (8, 9)
 DRIVE_STATE = 10
 DRIVE_STATES = tuple(range(DRIVE_STATE, DRIVE_STATE + drives.STATE_COUNT))
 assert len(DRIVE_STATES) == 3, "the drive's states are named above, three of them"
-#: Index of the accumulator's fill x = V_oil / V0 (model/accumulator.py; 0 without one).
+#: Index of the accumulator's fill x = V_oil / V0 (model/accumulator.py; 0 without one): the
+#: first of the model elements' states, which come last.
 ACCUMULATOR_STATE = STATE_NAMES.index("accumulator_fill")
+#: The size of a state without the model elements' states: where ``element_states`` is empty
+#: they stand still at their initial values, and the compiled kernels step the state's first
+#: BASE_SIZE components alone (solve/physical_kernel.py), so that elements off cost no step.
+BASE_SIZE = ACCUMULATOR_STATE
 #: Index of the hoses' first state (hoses.STATE_NAMES: line A's, then line B's), and all of them.
 HOSE_STATE = STATE_NAMES.index(hoses.STATE_NAMES[0])
 HOSE_STATES = tuple(range(HOSE_STATE, HOSE_STATE + len(hoses.STATE_NAMES)))
@@ -123,6 +129,14 @@ def element_states(p: Parameters) -> tuple[int, ...]:
 
 
 @jitable
+def component(y: list, i: int) -> Num:
+    """``y[i]``, or 0 where ``y`` is kept without it (a state without the model elements', see
+    :data:`BASE_SIZE`): how the model reads the elements' states, inside their in_use branches
+    (compiled, a constant index past a tuple's end does not compile, where this does)."""
+    return y[i] if i < len(y) else 0.0 * y[0]
+
+
+@jitable
 def accumulator_volume_m3(p: Parameters) -> float:
     """The accumulator's size V0 in the model: ``p``'s, or 0 (none) with a drive without oil,
     whose lines it would sit on (the electro-mechanical actuator)."""
@@ -140,6 +154,14 @@ def hose_length_m(p: Parameters) -> float:
 LEDGER_STATES = STATE_NAMES.index("battery_drawn")
 BATTERY_DRAWN, BATTERY_RETURNED = LEDGER_STATES, LEDGER_STATES + 1
 LIFT_WORK = LEDGER_STATES + len(INTEGRALS) - 1
+
+
+def ledger_integrals(y: list) -> dict[str, float]:
+    """The energy ledger's integrals (ledger.INTEGRALS) in the state ``y`` by name, J."""
+    values = y[LEDGER_STATES : LEDGER_STATES + len(INTEGRALS)]
+    return dict(zip(INTEGRALS, (float(v) for v in values), strict=True))
+
+
 #: The stepping takes the substeps that :func:`stiffness_rate` asks for.
 STABILITY_BOUND = True
 
@@ -312,8 +334,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
         fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
     lines = [p1] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS + [p2] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS  # at rest
     eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
-    body = [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2], fill]
-    return body + lines + [eta, 0.0] + [0.0] * len(INTEGRALS)
+    body = [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2]]
+    return body + [0.0] * len(INTEGRALS) + [fill] + lines + [eta, 0.0]
 
 
 class Terms(NamedTuple):
@@ -379,8 +401,8 @@ def drive_states(y: list) -> tuple:
 @jitable
 def hose_states(y: list, first: int) -> tuple:
     """(node states, flows) of the hose whose states start at ``first`` (_HA or _HB)."""
-    nodes = (y[first], y[first + 1], y[first + 2], y[first + 3])
-    return nodes, (y[first + 4], y[first + 5], y[first + 6], y[first + 7])
+    nodes = (component(y, first), component(y, first + 1), component(y, first + 2), component(y, first + 3))
+    return nodes, (component(y, first + 4), component(y, first + 5), component(y, first + 6), component(y, first + 7))
 
 
 @jitable(inline="always")
@@ -393,15 +415,15 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     # the accumulator on the piston chamber or the drive's supply line (eq. A1-A4)
     acc_flow, acc_gas, acc_line = 0.0 * p1, 0.0 * p1, 0.0 * p1
     if in_use(c.acc_on):
-        fill = y[ACCUMULATOR_STATE]
+        fill = component(y, ACCUMULATOR_STATE)
         acc_gas = accumulator.gas_pressure_pa(fill, c.acc_precharge, c.acc_exponent, xp)
         acc_line = c.acc_piston * p1 + c.acc_supply * drives.node_pressure(drive_states(y), c)
         acc_flow = c.acc_on * accumulator.port_flow_m3_s(fill, acc_line, acc_gas, c.acc_k, c.transition2, xp)
     on = c.hose_on  # with hoses the drive sees its ports' pressures, the hoses' first nodes (eq. H4)
     port_a, port_b = p1, p2
     if in_use(on):
-        port_a = p1 + on * (chamber_pressure_pa(y[_HA], c.p_cav) - p1)
-        port_b = p2 + on * (chamber_pressure_pa(y[_HB], c.p_cav) - p2)
+        port_a = p1 + on * (chamber_pressure_pa(component(y, _HA), c.p_cav) - p1)
+        port_b = p2 + on * (chamber_pressure_pa(component(y, _HB), c.p_cav) - p2)
     # the drive (model/drives, the set's ``drive``): its flows into the lines, its states' rates
     supply = drives.supply(drive_states(y), u, x, q1, v, port_a, port_b, c, xp, c.acc_supply * acc_flow)
     q_r1 = relief_flow(p1, c.p_relief, c.g_relief)
@@ -439,12 +461,12 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
         sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
         m = boom_masses(c)
         damping = elastic_boom.modal_damping_n_s_m(c.boom_damping_ratio, c.boom_stiffness, m.modal, xp)
+        eta, eta_rate = component(y, BOOM_STATE), component(y, BOOM_STATE + 1)
         boom_acc, extra = elastic_boom.accelerations(
-            *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, y[BOOM_STATE], y[BOOM_STATE + 1]),
+            *(f_rod, k, c.weight_coeff * cos_alpha, sin_alpha, cos_alpha, eta, eta_rate),
             *(c.inertia, m.coupling, m.modal, m.participation * c.gravity, c.boom_stiffness, damping),
         )
         acc = acc + extra
-        eta, eta_rate = y[BOOM_STATE], y[BOOM_STATE + 1]
         alpha_acc = k * acc + dk * v * v
         boom_kinetic = elastic_boom.kinetic_power_w(k * v, alpha_acc, eta_rate, boom_acc, m.coupling, m.modal)
         weight = m.participation * c.gravity
@@ -475,7 +497,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
     vol1, vol2, _, _ = chamber_volumes(q1, c, xp)
     gas = 0.0 * q1
     if in_use(c.acc_on):  # eq. A5
-        fill = y[ACCUMULATOR_STATE]
+        fill = component(y, ACCUMULATOR_STATE)
         gas = c.acc_on * accumulator.gas_energy_j(fill, c.acc_precharge, c.acc_exponent, c.acc_size, c.p_tank, xp)
     lines, mode = 0.0 * q1, 0.0 * q1
     if in_use(c.hose_on):  # eq. H6
@@ -499,7 +521,7 @@ def energy(y: list, c: Constants, xp: ModuleType = math) -> Num:
 @jitable
 def _boom_energy(y: list, c: Constants, alpha_rate: Num, xp: ModuleType) -> Num:
     """The elastic boom's share of H: the mode's kinetic and potential energy (eq. E1, E2), J; 0 off."""
-    eta, eta_rate = y[BOOM_STATE], y[BOOM_STATE + 1]
+    eta, eta_rate = component(y, BOOM_STATE), component(y, BOOM_STATE + 1)
     cos_alpha = cos_boom_angle(y[0], c.a, c.b, c.h, xp)
     m = boom_masses(c)
     return elastic_boom.kinetic_energy_j(alpha_rate, eta_rate, m.coupling, m.modal) + elastic_boom.potential_energy_j(
@@ -547,7 +569,7 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
     (compiled, it stays on the stack)."""
     terms = _terms(y, c, u, xp)
     rate = _energy_rate(y, c, terms)
-    return (
+    rates = (
         y[1],
         terms.acc,
         terms.dz1,
@@ -561,13 +583,40 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.supply.rate,
         terms.supply.rate2,
         terms.supply.rate3,
+        *integral_rates(_ledger_of(y, c, terms, xp)),
+    )
+    elements = (
         accumulator.fill_rate_1_s(terms.acc_flow, c.acc_size),  # eq. A2
         *_hose_rates(terms.hose_a, c.hose_on),
         *_hose_rates(terms.hose_b, c.hose_on),
-        y[BOOM_STATE + 1],
+        component(y, BOOM_STATE + 1),
         terms.boom_acc,
-        *integral_rates(_ledger_of(y, c, terms, xp)),
     )
+    return with_elements(y, rates, elements)
+
+
+def with_elements(y: list, rates: tuple, elements: tuple) -> tuple:
+    """The derivative of a state of ``y``'s size: ``rates``, and the model elements' ``elements``
+    after them where ``y`` holds their states (:data:`BASE_SIZE`)."""
+    return rates + elements if len(y) > BASE_SIZE else rates
+
+
+@compiled_as(with_elements)
+def _with_elements_compiled(y: Any, rates: Any, elements: Any) -> Any:
+    """:func:`with_elements` as compiled code runs it: decided on ``y``'s type, a tuple's size
+    (a list, the ros2 step's state, is the whole state)."""
+    size = tuple_size(y)
+    if size is not None and size <= BASE_SIZE:
+
+        def without(y: Any, rates: Any, elements: Any) -> Any:
+            return rates
+
+        return without
+
+    def whole(y: Any, rates: Any, elements: Any) -> Any:
+        return rates + elements
+
+    return whole
 
 
 @jitable
@@ -638,7 +687,7 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, own)
     if in_use(c.acc_on):  # the accumulator's orifice between its gas spring and its line's oil spring
         line = c.acc_piston * stiff1 + c.acc_supply * c.bulk_modulus / c.line_volume
-        fill = y[ACCUMULATOR_STATE]
+        fill = component(y, ACCUMULATOR_STATE)
         acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
         rate = larger(rate, c.acc_on * acc)
     if in_use(c.hose_on):
@@ -706,8 +755,8 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         y[BATTERY_RETURNED + 22],  # structural_loss_j
         void1,  # void1
         void2,  # void2
-        y[BOOM_STATE],  # boom_deflection
-        y[BOOM_STATE + 1],  # boom_deflection_rate
+        component(y, BOOM_STATE),  # boom_deflection
+        component(y, BOOM_STATE + 1),  # boom_deflection_rate
         *_hinge_force(y, c, terms, xp),  # hinge_force_x, hinge_force_z
         1.0 * ((q1 <= c.q_min) | (q1 >= c.q_max)),  # at_end_stop: in contact (the force starts from zero)
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
@@ -759,8 +808,9 @@ def _hinge_force(y: list, c: Constants, t: Terms, xp: ModuleType) -> tuple:
     x = xi(q1, c.a, c.b)
     rod_axial = (c.a - c.b * x) / q1  # the rod's direction, base A to eye K, in the boom's frame (eq. 1)
     rod_normal = c.b * xp.sqrt(1.0 - x * x) / q1
+    eta, eta_rate = component(y, BOOM_STATE), component(y, BOOM_STATE + 1)
     return elastic_boom.hinge_force_n(
-        *(t.lever * v, t.lever * t.acc + t.lever_slope * v * v, y[BOOM_STATE], y[BOOM_STATE + 1], t.boom_acc),
+        *(t.lever * v, t.lever * t.acc + t.lever_slope * v * v, eta, eta_rate, t.boom_acc),
         *(t.sin_alpha, t.cos_alpha, t.f_rod, rod_axial, rod_normal, c.boom_mass + m.payload),
         *(c.weight_coeff / c.gravity, m.participation, c.gravity),
     )
@@ -801,7 +851,7 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
             cylinder.kinetic_power + terms.boom_kinetic,
             cylinder.potential_power + terms.boom_potential,
         )  # the elastic boom's mode (eq. E1, E2), 0 off
-        structural = elastic_boom.structural_loss_w(y[BOOM_STATE + 1], terms.boom_damping)  # eq. E5
+        structural = elastic_boom.structural_loss_w(component(y, BOOM_STATE + 1), terms.boom_damping)  # eq. E5
     acc_loss = (terms.acc_line - terms.acc_gas) * terms.acc_flow  # eq. A6
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
     hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6 (0 without hoses)

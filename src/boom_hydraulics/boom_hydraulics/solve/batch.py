@@ -341,14 +341,15 @@ class SetRun:
             int(every), energy_index, np.array(bases, dtype=float), settings, bool(measure), float(t0_s), int(k0),
             *(np.array(v, dtype=float) for v in schedule),
         )  # fmt: skip
+        elements = accelerate.with_elements(params)  # the kernels' layout of the state
         if serial and self.n_sets != 1:
             raise ValueError("a serial run has one parameter set")
         if not compiled or encoding is None:
             self._runner = None
         elif serial:
-            self._runner = accelerate.set_runner(p0.mode, p0.method)
+            self._runner = accelerate.set_runner(p0.mode, p0.method, elements)
         else:
-            self._runner = accelerate.batch_runner(p0.mode, p0.method, self.n_sets if lock_step else 1)
+            self._runner = accelerate.batch_runner(p0.mode, p0.method, self.n_sets if lock_step else 1, elements)
         self._parallel = self._runner is not None and not serial
         if self._runner is not None:
             self._spec, self._flat = spec, kernel.flat(spec)
@@ -357,7 +358,7 @@ class SetRun:
                 command=CALLED if encoding is None else interpreted(encoding), energy_base=[float(b) for b in bases],
                 payload_times_s=schedule[0], payload_shares=schedule[1],
             )  # fmt: skip
-            stepper = accelerate.stepper(p0.mode, p0.method) if compiled else None
+            stepper = accelerate.stepper(p0.mode, p0.method, elements) if compiled else None
             self._sets = python_sets(params, command, encoding is not None, stepper, start)
         width = len(OUTPUT_NAMES)
         if slice_rows is None:

@@ -31,6 +31,7 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+from .. import jit
 from ..jit import jitable
 from ..model import setpoints
 from ..model.control import ControlState, Gains, position_command
@@ -350,9 +351,34 @@ def _energy_bases(spec: RunSpec, k: int, status: Any, template: Any) -> Any:
 
 @jitable
 def _keep(row: Any, y: Any) -> None:
-    """A set's state ``y`` into its ``row``."""
-    for m in range(len(row)):
+    """A set's state ``y`` into the first len(y) values of its ``row`` (the rest: the model
+    elements' states, which a state without them leaves as they were: :func:`layout`)."""
+    for m in range(len(y)):
         row[m] = y[m]
+
+
+def layout(size: int) -> tuple:
+    """A state's layout as the kernels take it: a tuple of ``size`` zeros, whose type (a tuple of
+    that many floats) tells compiled code how many of the state's first components it steps
+    (:func:`state_of`): the physical model's state with or without the model elements' states,
+    which come last (physical_kernel.BASE, WHOLE); each layout is compiled on its own."""
+    return (0.0,) * size
+
+
+@jitable
+def state_of(row: Any, layout: tuple) -> tuple:
+    """The first len(``layout``) values of the state ``row`` as a tuple (the euler and rk4 steps
+    keep it so, on the stack)."""
+    return jit.tuple_like(row, layout)
+
+
+@jitable
+def state_row(row: Any, y: Any) -> Any:
+    """A copy of the state ``row`` with its first len(``y``) values ``y``: the whole state after
+    steps of its first values (the rest stand still: :func:`layout`)."""
+    out = row.copy()
+    _keep(out, y)
+    return out
 
 
 # inlined into the run loop: a call takes the block's constants and state by value (91 values of
@@ -422,8 +448,8 @@ def batch_set(
     controller: Callable[..., float],
     with_payload: Callable[..., Any],
     constants_of: Callable[..., Any],
-    state_of: Callable[..., Any],
     template: Any,
+    layout: tuple,
     block: int,
     states: Any,
     status: Any,
@@ -439,19 +465,20 @@ def batch_set(
     over its passes ``first`` ... ``last`` - 1, with ``step_once`` (stepping.advance, or
     advance_lanes for a block) and the run's spec from its flat fields (:func:`flat`): the
     model's constants from the rows ``spec.constants[k]`` (``constants_of``), the state from
-    ``states[k]`` (``state_of``, as the step keeps it). A block past the last set fills its
-    spare lanes with the first set's (run_set has them follow a set that runs, unseen).
-    ``status``, ``metrics``, ``rows`` (its rows of this slice; none: no rows kept) and
-    ``taken`` (its samples in this slice) hold one entry per set."""
+    ``states[k]`` (:func:`state_of`, as the step keeps it: its first len(``layout``) values,
+    the model's :func:`layout` of this run). A block past the last set fills its spare lanes
+    with the first set's (run_set has them follow a set that runs, unseen). ``status``,
+    ``metrics``, ``rows`` (its rows of this slice; none: no rows kept) and ``taken`` (its
+    samples in this slice) hold one entry per set."""
     spec = spec_of(spec_fields)
     count = lanes.width(template)
     k = count * block
     end = min(k + count, len(states))
     c = lanes.spread(constants_of(spec.constants[k]), template)
-    y = lanes.spread(state_of(states[k]), template)
+    y = lanes.spread(state_of(states[k], layout), template)
     for j in range(1, end - k):
         c = lanes.with_lane(c, j, constants_of(spec.constants[k + j]))
-        y = lanes.with_lane(y, j, state_of(states[k + j]))
+        y = lanes.with_lane(y, j, state_of(states[k + j], layout))
     f = (step_once, step, derivative, stiffness_rate, energy, outputs, samples, controller, with_payload)
     sets = (states[k:end], status[k:end], metrics[k:end], rows[k:end], taken[k:end], first, last)
     if rows.shape[1] > 0:  # each call with its own constant store

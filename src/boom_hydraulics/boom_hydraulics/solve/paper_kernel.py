@@ -61,10 +61,14 @@ def constants_of(row: Any) -> model.Constants:
     )
 
 
+#: The state's layout (kernel.layout): the paper model has no model elements.
+WHOLE = run.layout(len(model.STATE_NAMES))
+
+
 @jitable
 def state_of(row: Any) -> tuple:
     """The state as a tuple (the euler and rk4 steps keep it so)."""
-    return (row[0], row[1], row[2], row[3], row[4])
+    return run.state_of(row, WHOLE)
 
 
 @jitable
@@ -118,7 +122,7 @@ def batch_set(step: Any, k: int, arguments: tuple) -> None:
     """kernel.batch_set of set ``k`` with ``step`` and this model's functions by name;
     no controller (the paper valve only lifts)."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.no_controller)
-    run.batch_set(stepping.advance, *f, model.with_payload, constants_of, state_of, 0.0, k, *arguments)
+    run.batch_set(stepping.advance, *f, model.with_payload, constants_of, 0.0, WHOLE, k, *arguments)
 
 
 @kernel(SOURCES, parallel=True)
@@ -140,7 +144,9 @@ def batch_rk4(*arguments: Any) -> None:
 #: one set in the calling thread (physical_kernel's SETS, for the position controller that a
 #: node's ticks pace: paper mode has none), and no blocks of sets in lock-step (physical_kernel's
 #: BLOCKS: the paper model runs one set per thread).
-STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
-BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
+STEPS = {("euler", False): steps_euler, ("rk4", False): steps_rk4, ("ros2", False): steps_ros2}
+OUTPUTS = {False: outputs_of}
+PUBLISHED = {False: published_of}
+BATCHES = {("euler", False): batch_euler, ("rk4", False): batch_rk4}
 SETS: dict = {}
 BLOCKS: dict = {}

@@ -62,6 +62,12 @@ SOURCES = [
 #: How many constants the model has, and how many states.
 N_CONSTANTS = len(model.Constants._fields)
 N_STATE = len(model.STATE_NAMES)
+#: The state's layouts (kernel.layout): without the model elements' states (their states stand
+#: still where all three are off: physical.element_states), and the whole state. Each entry
+#: point below comes in both, the second named ``..._elements``: numba compiles the one a run
+#: calls (accelerate picks it), so that elements that are off cost neither steps nor compiling.
+BASE = run.layout(model.BASE_SIZE)
+WHOLE = run.layout(N_STATE)
 
 
 @jitable
@@ -71,38 +77,50 @@ def constants_of(row: Any) -> model.Constants:
 
 
 @jitable
-def state_of(row: Any) -> tuple:
-    """The state as a tuple (the euler and rk4 steps keep it so)."""
-    return jit.tuple_of(row, N_STATE)
-
-
-@jitable
 def list_of(row: Any) -> list:
     """The state as a list (the ros2 step keeps it so)."""
     return [v for v in row]
 
 
+@jitable
+def steps(step: Any, layout: tuple, t: float, y0: Any, crow: Any, u: float, rest: tuple) -> tuple:
+    """Up to n steps of ``step`` (stepping.advance; ``rest``: dt, min_substeps, limit,
+    max_substeps, n, energy_index, energy_base) from the state row ``y0``, its first
+    len(``layout``) values -> (steps taken, outcome, most substeps, the state row after them)."""
+    f = (step, model.derivative, model.stiffness_rate, model.energy)
+    done, outcome, most, y = stepping.advance(*f, t, run.state_of(y0, layout), constants_of(crow), u, *rest)
+    return done, outcome, most, run.state_row(y0, y)
+
+
 @kernel(SOURCES)
 def steps_euler(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
-    """Up to n steps of explicit Euler (stepping.advance; ``rest``: dt, min_substeps, limit,
-    max_substeps, n, energy_index, energy_base) -> (steps taken, outcome, most substeps, y)."""
-    f = (euler_step, model.derivative, model.stiffness_rate, model.energy)
-    done, outcome, most, y = stepping.advance(*f, t, state_of(y0), constants_of(crow), u, *rest)
-    return done, outcome, most, np.array(y)
+    """Up to n steps of explicit Euler (:func:`steps`) -> (steps taken, outcome, most substeps, y)."""
+    return steps(euler_step, BASE, t, y0, crow, u, rest)
+
+
+@kernel(SOURCES)
+def steps_euler_elements(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
+    """:func:`steps_euler` of the whole state."""
+    return steps(euler_step, WHOLE, t, y0, crow, u, rest)
 
 
 @kernel(SOURCES)
 def steps_rk4(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
     """Up to n steps of classical RK4 (as :func:`steps_euler`)."""
-    f = (rk4_step, model.derivative, model.stiffness_rate, model.energy)
-    done, outcome, most, y = stepping.advance(*f, t, state_of(y0), constants_of(crow), u, *rest)
-    return done, outcome, most, np.array(y)
+    return steps(rk4_step, BASE, t, y0, crow, u, rest)
+
+
+@kernel(SOURCES)
+def steps_rk4_elements(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
+    """:func:`steps_rk4` of the whole state."""
+    return steps(rk4_step, WHOLE, t, y0, crow, u, rest)
 
 
 @kernel(SOURCES)
 def steps_ros2(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int, int, int, np.ndarray]:
     """Up to n steps of Rosenbrock ROS2, a step that fails its checks taken again in more
-    substeps (stepping.advance_halving; as :func:`steps_euler`)."""
+    substeps (stepping.advance_halving; as :func:`steps_euler`), of the whole state (a list:
+    its stages are numpy arrays), with the elements on or off."""
     f = (ros2_step, model.derivative, model.stiffness_rate, model.energy)
     done, outcome, most, y = stepping.advance_halving(*f, t, list_of(y0), constants_of(crow), u, *rest)
     return done, outcome, most, np.array(y)
@@ -111,24 +129,42 @@ def steps_ros2(t: float, y0: Any, crow: Any, u: float, *rest: Any) -> tuple[int,
 @kernel(SOURCES)
 def outputs_of(t: float, y0: Any, crow: Any, u: float) -> tuple:
     """The model's outputs (model.outputs: floats in the order of OUTPUT_NAMES, flags 1.0 or 0.0)."""
-    return model.outputs(t, state_of(y0), constants_of(crow), u)
+    return model.outputs(t, run.state_of(y0, BASE), constants_of(crow), u)
+
+
+@kernel(SOURCES)
+def outputs_of_elements(t: float, y0: Any, crow: Any, u: float) -> tuple:
+    """:func:`outputs_of` of the whole state."""
+    return model.outputs(t, run.state_of(y0, WHOLE), constants_of(crow), u)
+
+
+@jitable
+def published_at(layout: tuple, t: float, y0: Any, crow: Any, u: float) -> np.ndarray:
+    """What a state publishes (outputs.published: the outputs, the barrel's angle and rate, the
+    lever and whether the published outputs are finite, in the order of PUBLISHED_NAMES)."""
+    c = constants_of(crow)
+    return outputs.published(model.outputs(t, run.state_of(y0, layout), c, u), c.a, c.b, c.h)
 
 
 @kernel(SOURCES)
 def published_of(t: float, y0: Any, crow: Any, u: float) -> np.ndarray:
-    """What a state publishes (outputs.published: the outputs, the barrel's angle and rate, the
-    lever and whether the published outputs are finite, in the order of PUBLISHED_NAMES)."""
-    c = constants_of(crow)
-    return outputs.published(model.outputs(t, state_of(y0), c, u), c.a, c.b, c.h)
+    """What a state publishes (:func:`published_at`)."""
+    return published_at(BASE, t, y0, crow, u)
+
+
+@kernel(SOURCES)
+def published_of_elements(t: float, y0: Any, crow: Any, u: float) -> np.ndarray:
+    """:func:`published_of` of the whole state."""
+    return published_at(WHOLE, t, y0, crow, u)
 
 
 @jitable
-def batch_set(step_once: Any, step: Any, template: Any, block: int, arguments: tuple) -> None:
+def batch_set(step_once: Any, step: Any, template: Any, layout: tuple, block: int, arguments: tuple) -> None:
     """kernel.batch_set of block ``block`` of as many sets as ``template`` holds (a float: one;
     Lanes: a block in lock-step, with ``step_once`` stepping.advance_lanes) with ``step`` and
-    this model's functions by name; the position controller."""
+    this model's functions by name, the states of ``layout``; the position controller."""
     f = (step, model.derivative, model.stiffness_rate, model.energy, model.outputs, model.samples, run.controller_value)
-    run.batch_set(step_once, *f, model.with_payload, constants_of, state_of, template, block, *arguments)
+    run.batch_set(step_once, *f, model.with_payload, constants_of, template, layout, block, *arguments)
 
 
 @kernel(SOURCES, parallel=True)
@@ -136,14 +172,28 @@ def batch_euler(*arguments: Any) -> None:
     """:func:`batch_set` with explicit Euler over every set of a batch, in parallel
     (``arguments``: see batch.run_sets)."""
     for k in prange(arguments[0].shape[0]):
-        batch_set(stepping.advance, euler_step, 0.0, k, arguments)
+        batch_set(stepping.advance, euler_step, 0.0, BASE, k, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def batch_euler_elements(*arguments: Any) -> None:
+    """:func:`batch_euler` of the whole state."""
+    for k in prange(arguments[0].shape[0]):
+        batch_set(stepping.advance, euler_step, 0.0, WHOLE, k, arguments)
 
 
 @kernel(SOURCES, parallel=True)
 def batch_rk4(*arguments: Any) -> None:
     """:func:`batch_set` with classical RK4 over every set of a batch, in parallel (as :func:`batch_euler`)."""
     for k in prange(arguments[0].shape[0]):
-        batch_set(stepping.advance, rk4_step, 0.0, k, arguments)
+        batch_set(stepping.advance, rk4_step, 0.0, BASE, k, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def batch_rk4_elements(*arguments: Any) -> None:
+    """:func:`batch_rk4` of the whole state."""
+    for k in prange(arguments[0].shape[0]):
+        batch_set(stepping.advance, rk4_step, 0.0, WHOLE, k, arguments)
 
 
 @kernel(SOURCES, parallel=True)
@@ -152,32 +202,83 @@ def blocks_euler(*arguments: Any) -> None:
     block in lock-step on the vector units (:mod:`lanes`), the blocks in parallel (as
     :func:`batch_euler`: the same results, see :mod:`lanes`)."""
     for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
-        batch_set(stepping.advance_lanes, euler_step, lanes.block(), block, arguments)
+        batch_set(stepping.advance_lanes, euler_step, lanes.block(), BASE, block, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def blocks_euler_elements(*arguments: Any) -> None:
+    """:func:`blocks_euler` of the whole state."""
+    for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
+        batch_set(stepping.advance_lanes, euler_step, lanes.block(), WHOLE, block, arguments)
 
 
 @kernel(SOURCES, parallel=True)
 def blocks_rk4(*arguments: Any) -> None:
     """:func:`blocks_euler` with classical RK4."""
     for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
-        batch_set(stepping.advance_lanes, rk4_step, lanes.block(), block, arguments)
+        batch_set(stepping.advance_lanes, rk4_step, lanes.block(), BASE, block, arguments)
+
+
+@kernel(SOURCES, parallel=True)
+def blocks_rk4_elements(*arguments: Any) -> None:
+    """:func:`blocks_rk4` of the whole state."""
+    for block in prange((arguments[0].shape[0] + lanes.WIDTH - 1) // lanes.WIDTH):
+        batch_set(stepping.advance_lanes, rk4_step, lanes.block(), WHOLE, block, arguments)
 
 
 @kernel(SOURCES)
 def set_euler(*arguments: Any) -> None:
     """:func:`batch_set` with explicit Euler over the one set of a run, in the calling thread
     (a serial batch.SetRun: see there)."""
-    batch_set(stepping.advance, euler_step, 0.0, 0, arguments)
+    batch_set(stepping.advance, euler_step, 0.0, BASE, 0, arguments)
+
+
+@kernel(SOURCES)
+def set_euler_elements(*arguments: Any) -> None:
+    """:func:`set_euler` of the whole state."""
+    batch_set(stepping.advance, euler_step, 0.0, WHOLE, 0, arguments)
 
 
 @kernel(SOURCES)
 def set_rk4(*arguments: Any) -> None:
     """:func:`batch_set` with classical RK4 over the one set of a run (as :func:`set_euler`)."""
-    batch_set(stepping.advance, rk4_step, 0.0, 0, arguments)
+    batch_set(stepping.advance, rk4_step, 0.0, BASE, 0, arguments)
 
 
-#: The entry points by method: stepping, and the run of a batch (one set per thread, or blocks in
-#: lock-step) or of one set in the calling thread (explicit methods only).
-STEPS = {"euler": steps_euler, "rk4": steps_rk4, "ros2": steps_ros2}
-BATCHES = {"euler": batch_euler, "rk4": batch_rk4}
-BLOCKS = {"euler": blocks_euler, "rk4": blocks_rk4}
-SETS = {"euler": set_euler, "rk4": set_rk4}
+@kernel(SOURCES)
+def set_rk4_elements(*arguments: Any) -> None:
+    """:func:`set_rk4` of the whole state."""
+    batch_set(stepping.advance, rk4_step, 0.0, WHOLE, 0, arguments)
+
+
+#: The entry points by method and whether the model elements' states are stepped (accelerate
+#: picks them): stepping, outputs and what a state publishes, and the run of a batch (one set
+#: per thread, or blocks in lock-step) or of one set in the calling thread (explicit methods only).
+STEPS = {
+    ("euler", False): steps_euler,
+    ("euler", True): steps_euler_elements,
+    ("rk4", False): steps_rk4,
+    ("rk4", True): steps_rk4_elements,
+    ("ros2", False): steps_ros2,
+    ("ros2", True): steps_ros2,
+}
+OUTPUTS = {False: outputs_of, True: outputs_of_elements}
+PUBLISHED = {False: published_of, True: published_of_elements}
+BATCHES = {
+    ("euler", False): batch_euler,
+    ("euler", True): batch_euler_elements,
+    ("rk4", False): batch_rk4,
+    ("rk4", True): batch_rk4_elements,
+}
+BLOCKS = {
+    ("euler", False): blocks_euler,
+    ("euler", True): blocks_euler_elements,
+    ("rk4", False): blocks_rk4,
+    ("rk4", True): blocks_rk4_elements,
+}
+SETS = {
+    ("euler", False): set_euler,
+    ("euler", True): set_euler_elements,
+    ("rk4", False): set_rk4,
+    ("rk4", True): set_rk4_elements,
+}

@@ -113,9 +113,11 @@ class Simulator:
             model.stiffness_rate,
             model.energy,
         )  # the compiled kernels' loop, interpreted
-        self._compiled = accelerate.stepper(params.mode, params.method) if self.jit else None
-        self._observe = accelerate.observer(params.mode, params.method) if self._compiled is not None else None
-        self._publish = accelerate.publisher(params.mode, params.method) if self._compiled is not None else None
+        self._elements = accelerate.with_elements([params])  # the compiled calls' layout of the state
+        kernels = (params.mode, params.method, self._elements)
+        self._compiled = accelerate.stepper(*kernels) if self.jit else None
+        self._observe = accelerate.observer(*kernels) if self._compiled is not None else None
+        self._publish = accelerate.publisher(*kernels) if self._compiled is not None else None
         self._hold(self._full)
 
     def _hold(self, constants: Any, payload_share: float = 1.0) -> None:
@@ -211,7 +213,7 @@ class Simulator:
         p = self.params
         kernels = [self._compiled, self._observe, self._publish]
         if p.mode == "physical":  # (the controller's run too)
-            kernels.append(accelerate.set_runner(p.mode, p.method))
+            kernels.append(accelerate.set_runner(p.mode, p.method, self._elements))
         return [k for k in kernels if k is not None]
 
     def compiles_first(self) -> bool:

@@ -186,7 +186,8 @@ def _kernel_call(batch: sweep.Batch) -> tuple:
     """What the first batch of its kind may compile: its run kernel (batch.SetRun), for the
     arguments that its points' shared settings give it (sweep.batch_key)."""
     p = batch.params[0]
-    return sweep.batch_key(p), accelerate.batch_runner(p.mode, p.method, len(batch.params))
+    elements = accelerate.with_elements(batch.params)
+    return sweep.batch_key(p), accelerate.batch_runner(p.mode, p.method, len(batch.params), elements)
 
 
 def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
@@ -197,7 +198,7 @@ def _compiling(batches: Sequence[sweep.Batch]) -> list[str]:
     for batch in batches:
         p = batch.params[0]
         kernels.setdefault((p.mode, p.method), set()).update(
-            accelerate.run_kernels(p.mode, p.method, len(batch.params))
+            accelerate.run_kernels(p.mode, p.method, len(batch.params), accelerate.with_elements(batch.params))
         )
     return [
         accelerate.compiling_notice(mode, method, "its batches")
