@@ -5,9 +5,11 @@ speed on demand the spool sets, and the stability bound's rate against the line'
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
-from boom_hydraulics.model import valve
+from boom_hydraulics.model import pump, valve
 from boom_hydraulics.model.drives import constants, fixed_pump
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
@@ -32,6 +34,9 @@ def test_the_lines_energy_rate_is_the_rate_of_its_compression_and_rotor_energy(l
     void = (P.cavitation_pressure_pa - 1e5, 0.0, 0.0)  # the line cavitating: its pressure at the floor
     s = fixed_pump.supply(void, 1.0, 1.0, 1.4, 0.0, 7e6, 1e5, D)
     assert fixed_pump.energy_rate(void, s, D) == 0.0 and s.p_supply == P.cavitation_pressure_pa
+    floor = (P.cavitation_pressure_pa, 0.0, 0.0)  # at the floor itself, drawn from: the void opens, p stands
+    s = fixed_pump.supply(floor, 1.0, 1.0, 1.4, 0.0, 7e6, 1e5, D, q_draw=2.0 * P.pump_max_flow_m3_s)
+    assert s.rate < 0.0 and fixed_pump.energy_rate(floor, s, D) == 0.0
 
 
 def test_an_accumulator_on_the_line_draws_its_flow_from_the_lines_oil():
@@ -51,7 +56,7 @@ def test_an_open_centre_holds_the_line_at_its_neutral_pressure_drop_and_a_closed
     start = fixed_pump.initial_state(OPEN)
     dp = start[0] - P_T
     q_centre, _ = valve.centre_flow(0.0, start[0], OPEN)
-    assert q_centre == pytest.approx(OPEN.displacement * OPEN.speed - OPEN.pump_leak * dp, rel=1e-6)
+    assert q_centre == pytest.approx(OPEN.displacement * OPEN.speed - OPEN.pump_leak * dp, rel=1e-9)
     assert 0.9 * P.open_centre_pressure_drop_pa < dp < P.open_centre_pressure_drop_pa  # the leakage's share less
     assert abs(fixed_pump.supply(start, 0.0, 0.0, 1.4, 0.0, 7e6, 1e5, OPEN).rate) < 1e-3 * P.bulk_modulus_pa
     assert fixed_pump.centre_pressure_pa(OPEN.displacement * OPEN.speed, OPEN) == pytest.approx(start[0], rel=1e-12)
@@ -73,8 +78,9 @@ def test_speed_on_demand_turns_the_fixed_pump_with_the_spool(opening, speed):
 def test_the_stability_bound_counts_the_relief_where_a_step_can_reach_it_and_the_chamber_behind_the_path():
     """The line's fastest rate rises by the relief's own rate E G_mr / V_s (the change of
     -d(dz/dt)/dz, central difference, as the relief opens) where the line can reach p_n within
-    the step at the pump's full flow, not further below; and by G E / V for the stiffer chamber
-    the open path connects (two oil springs in series)."""
+    the step at the pump's full flow (exactly there not yet), not further below; and by G E / V for
+    the stiffer chamber the open path connects (two oil springs in series), and by the open centre's
+    own slope times E / V_s."""
     tight = D._replace(leak=0.0)
     spring = P.bulk_modulus_pa / P.supply_line_volume_m3  # E / V_s, Pa/m^3
     reach = spring * P.pump_max_flow_m3_s * 1e-3  # how far the line rises in a step of 1 ms
@@ -90,6 +96,49 @@ def test_the_stability_bound_counts_the_relief_where_a_step_can_reach_it_and_the
     assert own(relief) - own(5e6) == pytest.approx(spring * D.g_main, rel=1e-3)
     assert bound(relief) - bound(5e6) == pytest.approx(spring * D.g_main, rel=1e-9) and bound(5e6) >= own(5e6)
     assert bound(P_N - reach + 1e3) == bound(relief) and bound(P_N - reach - 1e3) == bound(5e6)
+    assert (P_N - reach) + reach == P_N  # exactly at its reach the relief is not counted, a hair past it is
+    assert bound(P_N - reach) == bound(5e6) and bound(math.nextafter(P_N - reach, P_N)) == bound(relief)
+    assert bound(5e6) == pytest.approx(spring * D.pump_leak, rel=1e-14)  # closed and tight: E G_p / V_s
     slope = valve.laminar_slope(0.4, tight)
     assert bound(5e6, 0.4, 1e12, 3e12) - bound(5e6, 0.4) == pytest.approx(slope * 3e12, rel=1e-9)
     assert bound(5e6, 0.4, 3e12, 1e12) == bound(5e6, 0.4, 1e12, 3e12)
+    centre = valve.centre_slope(0.2, OPEN)  # an open centre not yet closed (|x| < x_c): its own slope too
+    with_centre = fixed_pump.stiffness((5e6, 0.0, 0.0), 0.2, 0.2, 0.0, 0.0, 1e-3, OPEN._replace(leak=0.0))[2]
+    assert centre > 0.0 and with_centre - bound(5e6, 0.2) == pytest.approx(spring * centre, rel=1e-9)
+
+
+def test_an_open_valve_takes_its_flow_from_the_line_and_the_pump_gives_it_dp_q():
+    """eq. D13: the line's state moves at E / V_s (D w_n - G_p dp - Q_in - Q_mr); the power the
+    drive gives the lines is dp Q_in, above tank pressure."""
+    z = (12e6, 0.0, 0.0)
+    s = fixed_pump.supply(z, 0.3, 0.3, 1.4, 0.0, 7e6, 1e5, D)
+    q_in = valve.paths(0.3, 12e6, 7e6, 1e5, D).q_in
+    q_pump = D.displacement * D.speed - D.pump_leak * (12e6 - P_T)
+    assert q_in > 0.1 * q_pump and fixed_pump.main_relief_flow_m3_s(12e6, D) == 0.0
+    assert s.rate == pytest.approx(P.bulk_modulus_pa / P.supply_line_volume_m3 * (q_pump - q_in), rel=1e-12)
+    assert s.power == pytest.approx((12e6 - P_T) * q_in, rel=1e-12)
+
+
+def test_the_pump_is_at_its_flow_limit_below_the_relief_pressure_and_not_from_it():
+    """Saturated: the pump gives all it can (the line below p_n, the relief shut); from p_n,
+    exactly, the relief takes the rest."""
+    for line_pa, saturated in ((math.nextafter(P_N, 0.0), 1.0), (P_N, 0.0), (P_N + 0.5 * P.main_relief_range_pa, 0.0)):
+        assert fixed_pump.supply((line_pa, 0.0, 0.0), 0.3, 0.3, 1.4, 0.0, 7e6, 1e5, D).saturated == saturated, line_pa
+
+
+def test_a_lagging_motors_torque_turns_the_pump_and_speeds_its_rotors():
+    """eq. D2, D64: the motor's torque is the pump's shaft torque at its speed plus J dw/dt."""
+    z = (12e6, 100.0, 0.0)
+    s = fixed_pump.supply(z, 0.5, 0.5, 1.4, 0.0, 7e6, 1e5, LAGGING)
+    shaft = pump.shaft_torque_n_m(LAGGING.displacement, 100.0, 12e6 - P_T, LAGGING.torque_loss)
+    assert s.rate2 < 0.0 and s.speed == 100.0
+    assert s.torque == pytest.approx(shaft + P.motor_rotor_inertia_kg_m2 * s.rate2, rel=1e-12)
+
+
+def test_the_valve_loss_of_an_open_centre_counts_the_spools_paths_and_the_centre():
+    """A spool part open with the centre not yet closed (|x| < x_c) throttles through both (eq. D66)."""
+    s = fixed_pump.supply((3e6, 0.0, 0.0), 0.2, 0.2, 1.4, 0.0, 2e6, 1e5, OPEN)
+    paths = valve.paths(0.2, 3e6, 2e6, 1e5, OPEN)
+    _, centre_loss = valve.centre_flow(0.2, 3e6, OPEN)
+    assert paths.throttling > 0.0 and centre_loss > 0.0
+    assert s.valve_loss == pytest.approx(paths.throttling + centre_loss, rel=1e-12)

@@ -21,6 +21,7 @@ from boom_hydraulics.model.drives import (
     load_sensing,
     pump_controlled,
 )
+from boom_hydraulics.model.drives.constants import Supply, blend, chosen, in_use
 from boom_hydraulics.model.ledger import electric_chain
 from boom_hydraulics.model.parameters import DRIVES as DRIVE_CHOICES
 from boom_hydraulics.model.parameters import UNSOLVED, Parameters, describe, from_mapping, with_updates
@@ -350,3 +351,116 @@ def test_the_elements_take_arrays_as_they_take_floats():
         assert [float(a[k]) for a in arrays] == pytest.approx(list(one), rel=1e-12, abs=1e-15)
         assert [float(np.asarray(a)[k]) for a in supplied] == pytest.approx(list(single), rel=1e-12, abs=1e-15)
     assert math.isfinite(float(arrays.battery_power[2]))
+
+
+# --- the drives' constants and a batch's choice of drive ---------------------------------
+
+
+def test_the_drive_constants_are_their_parameters_by_the_models_definitions():
+    """The derived constants against their definitions (docs/model.md, "Drives"): D = Q_max / w_n
+    (eq. D4), G_mr = Q_max / range (eq. D12), p_tr^2, K / sqrt(p_tr), E_usable in J, the lags'
+    reciprocals, the screw's r = l / (2 pi N) and its friction m, d such that driving it costs
+    1 / eta_f and back-driving it gives eta_b (eq. D30, D32), K_w = J_m w_c (eq. D34)."""
+    p = with_updates(P, motor_time_constant_s=0.2, load_sensing_time_constant_s=0.3, ema_gear_ratio=3.0,
+                     ema_forward_efficiency=0.8, ema_backdrive_efficiency=0.6, battery_capacity_kwh=2.5)  # fmt: skip
+    d = constants(p)
+    assert d.displacement == p.pump_max_flow_m3_s / p.pump_speed_rad_s
+    assert d.g_main == p.pump_max_flow_m3_s / p.main_relief_range_pa
+    assert d.transition2 == pytest.approx(p.transition_pressure_pa**2, rel=1e-15)
+    assert d.k_laminar == pytest.approx(d.k_valve / math.sqrt(p.transition_pressure_pa), rel=1e-15)
+    assert d.battery_capacity == 2.5 * 3.6e6  # J: 1 kWh is 3.6 MJ
+    assert (d.motor_lag, d.motor_inv_tau, d.ls_inv_tau) == (1.0, pytest.approx(5.0), pytest.approx(1 / 0.3))
+    ratio = p.ema_screw_lead_m / (2.0 * math.pi * 3.0)
+    assert d.ema_ratio == pytest.approx(ratio, rel=1e-15)
+    assert 1.0 + d.ema_friction_skew + d.ema_friction_mean == pytest.approx(1 / 0.8, rel=1e-15)  # driving it
+    assert 1.0 + d.ema_friction_skew - d.ema_friction_mean == pytest.approx(0.6, rel=1e-15)  # back-driven
+    assert d.ema_speed_gain == p.ema_inertia_kg_m2 * p.ema_speed_bandwidth_rad_s
+    assert (D.motor_lag, D.motor_inv_tau) == (1.0, 1.0 / P.motor_time_constant_s)
+    quick = constants(with_updates(P, motor_time_constant_s=0.0))  # no lag: the speed is the command
+    assert (quick.motor_lag, quick.motor_inv_tau) == (0.0, 0.0)
+
+
+def _as_read(word: str) -> str:
+    """``word`` as a file's reader builds it: equal to the literal, not the same (interned) object."""
+    return "".join(list(word))
+
+
+@pytest.mark.parametrize("drive", DRIVE_CHOICES)
+def test_each_drive_is_its_index_in_the_registry_and_sets_its_rod_speed_at_full_command(drive):
+    """The drives without the 4/3 valve set the rod's speed at full command by their motor's top
+    speed: the EHA D w_max / S1 (eq. D20), the actuator r w_n (eq. D30); the valve drives 0."""
+    p = with_updates(P, drive=_as_read(drive), ema_gear_ratio=3.0)
+    d = constants(p)
+    assert d.drive == DRIVE_CHOICES.index(drive)
+    expected = {
+        "pump_controlled": p.pump_max_flow_m3_s / geometry.piston_area_m2(p.piston_diameter_m),
+        "electro_mechanical": p.ema_screw_lead_m / (2.0 * math.pi * 3.0) * p.pump_speed_rad_s,
+    }.get(drive, 0.0)
+    assert d.command_rod_speed == pytest.approx(expected, rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("limit", "integral_s", "torque_max", "inv_integral"),
+    [(0.0, 0.3, 0.0, 0.0), (0.5, 0.3, 0.5, 1 / 0.3), (200.0, 0.3, 0.3 * 375.0, 1 / 0.3), (200.0, 0.0, 112.5, 0.0)],
+)
+def test_the_eha_as_built_is_on_with_a_torque_limit_and_its_speed_loop_integrates_with_an_integral_time(
+    limit, integral_s, torque_max, inv_integral
+):
+    """eq. D50-D52: T_max = min(limit, k_t I_max), J and 1 / J of the rotors, 1 / T_i, all 0
+    without a torque limit (the lag instead); a T_i of 0 makes the loop proportional."""
+    p = with_updates(P, eha_torque_limit_n_m=limit, eha_speed_integral_time_s=integral_s,
+                     eha_torque_constant_n_m_a=0.3, eha_current_limit_a=375.0,
+                     eha_motor_inertia_kg_m2=0.03)  # fmt: skip
+    d = constants(p)
+    on = 1.0 if limit else 0.0
+    assert d.eha_torque_model == on and d.eha_torque_max == pytest.approx(torque_max, rel=1e-15)
+    assert (d.eha_inertia, d.eha_inv_inertia) == (on * 0.03, pytest.approx(on / 0.03, rel=1e-15))
+    assert d.eha_inv_integral_time == pytest.approx(inv_integral, rel=1e-15)
+
+
+def test_the_choices_of_a_parameters_file_set_their_flags_and_indices():
+    """The load-holding valves, the motor's strategy (its index in motor_speed.STRATEGIES) and
+    the valve's centre, each chosen by a word as a file's reader builds it."""
+    for strategy, index in (("constant", 0.0), ("idle_stop", 1.0), ("speed_on_demand", 2.0)):
+        assert constants(with_updates(P, motor_strategy=_as_read(strategy))).motor_strategy == index, strategy
+    for choice, flag in (("piston_side", 1.0), ("none", 0.0)):
+        d = constants(with_updates(P, load_holding_valve=_as_read(choice), eha_holding_valve=_as_read(choice)))
+        assert (d.holding, d.eha_holding) == (flag, flag), choice
+    for centre, flag in (("open", 1.0), ("closed", 0.0)):
+        assert constants(with_updates(P, valve_centre=_as_read(centre))).open_centre == flag, centre
+
+
+def _supplies() -> tuple[Supply, Supply]:
+    """Two drives' supplies whose every field differs, by neither 0 nor 1."""
+    n = len(Supply._fields)
+    return Supply(*(1.5 + k for k in range(n))), Supply(*(-4.25 - 3.0 * k for k in range(n)))
+
+
+def test_a_batch_gives_each_set_its_own_drives_supply_and_one_set_the_drive_itself():
+    """blend: a set whose drive's flag is 1 takes that drive's every field, one whose flag is 0
+    keeps the other's; chosen: one set's drive is the drive itself, a batch's the blend."""
+    a, b = _supplies()
+    w = np.array([0.0, 1.0])
+    for name, mixed, first, second in zip(Supply._fields, blend(a, b, w), a, b):
+        assert list(mixed) == [first, second], name
+    assert chosen(a, b, 1.0) is b
+    assert [list(x) for x in chosen(a, b, w)] == [list(x) for x in blend(a, b, w)]
+    assert in_use(1.0) and not in_use(0.0)
+    assert in_use(np.array([0.0, 1.0])) and not in_use(np.array([0.0, 0.0]))
+
+
+def test_the_compiled_forms_of_in_use_and_chosen_answer_as_the_python_ones():
+    """What numba runs for in_use and chosen (their typing functions' implementations, called here
+    as Python): a set's flag, any set's flag in a batch; one set's drive itself, a batch's blend."""
+    import numba
+
+    from boom_hydraulics.model.drives.constants import _chosen_compiled, _in_use_compiled
+
+    flags = (0.0, 1.0, np.array([0.0, 0.0]), np.array([0.0, 1.0]))
+    for flag in flags:
+        assert bool(_in_use_compiled(numba.float64)(flag)) == in_use(flag), flag
+    a, b = _supplies()
+    assert _chosen_compiled(a, b, numba.float64)(a, b, 1.0) is b
+    w = np.array([0.0, 1.0])
+    batch = _chosen_compiled(a, b, numba.float64[:])(a, b, w)
+    assert [list(x) for x in batch] == [list(x) for x in blend(a, b, w)]
