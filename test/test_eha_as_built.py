@@ -270,3 +270,98 @@ def test_with_everything_on_the_eha_takes_arrays_as_it_takes_floats():
         assert [float(np.asarray(a)[k]) if np.ndim(a) else float(a) for a in arrays] == pytest.approx(
             list(one), rel=1e-12, abs=1e-15
         )
+
+
+#: The load-holding valve on, with the lag's speed source (VALVE) and with the torque-limited motor (VALVE_LOOP).
+VALVE = constants(with_updates(EHA, eha_holding_valve="piston_side"))
+VALVE_LOOP = constants(with_updates(EHA, eha_holding_valve="piston_side", eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+
+
+@pytest.mark.parametrize(
+    ("share", "speed_share", "lag_opening", "loop_opening"),
+    [(0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 1.0, 1.0), (-1.0, 0.0, 1.0, 1.0), (0.5, 0.0, 0.5, 0.5),
+     (-0.25, 0.0, 0.15625, 0.15625), (3.0, 0.0, 1.0, 1.0), (0.0, 1.0, 1.0, 0.0), (0.0, -0.5, 0.5, 0.0),
+     (0.25, -1.0, 1.0, 0.15625)],
+)  # fmt: skip
+def test_the_holding_valve_opens_smoothly_up_to_its_command_share_and_only_the_lag_holds_it_open_running_down(
+    share, speed_share, lag_opening, loop_opening
+):
+    """w_h = smoothstep(max(|u|, |w| / w_max) / u_h) (eq. D53): shut at rest, fully open from
+    u_h of top speed commanded either way, half at u_h / 2; with the lag's speed source the
+    running-down motor holds it open, with the torque-limited loop the command alone does
+    (the shut valve stops the rotors itself). Without the valve: always 1 (open)."""
+    u = share * EHA.eha_holding_command
+    speed = speed_share * EHA.eha_holding_command * EHA.pump_speed_rad_s
+    assert pump_controlled.holding_opening(speed, u, VALVE) == pytest.approx(lag_opening, rel=1e-12, abs=1e-15)
+    assert pump_controlled.holding_opening(speed, u, VALVE_LOOP) == pytest.approx(loop_opening, rel=1e-12, abs=1e-15)
+    assert pump_controlled.holding_opening(speed, u, constants(EHA)) == 1.0
+
+
+@pytest.mark.parametrize("flow", [2e-4, -2e-4, 3e-7, 0.0])
+@pytest.mark.parametrize("opening", [1.0, 0.3, 0.0])
+def test_the_pump_side_of_the_load_holding_valve_is_where_the_pumps_leakage_and_the_orifice_pass_its_flow(
+    flow, opening
+):
+    """x solves G_p x + K_h sign(x) sqrt|x| = Q0 (eq. D54), K_h = w_h K_c: the pump's flow at p1
+    less what its leakage loses at the higher port pressure is what the valve's orifice passes
+    (shut, the leakage alone: x = Q0 / G_p); without the valve x = 0."""
+    x = pump_controlled.holding_drop_pa(flow, opening, VALVE)
+    k_h = opening * VALVE.k_check
+    assert VALVE.pump_leak * x + k_h * math.copysign(math.sqrt(abs(x)), x) == pytest.approx(flow, rel=1e-9, abs=1e-18)
+    assert math.copysign(1.0, x) == math.copysign(1.0, flow) or flow == x == 0.0
+    assert pump_controlled.holding_drop_pa(flow, opening, constants(EHA)) == 0.0
+
+
+def test_the_shut_load_holding_valve_seals_the_piston_chamber_but_for_its_seat_and_the_pump_sees_no_load():
+    """Command 0, motor at rest, the valve shut (eq. D53-D55): the pump's port holds no pressure
+    (its leakage takes nothing), only the seat leaks from line A to line B; without the valve the
+    pump's leakage takes G_p (p1 - p2) from the loaded chamber."""
+    p1, p2 = 8e6, 4.5e5
+    shut = pump_controlled.ports(0.0, 0.0, p1, p2, VALVE)
+    assert shut.dp_pump == pytest.approx(0.0, abs=1e-6) and shut.q_pump == pytest.approx(0.0, abs=1e-18)
+    assert shut.valve_drop == pytest.approx(-(p1 - p2), rel=1e-12)
+    assert shut.q_seat == pytest.approx(EHA.load_holding_leakage_m3_s_pa * (p1 - p2), rel=1e-12)
+    assert shut.q_a == pytest.approx(shut.q_check_a - shut.q_seat, rel=1e-12)
+    assert shut.q_b == pytest.approx(shut.q_check_b + shut.q_seat, rel=1e-12)
+    open_ = pump_controlled.ports(0.0, 0.0, p1, p2, constants(EHA))
+    assert open_.q_seat == 0.0 and open_.valve_drop == 0.0 and open_.dp_pump == p1 - p2
+    assert open_.q_pump == pytest.approx(-VALVE.pump_leak * (p1 - p2), rel=1e-12)
+
+
+@pytest.mark.parametrize("holding", ["none", "piston_side"])
+def test_the_stability_bound_is_the_lags_rate_or_the_speed_loops_and_each_line_sees_its_check_and_the_pumps_leakage(
+    holding,
+):
+    """The lines' dQ/dp: a check's laminar slope K_c / sqrt(p_tr) and the pump's leakage G_p. The
+    drive's own fastest rate: 1 / tau with the lag; with the torque-limited loop its bandwidth
+    K_w / J and 1 / T_i, the rotors on the chambers' oil springs through the pump sqrt(D^2 (s1 +
+    s2) / J), the pump's friction through standstill c_f D 2 p_n / (w_f J) and, with the valve,
+    the pump against the shut valve, its leakage alone taking its flow, D^2 (1 + c_f) / (G_p J)."""
+    stiff1, stiff2 = 2.0e-2, 5.0e-3
+    lag = constants(with_updates(EHA, eha_holding_valve=holding))
+    check = lag.k_check / math.sqrt(EHA.transition_pressure_pa) + lag.pump_leak
+    line_a, line_b, own = pump_controlled.stiffness((0.0, 0.0, 0.0), 0.5, 0.0, stiff1, stiff2, 1e-3, lag)
+    assert (line_a, line_b) == pytest.approx((check, check), rel=1e-12)
+    assert own == pytest.approx(1.0 / EHA.motor_time_constant_s, rel=1e-12)
+    loop = constants(with_updates(EHA, eha_holding_valve=holding, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    j, dd, c_f = EHA.eha_motor_inertia_kg_m2, loop.displacement**2, loop.torque_loss
+    expected = EHA.eha_speed_gain_n_m_s_rad / j + 1.0 / EHA.eha_speed_integral_time_s
+    expected += math.sqrt(dd * (stiff1 + stiff2) / j)
+    expected += c_f * loop.displacement * 2.0 * EHA.supply_pressure_pa / j  # w_f = 1 rad/s
+    expected += (holding == "piston_side") * dd * (1.0 + c_f) / (loop.pump_leak * j)
+    line_a, line_b, own = pump_controlled.stiffness((0.0, 0.0, 0.0), 0.5, 0.0, stiff1, stiff2, 1e-3, loop)
+    assert (line_a, line_b) == pytest.approx((check, check), rel=1e-12)
+    assert own == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_eha_starts_with_its_motor_at_rest_and_its_speed_loop_empty():
+    """The initial state: the motor's speed 0 and the loop's integral 0, so that at command 0 the
+    motor asks no torque and stays at rest (eq. D50-D52)."""
+    p = with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M)
+    d = constants(p)
+    z = pump_controlled.initial_state(d)
+    assert z == (0.0, 0.0, 0.0)
+    y = physical.initial_state(p)
+    assert list(y[physical.DRIVE_STATE : physical.DRIVE_STATE + 2]) == [0.0, 0.0]
+    s = pump_controlled.supply(z, 0.0, 0.0, 1.4, 0.0, 5e5, 5e5, d)
+    assert s.torque == 0.0 and s.rate2 == 0.0
