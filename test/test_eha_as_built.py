@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from boom_hydraulics.model import ledger, physical
-from boom_hydraulics.model.drives import constants, pump_controlled
+from boom_hydraulics.model.drives import constants, eha_motor, pump_controlled
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import commands, duty_cycles
 from boom_hydraulics.solve.simulation import Simulator
@@ -365,3 +365,30 @@ def test_the_eha_starts_with_its_motor_at_rest_and_its_speed_loop_empty():
     assert list(y[physical.DRIVE_STATE : physical.DRIVE_STATE + 2]) == [0.0, 0.0]
     s = pump_controlled.supply(z, 0.0, 0.0, 1.4, 0.0, 5e5, 5e5, d)
     assert s.torque == 0.0 and s.rate2 == 0.0
+
+
+@pytest.mark.parametrize(
+    ("error", "asked"),
+    [(0.0, 0.0), (10.0, 20.0), (-10.0, -20.0), (27.5, 55.0), (-27.5, -55.0), (27.6, 55.0), (-27.6, -55.0),
+     (90.0, 55.0)],
+)  # fmt: skip
+def test_the_speed_loop_asks_its_gain_times_the_error_within_the_torque_limit_and_its_integral_relaxes_to_the_limit(
+    error, asked
+):
+    """T_m = clamp(K_w (u w_max - w + I), -T_max, T_max) (eq. D50), with K_w = 2 N m s/rad and
+    T_max = 55 N m: the limit exactly at an error of 27.5 rad/s either way, held past it. The
+    rotors of J take T_m less the pump's torque (eq. D51), J w w' of it is their power, and the
+    loop's integral relaxes at 1 / T_i to T_m / K_w (eq. D52): with the torque limited, to the
+    limit's share, not on (no wind-up)."""
+    d = constants(with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    assert (d.eha_speed_gain, d.eha_torque_max) == (2.0, TORQUE_LIMIT_N_M)
+    u, integral = 0.5, 3.0
+    speed = u * d.speed + integral - error  # the loop's error u w_max - w + I
+    assert eha_motor.torque_n_m(speed, integral, u, d) == pytest.approx(asked, rel=1e-12, abs=1e-12)
+    pump_torque = 12.0
+    m = eha_motor.motor(speed, integral, u, pump_torque, d)
+    assert m.torque == pytest.approx(asked, rel=1e-12, abs=1e-12)
+    j, t_i = EHA.eha_motor_inertia_kg_m2, EHA.eha_speed_integral_time_s
+    assert m.speed_rate == pytest.approx((asked - pump_torque) / j, rel=1e-12)
+    assert m.rotor_power == pytest.approx(j * speed * m.speed_rate, rel=1e-12)
+    assert m.integral_rate == pytest.approx((asked / 2.0 - integral) / t_i, rel=1e-12, abs=1e-12)
