@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from boom_hydraulics.model import ledger, physical
+from boom_hydraulics.model import ledger, physical, pump
 from boom_hydraulics.model.drives import constants, eha_motor, pump_controlled
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import commands, duty_cycles
@@ -392,3 +392,29 @@ def test_the_speed_loop_asks_its_gain_times_the_error_within_the_torque_limit_an
     assert m.speed_rate == pytest.approx((asked - pump_torque) / j, rel=1e-12)
     assert m.rotor_power == pytest.approx(j * speed * m.speed_rate, rel=1e-12)
     assert m.integral_rate == pytest.approx((asked / 2.0 - integral) / t_i, rel=1e-12, abs=1e-12)
+
+
+def test_the_open_load_holding_valves_seat_leaks_nothing_and_a_half_shut_one_half_its_leakage():
+    """q_seat = (1 - w_h) G_seat (p1 - p2) (eq. D55): none with the valve open (commanded past u_h),
+    all of it shut, half at w_h = 1/2 (u_h / 2 commanded)."""
+    p1, p2 = 8e6, 4.5e5
+    leak = EHA.load_holding_leakage_m3_s_pa * (p1 - p2)
+    assert pump_controlled.ports(100.0, 1.0, p1, p2, VALVE).q_seat == 0.0
+    half = pump_controlled.ports(0.0, 0.5 * EHA.eha_holding_command, p1, p2, VALVE).q_seat
+    assert half == pytest.approx(0.5 * leak, rel=1e-12)
+
+
+def test_with_the_torque_limited_motor_the_rotors_accelerate_at_the_motors_less_the_pumps_torque_over_j():
+    """J w' = T_m - T_p (eq. D51), T_m = K_w (u w_max - w + I) below the limit (eq. D50), the
+    pump's T_p at its speed and pressure rise (eq. D2); I' = (T_m / K_w - I) / T_i (eq. D52) and
+    the rotors' power J w w'."""
+    d = constants(with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    w, integral, u, p1, p2 = 50.0, 2.0, 0.4, 8e6, 5e5
+    s = pump_controlled.supply((w, integral, 0.0), u, 0.0, 1.4, 0.0, p1, p2, d)
+    motor_torque = EHA.eha_speed_gain_n_m_s_rad * (u * EHA.pump_speed_rad_s - w + integral)
+    assert 0.0 < motor_torque < TORQUE_LIMIT_N_M and s.torque == pytest.approx(motor_torque, rel=1e-12)
+    pump_torque = pump.shaft_torque_n_m(d.displacement, w, p1 - p2, d.torque_loss)
+    j = EHA.eha_motor_inertia_kg_m2
+    assert s.speed == w and s.rate == pytest.approx((motor_torque - pump_torque) / j, rel=1e-12)
+    assert s.rate2 == pytest.approx((motor_torque / EHA.eha_speed_gain_n_m_s_rad - integral) / 0.05, rel=1e-12)
+    assert s.rotor_power == pytest.approx(j * w * s.rate, rel=1e-12)
