@@ -321,3 +321,12 @@ def test_the_ema_starts_with_its_screw_unloaded_its_motor_at_rest_and_its_fricti
     assert electro_mechanical.initial_state(C) == (0.0, 0.0, 0.0)
     y = physical.initial_state(P)
     assert list(y[physical.DRIVE_STATE : physical.DRIVE_STATE + 3]) == [0.0, 0.0, 0.0]
+
+
+def test_without_valve_or_pump_the_ema_reports_its_opening_as_x_v_and_the_tank_as_its_supply_pressure():
+    """The outputs x_v and p_supply of a drive without a valve and without oil: the opening it
+    is handed (the command's lag) and the housing's tank pressure."""
+    y = _state(1.4, 0.05, 3e3, 40.0, 0.5)
+    y[4] = 0.37
+    s = _supply(y, 0.4)
+    assert s.spool == 0.37 and s.p_supply == P.tank_pressure_pa and s.cylinder == 1.0
