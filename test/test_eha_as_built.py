@@ -418,3 +418,24 @@ def test_with_the_torque_limited_motor_the_rotors_accelerate_at_the_motors_less_
     assert s.speed == w and s.rate == pytest.approx((motor_torque - pump_torque) / j, rel=1e-12)
     assert s.rate2 == pytest.approx((motor_torque / EHA.eha_speed_gain_n_m_s_rad - integral) / 0.05, rel=1e-12)
     assert s.rotor_power == pytest.approx(j * w * s.rate, rel=1e-12)
+
+
+@pytest.mark.parametrize(("p1", "p2"), [(0.0, 5e5), (8e6, 0.0)])
+def test_with_a_cavitation_floor_of_zero_a_line_drawn_to_vacuum_leaves_the_eha_finite(p1, p2):
+    """cavitation_pressure_pa may be 0 (its lowest): a line at 0 Pa absolute is a state the
+    drive must take, with everything on, as any other."""
+    d = constants(with_updates(EHA, cavitation_pressure_pa=0.0, **AS_BUILT))
+    s = pump_controlled.supply((60.0, 1.0, 0.0), 0.3, 0.3, 1.4, 0.0, p1, p2, d)
+    assert all(math.isfinite(value) for value in s)
+    assert s.q_a == pytest.approx(pump_controlled.ports(60.0, 0.3, p1, p2, d).q_a, rel=1e-12)
+
+
+def test_a_pump_that_leaks_nothing_against_the_shut_holding_valve_gives_a_finite_stability_bound():
+    """pump_volumetric_efficiency 1 (its highest): G_p = 0, and the pump against the shut valve
+    is as stiff as the bound can say, D^2 (1 + c_f) / (J 1e-30), a number the stepping compares
+    (too stiff), not a division by zero."""
+    d = constants(with_updates(EHA, pump_volumetric_efficiency=1.0, **AS_BUILT))
+    assert d.pump_leak == 0.0
+    bound = eha_motor.fastest_rate_1_s(2e-2, 5e-3, d, math)
+    closed = d.displacement**2 * (1.0 + d.torque_loss) / (EHA.eha_motor_inertia_kg_m2 * 1e-30)
+    assert math.isfinite(bound) and bound == pytest.approx(closed, rel=1e-12)

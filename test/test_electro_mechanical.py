@@ -292,7 +292,7 @@ def test_the_motor_is_saturated_exactly_where_its_speed_controller_asks_more_tha
 
 @pytest.mark.parametrize(
     ("force", "speed", "command", "rod_mass"),
-    [(0.0, 0.0, 0.0, 1e300), (-2.0e4, -60.0, -0.5, 1e300), (1.5e4, 80.0, 0.3, 250.0)],
+    [(0.0, 0.0, 0.0, 1e300), (-2.0e4, -60.0, -0.5, 1e300), (1.5e4, 80.0, 0.3, 270.0)],
     ids=["at rest on the brake", "lowering", "lifting a light boom"],
 )
 def test_the_stability_bound_adds_the_rates_of_the_speed_loop_the_rotors_springs_and_dampers_and_the_bristle(
