@@ -428,6 +428,7 @@ def test_with_a_cavitation_floor_of_zero_a_line_drawn_to_vacuum_leaves_the_eha_f
     s = pump_controlled.supply((60.0, 1.0, 0.0), 0.3, 0.3, 1.4, 0.0, p1, p2, d)
     assert all(math.isfinite(value) for value in s)
     assert s.q_a == pytest.approx(pump_controlled.ports(60.0, 0.3, p1, p2, d).q_a, rel=1e-12)
+    assert (s.rate3, s.cylinder, s.force, s.spool) == (0.0, 1.0, 0.0, 0.3)  # through the oil alone
 
 
 def test_a_pump_that_leaks_nothing_against_the_shut_holding_valve_gives_a_finite_stability_bound():
