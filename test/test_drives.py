@@ -325,7 +325,7 @@ def test_each_eha_check_lets_oil_into_its_line_freely_and_out_only_as_far_as_the
     assert pump_controlled.pilot_openings(p_r + 0.5 * full, p_r + 0.25 * full, D) == pytest.approx((0.15625, 0.5))
     assert pump_controlled.pilot_openings(p_r + 2.0 * full, p_r, D) == (0.0, 1.0)
     assert pump_controlled.pilot_openings(p_r - full, p_r + full, D) == (1.0, 0.0)
-    for dp in (2e5, 5e3, -5e3, -2e5):  # the reservoir's pressure less the line's
+    for dp in (2e5, 5e3, 0.5, -0.5, -5e3, -2e5):  # the reservoir's pressure less the line's
         free = D.k_check * hydraulics.orifice_flow(1.0, dp, D.transition2)
         for pilot in (0.0, 0.3, 1.0):
             expected = free if dp > 0.0 else pilot * free
