@@ -288,6 +288,8 @@ def test_the_motor_is_saturated_exactly_where_its_speed_controller_asks_more_tha
     assert _supply(y, 1.0).saturated == 1.0 and _supply(y, -1.0).saturated == 1.0
     assert _supply(y, 0.5 * edge).saturated == 0.0 and _supply(y, -0.5 * edge).saturated == 0.0
     assert _supply(y, 1.01 * edge).saturated == 1.0 and _supply(y, 0.99 * edge).saturated == 0.0
+    running = _state(1.4, 0.0, 0.0, 0.5 * P.pump_speed_rad_s, 0.0)  # at the commanded speed: no error
+    assert _supply(running, 0.5).saturated == 0.0 and _supply(running, -0.5).saturated == 1.0
 
 
 @pytest.mark.parametrize(
