@@ -290,6 +290,10 @@ def test_the_motor_is_saturated_exactly_where_its_speed_controller_asks_more_tha
     assert _supply(y, 1.01 * edge).saturated == 1.0 and _supply(y, 0.99 * edge).saturated == 0.0
     running = _state(1.4, 0.0, 0.0, 0.5 * P.pump_speed_rad_s, 0.0)  # at the commanded speed: no error
     assert _supply(running, 0.5).saturated == 0.0 and _supply(running, -0.5).saturated == 1.0
+    at_limit = P.ema_torque_limit_n_m / C.ema_speed_gain  # 12 rad/s: K_w = 5 N m s, T_max = 60 N m
+    assert C.ema_speed_gain * at_limit == P.ema_torque_limit_n_m
+    assert _supply(_state(1.4, 0.0, 0.0, -at_limit, 0.0), 0.0).saturated == 0.0  # exactly at the limit: not more
+    assert _supply(_state(1.4, 0.0, 0.0, -1.001 * at_limit, 0.0), 0.0).saturated == 1.0
 
 
 @pytest.mark.parametrize(
