@@ -319,6 +319,20 @@ def test_lowering_through_the_eha_returns_energy_but_less_than_the_potential_ene
     assert 0.0 < run["p2"] - P.reservoir_pressure_pa < 0.1e6
 
 
+def test_each_eha_check_lets_oil_into_its_line_freely_and_out_only_as_far_as_the_other_line_pilots_it():
+    """w_A = smoothstep((p2 - p_r) / p_pf), w_B likewise from p1 (eq. D22); a check passes
+    K_c f(p_r - p) into its line whatever its pilot, and out of it w K_c f(p_r - p) (eq. D23)."""
+    p_r, full = P.reservoir_pressure_pa, P.pilot_check_opening_pa
+    assert pump_controlled.pilot_openings(p_r + 0.5 * full, p_r + 0.25 * full, D) == pytest.approx((0.15625, 0.5))
+    assert pump_controlled.pilot_openings(p_r + 2.0 * full, p_r, D) == (0.0, 1.0)
+    assert pump_controlled.pilot_openings(p_r - full, p_r + full, D) == (1.0, 0.0)
+    for dp in (2e5, 5e3, 0.5, -0.5, -5e3, -2e5):  # the reservoir's pressure less the line's
+        free = D.k_check * hydraulics.orifice_flow(1.0, dp, D.transition2)
+        for pilot in (0.0, 0.3, 1.0):
+            expected = free if dp > 0.0 else pilot * free
+            assert pump_controlled.check_flow_m3_s(p_r - dp, pilot, D) == pytest.approx(expected, rel=1e-12), dp
+
+
 def test_the_eha_lifts_with_make_up_oil_from_the_reservoir_and_the_motor_follows_its_command():
     p1, p2 = 8e6, 4e5  # the rod line below the reservoir: check B lets oil in
     flows = pump_controlled.ports(100.0, 1.0, p1, p2, D)

@@ -54,3 +54,26 @@ def test_on_the_same_moves_the_eha_draws_less_from_the_battery_than_every_valve_
     net = {d: i["battery_drawn"] - i["battery_returned"] for d, i in drawn.items()}
     assert net["pump_controlled"] < min(v for d, v in net.items() if d != "pump_controlled"), net
     assert all(i["battery_returned"] == 0.0 for d, i in drawn.items() if d != "pump_controlled")
+
+
+@pytest.mark.parametrize(
+    ("v", "p1", "p2", "w", "u", "x_v"),
+    [(0.05, 8e6, 4e5, 100.0, 1.0, 0.8), (-0.1, 6e6, 5.2e5, -60.0, -0.5, -0.4)],
+    ids=["lifting", "lowering"],
+)
+def test_the_eha_gives_its_lines_what_the_chambers_take_losing_nothing_between_and_reports_its_opening(
+    v, p1, p2, w, u, x_v
+):
+    """No valve between pump and chambers: the power the EHA gives its lines, (p1 - p_t) Q_A +
+    (p2 - p_t) Q_B, is what the chambers take, so nothing goes to the valve's loss below the port
+    reliefs; its x_v output is the opening it is handed (it has no spool)."""
+    p = with_updates(Parameters(), drive="pump_controlled")
+    c = physical.constants(p)
+    y = list(physical.initial_state(p))
+    y[0], y[1], y[2], y[3], y[4], y[physical.DRIVE_STATE] = 1.4, v, p1, p2, x_v, w
+    terms = physical._terms(y, c, u, math)
+    s = terms.supply
+    power = (p1 - p.tank_pressure_pa) * s.q_a + (p2 - p.tank_pressure_pa) * s.q_b
+    assert abs(power) > 1e3 and s.power == pytest.approx(power, rel=1e-12)
+    assert terms.loss == pytest.approx(0.0, abs=1e-9 * abs(power))
+    assert s.spool == x_v

@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from boom_hydraulics.model import ledger, physical
-from boom_hydraulics.model.drives import constants, pump_controlled
+from boom_hydraulics.model import ledger, physical, pump
+from boom_hydraulics.model.drives import constants, eha_motor, pump_controlled
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import commands, duty_cycles
 from boom_hydraulics.solve.simulation import Simulator
@@ -270,3 +270,173 @@ def test_with_everything_on_the_eha_takes_arrays_as_it_takes_floats():
         assert [float(np.asarray(a)[k]) if np.ndim(a) else float(a) for a in arrays] == pytest.approx(
             list(one), rel=1e-12, abs=1e-15
         )
+
+
+#: The load-holding valve on, with the lag's speed source (VALVE) and with the torque-limited motor (VALVE_LOOP).
+VALVE = constants(with_updates(EHA, eha_holding_valve="piston_side"))
+VALVE_LOOP = constants(with_updates(EHA, eha_holding_valve="piston_side", eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+
+
+@pytest.mark.parametrize(
+    ("share", "speed_share", "lag_opening", "loop_opening"),
+    [(0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 1.0, 1.0), (-1.0, 0.0, 1.0, 1.0), (0.5, 0.0, 0.5, 0.5),
+     (-0.25, 0.0, 0.15625, 0.15625), (3.0, 0.0, 1.0, 1.0), (0.0, 1.0, 1.0, 0.0), (0.0, -0.5, 0.5, 0.0),
+     (0.25, -1.0, 1.0, 0.15625)],
+)  # fmt: skip
+def test_the_holding_valve_opens_smoothly_up_to_its_command_share_and_only_the_lag_holds_it_open_running_down(
+    share, speed_share, lag_opening, loop_opening
+):
+    """w_h = smoothstep(max(|u|, |w| / w_max) / u_h) (eq. D53): shut at rest, fully open from
+    u_h of top speed commanded either way, half at u_h / 2; with the lag's speed source the
+    running-down motor holds it open, with the torque-limited loop the command alone does
+    (the shut valve stops the rotors itself). Without the valve: always 1 (open)."""
+    u = share * EHA.eha_holding_command
+    speed = speed_share * EHA.eha_holding_command * EHA.pump_speed_rad_s
+    assert pump_controlled.holding_opening(speed, u, VALVE) == pytest.approx(lag_opening, rel=1e-12, abs=1e-15)
+    assert pump_controlled.holding_opening(speed, u, VALVE_LOOP) == pytest.approx(loop_opening, rel=1e-12, abs=1e-15)
+    assert pump_controlled.holding_opening(speed, u, constants(EHA)) == 1.0
+
+
+@pytest.mark.parametrize("flow", [2e-4, -2e-4, 3e-7, 0.0])
+@pytest.mark.parametrize("opening", [1.0, 0.3, 0.0])
+def test_the_pump_side_of_the_load_holding_valve_is_where_the_pumps_leakage_and_the_orifice_pass_its_flow(
+    flow, opening
+):
+    """x solves G_p x + K_h sign(x) sqrt|x| = Q0 (eq. D54), K_h = w_h K_c: the pump's flow at p1
+    less what its leakage loses at the higher port pressure is what the valve's orifice passes
+    (shut, the leakage alone: x = Q0 / G_p); without the valve x = 0."""
+    x = pump_controlled.holding_drop_pa(flow, opening, VALVE)
+    k_h = opening * VALVE.k_check
+    assert VALVE.pump_leak * x + k_h * math.copysign(math.sqrt(abs(x)), x) == pytest.approx(flow, rel=1e-9, abs=1e-18)
+    assert math.copysign(1.0, x) == math.copysign(1.0, flow) or flow == x == 0.0
+    assert pump_controlled.holding_drop_pa(flow, opening, constants(EHA)) == 0.0
+
+
+def test_the_shut_load_holding_valve_seals_the_piston_chamber_but_for_its_seat_and_the_pump_sees_no_load():
+    """Command 0, motor at rest, the valve shut (eq. D53-D55): the pump's port holds no pressure
+    (its leakage takes nothing), only the seat leaks from line A to line B; without the valve the
+    pump's leakage takes G_p (p1 - p2) from the loaded chamber."""
+    p1, p2 = 8e6, 4.5e5
+    shut = pump_controlled.ports(0.0, 0.0, p1, p2, VALVE)
+    assert shut.dp_pump == pytest.approx(0.0, abs=1e-6) and shut.q_pump == pytest.approx(0.0, abs=1e-18)
+    assert shut.valve_drop == pytest.approx(-(p1 - p2), rel=1e-12)
+    assert shut.q_seat == pytest.approx(EHA.load_holding_leakage_m3_s_pa * (p1 - p2), rel=1e-12)
+    assert shut.q_a == pytest.approx(shut.q_check_a - shut.q_seat, rel=1e-12)
+    assert shut.q_b == pytest.approx(shut.q_check_b + shut.q_seat, rel=1e-12)
+    open_ = pump_controlled.ports(0.0, 0.0, p1, p2, constants(EHA))
+    assert open_.q_seat == 0.0 and open_.valve_drop == 0.0 and open_.dp_pump == p1 - p2
+    assert open_.q_pump == pytest.approx(-VALVE.pump_leak * (p1 - p2), rel=1e-12)
+
+
+@pytest.mark.parametrize("holding", ["none", "piston_side"])
+def test_the_stability_bound_is_the_lags_rate_or_the_speed_loops_and_each_line_sees_its_check_and_the_pumps_leakage(
+    holding,
+):
+    """The lines' dQ/dp: a check's laminar slope K_c / sqrt(p_tr) and the pump's leakage G_p. The
+    drive's own fastest rate: 1 / tau with the lag; with the torque-limited loop its bandwidth
+    K_w / J and 1 / T_i, the rotors on the chambers' oil springs through the pump sqrt(D^2 (s1 +
+    s2) / J), the pump's friction through standstill c_f D 2 p_n / (w_f J) and, with the valve,
+    the pump against the shut valve, its leakage alone taking its flow, D^2 (1 + c_f) / (G_p J)."""
+    stiff1, stiff2 = 2.0e-2, 5.0e-3
+    lag = constants(with_updates(EHA, eha_holding_valve=holding))
+    check = lag.k_check / math.sqrt(EHA.transition_pressure_pa) + lag.pump_leak
+    line_a, line_b, own = pump_controlled.stiffness((0.0, 0.0, 0.0), 0.5, 0.0, stiff1, stiff2, 1e-3, lag)
+    assert (line_a, line_b) == pytest.approx((check, check), rel=1e-12)
+    assert own == pytest.approx(1.0 / EHA.motor_time_constant_s, rel=1e-12)
+    loop = constants(with_updates(EHA, eha_holding_valve=holding, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    j, dd, c_f = EHA.eha_motor_inertia_kg_m2, loop.displacement**2, loop.torque_loss
+    expected = EHA.eha_speed_gain_n_m_s_rad / j + 1.0 / EHA.eha_speed_integral_time_s
+    expected += math.sqrt(dd * (stiff1 + stiff2) / j)
+    expected += c_f * loop.displacement * 2.0 * EHA.supply_pressure_pa / j  # w_f = 1 rad/s
+    expected += (holding == "piston_side") * dd * (1.0 + c_f) / (loop.pump_leak * j)
+    line_a, line_b, own = pump_controlled.stiffness((0.0, 0.0, 0.0), 0.5, 0.0, stiff1, stiff2, 1e-3, loop)
+    assert (line_a, line_b) == pytest.approx((check, check), rel=1e-12)
+    assert own == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_eha_starts_with_its_motor_at_rest_and_its_speed_loop_empty():
+    """The initial state: the motor's speed 0 and the loop's integral 0, so that at command 0 the
+    motor asks no torque and stays at rest (eq. D50-D52)."""
+    p = with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M)
+    d = constants(p)
+    z = pump_controlled.initial_state(d)
+    assert z == (0.0, 0.0, 0.0)
+    y = physical.initial_state(p)
+    assert list(y[physical.DRIVE_STATE : physical.DRIVE_STATE + 2]) == [0.0, 0.0]
+    s = pump_controlled.supply(z, 0.0, 0.0, 1.4, 0.0, 5e5, 5e5, d)
+    assert s.torque == 0.0 and s.rate2 == 0.0
+
+
+@pytest.mark.parametrize(
+    ("error", "asked"),
+    [(0.0, 0.0), (10.0, 20.0), (-10.0, -20.0), (27.5, 55.0), (-27.5, -55.0), (27.6, 55.0), (-27.6, -55.0),
+     (90.0, 55.0)],
+)  # fmt: skip
+def test_the_speed_loop_asks_its_gain_times_the_error_within_the_torque_limit_and_its_integral_relaxes_to_the_limit(
+    error, asked
+):
+    """T_m = clamp(K_w (u w_max - w + I), -T_max, T_max) (eq. D50), with K_w = 2 N m s/rad and
+    T_max = 55 N m: the limit exactly at an error of 27.5 rad/s either way, held past it. The
+    rotors of J take T_m less the pump's torque (eq. D51), J w w' of it is their power, and the
+    loop's integral relaxes at 1 / T_i to T_m / K_w (eq. D52): with the torque limited, to the
+    limit's share, not on (no wind-up)."""
+    d = constants(with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    assert (d.eha_speed_gain, d.eha_torque_max) == (2.0, TORQUE_LIMIT_N_M)
+    u, integral = 0.5, 3.0
+    speed = u * d.speed + integral - error  # the loop's error u w_max - w + I
+    assert eha_motor.torque_n_m(speed, integral, u, d) == pytest.approx(asked, rel=1e-12, abs=1e-12)
+    pump_torque = 12.0
+    m = eha_motor.motor(speed, integral, u, pump_torque, d)
+    assert m.torque == pytest.approx(asked, rel=1e-12, abs=1e-12)
+    j, t_i = EHA.eha_motor_inertia_kg_m2, EHA.eha_speed_integral_time_s
+    assert m.speed_rate == pytest.approx((asked - pump_torque) / j, rel=1e-12)
+    assert m.rotor_power == pytest.approx(j * speed * m.speed_rate, rel=1e-12)
+    assert m.integral_rate == pytest.approx((asked / 2.0 - integral) / t_i, rel=1e-12, abs=1e-12)
+
+
+def test_the_open_load_holding_valves_seat_leaks_nothing_and_a_half_shut_one_half_its_leakage():
+    """q_seat = (1 - w_h) G_seat (p1 - p2) (eq. D55): none with the valve open (commanded past u_h),
+    all of it shut, half at w_h = 1/2 (u_h / 2 commanded)."""
+    p1, p2 = 8e6, 4.5e5
+    leak = EHA.load_holding_leakage_m3_s_pa * (p1 - p2)
+    assert pump_controlled.ports(100.0, 1.0, p1, p2, VALVE).q_seat == 0.0
+    half = pump_controlled.ports(0.0, 0.5 * EHA.eha_holding_command, p1, p2, VALVE).q_seat
+    assert half == pytest.approx(0.5 * leak, rel=1e-12)
+
+
+def test_with_the_torque_limited_motor_the_rotors_accelerate_at_the_motors_less_the_pumps_torque_over_j():
+    """J w' = T_m - T_p (eq. D51), T_m = K_w (u w_max - w + I) below the limit (eq. D50), the
+    pump's T_p at its speed and pressure rise (eq. D2); I' = (T_m / K_w - I) / T_i (eq. D52) and
+    the rotors' power J w w'."""
+    d = constants(with_updates(EHA, eha_torque_limit_n_m=TORQUE_LIMIT_N_M))
+    w, integral, u, p1, p2 = 50.0, 2.0, 0.4, 8e6, 5e5
+    s = pump_controlled.supply((w, integral, 0.0), u, 0.0, 1.4, 0.0, p1, p2, d)
+    motor_torque = EHA.eha_speed_gain_n_m_s_rad * (u * EHA.pump_speed_rad_s - w + integral)
+    assert 0.0 < motor_torque < TORQUE_LIMIT_N_M and s.torque == pytest.approx(motor_torque, rel=1e-12)
+    pump_torque = pump.shaft_torque_n_m(d.displacement, w, p1 - p2, d.torque_loss)
+    j = EHA.eha_motor_inertia_kg_m2
+    assert s.speed == w and s.rate == pytest.approx((motor_torque - pump_torque) / j, rel=1e-12)
+    assert s.rate2 == pytest.approx((motor_torque / EHA.eha_speed_gain_n_m_s_rad - integral) / 0.05, rel=1e-12)
+    assert s.rotor_power == pytest.approx(j * w * s.rate, rel=1e-12)
+
+
+@pytest.mark.parametrize(("p1", "p2"), [(0.0, 5e5), (8e6, 0.0)])
+def test_with_a_cavitation_floor_of_zero_a_line_drawn_to_vacuum_leaves_the_eha_finite(p1, p2):
+    """cavitation_pressure_pa may be 0 (its lowest): a line at 0 Pa absolute is a state the
+    drive must take, with everything on, as any other."""
+    d = constants(with_updates(EHA, cavitation_pressure_pa=0.0, **AS_BUILT))
+    s = pump_controlled.supply((60.0, 1.0, 0.0), 0.3, 0.3, 1.4, 0.0, p1, p2, d)
+    assert all(math.isfinite(value) for value in s)
+    assert s.q_a == pytest.approx(pump_controlled.ports(60.0, 0.3, p1, p2, d).q_a, rel=1e-12)
+    assert (s.rate3, s.cylinder, s.force, s.spool) == (0.0, 1.0, 0.0, 0.3)  # through the oil alone
+
+
+def test_a_pump_that_leaks_nothing_against_the_shut_holding_valve_gives_a_finite_stability_bound():
+    """pump_volumetric_efficiency 1 (its highest): G_p = 0, and the pump against the shut valve
+    is as stiff as the bound can say, D^2 (1 + c_f) / (J 1e-30), a number the stepping compares
+    (too stiff), not a division by zero."""
+    d = constants(with_updates(EHA, pump_volumetric_efficiency=1.0, **AS_BUILT))
+    assert d.pump_leak == 0.0
+    bound = eha_motor.fastest_rate_1_s(2e-2, 5e-3, d, math)
+    closed = d.displacement**2 * (1.0 + d.torque_loss) / (EHA.eha_motor_inertia_kg_m2 * 1e-30)
+    assert math.isfinite(bound) and bound == pytest.approx(closed, rel=1e-12)

@@ -261,3 +261,78 @@ def test_boom_sweep_compares_the_ema_with_the_eha_on_the_loader_cycle(tmp_path):
     ema = rows["electro_mechanical"]
     assert ema["status"] == "ok" and float(ema["battery_returned_j"]) > 0.0
     assert 0.0 < float(ema["battery_energy_j"]) < float(ema["battery_drawn_j"]) and float(ema["cycles_per_charge"]) > 0
+
+
+# --- the brake, the torque limit and the stability bound -------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("command", "engaged"),
+    [(0.0, 1.0), (0.5, 0.5), (-0.5, 0.5), (0.25, 0.84375), (1.0, 0.0), (-1.0, 0.0), (1.5, 0.0)],
+)
+def test_the_brake_engages_fully_at_a_zero_command_and_releases_smoothly_up_to_its_threshold(command, engaged):
+    """b = 1 - smoothstep(|u| / u_b) (eq. D35): fully on at u = 0, half at u_b / 2 either way,
+    off from u_b; the motor's torque fades in as (1 - b)."""
+    u = command * P.ema_brake_threshold
+    assert electro_mechanical.brake_engagement(u, C) == pytest.approx(engaged, rel=1e-12, abs=1e-15)
+    x = C.ema_speed_gain * u * P.pump_speed_rad_s / P.ema_torque_limit_n_m  # at rest: x = K_w u w_max / T_max
+    torque = (1.0 - engaged) * P.ema_torque_limit_n_m * x / math.sqrt(1.0 + x * x)
+    assert electro_mechanical.motor_torque_n_m(0.0, u, C) == pytest.approx(torque, rel=1e-12, abs=1e-15)
+
+
+def test_the_motor_is_saturated_exactly_where_its_speed_controller_asks_more_than_the_torque_limit():
+    """pump_saturated for the EMA: 1 where K_w |u w_max - w| > T_max (eq. D34), else 0."""
+    y = _state(1.4, 0.0, 0.0, 0.0, 0.0)
+    edge = P.ema_torque_limit_n_m / (C.ema_speed_gain * P.pump_speed_rad_s)  # the command at the limit from rest
+    assert 0.05 < edge < 1.0
+    assert _supply(y, 1.0).saturated == 1.0 and _supply(y, -1.0).saturated == 1.0
+    assert _supply(y, 0.5 * edge).saturated == 0.0 and _supply(y, -0.5 * edge).saturated == 0.0
+    assert _supply(y, 1.01 * edge).saturated == 1.0 and _supply(y, 0.99 * edge).saturated == 0.0
+    running = _state(1.4, 0.0, 0.0, 0.5 * P.pump_speed_rad_s, 0.0)  # at the commanded speed: no error
+    assert _supply(running, 0.5).saturated == 0.0 and _supply(running, -0.5).saturated == 1.0
+    at_limit = P.ema_torque_limit_n_m / C.ema_speed_gain  # 12 rad/s: K_w = 5 N m s, T_max = 60 N m
+    assert C.ema_speed_gain * at_limit == P.ema_torque_limit_n_m
+    assert _supply(_state(1.4, 0.0, 0.0, -at_limit, 0.0), 0.0).saturated == 0.0  # exactly at the limit: not more
+    assert _supply(_state(1.4, 0.0, 0.0, -1.001 * at_limit, 0.0), 0.0).saturated == 1.0
+
+
+@pytest.mark.parametrize(
+    ("force", "speed", "command", "rod_mass"),
+    [(0.0, 0.0, 0.0, 1e300), (-2.0e4, -60.0, -0.5, 1e300), (1.5e4, 80.0, 0.3, 270.0)],
+    ids=["at rest on the brake", "lowering", "lifting a light boom"],
+)
+def test_the_stability_bound_adds_the_rates_of_the_speed_loop_the_rotors_springs_and_dampers_and_the_bristle(
+    force, speed, command, rod_mass
+):
+    """The step's fastest rate of the EMA's own states (no line stiffness: the housing only
+    breathes): the speed loop's bandwidth w_c = K_w / J, the rotor on the screw's spring k_s r^2
+    and on the friction's and brake's presliding stiffness L / theta (L = T_b + r (|m| + |d|) |F_k|),
+    the screw's and the bristle's damping, the bristle's relaxation |w| / theta at the speed the
+    step may reach, and the screw's spring against the boom's mass at the rod."""
+    y = _state(1.4, 0.0, force, speed, 0.3)
+    z = physical.drive_states(y)
+    level = P.ema_brake_torque_n_m + R * (abs(C.ema_friction_mean) + abs(C.ema_friction_skew)) * abs(force)
+    theta, j = electro_mechanical.PRESLIDING_RAD, P.ema_inertia_kg_m2
+    spring = math.sqrt((P.ema_screw_stiffness_n_m * R**2 + level / theta) / j)
+    damping = (P.ema_screw_damping_n_s_m * R**2 + electro_mechanical.PRESLIDING_DAMPING_S * level / theta) / j
+    bristle = (abs(speed) + abs(command) * P.pump_speed_rad_s) / theta
+    boom = math.sqrt(P.ema_screw_stiffness_n_m / rod_mass)
+    expected = P.ema_speed_bandwidth_rad_s + spring + damping + bristle + boom
+    lines_a, lines_b, own = electro_mechanical.stiffness(z, command, 0.0, 1e-3, 1e-3, 1e-3, C, math, rod_mass)
+    assert (lines_a, lines_b) == (0.0, 0.0)
+    assert own == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_ema_starts_with_its_screw_unloaded_its_motor_at_rest_and_its_friction_relaxed():
+    assert electro_mechanical.initial_state(C) == (0.0, 0.0, 0.0)
+    y = physical.initial_state(P)
+    assert list(y[physical.DRIVE_STATE : physical.DRIVE_STATE + 3]) == [0.0, 0.0, 0.0]
+
+
+def test_without_valve_or_pump_the_ema_reports_its_opening_as_x_v_and_the_tank_as_its_supply_pressure():
+    """The outputs x_v and p_supply of a drive without a valve and without oil: the opening it
+    is handed (the command's lag) and the housing's tank pressure."""
+    y = _state(1.4, 0.05, 3e3, 40.0, 0.5)
+    y[4] = 0.37
+    s = _supply(y, 0.4)
+    assert s.spool == 0.37 and s.p_supply == P.tank_pressure_pa and s.cylinder == 1.0
