@@ -315,17 +315,25 @@ def test_a_weight_moves_the_fit_and_its_interval_takes_it_as_it_is():
         assert q1_only.fitted[name] != pytest.approx(right.fitted[name], rel=1e-6)
 
 
-def test_a_fit_against_its_bound_says_so():
+@pytest.mark.parametrize(
+    ("truth", "at_bound", "value"),
+    [
+        # the boom's mass is bounded by 1e-4 kg below: a truth below it is fitted at the bound
+        ({"boom_mass_kg": -30.0, "payload_mass_kg": 41.0}, {"boom_mass_kg": True, "payload_mass_kg": False}, 1e-4),
+        # and the payload's by 100 t above
+        ({"boom_mass_kg": 112.0, "payload_mass_kg": 2e5}, {"boom_mass_kg": False, "payload_mass_kg": True}, 1e5),
+    ],
+)
+def test_a_fit_against_its_bound_says_so(truth, at_bound, value):
     bounded = _problem()
-    # the boom's mass is bounded by 1e-4 kg below: a truth below it is fitted at the bound
     bounded.signals = {
-        s: Signal(s, sig.log_ns, _signals_of({"boom_mass_kg": -30.0, "payload_mass_kg": 41.0}, bounded.times_s)[s], s)
-        for s, sig in bounded.signals.items()
+        s: Signal(s, sig.log_ns, _signals_of(truth, bounded.times_s)[s], s) for s, sig in bounded.signals.items()
     }
     bounded.ranges = {s: fit._range(sig.values) for s, sig in bounded.signals.items()}
     result = fit.calibrate(bounded, workers=1, starts=1)
-    assert result.at_bound == {"boom_mass_kg": True, "payload_mass_kg": False}
-    assert result.fitted["boom_mass_kg"] == pytest.approx(1e-4, rel=1e-6)
+    assert result.at_bound == at_bound
+    (name,) = (n for n, bound in at_bound.items() if bound)
+    assert result.fitted[name] == pytest.approx(value, rel=1e-6)
     assert result.exit_status != 0
 
 
