@@ -227,6 +227,8 @@ def test_a_fit_on_noisy_mixed_rate_data_has_least_squares_intervals_that_hold_th
     for s in RATE_HZ:
         assert result.rms_after[s] == pytest.approx(NOISE[s], rel=0.15) and result.rms_before[s] > 2 * NOISE[s]
     assert result.exit_status == 0 and result.findings == []
+    # the last least squares stopped where its step moved each value far inside its interval
+    assert "callback" in result.message, result.message
     assert result.correlation.shape == (2, 2) and result.correlation[0, 0] == 1.0
     assert result.evaluations == problem.evaluations > 10 and result.seconds > 0.0
     assert [end.cost for end in result.ends] == [result.cost_after]
@@ -262,6 +264,9 @@ def test_the_coarse_scan_tries_each_parameter_at_half_to_twice_its_start_average
     assert 1.0 < frequency < 100.0
     assert problem.asked[0] == (0.0, True)  # the start's cost
     assert problem.asked[1] == (pytest.approx(4.0 / frequency, rel=1e-12), False)
+    # the scan's 1 + 2 x 4 and stage 2's least squares, all on the averaged residual (in ranges)
+    smoothed = [weighted for window, weighted in problem.asked if window > 0.0]
+    assert len(smoothed) > 1 + 2 * 4 and not any(smoothed)
 
 
 def test_a_start_without_an_oscillating_mode_averages_over_4_periods_of_8_hz():
@@ -295,6 +300,33 @@ def test_more_starts_spread_between_the_start_and_the_default_each_end_at_its_ow
         assert end.cost > 1.05 * result.cost_after
     low, high = result.interval["boom_mass_kg"]
     assert low < TRUTH["boom_mass_kg"] < high
+
+
+class _Folded(LinearProblem):
+    """The plant with the boom's mass folded at 100 kg: a boom of 100 - d kg shows as one of 100 + d
+    (two answers, 88 and 112 kg, fit the recording equally)."""
+
+    def simulate(self, theta):
+        self.evaluations += 1
+        values = self.values | self.fitted_values(theta)
+        values["boom_mass_kg"] = 100.0 + abs(values["boom_mass_kg"] - 100.0)
+        return _signals_of(values, self.times_s)
+
+
+def test_a_start_ending_as_well_in_another_valley_is_refined_and_makes_the_fit_not_identifiable():
+    problem = _problem(start={"boom_mass_kg": 105.0, "payload_mass_kg": 50.0}, kind=_Folded)
+    result = fit.calibrate(problem, workers=1, starts=3)
+    valleys = sorted(end.end["boom_mass_kg"] for end in result.ends[:2])
+    # the two valleys refined first, the best of them the fit, each at its answer, mirrored at 100 kg
+    assert valleys[0] == pytest.approx(200.0 - valleys[1], rel=1e-6) and 111.0 < valleys[1] < 113.0
+    assert result.ends[0].end == result.fitted
+    assert result.ends[1].cost == pytest.approx(result.cost_after, rel=1e-9)
+    assert result.ends[2].cost > 1.05 * result.cost_after  # the best's valley, left as stage 3 left it
+    low, high = result.interval["boom_mass_kg"]
+    assert high - low < 1.0  # each answer is sharp, yet the other is as good
+    assert result.exit_status == 4
+    (finding,) = result.findings
+    assert finding.subject == "boom_mass_kg" and "ended as well at" in finding.why
 
 
 def test_the_fit_on_every_core_is_the_fit_on_one():
