@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import time
 from pathlib import Path
 from types import SimpleNamespace
 from typing import ClassVar
@@ -100,6 +101,17 @@ def test_a_recording_without_noise_counts_at_the_rounding_of_a_16_bit_reading():
     assert problem.ranges["p1"] == pytest.approx(20.0)  # a millionth of its size
     for s in RATE_HZ:
         assert problem.noise[s] == pytest.approx(fit.NOISE_FLOOR * problem.ranges[s], rel=1e-9)
+
+
+def test_a_straight_line_logged_at_jittered_times_shows_no_noise_but_the_floor():
+    problem = _problem()
+    rng = np.random.default_rng(5)
+    jittered = np.sort(problem.times_s["q1"] + rng.uniform(-1e-3, 1e-3, 400))  # 200 Hz, +-1 ms
+    log_ns = ORIGIN_NS + np.round(jittered * 1e9).astype(np.int64)
+    line = 0.5 + 0.1 * (log_ns - ORIGIN_NS) * 1e-9  # 0.1 m/s, exact at each log time
+    problem.signals = {"q1": Signal("q1", log_ns, line, "/q1")}
+    problem.__post_init__()
+    assert problem.noise["q1"] == pytest.approx(fit.NOISE_FLOOR * problem.ranges["q1"], rel=1e-9)
 
 
 def test_the_range_of_a_flat_signal_is_a_millionth_of_its_size():
@@ -214,7 +226,9 @@ def _least_squares_half_widths(problem: LinearProblem) -> np.ndarray:
 
 def test_a_fit_on_noisy_mixed_rate_data_has_least_squares_intervals_that_hold_the_truth():
     problem = _problem()
+    began = time.perf_counter()
     result = fit.calibrate(problem, workers=1, starts=1)
+    took = time.perf_counter() - began
     expected = _least_squares_half_widths(problem)
     for k, name in enumerate(NAMES):
         low, high = result.interval[name]
@@ -230,7 +244,7 @@ def test_a_fit_on_noisy_mixed_rate_data_has_least_squares_intervals_that_hold_th
     # the last least squares stopped where its step moved each value far inside its interval
     assert "callback" in result.message, result.message
     assert result.correlation.shape == (2, 2) and result.correlation[0, 0] == 1.0
-    assert result.evaluations == problem.evaluations > 10 and result.seconds > 0.0
+    assert result.evaluations == problem.evaluations > 10 and 0.0 < result.seconds <= took
     assert [end.cost for end in result.ends] == [result.cost_after]
     assert result.ends[0].start == START and result.ends[0].end == result.fitted
     with pytest.raises(dataclasses.FrozenInstanceError):  # an outcome, not to be changed
@@ -267,6 +281,8 @@ def test_the_coarse_scan_tries_each_parameter_at_half_to_twice_its_start_average
     # the scan's 1 + 2 x 4 and stage 2's least squares, all on the averaged residual (in ranges)
     smoothed = [weighted for window, weighted in problem.asked if window > 0.0]
     assert len(smoothed) > 1 + 2 * 4 and not any(smoothed)
+    # and the rest, stage 3's scans and the last least squares, on the raw residual
+    assert {window for window, _ in problem.asked} == {0.0, problem.asked[1][0]}
 
 
 def test_a_start_without_an_oscillating_mode_averages_over_4_periods_of_8_hz():
@@ -298,6 +314,8 @@ def test_more_starts_spread_between_the_start_and_the_default_each_end_at_its_ow
     # refined again, but left where stage 3 left them, above the best's chi-square
     for end in result.ends[1:]:
         assert end.cost > 1.05 * result.cost_after
+    # and, far above the best (by more than the chi-square's 95 % on 2 values), they tell nothing
+    assert result.exit_status == 0 and result.findings == []
     low, high = result.interval["boom_mass_kg"]
     assert low < TRUTH["boom_mass_kg"] < high
 
@@ -329,9 +347,10 @@ def test_a_start_ending_as_well_in_another_valley_is_refined_and_makes_the_fit_n
     assert finding.subject == "boom_mass_kg" and "ended as well at" in finding.why
 
 
-def test_the_fit_on_every_core_is_the_fit_on_one():
-    one = fit.calibrate(_problem(seed=3), workers=1, starts=1)
-    every = fit.calibrate(_problem(seed=3), starts=1)
+def test_the_fit_on_every_core_from_4_starts_by_default_is_the_fit_on_one():
+    one = fit.calibrate(_problem(seed=3), workers=1, starts=4)
+    every = fit.calibrate(_problem(seed=3))
+    assert len(every.ends) == 4
     assert every.fitted == pytest.approx(one.fitted, rel=1e-12)
     assert every.interval == one.interval
 
@@ -367,6 +386,10 @@ def test_a_fit_against_its_bound_says_so(truth, at_bound, value):
     (name,) = (n for n, bound in at_bound.items() if bound)
     assert result.fitted[name] == pytest.approx(value, rel=1e-6)
     assert result.exit_status != 0
+    # it converged there, its residual above the noise: not a fit stopped at --max-evaluations
+    assert "least squares" not in {f.subject for f in result.findings}
+    stopped = fit.calibrate(bounded, max_evaluations=2, workers=1, starts=1)
+    assert "least squares" in {f.subject for f in stopped.findings}
 
 
 def test_a_start_whose_run_fails_is_refused_and_a_failing_trial_is_left_behind():
@@ -502,6 +525,7 @@ def test_the_simulation_is_compared_at_each_samples_instant_linear_between_the_s
     machine, tmp_path, monkeypatch
 ):
     problem = _prepared(machine, tmp_path, signal_names=("p1", "p2"))  # the pressures end before the rod position
+    assert problem.run.description.command_timeout_s == 0.0  # none unless given
     theta = np.array([1.3, 0.8])
     # the whole run at the fitted values, as boom-resim would give it
     replay = Replay(problem.run, problem.values, problem.fitted_values(theta))
