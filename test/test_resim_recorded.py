@@ -11,13 +11,14 @@ from typing import Any
 import pytest
 
 pytest.importorskip("rclpy")
+from action_msgs.msg import GoalStatusArray
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, Header, String
 
 from boom_hydraulics.bags import cdr
-from boom_hydraulics.bags.encoding import DRIVE_STATE, ENERGY_LEDGER, parameter_event_cdr
+from boom_hydraulics.bags.encoding import DRIVE_STATE, ENERGY_LEDGER, message, parameter_event_cdr, to_cdr
 from boom_hydraulics.bags.recording import BagRecorder, Topic, offered_qos
 from boom_hydraulics.bags.run_description import RunDescription
 from boom_hydraulics.bags.run_events import RunEvent
@@ -29,11 +30,12 @@ from boom_hydraulics.resim.recorded import (
     PARAMETER_EVENT,
     VALVE_COMMAND,
     NodeInstants,
+    Recorded,
     read_run,
 )
 from boom_hydraulics_msgs.msg import DriveState, EnergyLedger, ValveCommand
 
-ORIGIN = 1_000_000_000_123  # the node-clock time of simulated time 0, ns (1000 s and a few ns)
+ORIGIN = 3_000_123  # the node-clock time of simulated time 0, ns (a shared clock that had run 3 ms)
 MS = 1_000_000
 NODE = "/crane/boom_sim"
 
@@ -67,7 +69,8 @@ def _run_status(name: str = "boom_sim: run", **values: str) -> DiagnosticArray:
 
 
 def _setpoint(stamp_ns: int, position: float, velocity: float) -> bytes:
-    return cdr.joint_state(stamp_ns, ["cylinder_joint"], [position], [velocity], [])
+    """The node's setpoint: its cylinder joint first (another after it, which is not read)."""
+    return cdr.joint_state(stamp_ns, ["cylinder_joint", "other"], [position, 9.0], [velocity, 9.0], [])
 
 
 Message = tuple[str, str, int, Any]  # topic, type, log ns, message
@@ -114,6 +117,7 @@ def test_each_command_acts_at_its_stamp_or_where_the_node_took_it(tmp_path):
         ("/valve_command", VALVE_COMMAND, ORIGIN + 31 * MS, _command(ORIGIN + 5 * MS, 1.0)),  # passed; with a state
         ("/arm/command", ARRAY_COMMAND, ORIGIN + 41 * MS + 1, Float64MultiArray(data=[0.375])),  # never stamped
         ("/arm/command", ARRAY_COMMAND, ORIGIN + 42 * MS, Float64MultiArray(data=[0.1, 0.2])),  # not one opening
+        ("/arm/command", ARRAY_COMMAND, ORIGIN + 43 * MS, to_cdr(message(ARRAY_COMMAND))),  # nor is none
     ]
     transient = offered_qos(transient_local=True)
     bag = _bag(tmp_path / "bag", _states(10, 20, 30, 40) + commands, offers={"/valve_command": transient})
@@ -125,15 +129,20 @@ def test_each_command_acts_at_its_stamp_or_where_the_node_took_it(tmp_path):
         ("/valve_command", 20 * MS, ORIGIN + 5 * MS, ORIGIN + 20 * MS, 2, ORIGIN + 31 * MS),  # logged with state 3
         ("/arm/command", 40 * MS, 0, ORIGIN + 40 * MS, 4, ORIGIN + 41 * MS + 1),
         ("/arm/command", 40 * MS, 0, ORIGIN + 40 * MS, 4, ORIGIN + 42 * MS),
+        ("/arm/command", 40 * MS, 0, ORIGIN + 40 * MS, 4, ORIGIN + 43 * MS),
     ]
-    assert [c.opening for c in run.commands[:4]] == [0.5, -0.25, 1.0, 0.375] and math.isnan(run.commands[4].opening)
-    assert [bytes(c.raw) for c in run.commands] == [serialize_message(m) for *_, m in commands]
+    assert [c.opening for c in run.commands[:4]] == [0.5, -0.25, 1.0, 0.375] and all(
+        math.isnan(c.opening) for c in run.commands[4:]
+    )
+    assert [bytes(c.raw) for c in run.commands] == [
+        m if isinstance(m, bytes) else serialize_message(m) for *_, m in commands
+    ]
     assert all(c.origin_ns == ORIGIN for c in run.commands)
     assert run.topics == [
         Topic("/valve_command", VALVE_COMMAND, (transient,)),
         Topic("/arm/command", ARRAY_COMMAND, (offered_qos(),)),
     ]
-    assert run.end_ns == ORIGIN + 42 * MS + 1  # one past the last log time (rosbags' end_time)
+    assert run.end_ns == ORIGIN + 43 * MS + 1  # one past the last log time (rosbags' end_time)
 
 
 def test_without_drive_states_a_command_acts_at_its_stamp_or_when_it_was_logged(tmp_path):
@@ -167,6 +176,7 @@ def test_parameter_changes_of_the_node_act_at_their_stamps_with_their_values(tmp
     events = [
         ("/parameter_events", PARAMETER_EVENT, ORIGIN + 36 * MS, _change(NODE, ORIGIN + 35 * MS, *values)),
         ("/parameter_events", PARAMETER_EVENT, ORIGIN + 37 * MS, _change("/other", ORIGIN + 37 * MS, *values)),
+        ("/parameter_events", PARAMETER_EVENT, ORIGIN + 38 * MS, _change("/arm", ORIGIN + 38 * MS, *values)),
         ("/parameter_events", PARAMETER_EVENT, ORIGIN + 50 * MS, _change(NODE, ORIGIN + 15 * MS, ("damping", 3, 0.5))),
     ]
     bag = _bag(tmp_path / "bag", _states(10, 20) + events)
@@ -175,7 +185,14 @@ def test_parameter_changes_of_the_node_act_at_their_stamps_with_their_values(tmp
         (ORIGIN + 15 * MS, ORIGIN + 50 * MS),  # by the instant they act at
         (ORIGIN + 35 * MS, ORIGIN + 36 * MS),
     ]
-    assert run.parameter_changes[0].changes == {"damping": 0.5}
+    assert run.parameter_changes[0] == Recorded(  # no command's stamp, instant or count
+        ORIGIN + 15 * MS,
+        ORIGIN + 50 * MS,
+        "/parameter_events",
+        events[3][3],
+        changes={"damping": 0.5},
+        origin_ns=ORIGIN,
+    )
     changes = run.parameter_changes[1].changes
     assert changes == {name: value for name, _, value in values}
     assert all(type(got) is type(value) for name, _, value in values for got in [changes[name]])
@@ -184,16 +201,20 @@ def test_parameter_changes_of_the_node_act_at_their_stamps_with_their_values(tmp
     )
     assert run.parameter_changes[1].raw == events[0][3] and not run.commands
     # a run whose node is not named keeps every node's changes
-    assert len(read_run(bag, _describe(node=None)).parameter_changes) == 3
+    assert len(read_run(bag, _describe(node=None)).parameter_changes) == 4
 
 
 def test_the_setpoints_and_the_nodes_latest_counts_are_read(tmp_path):
     messages = [
+        ("/joint_states", JOINT_STATE, ORIGIN + 11 * MS, _setpoint(ORIGIN + 10 * MS, 9.0, 9.0)),  # not a setpoint
+        ("/notes/setpoint", "std_msgs/msg/String", ORIGIN + 11 * MS, String(data="not a JointState")),
+        ("/diag/setpoint", DIAGNOSTICS, ORIGIN + 11 * MS, _run_status("not a JointState either")),
         ("/crane/boom_sim/setpoint", JOINT_STATE, ORIGIN + 12 * MS, _setpoint(ORIGIN + 30 * MS, 0.5, 0.25)),
+        ("/crane2/boom_sim/setpoint", JOINT_STATE, ORIGIN + 12 * MS, _setpoint(ORIGIN + 25 * MS, 9.0, 9.0)),  # later
         ("/crane/boom_sim/setpoint", JOINT_STATE, ORIGIN + 13 * MS, _setpoint(ORIGIN + 20 * MS, 0.375, -0.125)),
-        ("/joint_states", JOINT_STATE, ORIGIN + 14 * MS, _setpoint(ORIGIN + 10 * MS, 9.0, 9.0)),  # not a setpoint
-        ("/diagnostics", DIAGNOSTICS, ORIGIN + 15 * MS, _run_status(resets="1", pauses="2", step_calls="x")),
-        ("/diagnostics", DIAGNOSTICS, ORIGIN + 16 * MS, _run_status("boom_sim: drive", resets="9", steps="1")),
+        ("/diagnostics", DIAGNOSTICS, ORIGIN + 15 * MS, _run_status(step_calls="x", resets="1", pauses="2")),
+        ("/diagnostics", DIAGNOSTICS, ORIGIN + 16 * MS, _run_status("boom_sim: drive", pauses="9")),  # not its run
+        ("/diagnostics", DIAGNOSTICS, ORIGIN + 16 * MS, _run_status("boom_sim: stepping", step_calls="7")),
         ("/diagnostics", DIAGNOSTICS, ORIGIN + 17 * MS, _run_status(resets="3", clock_origin_shift_s="0.25", ok="1")),
     ]
     run = read_run(_bag(tmp_path / "bag", messages), _describe())
@@ -214,13 +235,15 @@ def test_the_states_are_in_publish_order_with_run_events_and_by_stamp_without(tm
         *_states(10, 20),
         ("/drive_state", DRIVE_STATE, ORIGIN + 31 * MS, _state(ORIGIN + 15 * MS, 0.1, 2.0, 3.0, 4.0)),
     ]
-    ledger = [("/crane/boom_sim/energy", ENERGY_LEDGER, ORIGIN + 11 * MS, EnergyLedger())]
-    bag = _bag(tmp_path / "bag", states + ledger)
+    goals = [("/arm/status", "action_msgs/msg/GoalStatusArray", ORIGIN, GoalStatusArray())]  # first, not a state
+    ledger = [("/crane/boom_sim/ledger", ENERGY_LEDGER, ORIGIN + 11 * MS, EnergyLedger())]
+    another = [("/crane2/drive_state", DRIVE_STATE, ORIGIN + 12 * MS, _state(ORIGIN + 11 * MS))]  # not read
+    bag = _bag(tmp_path / "bag", goals + states + ledger + another)
     by_stamp = read_run(bag, _describe())
     assert by_stamp.state_ns == [ORIGIN + 10 * MS, ORIGIN + 15 * MS, ORIGIN + 20 * MS]
     assert by_stamp.state_log_ns == [ORIGIN + 11 * MS, ORIGIN + 31 * MS, ORIGIN + 21 * MS]
     assert by_stamp.state_signals == ([0.01, 0.1, 0.02], [0.0, 2.0, 0.0], [0.0, 3.0, 0.0], [0.0, 4.0, 0.0])
-    assert by_stamp.energy_topic == "/crane/boom_sim/energy" and by_stamp.state_topic == "/drive_state"
+    assert by_stamp.energy_topic == "/crane/boom_sim/ledger" and by_stamp.state_topic == "/drive_state"
     logged = read_run(bag, _describe(events_topic="/crane/boom_sim/events"))
     assert logged.state_ns == [ORIGIN + 10 * MS, ORIGIN + 20 * MS, ORIGIN + 15 * MS]
     assert logged.state_log_ns == [ORIGIN + 11 * MS, ORIGIN + 21 * MS, ORIGIN + 31 * MS]
@@ -228,17 +251,18 @@ def test_the_states_are_in_publish_order_with_run_events_and_by_stamp_without(tm
 
 
 def test_the_energy_topic_is_the_nodes_own_where_no_ledger_was_recorded(tmp_path):
-    bag = _bag(tmp_path / "bag", _states(10))
+    command = ("/valve_command", VALVE_COMMAND, ORIGIN + 15 * MS, _command(0, 0.5))
+    bag = _bag(tmp_path / "bag", [*_states(10), command])
     assert read_run(bag, _describe()).energy_topic == f"{NODE}/energy"
     assert read_run(bag, _describe(node=None)).energy_topic is None
 
 
 def test_each_state_command_and_change_has_the_time_origin_of_the_run_events_before_it(tmp_path):
-    paused = RunEvent("pause", 0.02, 2, ORIGIN)
+    dropped = RunEvent("backlog_dropped", 0.01, 1, ORIGIN + 5 * MS, origin_moved_ns=5 * MS, dropped_s=0.005)
     reset = RunEvent("reset", 0.0, 3, ORIGIN + 30 * MS, origin_moved_ns=30 * MS, cause="reset", stopped=False)
     topic = f"{NODE}/events"
     events = [
-        (topic, "std_msgs/msg/String", ORIGIN + 22 * MS, String(data=paused.to_json())),
+        (topic, "std_msgs/msg/String", ORIGIN + 12 * MS, String(data=dropped.to_json())),
         (topic, "std_msgs/msg/String", ORIGIN + 32 * MS, String(data=reset.to_json())),
     ]
     after = [
@@ -248,13 +272,13 @@ def test_each_state_command_and_change_has_the_time_origin_of_the_run_events_bef
     ]
     states = [*_states(10, 20, 30), ("/drive_state", DRIVE_STATE, ORIGIN + 41 * MS, _state(ORIGIN + 40 * MS))]
     run = read_run(_bag(tmp_path / "bag", states + events + after), _describe(events_topic=topic))
-    assert run.events == [paused, reset]
+    assert run.events == [dropped, reset]
     assert run.event_messages == [(log, serialize_message(msg)) for _, _, log, msg in events]
     assert [c.origin_ns for c in run.commands] == [ORIGIN + 30 * MS, ORIGIN + 30 * MS]
-    assert [c.origin_ns for c in run.parameter_changes] == [ORIGIN]  # logged 1 ns before the reset
-    assert run.state_origins_ns() == [ORIGIN, ORIGIN, ORIGIN, ORIGIN + 30 * MS]
+    assert [c.origin_ns for c in run.parameter_changes] == [ORIGIN + 5 * MS]  # logged 1 ns before the reset
+    assert run.state_origins_ns() == [ORIGIN, ORIGIN + 5 * MS, ORIGIN + 5 * MS, ORIGIN + 30 * MS]
     assert [run.state_origin_ns(i) for i in range(4)] == run.state_origins_ns()
-    assert [round(run.state_sim_s(i), 12) for i in range(4)] == [0.01, 0.02, 0.03, 0.01]
+    assert [round(run.state_sim_s(i), 12) for i in range(4)] == [0.01, 0.015, 0.025, 0.01]
 
 
 def test_a_run_event_that_does_not_read_and_a_cut_bag_are_one_line(tmp_path):
@@ -266,3 +290,19 @@ def test_a_run_event_that_does_not_read_and_a_cut_bag_are_one_line(tmp_path):
     file.write_bytes(file.read_bytes()[:30])
     with pytest.raises(BagError, match=r"cannot read the bag .*; is it truncated or not a rosbag2/MCAP bag"):
         read_run(bag, _describe())
+
+
+def test_a_reset_after_hundreds_of_states_moves_the_origin_of_those_after_it(tmp_path):
+    reset = RunEvent("reset", 0.0, 300, ORIGIN + 3 * MS, origin_moved_ns=3 * MS, cause="reset", stopped=False)
+    topic = f"{NODE}/events"
+    events = [(topic, "std_msgs/msg/String", ORIGIN + 3 * MS, String(data=reset.to_json()))]
+    run = read_run(_bag(tmp_path / "bag", [*_states(*range(302), lag_ms=0), *events]), _describe(events_topic=topic))
+    assert run.state_origins_ns()[298:] == [ORIGIN, ORIGIN, ORIGIN + 3 * MS, ORIGIN + 3 * MS]
+
+
+def test_a_run_of_hundreds_of_steps_reads_back_with_the_origin_of_the_last(tmp_path):
+    topic = f"{NODE}/events"
+    steps = [RunEvent("step", 0.01, 1, ORIGIN + k * 1000, origin_moved_ns=1000, steps=1) for k in range(1, 301)]
+    events = [(topic, "std_msgs/msg/String", ORIGIN + 12 * MS, String(data=e.to_json())) for e in steps]
+    run = read_run(_bag(tmp_path / "bag", [*_states(10, 20), *events]), _describe(events_topic=topic))
+    assert len(run.events) == 300 and run.state_origins_ns() == [ORIGIN, ORIGIN + 300_000]
