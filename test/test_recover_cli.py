@@ -429,6 +429,8 @@ def test_a_chunk_is_dropped_where_its_records_do_not_fill_its_stated_size_exactl
     assert (len(found.messages), found.dropped_chunks) == (1, 1)
     found = salvage(_file(_chunk(b""), _message(2)))  # an empty chunk is whole, not damaged
     assert (len(found.messages), found.dropped_chunks) == (1, 0)
+    found = salvage(_file(_chunk(TWO + _record(0x80, b"")), _message(2)))  # ends in a record of only its 9-byte head
+    assert (len(found.messages), found.dropped_chunks) == (3, 0)
 
 
 def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
@@ -514,10 +516,12 @@ def test_an_lz4_chunk_without_the_lz4_module_is_dropped_not_a_traceback(monkeypa
 
 
 @pytest.mark.parametrize("opcode", [0x00, 0x80, 0xFF])
-def test_a_record_of_an_opcode_it_does_not_know_is_skipped_even_shaped_like_a_channel(opcode):
+def test_a_record_of_an_opcode_it_does_not_know_is_skipped_even_shaped_like_a_schema_or_channel(opcode):
     ghost = _u(2, 2) + _u(1, 2) + _text("/ghost") + _text("cdr") + _string_map({})
-    found = salvage(_file(_record(opcode, ghost), _message(0)))
+    fake = _u(1, 2) + _text("fake/msg/Type") + _text("ros2msg") + _text("")
+    found = salvage(_file(_record(opcode, ghost), _record(opcode, fake), _message(0)))
     assert list(found.channels) == [1] and len(found.messages) == 1
+    assert [name for name, _, _ in found.schemas.values()] == [STATE.msgtype]
 
 
 def test_every_metadata_record_but_rosbag2s_own_comes_back(tmp_path):
@@ -650,6 +654,8 @@ def test_reading_stops_exactly_at_the_end_of_the_last_whole_record():
         assert (found.stop, len(found.messages), found.complete) == (stop, kept, False), size
     found = salvage(data + _record(0x0F, _u(0, 4)) + b"summary and footer")  # the data section ends
     assert found.complete and found.stop == len(data) and len(found.messages) == 2
+    found = salvage(b"")
+    assert (found.stop, found.complete, found.messages) == (0, False, [])  # a file cut at 0 bytes stops at 0
 
 
 def test_a_channel_whose_topic_runs_past_its_record_is_skipped_and_its_messages_with_it():
