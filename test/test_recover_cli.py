@@ -246,13 +246,13 @@ def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
     }
 
 
-def _other_mcap(path: Path, profile: str) -> None:
+def _other_mcap(path: Path, profile: str, library: str = "someone else's logger") -> None:
     """A whole MCAP file another tool wrote: one channel, three messages."""
     from mcap.writer import Writer
 
     with path.open("wb") as handle:
         writer = Writer(handle)
-        writer.start(profile=profile, library="someone else's logger")
+        writer.start(profile=profile, library=library)
         schema = writer.register_schema("pose", "jsonschema", b"{}")
         channel = writer.register_channel("/pose", "json", schema)
         for i in range(3):
@@ -446,7 +446,7 @@ def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
     "tail",
     [
         b"\x02" + _u(5, 8) + bytes(20) + MCAP_MAGIC,  # a footer's opcode and the magic, with a length not 20
-        b"\x02" + _u(20, 8) + bytes(20) + b"no magic",  # a footer, without the magic after it
+        b"\x02" + _u(20, 8) + bytes(20) + b"\xffnomagic",  # a footer, without the magic (sorting after it)
     ],
 )
 def test_a_cut_file_whose_last_message_ends_in_bytes_shaped_like_a_footer_is_recovered(tmp_path, tail):
@@ -709,3 +709,45 @@ def test_a_bag_folder_replaced_by_a_file_after_the_check_is_one_line(tmp_path, m
     with pytest.raises(BagError) as error:
         recover(file)
     assert str(error.value) == f"{file}: cannot open the bag folder (Not a directory)"
+
+
+def test_a_whole_mcap_of_another_tool_with_a_header_of_3000_bytes_is_refused_and_nothing_changes(tmp_path):
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    _other_mcap(folder / "run.mcap", "ros1", library="a logger " * 333)  # a header read whole from the first 4 KiB
+    before = _snapshot(folder)
+    with pytest.raises(BagError, match=r"is not a rosbag2 recording \(profile 'ros1'\); nothing was changed"):
+        recover(folder)
+    assert _snapshot(folder) == before
+
+
+def test_the_smallest_whole_mcap_of_another_tool_is_refused_as_whole(tmp_path):
+    footer = _record(0x02, _u(0, 8) + _u(0, 8) + _u(0, 4))  # no summary
+    bag = _bag_of(tmp_path, MCAP_MAGIC + _header("x") + _record(0x0F, _u(0, 4)) + footer + MCAP_MAGIC)  # 80 bytes
+    with pytest.raises(BagError, match=r"is a whole MCAP file \(written by x\), not a killed recording"):
+        recover(bag)
+    assert [p.name for p in bag.iterdir()] == ["bag_0.mcap"]
+
+
+def test_a_full_disk_while_writing_the_new_file_leaves_no_temporary_file(tmp_path, monkeypatch):
+    bag = _bag_of(tmp_path, _file(_message(0)))
+    before = _snapshot(bag)
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(BagError, match="No space left on device; nothing was changed, the bag is as it was"):
+        recover(bag)
+    assert _snapshot(bag) == before
+
+
+def test_a_temporary_name_taken_by_a_link_is_passed_over_and_what_it_points_to_is_kept(tmp_path, monkeypatch):
+    bag = _bag_of(tmp_path, _file(_message(0)))
+    (tmp_path / "precious").write_text("the user's")
+    (bag / ".bag_0.mcap.aaaaaaaa.partial").symlink_to(tmp_path / "precious")  # a link is no leftover of ours
+    names = iter(["aaaaaaaa", "bbbbbbbb", "cccccccc"])
+    monkeypatch.setattr(recovery.secrets, "token_hex", lambda n: next(names))
+    assert recover(bag).messages == 1
+    assert (tmp_path / "precious").read_text() == "the user's"
+    assert (bag / ".bag_0.mcap.aaaaaaaa.partial").is_symlink()
