@@ -488,11 +488,14 @@ def _recorded(folder: Path) -> Path:
     return rec.file
 
 
-def test_the_nodes_whole_file_gets_the_metadata_yaml_its_recorder_would_have_written(tmp_path):
-    _recorded(tmp_path / "late")
+@pytest.mark.parametrize("cut", [False, True])
+def test_the_nodes_file_gets_the_metadata_yaml_its_recorder_would_have_written(tmp_path, cut):
+    file = _recorded(tmp_path / "late")
     written = (tmp_path / "late" / "metadata.yaml").read_text()
     (tmp_path / "late" / "metadata.yaml").unlink()  # killed after finishing the file, before metadata.yaml
-    assert recover(tmp_path / "late").damaged is None
+    if cut:  # or killed after its last chunk, before the file's end: every message comes back
+        file.write_bytes(file.read_bytes()[: _chunk_ends(file.read_bytes())[-1]])
+    assert (recover(tmp_path / "late").damaged is None) != cut
     assert (tmp_path / "late" / "metadata.yaml").read_text() == written
 
 
@@ -751,3 +754,28 @@ def test_a_temporary_name_taken_by_a_link_is_passed_over_and_what_it_points_to_i
     assert recover(bag).messages == 1
     assert (tmp_path / "precious").read_text() == "the user's"
     assert (bag / ".bag_0.mcap.aaaaaaaa.partial").is_symlink()
+
+
+def test_a_full_disk_names_about_the_space_the_bag_needs(tmp_path, monkeypatch):
+    bag = _bag_of(tmp_path, _file(_message(0, data=bytes(3 << 20))))  # a file of 3 MiB
+    monkeypatch.setattr(recovery, "_write_partial", _full_disk)
+    with pytest.raises(BagError, match=r"\(free about 3 MiB and run boom-bag-recover "):
+        recover(bag)
+
+
+def test_a_folder_that_cannot_be_synced_after_metadata_yaml_is_one_line(tmp_path, monkeypatch):
+    file = _recorded(tmp_path / "late")
+    (tmp_path / "late" / "metadata.yaml").unlink()
+    fsync = os.fsync
+    synced = []
+
+    def failing_second(fd: int) -> None:
+        synced.append(fd)
+        if len(synced) == 2:  # the folder's, after metadata.yaml was put in place
+            raise OSError(errno.EIO, "Input/output error")
+        fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", failing_second)
+    with pytest.raises(BagError, match="Input/output error"):
+        recover(file.parent)
+    assert not [p for p in file.parent.iterdir() if p.name.endswith(".partial")]
