@@ -293,10 +293,15 @@ def test_a_run_event_that_does_not_read_and_a_cut_bag_are_one_line(tmp_path):
 
 
 def test_a_reset_after_hundreds_of_states_moves_the_origin_of_those_after_it(tmp_path):
+    """Three seconds of states every 10 ms: stamps of whole seconds and nanoseconds, and a reset after the 300th."""
     reset = RunEvent("reset", 0.0, 300, ORIGIN + 3 * MS, origin_moved_ns=3 * MS, cause="reset", stopped=False)
     topic = f"{NODE}/events"
-    events = [(topic, "std_msgs/msg/String", ORIGIN + 3 * MS, String(data=reset.to_json()))]
-    run = read_run(_bag(tmp_path / "bag", [*_states(*range(302), lag_ms=0), *events]), _describe(events_topic=topic))
+    events = [(topic, "std_msgs/msg/String", ORIGIN + 2995 * MS, String(data=reset.to_json()))]
+    change = _change(NODE, ORIGIN + 2500 * MS + 7, ("a", 3, 1.0))
+    changes = [("/parameter_events", PARAMETER_EVENT, ORIGIN + 2501 * MS, change)]
+    messages = [*_states(*range(0, 3020, 10), lag_ms=0), *events, *changes]
+    run = read_run(_bag(tmp_path / "bag", messages), _describe(events_topic=topic))
+    assert run.state_ns[-1] == ORIGIN + 3010 * MS and run.parameter_changes[0].at_ns == ORIGIN + 2500 * MS + 7
     assert run.state_origins_ns()[298:] == [ORIGIN, ORIGIN, ORIGIN + 3 * MS, ORIGIN + 3 * MS]
 
 
