@@ -427,6 +427,8 @@ def test_a_chunk_is_dropped_where_its_records_do_not_fill_its_stated_size_exactl
     bigger = _chunk(TWO, size=len(TWO) - 1)  # its contents are one byte longer than it says
     found = salvage(_file(bigger, _message(2)))
     assert (len(found.messages), found.dropped_chunks) == (1, 1)
+    found = salvage(_file(_chunk(TWO, size=len(TWO) + 1), _message(2)))  # one byte shorter than it says
+    assert (len(found.messages), found.dropped_chunks) == (1, 1)
     found = salvage(_file(_chunk(b""), _message(2)))  # an empty chunk is whole, not damaged
     assert (len(found.messages), found.dropped_chunks) == (1, 0)
     found = salvage(_file(_chunk(TWO + _record(0x80, b"")), _message(2)))  # ends in a record of only its 9-byte head
@@ -434,9 +436,10 @@ def test_a_chunk_is_dropped_where_its_records_do_not_fill_its_stated_size_exactl
 
 
 def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
-    first = _record(0x0C, _text("a_note") + _string_map({"by": "someone"}))
+    first = _record(0x0C, _text("a_note") + _string_map({"by": "someone"}))  # named before ours
+    second = _record(0x0C, _text("z_note") + _string_map({"by": "someone else"}))  # and after
     ours = _record(0x0C, _text("boom_hydraulics") + _string_map({"clock_origin_ns": "7"}))
-    bag = _bag_of(tmp_path, _file(first, ours, _message(0), _message(1)))
+    bag = _bag_of(tmp_path, _file(first, second, ours, _message(0), _message(1)))
     assert recover(bag).messages == 2
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["custom_data"] == {"clock_origin_ns": "7"}
@@ -605,14 +608,14 @@ def test_a_message_of_no_data_is_kept_and_one_cut_inside_its_head_is_not():
     assert found.messages == [] and found.dropped_chunks == 1
 
 
-@pytest.mark.parametrize("whole", [False, True])
+@pytest.mark.parametrize("whole", [False, "someone else's logger", "a logger"])  # named after or before ours
 def test_a_file_not_of_this_tool_beside_a_damaged_one_is_refused_and_kept(tmp_path, whole):
     """Only a finished file this tool wrote (an earlier run's) is replaced when a .damaged is there."""
     bag = tmp_path / "bag"
     bag.mkdir()
     (bag / "bag_0.mcap.damaged").write_bytes(_file(_message(0)))
     if whole:  # another tool's finished MCAP file
-        _other_mcap(bag / "bag_0.mcap", "ros2")
+        _other_mcap(bag / "bag_0.mcap", "ros2", library=whole)
     else:  # one that only ends as a finished MCAP file does
         (bag / "bag_0.mcap").write_bytes(b"the user's, cut at its start" + b"\x02" + _u(20, 8) + bytes(20) + MCAP_MAGIC)
     not_ours = (bag / "bag_0.mcap").read_bytes()
@@ -621,8 +624,9 @@ def test_a_file_not_of_this_tool_beside_a_damaged_one_is_refused_and_kept(tmp_pa
     assert (bag / "bag_0.mcap").read_bytes() == not_ours
 
 
-def test_a_file_whose_first_record_is_no_header_is_recovered_whatever_that_record_says(tmp_path):
-    posing = _record(0x00, _text("ros1") + _text("someone else's"))  # a header's contents, not its opcode
+@pytest.mark.parametrize("opcode", [0x00, 0x80])  # an opcode before a header's and one after it
+def test_a_file_whose_first_record_is_no_header_is_recovered_whatever_that_record_says(tmp_path, opcode):
+    posing = _record(opcode, _text("ros1") + _text("someone else's"))  # a header's contents, not its opcode
     bag = _bag_of(tmp_path, MCAP_MAGIC + posing + _channel() + _message(0))
     assert recover(bag).messages == 1
 
@@ -779,3 +783,23 @@ def test_a_folder_that_cannot_be_synced_after_metadata_yaml_is_one_line(tmp_path
     with pytest.raises(BagError, match="Input/output error"):
         recover(file.parent)
     assert not [p for p in file.parent.iterdir() if p.name.endswith(".partial")]
+
+
+def test_a_file_with_channels_and_no_message_is_recovered_empty(tmp_path):
+    bag = _bag_of(tmp_path, _file())
+    assert recover(bag).messages == 0
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert (info["starting_time"], info["duration"]) == ({"nanoseconds_since_epoch": 0}, {"nanoseconds": 0})
+    assert [t["message_count"] for t in info["topics_with_message_count"]] == [0]
+
+
+def test_bytes_that_are_no_mcap_file_are_refused_whichever_way_they_sort(tmp_path):
+    for data in (b"\x00not MCAP", b"\xffnot MCAP"):
+        with pytest.raises(BagError, match=r"^not an MCAP file \(wrong magic bytes\)$"):
+            salvage(data)
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "bag_0.mcap.damaged").write_bytes(b"\xffnot MCAP")  # the original kept by an interrupted run
+    with pytest.raises(BagError) as error:
+        recover(bag)
+    assert str(error.value) == f"{bag / 'bag_0.mcap.damaged'}: not an MCAP file (wrong magic bytes)"
