@@ -730,8 +730,8 @@ def test_a_whole_mcap_of_another_tool_with_a_header_of_3000_bytes_is_refused_and
 
 def test_the_smallest_whole_mcap_of_another_tool_is_refused_as_whole(tmp_path):
     footer = _record(0x02, _u(0, 8) + _u(0, 8) + _u(0, 4))  # no summary
-    bag = _bag_of(tmp_path, MCAP_MAGIC + _header("x") + _record(0x0F, _u(0, 4)) + footer + MCAP_MAGIC)  # 80 bytes
-    with pytest.raises(BagError, match=r"is a whole MCAP file \(written by x\), not a killed recording"):
+    bag = _bag_of(tmp_path, MCAP_MAGIC + _header("a") + _record(0x0F, _u(0, 4)) + footer + MCAP_MAGIC)  # 80 bytes
+    with pytest.raises(BagError, match=r"is a whole MCAP file \(written by a\), not a killed recording"):
         recover(bag)
     assert [p.name for p in bag.iterdir()] == ["bag_0.mcap"]
 
