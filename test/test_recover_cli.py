@@ -636,21 +636,24 @@ def test_a_file_whose_header_does_not_read_is_recovered(tmp_path):
     assert recover(bag).messages == 1
 
 
-@pytest.mark.parametrize("stop", [KeyboardInterrupt(), OSError(errno.ENOSPC, "No space left on device")])
-def test_a_run_stopped_while_writing_metadata_yaml_leaves_the_bag_as_it_was(tmp_path, monkeypatch, stop):
+@pytest.mark.parametrize("interrupted", [True, False])  # Ctrl-C, or a full disk
+def test_a_run_stopped_while_writing_metadata_yaml_leaves_the_bag_as_it_was(tmp_path, monkeypatch, interrupted):
     bag = _bag_of(tmp_path, _file(_message(0)))
     before = {p.name: p.read_bytes() for p in bag.iterdir()}
     write_partial = recovery._write_partial
 
     def stopping(final, fill):
-        if final.name == "metadata.yaml":  # the second of the two: the new MCAP file is written
-            raise stop
-        return write_partial(final, fill)
+        if final.name != "metadata.yaml":  # the first of the two: the new MCAP file is written
+            return write_partial(final, fill)
+        if interrupted:
+            raise KeyboardInterrupt
+        return _full_disk(final, fill)
 
     monkeypatch.setattr(recovery, "_write_partial", stopping)
-    with pytest.raises(type(stop) if isinstance(stop, KeyboardInterrupt) else BagError):
+    with pytest.raises(KeyboardInterrupt if interrupted else BagError) as error:
         recover(bag)
     assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
+    assert interrupted or str(error.value).startswith(f"{bag / 'metadata.yaml'}: No space left on device; nothing")
 
 
 def test_reading_stops_exactly_at_the_end_of_the_last_whole_record():
