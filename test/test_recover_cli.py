@@ -414,6 +414,7 @@ TWO = _message(0) + _message(1)
         ("lz4", lz4.frame.compress(TWO), 2),
         ("snappy", lz4.frame.compress(TWO), 0),  # a compression this reader does not know, whatever the bytes
         ("bz2", lz4.frame.compress(TWO), 0),
+        ("zzz", zstandard.ZstdCompressor().compress(TWO), 0),  # a name sorting after zstd, of zstd bytes
     ],
 )
 def test_a_chunk_is_kept_in_each_compression_it_reads_and_dropped_in_any_other(compression, packed, kept):
