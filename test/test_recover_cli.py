@@ -382,11 +382,14 @@ def _message(i: int, data: bytes | None = None) -> bytes:
     return _record(0x05, _u(1, 2) + _u(i, 4) + _u(i + 1, 8) + _u(i + 1, 8) + payload)
 
 
-def _chunk(records: bytes, compression: str = "", packed: bytes | None = None, size: int | None = None) -> bytes:
-    """A chunk record of ``records`` (``packed``: as stored; ``size``: the uncompressed size it states)."""
+def _chunk(
+    records: bytes, compression: str = "", packed: bytes | None = None, size: int | None = None, crc: int | None = None
+) -> bytes:
+    """A chunk record of ``records`` (``packed``: as stored; ``size``, ``crc``: the size and CRC it states)."""
     packed = records if packed is None else packed
     size = len(records) if size is None else size
-    content = _u(0, 8) + _u(0, 8) + _u(size, 8) + _u(zlib.crc32(records), 4) + _text(compression)
+    crc = zlib.crc32(records) if crc is None else crc
+    content = _u(0, 8) + _u(0, 8) + _u(size, 8) + _u(crc, 4) + _text(compression)
     return _record(0x06, content + _u(len(packed), 8) + packed)
 
 
@@ -430,6 +433,11 @@ def test_a_chunk_is_dropped_where_its_records_do_not_fill_its_stated_size_exactl
     assert (len(found.messages), found.dropped_chunks) == (1, 1)
     found = salvage(_file(_chunk(TWO, size=len(TWO) + 1), _message(2)))  # one byte shorter than it says
     assert (len(found.messages), found.dropped_chunks) == (1, 1)
+    for crc in (zlib.crc32(TWO) - 1, zlib.crc32(TWO) + 1):  # a CRC one off, either way
+        found = salvage(_file(_chunk(TWO, crc=crc), _message(2)))
+        assert (len(found.messages), found.dropped_chunks) == (1, 1)
+    found = salvage(_file(_chunk(TWO, crc=0), _message(2)))  # CRC 0: none written, nothing to check
+    assert (len(found.messages), found.dropped_chunks) == (3, 0)
     found = salvage(_file(_chunk(b""), _message(2)))  # an empty chunk is whole, not damaged
     assert (len(found.messages), found.dropped_chunks) == (1, 0)
     found = salvage(_file(_chunk(TWO + _record(0x80, b"")), _message(2)))  # ends in a record of only its 9-byte head
