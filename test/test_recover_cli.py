@@ -260,7 +260,7 @@ def _other_mcap(path: Path, profile: str, library: str = "someone else's logger"
         writer.finish()
 
 
-@pytest.mark.parametrize("profile", ["ros2", "", "ros1"])
+@pytest.mark.parametrize("profile", ["ros2", "", "ros1", "ros3"])
 def test_a_whole_mcap_of_another_tool_in_a_folder_of_notes_is_refused_and_nothing_changes(tmp_path, profile):
     folder = tmp_path / "notes"
     folder.mkdir()
@@ -459,6 +459,9 @@ def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
     [
         b"\x02" + _u(5, 8) + bytes(20) + MCAP_MAGIC,  # a footer's opcode and the magic, with a length not 20
         b"\x02" + _u(20, 8) + bytes(20) + b"\xffnomagic",  # a footer, without the magic (sorting after it)
+        b"\x02" + _u(21, 8) + bytes(20) + MCAP_MAGIC,  # a length one past a footer's
+        b"\x01" + _u(20, 8) + bytes(20) + MCAP_MAGIC,  # the opcodes either side of a footer's
+        b"\x03" + _u(20, 8) + bytes(20) + MCAP_MAGIC,
     ],
 )
 def test_a_cut_file_whose_last_message_ends_in_bytes_shaped_like_a_footer_is_recovered(tmp_path, tail):
@@ -534,8 +537,9 @@ def test_an_lz4_chunk_without_the_lz4_module_is_dropped_not_a_traceback(monkeypa
 def test_a_record_of_an_opcode_it_does_not_know_is_skipped_even_shaped_like_a_schema_or_channel(opcode):
     ghost = _u(2, 2) + _u(1, 2) + _text("/ghost") + _text("cdr") + _string_map({})
     fake = _u(1, 2) + _text("fake/msg/Type") + _text("ros2msg") + _text("")
-    found = salvage(_file(_record(opcode, ghost), _record(opcode, fake), _message(0)))
-    assert list(found.channels) == [1] and len(found.messages) == 1
+    note = _text("ghost_note") + _string_map({"by": "no one"})
+    found = salvage(_file(_record(opcode, ghost), _record(opcode, fake), _record(opcode, note), _message(0)))
+    assert list(found.channels) == [1] and len(found.messages) == 1 and found.metadata == []
     assert [name for name, _, _ in found.schemas.values()] == [STATE.msgtype]
 
 
@@ -553,11 +557,14 @@ def test_every_metadata_record_but_rosbag2s_own_comes_back(tmp_path):
     assert metadata[:2] == notes[:2] and [name for name, _ in metadata[2:]] == ["rosbag2"]  # rewritten
 
 
-def test_a_folder_without_an_mcap_file_is_one_line(tmp_path):
+@pytest.mark.parametrize("files", [0, 2])
+def test_a_folder_without_one_mcap_file_is_one_line(tmp_path, files):
     (tmp_path / "notes.md").write_text("the user's")
+    for i in range(files):
+        (tmp_path / f"run_{i}.mcap").write_bytes(_file(_message(0)))
     with pytest.raises(BagError) as error:
         recover(tmp_path)
-    assert str(error.value) == f"{tmp_path}: expected one .mcap file, found 0"
+    assert str(error.value) == f"{tmp_path}: expected one .mcap file, found {files}"
 
 
 @pytest.mark.parametrize("name", ["bag_0.mcap", "bag_0.mcap.damaged"])
@@ -694,7 +701,7 @@ def test_a_channel_without_a_schema_is_kept(tmp_path):
 
 
 def test_the_recovered_file_holds_its_messages_in_log_time_order(tmp_path):
-    logged = [(3, 1), (1, 2), (2, 3)]  # (log time, publish time): published in another order than logged
+    logged = [(30, 1), (10, 2), (20, 3)]  # (log time, publish time): published in another order than logged
     messages = [
         _record(0x05, _u(1, 2) + _u(i, 4) + _u(log, 8) + _u(pub, 8) + b"m") for i, (log, pub) in enumerate(logged)
     ]
@@ -703,6 +710,8 @@ def test_the_recovered_file_holds_its_messages_in_log_time_order(tmp_path):
     with (bag / "bag_0.mcap").open("rb") as handle:
         records = StreamReader(handle, skip_magic=False, emit_chunks=False).records
         assert [(m.log_time, m.publish_time) for m in records if isinstance(m, Message)] == sorted(logged)
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert (info["starting_time"], info["duration"]) == ({"nanoseconds_since_epoch": 10}, {"nanoseconds": 20})
 
 
 def test_a_bag_folder_that_cannot_be_opened_is_one_line(tmp_path, monkeypatch):
@@ -815,3 +824,12 @@ def test_bytes_that_are_no_mcap_file_are_refused_whichever_way_they_sort(tmp_pat
     with pytest.raises(BagError) as error:
         recover(bag)
     assert str(error.value) == f"{bag / 'bag_0.mcap.damaged'}: not an MCAP file (wrong magic bytes)"
+
+
+def test_a_bag_still_being_recorded_is_refused_and_left_alone(tmp_path):
+    with BagRecorder(tmp_path / "live", [STATE], flush_s=0.0) as live:
+        live.write(STATE.name, 1, serialize_message(DriveState()))
+        before = _snapshot(live.folder)
+        with pytest.raises(BagError, match="is still being recorded; stop its recorder first"):
+            recover(live.folder)
+        assert _snapshot(live.folder) == before
