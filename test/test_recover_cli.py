@@ -459,6 +459,7 @@ def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
     [
         b"\x02" + _u(5, 8) + bytes(20) + MCAP_MAGIC,  # a footer's opcode and the magic, with a length not 20
         b"\x02" + _u(20, 8) + bytes(20) + b"\xffnomagic",  # a footer, without the magic (sorting after it)
+        b"\x02" + _u(20, 8) + bytes(20) + b"\x00nomagic",  # (sorting before it)
         b"\x02" + _u(21, 8) + bytes(20) + MCAP_MAGIC,  # a length one past a footer's
         b"\x01" + _u(20, 8) + bytes(20) + MCAP_MAGIC,  # the opcodes either side of a footer's
         b"\x03" + _u(20, 8) + bytes(20) + MCAP_MAGIC,
