@@ -740,10 +740,13 @@ def test_a_bag_folder_replaced_by_a_file_after_the_check_is_one_line(tmp_path, m
     assert str(error.value) == f"{file}: cannot open the bag folder (Not a directory)"
 
 
-def test_a_whole_mcap_of_another_tool_with_a_header_of_3000_bytes_is_refused_and_nothing_changes(tmp_path):
+@pytest.mark.parametrize("repeats", [333, 3000])
+def test_a_whole_mcap_of_another_tool_with_a_long_header_is_refused_and_nothing_changes(tmp_path, repeats):
+    """A header of 3 kB, and one of 27 kB read whole by its stated length (a first 4 KiB alone
+    held no header: such a file was taken for a killed recording and rewritten)."""
     folder = tmp_path / "notes"
     folder.mkdir()
-    _other_mcap(folder / "run.mcap", "ros1", library="a logger " * 333)  # a header read whole from the first 4 KiB
+    _other_mcap(folder / "run.mcap", "ros1", library="a logger " * repeats)
     before = _snapshot(folder)
     with pytest.raises(BagError, match=r"is not a rosbag2 recording \(profile 'ros1'\); nothing was changed"):
         recover(folder)
