@@ -419,6 +419,7 @@ TWO = _message(0) + _message(1)
         ("bz2", lz4.frame.compress(TWO), 0),
         ("zzz", zstandard.ZstdCompressor().compress(TWO), 0),  # a name sorting after zstd, of zstd bytes
     ],
+    ids=["none", "zstd", "lz4", "snappy", "bz2", "zzz"],  # the bytes can differ between processes (CDR padding)
 )
 def test_a_chunk_is_kept_in_each_compression_it_reads_and_dropped_in_any_other(compression, packed, kept):
     found = salvage(_file(_chunk(TWO, compression, packed), _message(2)))
@@ -459,6 +460,7 @@ def test_the_custom_data_comes_from_its_own_metadata_record_only(tmp_path):
     [
         b"\x02" + _u(5, 8) + bytes(20) + MCAP_MAGIC,  # a footer's opcode and the magic, with a length not 20
         b"\x02" + _u(20, 8) + bytes(20) + b"\xffnomagic",  # a footer, without the magic (sorting after it)
+        b"\x02" + _u(20, 8) + bytes(20) + b"\x00nomagic",  # (sorting before it)
         b"\x02" + _u(21, 8) + bytes(20) + MCAP_MAGIC,  # a length one past a footer's
         b"\x01" + _u(20, 8) + bytes(20) + MCAP_MAGIC,  # the opcodes either side of a footer's
         b"\x03" + _u(20, 8) + bytes(20) + MCAP_MAGIC,
@@ -739,10 +741,13 @@ def test_a_bag_folder_replaced_by_a_file_after_the_check_is_one_line(tmp_path, m
     assert str(error.value) == f"{file}: cannot open the bag folder (Not a directory)"
 
 
-def test_a_whole_mcap_of_another_tool_with_a_header_of_3000_bytes_is_refused_and_nothing_changes(tmp_path):
+@pytest.mark.parametrize("repeats", [333, 3000])
+def test_a_whole_mcap_of_another_tool_with_a_long_header_is_refused_and_nothing_changes(tmp_path, repeats):
+    """A header of 3 kB, and one of 27 kB read whole by its stated length (a first 4 KiB alone
+    held no header: such a file was taken for a killed recording and rewritten)."""
     folder = tmp_path / "notes"
     folder.mkdir()
-    _other_mcap(folder / "run.mcap", "ros1", library="a logger " * 333)  # a header read whole from the first 4 KiB
+    _other_mcap(folder / "run.mcap", "ros1", library="a logger " * repeats)
     before = _snapshot(folder)
     with pytest.raises(BagError, match=r"is not a rosbag2 recording \(profile 'ros1'\); nothing was changed"):
         recover(folder)

@@ -374,10 +374,14 @@ def _read(source: Path) -> Salvage:
 
 
 def _header(path: Path) -> tuple[str, str] | None:
-    """The profile and library of an MCAP file's header record (None where it has none)."""
+    """The profile and library of an MCAP file's header record (None where it has none), read
+    whole by its stated length, however long its strings."""
     try:
         with path.open("rb") as handle:
-            head = handle.read(1 << 12)
+            head = handle.read(len(MCAP_MAGIC) + _RECORD_HEAD)
+            if len(head) == len(MCAP_MAGIC) + _RECORD_HEAD:  # the record's length: read the rest (what is there)
+                length = int.from_bytes(head[-8:], "little")
+                head += handle.read(min(length, os.fstat(handle.fileno()).st_size))
     except OSError as exc:
         raise BagError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     if head[: len(MCAP_MAGIC)] != MCAP_MAGIC[: len(head)]:  # a prefix of the magic: cut at the start
