@@ -65,33 +65,11 @@ def jitable(function: F | None = None, *, inline: str = "never") -> Any:
     return mark if function is None else mark(function)
 
 
-def tuple_of(row: Any, size: int) -> tuple:
-    """The first ``size`` values of ``row`` (an array) as a tuple. Compiled, ``size`` must be a
-    constant (a module's global), so that the tuple's length is known: numba keeps such a
-    tuple on the stack (the model's state and constants)."""
-    return tuple(row[i] for i in range(size))
-
-
-if numba is not None:
-
-    @overload(tuple_of)
-    def _tuple_of_compiled(row: Any, size: Any) -> Any:
-        """:func:`tuple_of` as compiled code runs it: numba's fixed-length tuple of an array."""
-        if not isinstance(size, numba.types.IntegerLiteral):
-            return None  # numba types the call again with the constant's value
-        length = size.literal_value
-        from numba.np.unsafe.ndarray import to_fixed_tuple
-
-        def of(row: Any, size: Any) -> Any:
-            return to_fixed_tuple(row, length)
-
-        return of
-
-
 def tuple_like(row: Any, template: tuple) -> tuple:
     """The first ``len(template)`` values of ``row`` (an array) as a tuple. Compiled, the size
-    is the type of ``template`` (a tuple of that many floats), so that a kernel that takes such
-    a template compiles once per size (the model's state with or without the model elements)."""
+    is the type of ``template`` (a tuple of that many floats), so that numba keeps the tuple on
+    the stack (the model's state and constants) and compiles a kernel once per size (the
+    model's state with or without the model elements)."""
     return tuple(row[i] for i in range(len(template)))
 
 

@@ -62,6 +62,8 @@ SOURCES = [
 #: How many constants the model has, and how many states.
 N_CONSTANTS = len(model.Constants._fields)
 N_STATE = len(model.STATE_NAMES)
+#: A row of the constants as compiled code takes it (jit.tuple_like: its size is its type).
+CONSTANTS_ROW = (0.0,) * N_CONSTANTS
 #: The state's layouts (kernel.layout): without the model elements' states (their states stand
 #: still where all three are off: physical.element_states), and the whole state. Each entry
 #: point below comes in both, the second named ``..._elements``: numba compiles the one a run
@@ -73,7 +75,7 @@ WHOLE = run.layout(N_STATE)
 @jitable
 def constants_of(row: Any) -> model.Constants:
     """The model's Constants from a row of floats, in the order of their fields."""
-    return model.Constants(*jit.tuple_of(row, N_CONSTANTS))
+    return model.Constants(*jit.tuple_like(row, CONSTANTS_ROW))
 
 
 @jitable
