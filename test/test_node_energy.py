@@ -108,3 +108,22 @@ def test_the_node_publishes_its_ledger_and_the_battery_charge_and_records_them(n
     )
     drawn = last.energy_j[at] - first.energy_j[at]
     assert drawn == pytest.approx(standby_w * seconds, rel=1e-6, abs=1e-9)  # drawn all along, whatever the load
+
+
+def test_the_node_warns_in_its_diagnostics_while_the_battery_cannot_give_what_the_drive_asks(nodes, client):
+    """eq. D11: a 48 V battery behind 100 ohm gives at most 5.8 W, less than the drive asks with
+    its valve open; the drive's status warns of it by name, and the ledger says why it does not close."""
+    from boom_hydraulics.bags.diagnostics import WARN
+
+    proc = nodes.start("battery_resistance_ohm:=100.0", "command_timeout_s:=0.0")
+
+    def drive() -> object | None:
+        arrays = (d for d in reversed(client.diagnostics))
+        return next((s for d in arrays for s in d.status if s.name == "boom_sim: drive"), None)
+
+    try:
+        client.handshake()
+        assert client.spin_until(lambda: (s := drive()) is not None and s.level == bytes([WARN]), opening=0.5)
+    finally:
+        stop_process(proc)
+    assert "battery_overloaded" in drive().message.split(", ")

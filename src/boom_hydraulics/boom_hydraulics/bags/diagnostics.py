@@ -73,8 +73,9 @@ def diagnostics(
         status.append(_status("simulation", ERROR, f"stopped: {failure}"))
     else:
         out = sim.outputs()
-        # resting on an end stop is normal; cavitation and an open relief valve are not
-        warnings = [name for name in ("cavitation", "relief_open") if out.get(name)]
+        # resting on an end stop is normal; cavitation, an open relief valve and a battery asked
+        # for more than it can give (eq. D11) are not
+        warnings = [name for name in ("cavitation", "relief_open", "battery_overloaded") if out.get(name)]
         notes = ["at_end_stop"] if out.get("at_end_stop") else []
         status.append(
             _status(

@@ -28,7 +28,9 @@ def battery_current_a(power_w: Num, voltage_v: Num, resistance_ohm: Num, xp: Mod
     """I = 2 P / (U + sqrt(U^2 - 4 R P)), A: the root of U I - R I^2 = P nearer zero (eq. D8).
 
     This form holds for R = 0 (I = P / U) and loses no digits for small R. Beyond the most the
-    battery can give, U^2 / (4 R) (:func:`overloaded`), the root is taken at that limit."""
+    battery can give, U^2 / (4 R) (:func:`overloaded`), there is no root: the square root's
+    argument is taken as 0 (I = 2 P / U), the terminals then give less than P, and the energy
+    ledger does not close while :func:`overloaded` flags it."""
     return 2.0 * power_w / (voltage_v + xp.sqrt(pos(voltage_v * voltage_v - 4.0 * resistance_ohm * power_w)))
 
 

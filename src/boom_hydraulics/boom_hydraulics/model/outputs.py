@@ -66,6 +66,11 @@ OUTPUTS: tuple[tuple[str, str, str], ...] = (
     ("cavitation", "bool", "a chamber at the cavitation floor"),
     ("relief_open", "bool", "a relief valve passes flow"),
     ("pump_saturated", "bool", "pump at its maximum flow"),
+    (
+        "battery_overloaded",
+        "bool",
+        "the drive asks more power than the battery can give, U^2 / (4 R) (eq. D11): the energy ledger does not close",
+    ),
 )
 OUTPUT_NAMES = tuple(name for name, _, _ in OUTPUTS)
 #: The battery's outputs (the physical model's energy ledger): NaN in paper mode, which has none.

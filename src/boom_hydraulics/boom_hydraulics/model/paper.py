@@ -227,6 +227,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * (y[2] < 0.0),  # cavitation
         1.0 * (zero != zero),  # relief_open
         1.0 * (zero != zero),  # pump_saturated
+        1.0 * (zero != zero),  # battery_overloaded: paper mode has no battery
     )
 
 

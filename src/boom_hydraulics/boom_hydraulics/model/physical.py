@@ -762,6 +762,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
         1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
         terms.supply.saturated,  # pump_saturated: below the pump's pressure
+        electric_chain(terms.supply, c, xp).overloaded,  # battery_overloaded (eq. D11)
     )
 
 
