@@ -17,10 +17,11 @@ import pytest
 from conftest import CONFIG
 from scipy.integrate import solve_ivp
 
+from boom_hydraulics import jit
 from boom_hydraulics.errors import SimulationError
 from boom_hydraulics.model import end_stops, friction, geometry, physical
 from boom_hydraulics.model.parameters import Parameters, with_updates
-from boom_hydraulics.solve import accelerate, integrators, outcomes, stepping
+from boom_hydraulics.solve import accelerate, integrators, kernel, outcomes, physical_kernel, stepping
 from boom_hydraulics.solve.commands import steps
 from boom_hydraulics.solve.simulation import Simulator
 
@@ -32,9 +33,28 @@ ATOL = {"length": 1e-10, "velocity": 1e-10, "pressure": 1e-2, "angular_velocity"
 ATOL["flow"] = 1e-12  # the hoses' flows (model/hoses.py), m^3/s
 
 
+@jit.kernel(physical_kernel.SOURCES)
+def _compiled_rates(t: float, y0: np.ndarray, crow: np.ndarray, u: float) -> np.ndarray:
+    """physical.derivative compiled, of the whole state (the layout of physical.initial_state)."""
+    return np.array(
+        physical.derivative(t, kernel.state_of(y0, physical_kernel.WHOLE), physical_kernel.constants_of(crow), u)
+    )
+
+
+def _rates(p: Parameters):
+    """The model's derivative f(t, y, u) for LSODA: compiled where numba is (LSODA calls it some
+    10^5 times, a minute of the suite's interpreted), else interpreted; the two are equal to the
+    bit (test_accelerate)."""
+    c = physical.constants(p)
+    if JIT:
+        row = np.array(c, dtype=float)
+        return lambda t, yy, u: _compiled_rates(t, yy, row, u)
+    return lambda t, yy, u: physical.derivative(t, list(yy), c, u)
+
+
 def reference(p: Parameters, every_s: float = 0.01, duration_s: float = 9.0) -> dict[str, np.ndarray]:
     """The 9 s cycle by LSODA (rtol 1e-9): q1, p1, p2 every ``every_s`` and the supply energy."""
-    c = physical.constants(p)
+    rates = _rates(p)
     y = physical.initial_state(p)
     atol = [ATOL[scale] for scale in physical.STATE_SCALES]
     ends = [*CYCLE[0][1:], duration_s]
@@ -42,7 +62,7 @@ def reference(p: Parameters, every_s: float = 0.01, duration_s: float = 9.0) -> 
     for start, end, u in zip(CYCLE[0], ends, CYCLE[1]):
         grid = np.arange(round(start / every_s), round(end / every_s) + 1) * every_s
         sol = solve_ivp(
-            lambda t, yy, u=u: physical.derivative(t, list(yy), c, u),
+            lambda t, yy, u=u: rates(t, yy, u),
             (start, end),
             y,
             method="LSODA",
