@@ -74,6 +74,29 @@ def test_run_writes_a_row_per_step_with_named_unit_columns(tmp_path):
     assert t[-1] == pytest.approx(0.5) and q1[-1] > q1[0]  # the default command opens the valve
 
 
+def test_a_run_whose_battery_cannot_give_what_the_drive_asks_warns_and_its_rows_say_when(tmp_path):
+    """48 V behind 0.288 ohm gives at most U^2 / (4 R) = 2 kW (eq. D11): enough for the idling
+    drive, not for the lift the valve opens at 0.1 s. The run ends (status 0), its CSV flags the
+    rows from the opening on, and one line on stderr counts them; a battery that copes says nothing."""
+    args = ["run", "--config", CONFIG / "default.yaml", "--duration", "0.3", "--profile", "steps:0=0,0.1=1"]
+    weak = _run(*args, "--set", "battery_resistance_ohm=0.288", "--out", tmp_path / "weak.csv")
+    assert weak.returncode == 0, weak.stderr
+    header, data = _read(tmp_path / "weak.csv")
+    flagged = data[:, header.index("battery_overloaded [bool]")] == 1.0
+    t = data[:, header.index("t [s]")]
+    assert flagged.any() and not flagged[t < 0.1].any()
+    warning = (
+        f"boom-sim: warning: the battery could not give the power the drive asked in {flagged.sum()} of the 301 rows"
+    )
+    assert [line for line in weak.stderr.splitlines() if line.startswith("boom-sim: warning")] == [
+        warning + ' (battery_overloaded; docs/model.md, "Battery"): its energy ledger does not close there; '
+        "raise battery_voltage_v or lower battery_resistance_ohm"
+    ]
+    fine = _run(*args, "--out", tmp_path / "fine.csv")
+    assert fine.returncode == 0 and "warning" not in fine.stderr, fine.stderr
+    assert not _read(tmp_path / "fine.csv")[1][:, header.index("battery_overloaded [bool]")].any()
+
+
 def test_run_options_profile_set_method_every(tmp_path):
     out = tmp_path / "cycle.csv"
     result = _run(

@@ -71,7 +71,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     ):
         print(f"boom-sim: {accelerate.compiling_notice(params.mode, params.method, 'this run')}", file=sys.stderr)
     stream = RunStream(params, args.duration, commands.from_parameters(params), every=args.every)
-    first_q1, last_q1, rows, start = _stream_csv(Path(args.out), stream)
+    first_q1, last_q1, rows, start, overloaded = _stream_csv(Path(args.out), stream)
     print(
         f"{args.out}: {rows} rows, {params.mode} mode, {params.method} dt={params.time_step_s:g} s, "
         f"q1 {first_q1:.4f} -> {last_q1:.4f} m"
@@ -83,18 +83,26 @@ def cmd_run(args: argparse.Namespace) -> int:
     )
     if params.command_profile == "angle":
         print(_move_summary(params, stream.metrics, start))
+    if overloaded:
+        print(
+            f"boom-sim: warning: the battery could not give the power the drive asked in {overloaded} of the "
+            f'{rows} rows (battery_overloaded; docs/model.md, "Battery"): its energy ledger does not close there; '
+            "raise battery_voltage_v or lower battery_resistance_ohm",
+            file=sys.stderr,
+        )
     return 0
 
 
-def _stream_csv(out: Path, stream: RunStream) -> tuple[float, float, int, float]:
+def _stream_csv(out: Path, stream: RunStream) -> tuple[float, float, int, float, int]:
     """Write the run's samples to ``out`` as they come (temporary name, renamed at the end:
     memory stays flat however long the run), with a progress bar on stderr when it is a
-    terminal. Returns q1 at the start and the end, the rows written, and the elevation at
-    the first sample of the closed-loop move (NaN without one)."""
+    terminal. Returns q1 at the start and the end, the rows written, the elevation at the
+    first sample of the closed-loop move (NaN without one) and the rows in which the battery
+    was overloaded."""
     from tqdm import tqdm
 
     start_s, end_s, _ = move_window(stream.params)
-    first_q1, last_q1, rows, start_alpha = math.nan, math.nan, 0, math.nan
+    first_q1, last_q1, rows, start_alpha, overloaded = math.nan, math.nan, 0, math.nan, 0
     progress = tqdm(total=stream.duration_s, unit="s", unit_scale=True, disable=None, file=sys.stderr,
                     desc="boom-sim", bar_format=PROGRESS_FORMAT)  # fmt: skip
     with progress, atomic_path(out) as tmp, tmp.open("w", newline="", encoding="utf-8") as handle:
@@ -109,8 +117,9 @@ def _stream_csv(out: Path, stream: RunStream) -> tuple[float, float, int, float]
                 start_alpha = float(chunk["alpha"][inside[0]]) if len(inside) else math.nan
             last_q1 = float(chunk["q1"][-1])
             rows += len(chunk["t"])
+            overloaded += int(np.count_nonzero(chunk["battery_overloaded"]))
             progress.update(stream.done_s - progress.n)
-    return first_q1, last_q1, rows, start_alpha
+    return first_q1, last_q1, rows, start_alpha, overloaded
 
 
 #: The progress bar: simulated seconds done of the run's, rate and time left.
