@@ -615,6 +615,26 @@ def test_a_whole_file_whose_metadata_yaml_cannot_be_put_in_place_names_why_and_l
     assert [p.name for p in file.parent.iterdir()] == [file.name]
 
 
+def test_a_whole_file_whose_folder_cannot_be_synced_says_metadata_yaml_is_written_not_that_nothing_changed(
+    tmp_path, monkeypatch
+):
+    file = _recorded(tmp_path / "late")
+    (tmp_path / "late" / "metadata.yaml").unlink()
+
+    def failing_sync(folder: Path) -> None:
+        raise OSError(errno.EIO, "Input/output error", str(folder))
+
+    monkeypatch.setattr(recovery, "_sync_folder", failing_sync)
+    with pytest.raises(BagError) as error:
+        recover(tmp_path / "late")
+    assert str(error.value) == (
+        f"{tmp_path / 'late'}: Input/output error; metadata.yaml is written but the folder could not be synced to "
+        f"disk: the bag reads now, and after a power cut boom-bag-recover {tmp_path / 'late'} writes it again"
+    )
+    assert sorted(p.name for p in file.parent.iterdir()) == [file.name, "metadata.yaml"]
+    assert check_bag(tmp_path / "late")  # it reads
+
+
 def test_a_message_of_no_data_is_kept_and_one_cut_inside_its_head_is_not():
     whole = _message(0, data=b"")  # 22 bytes: channel, sequence, log and publish time
     cut = _record(0x05, _u(1, 2) + _u(1, 4) + _u(2, 8) + _u(2, 7))  # 21 bytes

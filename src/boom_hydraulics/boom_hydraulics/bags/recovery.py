@@ -500,10 +500,16 @@ def _describe(bag: Path, file: Path, removed: list[Path]) -> Recovery:
         raise BagError(f"{exc.filename or bag}: {exc.strerror or exc}; nothing was changed") from None
     try:
         os.replace(tmp, bag / "metadata.yaml")
-        _sync_folder(bag)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise BagError(f"{exc.filename or bag}: {exc.strerror or exc}; nothing was changed") from None
+    try:
+        _sync_folder(bag)
+    except OSError as exc:  # metadata.yaml is in place, whole; whether it outlives a power cut is not sure
+        raise BagError(
+            f"{exc.filename or bag}: {exc.strerror or exc}; metadata.yaml is written but the folder could not be "
+            f"synced to disk: the bag reads now, and after a power cut boom-bag-recover {bag} writes it again"
+        ) from None
     return Recovery(file, None, len(found.messages), found.dropped_chunks, found.orphans, removed, False)
 
 
