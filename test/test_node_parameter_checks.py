@@ -229,6 +229,10 @@ def test_a_number_or_numbers_given_for_a_list_become_a_list_of_doubles(given, va
         Parameter("payload_mass_kg", Parameter.Type.DOUBLE_ARRAY, [1.0]),
         Parameter("substeps", Parameter.Type.DOUBLE, 2.0),  # an integer parameter: rclpy refuses the double
         Parameter("method", Parameter.Type.INTEGER, 4),
+        Parameter("mode", Parameter.Type.STRING, "[1, 2]"),  # text that reads as numbers, for a text parameter
+        Parameter("substeps", Parameter.Type.INTEGER_ARRAY, [1, 2]),
+        Parameter("payload_mass_kg", Parameter.Type.INTEGER_ARRAY, [1, 2]),
+        Parameter("jit", Parameter.Type.INTEGER, 1),  # a flag: rclpy refuses the integer, not as a double
         Parameter("command_times_s", Parameter.Type.STRING, "[0,"),
         Parameter("command_times_s", Parameter.Type.STRING, "abc"),
         Parameter("command_times_s", Parameter.Type.STRING_ARRAY, ["0", "true"]),
@@ -271,6 +275,12 @@ def test_an_unknown_key_is_refused_naming_the_closest_or_none():
     with pytest.raises(ConfigError) as nothing_close:
         np_.check_known(["zz"], argv=["boom_sim"])
     assert str(nothing_close.value) == "unknown parameter 'zz' for boom_sim (boom_sim --help lists them)"
+
+
+def test_every_key_is_checked_not_only_those_before_the_first_known_one():
+    for names in (["payload_mass_kg", "payload_mass_kgg"], ["use_sim_time", "zz"], ["command_value", "zz"]):
+        with pytest.raises(ConfigError, match=f"unknown parameter '{names[1]}'"):
+            np_.check_known(names, argv=["boom_sim"])
 
 
 def test_rclpys_own_parameters_and_qos_overrides_are_known():
@@ -359,6 +369,16 @@ def test_the_p_values_for_this_node_are_read_with_their_position_and_text():
     assert [name for _, name, _ in np_.assignments(args, node_name="other")] == ["a", "b", "e", "f", "g", "h", "i"]
 
 
+def test_a_long_command_line_ending_in_a_dangling_p_or_params_file_is_read_up_to_it():
+    """A launch file may pass hundreds of -p: the last -p (or --params-file) without its value is left alone."""
+    args = ["boom_sim", "--ros-args"]
+    for k in range(150):
+        args += ["-p", f"x{k}:=1"]
+    assert len(np_.assignments([*args, "-p"])) == 150
+    assert np_.params_files([*args, "--params-file"]) == []
+    assert np_.params_files([*args, "--params-file", "a.yaml"]) == ["a.yaml"]
+
+
 def test_a_refusal_naming_a_p_parameter_leads_with_what_the_user_typed():
     args = ["boom_sim", "--ros-args", "-p", "payload_mass_kg:=1", "-p", "jit:=maybe", "-p", "payload_mass_kg:=-5"]
     message = "parameter 'payload_mass_kg' must be at least 0"
@@ -405,6 +425,25 @@ def test_the_ros_arguments_are_not_the_users_and_the_params_files_are_read_from_
     ]
     assert np_.params_files(args) == ["a.yaml", "c.yaml"]
     assert np_.user_args(["boom_sim", "--", "x"]) == ["boom_sim", "--", "x"]  # a -- outside --ros-args is the user's
+
+
+def test_a_wildcard_p_and_a_param_stay_ros_arguments():
+    """``-p '**:use_sim_time:=true'`` (ROS's any-node form) and ``--param NAME:=VALUE`` are ROS
+    arguments like any other: neither ends the section nor names a params file."""
+    args = [
+        "boom_sim",
+        "--ros-args",
+        "-p",
+        "**:use_sim_time:=true",
+        "--param",
+        "x:=1",
+        "--help",
+        "--params-file",
+        "a.yaml",
+    ]
+    assert np_.user_args(args) == ["boom_sim"]
+    assert np_.params_files(args) == ["a.yaml"]
+    assert np_.params_files(["boom_sim", "--ros-args", "-p", "*:x:=1", "--params-file", "b.yaml"]) == ["b.yaml"]
 
 
 def test_a_params_file_that_is_missing_or_not_ros_params_is_named_in_one_line(tmp_path):
@@ -458,6 +497,30 @@ def _overrides(**values: Any) -> dict[str, Parameter]:
 
 def test_an_integer_after_a_params_files_double_is_what_rcl_keeps_and_passes():
     np_.check_overrides(_overrides(payload_mass_kg=60), ["boom_sim", "--ros-args", "-p", "payload_mass_kg:=60"])
+
+
+def test_each_p_name_is_checked_and_counted_on_its_own():
+    """A -p of a name rclpy did not hand over (another node's, a ROS argument) does not stop the
+    check of the next; other names' -p do not count as this one's."""
+    argv = ["boom_sim", "--ros-args", "-p", "a_m:=0.4", "-p", "boom_mass_kg:=90.0", "-p", "publish_rate_hz:=50.0"]
+    argv += ["-p", "payload_mass_kg:=60.0"]
+    overrides = _overrides(boom_mass_kg=90.0, publish_rate_hz=50.0, payload_mass_kg=60)
+    with pytest.raises(ConfigError) as refused:
+        np_.check_overrides(overrides, argv)
+    assert "-p payload_mass_kg:=60.0 would not be used: a params file gives it before, and rcl keeps 60" in str(
+        refused.value
+    )
+
+
+def test_a_params_file_after_the_ros_arguments_is_not_read_by_rcl_and_excuses_no_p(tmp_path):
+    """``--ros-args -p x:=50.0 -p x:=abc -- --params-file f.yaml``: the file is the program's
+    argument; rcl keeps 50.0, and the -p abc is refused (it was let through, and the node ran on 50.0)."""
+    argv = ["boom_sim", "--ros-args", "-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc", "--"]
+    with pytest.raises(ConfigError, match=r"-p payload_mass_kg:=abc would not be used: it is given 2 times"):
+        np_.check_known(_overrides(payload_mass_kg=50.0), argv=[*argv, "--params-file", str(CONFIG / "default.yaml")])
+    sets_payload = _params_file(tmp_path, "a.yaml", "/**:\n  ros__parameters:\n    payload_mass_kg: 50.0\n")
+    with pytest.raises(ConfigError, match=r"-p payload_mass_kg:=abc would not be used"):
+        np_.check_overrides(_overrides(payload_mass_kg=50.0), [*argv, "-v", sets_payload])
 
 
 def test_a_p_double_that_rcl_kept_as_an_integer_is_refused_saying_a_params_file_gave_one_before():
