@@ -452,13 +452,13 @@ def test_a_params_file_that_is_missing_or_not_ros_params_is_named_in_one_line(tm
     with pytest.raises(ConfigError) as refused:
         np_.check_params_file(str(missing))
     assert str(refused.value) == f"--params-file {missing}: no such file"
-    expected = "': expected '/**: ros__parameters: {name: value, ...}' per node"
+    expected = ": expected '/**: ros__parameters: {name: value, ...}' per node"
     for text in ("- 1\n", "/**:\n  payload_mass_kg: 1.0\n", "/**:\n  ros__parameters: 5\n", "/**: 5\n"):
         path = tmp_path / "bad.yaml"
         path.write_text(text)
         with pytest.raises(ConfigError) as refused:
             np_.check_params_file(str(path))
-        assert str(refused.value) == f"--params-file {path}{expected[1:]}", text
+        assert str(refused.value) == f"--params-file {path}{expected}", text
     both = tmp_path / "two_nodes.yaml"
     both.write_text("/**:\n  ros__parameters: {a: 1}\nother:\n  ros__parameters: {b: 2}\n")
     np_.check_params_file(str(both))
