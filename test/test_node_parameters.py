@@ -173,6 +173,20 @@ def test_a_shipped_params_file_loads_into_the_running_node(crane1, name):
         (None, ["-p", "payload_mass_kg:=1e300"], "'payload_mass_kg'"),
         (None, ["-p", "payload_mass_kg:=50.0", "-p", "payload_mass_kg:=abc"], "payload_mass_kg:=abc would not be used"),
         ("/**:\n  ros__parameters:\n    rtol: 1.0e-06\n", ["-p", "rtol:=tight"], "rtol:=tight would not be used"),
+        # a --params-file after -- is the program's argument, which rcl does not read: it cannot excuse the -p
+        (
+            None,
+            [
+                "-p",
+                "payload_mass_kg:=50.0",
+                "-p",
+                "payload_mass_kg:=abc",
+                "--",
+                "--params-file",
+                str(CONFIG / "default.yaml"),
+            ],
+            "payload_mass_kg:=abc would not be used",
+        ),
         ("/**:\n  ros__parameters:\n    command_value: 1.5\n", [], "'command_value' is 1.5"),  # checked, if ignored
         # a step too fine to count: one line, not a traceback (1e-20 s is inside the model's range)
         (None, ["-p", "time_step_s:=1.0e-20"], "-p time_step_s:=1.0e-20: parameter 'time_step_s' is 1e-20 s"),

@@ -312,7 +312,7 @@ def check_overrides(overrides: Mapping[str, Parameter], argv: Sequence[str]) -> 
     the last ``-p`` of a name has the last word on it: that name is not checked.
     """
     given = assignments(argv)
-    files = [(i, argv[i + 1]) for i, arg in enumerate(argv[:-1]) if arg == "--params-file"]
+    files = _params_file_args(argv)
     last: dict[str, tuple[int, str]] = {}
     for position, name, text in given:
         last[name] = (position, text)
@@ -393,6 +393,12 @@ def user_args(args: Sequence[str]) -> list[str]:
 
 def params_files(args: Sequence[str]) -> list[str]:
     """The files named by ``--params-file`` in the ROS arguments of ``args``."""
+    return [path for _, path in _params_file_args(args)]
+
+
+def _params_file_args(args: Sequence[str]) -> list[tuple[int, str]]:
+    """(position, file) of each ``--params-file`` in the ROS arguments of ``args``: one after
+    ``--`` is the program's own argument, which rcl does not read."""
     files, in_ros = [], False
     for i, arg in enumerate(args):
         if arg == "--ros-args":
@@ -400,7 +406,7 @@ def params_files(args: Sequence[str]) -> list[str]:
         elif arg == "--":
             in_ros = False
         elif in_ros and arg == "--params-file" and i + 1 < len(args):
-            files.append(args[i + 1])
+            files.append((i, args[i + 1]))
     return files
 
 
