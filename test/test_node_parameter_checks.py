@@ -472,9 +472,15 @@ def test_help_marks_the_start_only_parameters_and_lists_each_with_its_default_an
     starred = {line.split()[1] for line in node if line.startswith("  * ")}
     assert starred == START_ONLY_NODE  # the node's own: the model's start-only ones are in the reference
     # the columns line up: name, default, unit, description
-    assert node[0] == "    publish_rate_hz        100.0      Hz    State publish (tick) rate"
-    assert node[8] == "  * record_chunk_kib       1024.0     KiB   MCAP chunk size: the most a SIGKILL can lose"
-    assert node[2].startswith("  * publish_clock          False            Publish /clock")
+    name_width = max(map(len, np_.NODE_PARAMETERS))  # publish_robot_description's, the longest
+    assert name_width == 25
+    assert node[0] == "    " + "publish_rate_hz".ljust(25) + " 100.0      Hz    State publish (tick) rate"
+    assert (
+        node[8]
+        == "  * " + "record_chunk_kib".ljust(25) + " 1024.0     KiB   MCAP chunk size: the most a SIGKILL can lose"
+    )
+    assert node[2].startswith("  * " + "publish_clock".ljust(25) + " False            Publish /clock")
+    assert {line[4 + name_width] for line in node} == {" "} and all(line[5 + name_width] != " " for line in node)
     model_heading = "Model parameters (config/default.yaml lists them; ros2 param describe gives ranges):"
     model = lines[lines.index(model_heading) + 1 :]
     model = model[: model.index("")]

@@ -438,9 +438,10 @@ def usage() -> str:
         "",
         "Node parameters (* = at start only; read_only once running):",
     ]
+    node_width = max(map(len, NODE_PARAMETERS))
     for name, (value, unit, text, _, _) in NODE_PARAMETERS.items():
         star = "*" if name in START_ONLY else " "
-        lines.append(f"  {star} {name:<22} {value!s:<10} {unit:<5} {text}")
+        lines.append(f"  {star} {name:<{node_width}} {value!s:<10} {unit:<5} {text}")
     lines += ["", "Model parameters (config/default.yaml lists them; ros2 param describe gives ranges):"]
     width = max(map(len, MODEL_NAMES))
     defaults = {name: str(describe(name)["default"]) for name in MODEL_NAMES}
