@@ -9,9 +9,11 @@ import math
 
 import numpy as np
 import pytest
+from test_linearize_modes import ELASTIC, MID
 
 from boom_hydraulics.analysis import linear_model as lm
 from boom_hydraulics.analysis.operating_point import operating_point
+from boom_hydraulics.model.geometry import lever_rad_per_m
 from boom_hydraulics.model.parameters import Parameters, with_updates
 
 control = pytest.importorskip("control")
@@ -180,3 +182,34 @@ def test_the_sweeps_modes_come_of_a_mode_named_in_a_file_as_of_the_default():
     default = lm.linearize(operating_point(Parameters(), 1.4)).hydraulic_mode()
     assert frequency[0] == pytest.approx(default.natural_frequency_hz, rel=1e-9)
     assert damping[0] == pytest.approx(default.damping_ratio, rel=1e-6)
+
+
+def test_of_two_ringing_modes_the_one_that_moves_the_booms_tip_is_the_hydraulic_mode():
+    """An elastic boom's two oscillations, made by hand: one rings with the rod and the boom's
+    bending rate cancelling at the tip (L1 k v + eta' = 0: the boom's root, the tip still), the
+    other moves the tip (and much oil). The one at the tip is the hydraulic mode, however much
+    less the other moves the rest of the states."""
+    point = operating_point(ELASTIC, MID)
+    model = lm.linearize(point)
+    names = model.state_names
+    at = {name: i for i, name in enumerate(names)}
+    assert len(names) == 8 and names[-2:] == ("boom_deflection", "boom_deflection_rate")
+    tip = ELASTIC.boom_length_m * lever_rad_per_m(MID, ELASTIC.a_m, ELASTIC.b_m)
+
+    def vector(**parts: float) -> np.ndarray:
+        out = np.zeros(len(names))
+        for name, value in parts.items():
+            out[at[name]] = value
+        return out
+
+    root = (vector(v=1e-3, boom_deflection=0.5, boom_deflection_rate=-tip * 1e-3), vector(q1=1e-3))
+    tonne = (vector(v=1e-3, p1=1.0), vector(p2=1.0))
+    others = [vector(x_v=1.0), vector(bristle=1.0), vector(boom_deflection=1.0), vector(p1=1.0)]
+    columns = np.column_stack([*root, *tonne, *others])
+    blocks = np.zeros((len(names), len(names)))
+    for k, (sigma, omega) in enumerate([(-20.0, 2 * math.pi * 125.0), (-1.0, 2 * math.pi * 2.66)]):
+        blocks[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[sigma, omega], [-omega, sigma]]
+    blocks[4:, 4:] = np.diag([-3.0, -7.0, -11.0, -13.0])
+    a = columns @ blocks @ np.linalg.inv(columns)
+    mode = lm.LinearModel(point, a, np.zeros((len(names), 1)), model.C, model.D).hydraulic_mode()
+    assert mode.natural_frequency_hz == pytest.approx(math.hypot(1.0, 2 * math.pi * 2.66) / (2 * math.pi), rel=1e-9)
