@@ -5,6 +5,7 @@ definition, and margins at a known crossover."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -74,6 +75,7 @@ def test_the_hydraulic_mode_is_the_ringing_of_the_rod_and_none_where_nothing_rin
     mode = _with(model, *_oscillator(wn, zeta)).hydraulic_mode()
     assert mode.natural_frequency_hz == pytest.approx(5.0, rel=1e-12)
     assert mode.damping_ratio == pytest.approx(zeta, rel=1e-12) and mode.oscillatory
+    assert mode.eigenvalue.imag > 0.0  # of the pair, the one with the positive imaginary part
     real = _with(model, np.diag([-1.0, -2.0, -3.0, -4.0, -5.0, -6.0]), np.ones(6))
     assert real.hydraulic_mode() is None
     # one matrix, not a stack of them, gives its one eigenvalue
@@ -151,6 +153,10 @@ def test_the_margins_of_a_known_loop_are_its_crossovers(model):
     phase = -90.0 - math.degrees(math.atan(wc)) - math.degrees(math.atan(wc / 2.0))
     assert margins.phase_margin_deg == pytest.approx(180.0 + phase, rel=1e-6)
     # a first-order loop never crosses -180 deg: no gain margin to speak of, and no phase crossover
+    # six times the gain: past the margin, the loop is unstable and the margin below one (-6 dB)
+    unstable = lm.margins(control.tf([12.0], [1.0, 3.0, 2.0, 0.0]))
+    assert unstable.gain_margin == pytest.approx(0.5, rel=1e-6)
+    assert unstable.gain_margin_db == pytest.approx(20 * math.log10(0.5), rel=1e-6)
     first = lm.margins(control.tf([1.0], [1.0, 1.0]))
     assert math.isinf(first.gain_margin) and math.isnan(first.phase_crossover_hz)
     assert lm.Margins(0.0, 30.0, 1.0, 2.0).gain_margin_db != lm.Margins(0.0, 30.0, 1.0, 2.0).gain_margin_db  # nan
@@ -169,9 +175,10 @@ def test_the_oil_spring_frequency_goes_with_the_root_of_the_oil_stiffness_and_th
             )
             soft = with_updates(p, bulk_modulus_pa=modulus / 4.0, hose_wall_modulus_pa=modulus / 2.0)
             assert lm.oil_spring_frequency_rad_s(soft, q1_m) == pytest.approx(stiff / 2.0, rel=1e-12)
-        sealed = lm.oil_spring_frequency_rad_s(p, q1_m, seals=True) ** 2
-        added = p.static_friction_n / p.friction_presliding_m / lm.effective_mass_at(p, q1_m)
-        assert sealed - lm.oil_spring_frequency_rad_s(p, q1_m) ** 2 == pytest.approx(added, rel=1e-9)
+        seals = with_updates(p, static_friction_n=173.0, friction_presliding_m=3e-4)  # 576667 N/m
+        sealed = lm.oil_spring_frequency_rad_s(seals, q1_m, seals=True) ** 2
+        added = 173.0 / 3e-4 / lm.effective_mass_at(p, q1_m)
+        assert sealed - lm.oil_spring_frequency_rad_s(seals, q1_m) ** 2 == pytest.approx(added, rel=1e-9)
 
 
 def test_the_sweeps_modes_come_of_a_mode_named_in_a_file_as_of_the_default():
@@ -225,8 +232,21 @@ def test_a_drive_with_its_own_states_and_hoses_is_linearised_over_them_all(drive
     model = lm.linearize(operating_point(hosed, 1.4))
     n = len(lm.states_of(hosed))
     assert n >= 24 and model.A.shape == (n, n) and len(model.state_names) == len(model.state_units) == n
+    assert model.state_units[-16:] == (("Pa",) * 4 + ("m^3/s",) * 4) * 2
     assert model.state_names[-16:] == tuple(
         f"hose_{s}_{x}" for s in "ab" for x in ("p0", "p1", "p2", "p3", "q1", "q2", "q3", "q4")
     )
     alone = lm.linearize(operating_point(bare, 1.4)).hydraulic_mode().natural_frequency_hz
     assert 0.75 * alone < model.hydraulic_mode().natural_frequency_hz < alone
+
+
+def test_modes_and_margins_are_values():
+    """A mode or a margin is a value: equal ones are one in a set, and none can be changed."""
+    first = lm.Mode(complex(-1.0, 6.0), 1.0, 0.2, True)
+    assert {first, lm.Mode(complex(-1.0, 6.0), 1.0, 0.2, True)} == {first}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        first.damping_ratio = 0.5  # type: ignore[misc]
+    margins = lm.Margins(3.0, 30.0, 1.0, 2.0)
+    assert len({margins, lm.Margins(3.0, 30.0, 1.0, 2.0)}) == 1
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        margins.gain_margin = 1.0  # type: ignore[misc]
