@@ -63,6 +63,17 @@ def test_the_modes_of_a_second_order_system_are_its_natural_frequency_and_dampin
     assert all(m.damping_ratio == 1.0 and m.eigenvalue.imag == 0.0 for m in real)
 
 
+def test_a_slow_ringing_counts_once_rings_and_is_the_hydraulic_mode(model):
+    """A ringing at 0.1 Hz (eigenvalues -0.13 +- 0.62j: imaginary parts within 1/s of 0) is one
+    oscillating mode, and the boom's hydraulic one."""
+    wn, zeta = 2 * math.pi * 0.1, 0.2
+    slow = _with(model, *_oscillator(wn, zeta))
+    ringing = [m for m in slow.modes() if m.oscillatory]
+    assert len(slow.modes()) == 5 and len(ringing) == 1
+    assert ringing[0].natural_frequency_hz == pytest.approx(0.1, rel=1e-12)
+    assert slow.hydraulic_mode().natural_frequency_hz == pytest.approx(0.1, rel=1e-12)
+
+
 def test_a_mode_at_rest_has_no_frequency_and_counts_as_damped(model):
     """An integrator (eigenvalue 0) reads 0 Hz and damping 1, not 0/0."""
     a = np.diag([0.0, -1.0, -2.0, -3.0, -4.0, -5.0])
@@ -241,11 +252,14 @@ def test_a_drive_with_its_own_states_and_hoses_is_linearised_over_them_all(drive
 
 
 def test_modes_and_margins_are_values():
-    """A mode or a margin is a value: equal ones are one in a set, and none can be changed."""
+    """A mode or a margin is a value: equal ones are one in a set, and none can be changed; nor
+    can a linear model's matrices be swapped under it."""
     first = lm.Mode(complex(-1.0, 6.0), 1.0, 0.2, True)
     assert {first, lm.Mode(complex(-1.0, 6.0), 1.0, 0.2, True)} == {first}
     with pytest.raises(dataclasses.FrozenInstanceError):
         first.damping_ratio = 0.5  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        lm.linearize(operating_point(Parameters(), 1.4)).A = np.zeros((6, 6))  # type: ignore[misc]
     margins = lm.Margins(3.0, 30.0, 1.0, 2.0)
     assert len({margins, lm.Margins(3.0, 30.0, 1.0, 2.0)}) == 1
     with pytest.raises(dataclasses.FrozenInstanceError):
