@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -264,3 +266,12 @@ def test_modes_and_margins_are_values():
     assert len({margins, lm.Margins(3.0, 30.0, 1.0, 2.0)}) == 1
     with pytest.raises(dataclasses.FrozenInstanceError):
         margins.gain_margin = 1.0  # type: ignore[misc]
+
+
+def test_a_sweep_takes_its_modes_without_loading_python_control():
+    """python-control takes seconds to load and a sweep's modes need none of it: importing the
+    linear model (as boom-sweep does) leaves it unloaded."""
+    code = "import sys, boom_hydraulics.analysis.linear_model; print('control' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "False"
