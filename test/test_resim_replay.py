@@ -324,6 +324,10 @@ def test_the_controller_follows_the_recorded_setpoints_from_the_instant_before_t
     run = _run(_ticks(15))
     run.setpoints = setpoints
     given = _replayed(run)
+    # a stretch of the first two instants only: taken over at 10 ms, let go at 20 ms
+    early = _run(_ticks(5))
+    early.setpoints = [(ORIGIN + 10 * MS, alpha0, 0.0), (ORIGIN + 20 * MS, alpha0 + ramp, ramp / 0.01)]
+    assert [out["u"] != 0.0 for _, out in _replayed(early)] == [False, True, False, False, False]
     sim = Simulator(Parameters())
     drive = CommandedDrive(sim)
     rods = []
@@ -387,7 +391,7 @@ def test_a_reset_node_run_is_written_again_with_its_reset_and_its_events(tmp_pat
     holds the run events as recorded, so that it can be re-simulated in turn."""
     bag = tmp_path / "node"
     rods = _record_reset_node(bag)
-    out, count = resimulate(bag, tmp_path / "new")
+    out, count = resimulate(bag, tmp_path / "runs" / "what_if" / "new")  # (its parents made too)
     assert count == len(rods) == 21
     old, new = _messages(bag), _messages(out)
     again = [topic_log for topic_log in new if topic_log[0] == "/boom_sim/drive_state"]
@@ -459,3 +463,61 @@ def test_a_what_if_that_fails_before_a_reset_the_node_made_on_its_own_failure_go
     assert [stamp for stamp, _ in given][-4:] == instants[-4:]
     assert given[20][1]["q1"] > 1.75  # 2.1 s: nearly out
     assert given[21][1]["q1"] == pytest.approx(fig8.initial_length_m, abs=1e-3) and given[21][1]["u"] == 0.0
+
+
+def test_a_reset_long_after_the_last_state_runs_the_drive_on_to_it_first():
+    """States at 10-50 ms, then none until the node was reset at 107 ms (a run stepped without
+    publishing): the drive runs on the 57 ms to the reset, is reset there, and goes on."""
+    states = [ORIGIN + MS * ms for ms in (10, 20, 30, 40, 50, 110, 120, 130)]
+    events = [RunEvent("reset", 0.107, 5, ORIGIN, cause="service", rod_position_m=1.45)]
+    run = _run(states, [_command(0.9, 3.0, None, 0)], events=events, event_logs=[ORIGIN + 107 * MS])
+    given = _replayed(run)
+    sim = Simulator(Parameters())
+    drive = CommandedDrive(sim)
+    drive.push(0.0, 0.9)
+    drive.advance(107)
+    sim.reset(1.45, keep_time=True)
+    drive.reset()
+    drive.advance(3)
+    assert given[5][0] == ORIGIN + 110 * MS
+    assert given[5][1]["q1"] == pytest.approx(sim.outputs()["q1"], rel=0, abs=1e-12)
+
+
+def test_a_recorded_timeout_counts_for_the_commands_logged_at_or_after_it_and_none_before():
+    """The base command timeout 100 ms, set to 60 ms by a change logged at 40 ms. A command
+    logged at 25 ms, stamped 75 ms before, arrived in time by the 100 ms (it acts at 20 ms); one
+    logged at 40 ms, the change's very time, stamped 75 ms before, arrived stale by the 60 ms,
+    and leaves the valve to the command of 35 ms, which closes 60 ms after its stamp."""
+    commands = [
+        _command(0.7, 25.0, -50.0, 2),
+        _command(0.3, 33.0, 35.0, 3),
+        _command(0.9, 40.0, -35.0, 4),
+    ]
+    run = _run(_ticks(11), commands, changes=[_change(40.0, command_timeout_s=0.06)], timeout_s=0.1)
+    u = [out["u"] for _, out in _replayed(run)]
+    assert u == [0.0, 0.0, 0.7, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.0, 0.0]
+
+
+def test_a_run_on_simulated_time_without_drive_states_is_stepped_from_stamp_zero():
+    """publish_clock: the time origin is 0 (stamps are simulated time); a bag without drive
+    states is stepped on the publish rate's grid from there to its end."""
+    run = _run([], end_ms=45.0)
+    run = dataclasses.replace(
+        run,
+        description=dataclasses.replace(run.description, clock_origin_ns=0),
+        end_ns=45 * MS,
+        commands=[_command(0.6, 12.0, None, None, origin=0)],
+    )
+    given = _replayed(run)
+    assert [(stamp // MS, out["u"]) for stamp, out in given] == [(10, 0.0), (20, 0.6), (30, 0.6), (40, 0.6)]
+
+
+def test_a_reset_after_hundreds_of_states_is_made_there():
+    """Published at 1 kHz, reset after the 280th state: the 281st is the rod at rest where the
+    reset put it (the state counts are numbers, however large)."""
+    states = [ORIGIN + k * MS for k in range(1, 281)] + [ORIGIN + k * MS for k in range(280, 300)]
+    events = [RunEvent("reset", 0.28, 280, ORIGIN, cause="service", rod_position_m=1.45)]
+    run = _run(states, [_command(0.9, 0.5, None, 0)], events=events, event_logs=[ORIGIN + 280 * MS + PUBLISH_NS + 1])
+    given = _replayed(run)
+    assert len(given) == 300 and given[279][1]["q1"] > 1.38
+    assert given[280][1]["q1"] == 1.45 and given[280][0] == ORIGIN + 280 * MS
