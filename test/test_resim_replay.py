@@ -223,7 +223,8 @@ def test_a_recorded_parameter_change_acts_at_its_time_and_a_set_value_stays_on_t
     the rod from there moves as a drive that took it then; with --set payload_mass_kg the change
     is not taken, and the run is the unchanged one."""
     commands = [_command(0.8, 5.0, None, 0)]
-    run = _run(_ticks(12), commands, changes=[_change(50.0, payload_mass_kg=400.0, real_time_factor=2.0)])
+    later_pace = _change(110.0, real_time_factor=1.0)  # (a change after it waits its own turn)
+    run = _run(_ticks(12), commands, changes=[_change(50.0, payload_mass_kg=400.0, real_time_factor=2.0), later_pace])
     changed = [out["q1"] for _, out in _replayed(run)]
     # the node takes a change between ticks, within half a step of an instant: 50.4 ms at 50 ms
     near = _run(_ticks(12), commands, changes=[_change(50.4, payload_mass_kg=400.0)])
@@ -310,7 +311,8 @@ def test_the_new_bag_has_each_state_where_the_node_logged_it_the_commands_as_rec
     assert len(ledger) == 50 // ledger_every(100.0) and ledger[0][0] == EPOCH_NS + ledger_every(100.0) * 10_000_000
     with pytest.raises(ConfigError, match="exists already"):
         resimulate(bag, out)
-    heavy, _ = resimulate(bag, tmp_path / "heavy", overrides={"payload_mass_kg": 400.0})
+    heavy, _ = resimulate(bag, tmp_path / "heavy", overrides={"payload_mass_kg": 400.0, "mode": "physical"})
+    assert len(read_energy_ledger_messages(heavy)) == len(ledger)
     assert read_drive_states(heavy)["q1"].max() < again["q1"].max() - 1e-4
 
 
@@ -328,6 +330,10 @@ def test_the_controller_follows_the_recorded_setpoints_from_the_instant_before_t
     early = _run(_ticks(5))
     early.setpoints = [(ORIGIN + 10 * MS, alpha0, 0.0), (ORIGIN + 20 * MS, alpha0 + ramp, ramp / 0.01)]
     assert [out["u"] != 0.0 for _, out in _replayed(early)] == [False, True, False, False, False]
+    # and one of the two before the last: taken over at 20 ms, let go at 40 ms
+    late = _run(_ticks(5))
+    late.setpoints = [(ORIGIN + 30 * MS, alpha0, 0.0), (ORIGIN + 40 * MS, alpha0 + ramp, ramp / 0.01)]
+    assert [out["u"] != 0.0 for _, out in _replayed(late)] == [False, False, True, True, False]
     sim = Simulator(Parameters())
     drive = CommandedDrive(sim)
     rods = []
