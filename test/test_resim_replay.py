@@ -23,7 +23,7 @@ pytest.importorskip("rclpy")
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from boom_hydraulics.bags.encoding import DRIVE_STATE, drive_state_cdr
+from boom_hydraulics.bags.encoding import DRIVE_STATE, ENERGY_LEDGER, drive_state_cdr
 from boom_hydraulics.bags.energy import ledger_every
 from boom_hydraulics.bags.reading import read_drive_states, read_energy_ledger_messages
 from boom_hydraulics.bags.recording import BagRecorder, Topic, run_description
@@ -153,6 +153,10 @@ def test_a_run_without_drive_states_is_stepped_at_its_publish_rate_with_commands
     run = _run([], commands, end_ms=95.0)
     given = _replayed(run)
     assert [stamp for stamp, _ in given] == _ticks(9)
+    # a bag ending on an instant has it: 1 s at 10 Hz is 10 states (though 1.0 // 0.1 is 9)
+    slow = _run([], end_ms=1000.0)
+    slow.description = dataclasses.replace(slow.description, publish_rate_hz=10.0)
+    assert [(stamp - ORIGIN) // MS for stamp, _ in _replayed(slow)] == list(range(100, 1001, 100))
     u = [out["u"] for _, out in given]
     assert u == [0.0, 0.0, 0.4, 0.4, 0.4, 0.4, -0.2, -0.2, -0.2]
 
@@ -192,6 +196,8 @@ def test_a_reset_puts_the_rod_where_the_node_put_it_and_a_pause_moves_the_stamps
     run = _run(states, commands, events=events, end_ms=500.0, event_logs=logs)
     given = _replayed(run)
     assert [stamp for stamp, _ in given] == states
+    # with a longer step, an instant that rounds onto the one before is given all the same
+    assert len(_replayed(run, {"time_step_s": 0.015})) == len(states)
     q1 = [out["q1"] for _, out in given]
     assert q1[9] > q1[4] > q1[1]  # lifting on the first command
     assert q1[10] == pytest.approx(1.3, abs=1e-12) and given[10][1]["u"] == 0.0 and given[10][1]["v"] == 0.0
@@ -446,6 +452,8 @@ def test_a_paper_mode_what_if_writes_no_energy_ledger(tmp_path):
     bag = record_node(tmp_path / "node", commands=((0.05, 0.5),), duration_s=0.3)
     out, count = resimulate(bag, tmp_path / "paper", overrides={"mode": "paper"})
     assert count == 30 and read_energy_ledger_messages(out) == []
+    with AnyReader([out]) as reader:
+        assert all(c.msgtype != ENERGY_LEDGER for c in reader.connections)
 
 
 @pytest.mark.parametrize("stopped", [True, False])
@@ -498,6 +506,7 @@ def test_a_recorded_timeout_counts_for_the_commands_logged_at_or_after_it_and_no
         _command(0.7, 25.0, -50.0, 2),
         _command(0.3, 33.0, 35.0, 3),
         _command(0.9, 40.0, -35.0, 4),
+        _command(0.8, 52.0, -20.0, 5),  # logged after the change, 72 ms old: stale as well
     ]
     run = _run(_ticks(11), commands, changes=[_change(40.0, command_timeout_s=0.06)], timeout_s=0.1)
     u = [out["u"] for _, out in _replayed(run)]
@@ -523,7 +532,9 @@ def test_a_reset_after_hundreds_of_states_is_made_there():
     reset put it (the state counts are numbers, however large)."""
     states = [ORIGIN + k * MS for k in range(1, 281)] + [ORIGIN + k * MS for k in range(280, 300)]
     events = [RunEvent("reset", 0.28, 280, ORIGIN, cause="service", rod_position_m=1.45)]
-    run = _run(states, [_command(0.9, 0.5, None, 0)], events=events, event_logs=[ORIGIN + 280 * MS + PUBLISH_NS + 1])
+    commands = [_command(0.9, 0.5, None, 0), _command(-0.5, 285.9, None, 285)]
+    run = _run(states, commands, events=events, event_logs=[ORIGIN + 280 * MS + PUBLISH_NS + 1])
     given = _replayed(run)
     assert len(given) == 300 and given[279][1]["q1"] > 1.38
     assert given[280][1]["q1"] == 1.45 and given[280][0] == ORIGIN + 280 * MS
+    assert [out["u"] for _, out in given[284:288]] == [0.0, -0.5, -0.5, -0.5]  # taken after 285 states
