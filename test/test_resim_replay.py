@@ -298,7 +298,7 @@ def test_the_new_bag_has_each_state_where_the_node_logged_it_the_commands_as_rec
     stamp for stamp and logged when the node logged them, the commands copied byte for byte at
     their log times, the energy ledger at ENERGY_HZ; its count is the states'. A second run to
     the same --out is refused; a heavier payload (--set) lifts less."""
-    bag = record_node(tmp_path / "node", commands=((0.05, 0.8), (0.3, -0.4)), duration_s=0.5)
+    bag = record_node(tmp_path / "node", commands=((0.005, 0.1), (0.05, 0.8), (0.3, -0.4)), duration_s=0.5)
     out, count = resimulate(bag, tmp_path / "new")
     assert out == tmp_path / "new"
     recorded, again = read_drive_states(bag), read_drive_states(out)
@@ -309,7 +309,7 @@ def test_the_new_bag_has_each_state_where_the_node_logged_it_the_commands_as_rec
     states = lambda messages: [log for topic, log, _ in messages if topic == "/drive_state"]  # noqa: E731
     assert states(new) == states(old)
     commands = lambda messages: [m for m in messages if m[0] == "/valve_command"]  # noqa: E731
-    assert commands(new) == commands(old) and len(commands(new)) == 2
+    assert commands(new) == commands(old) and len(commands(new)) == 3  # one before the first state
     # each in log order among the states, as the node logged it
     order = [topic for topic, _, _ in new if topic in ("/drive_state", "/valve_command")]
     assert order == [topic for topic, _, _ in old]
