@@ -196,15 +196,19 @@ class LinearModel:
         """The gain of each output once the fast modes have settled while the slow ones (leakage,
         creep: SLOW_RATIO times slower than the hydraulic mode, or slower) have not yet moved:
         -C_f A_f^-1 B_f + D of the fast block, A split into fast and slow blocks by an ordered
-        real Schur form and a Sylvester equation (no eigenvectors: robust where slow modes repeat)."""
+        real Schur form and a Sylvester equation (no eigenvectors: robust where slow modes repeat),
+        of the states each in units of its scale (:func:`_state_scales`): in Pa and metres at
+        once, A's entries span ten decades and the Schur form lost the gains' fourth digit."""
         import scipy.linalg  # here: a sweep imports this module for its modes, which need no scipy
 
         mode = self.hydraulic_mode()
         limit = (abs(mode.eigenvalue) if mode else float(np.max(np.abs(np.linalg.eigvals(self.A))))) / SLOW_RATIO
-        s, z, k = scipy.linalg.schur(self.A, output="real", sort=lambda re, im: math.hypot(re, im) >= limit)
+        scales = np.array(_state_scales(self.point.params))
+        a, b, c = self.A * scales[None, :] / scales[:, None], self.B / scales[:, None], self.C * scales[None, :]
+        s, z, k = scipy.linalg.schur(a, output="real", sort=lambda re, im: math.hypot(re, im) >= limit)
         coupling = scipy.linalg.solve_sylvester(s[:k, :k], -s[k:, k:], -s[:k, k:])  # S11 X - X S22 = -S12
-        b = (z.T @ self.B)[:k] - coupling @ (z.T @ self.B)[k:]
-        return -(self.C @ z[:, :k]) @ np.linalg.solve(s[:k, :k], b)[:, 0] + self.D[:, 0]
+        fast = (z.T @ b)[:k] - coupling @ (z.T @ b)[k:]
+        return -(c @ z[:, :k]) @ np.linalg.solve(s[:k, :k], fast)[:, 0] + self.D[:, 0]
 
 
 def hydraulic_eigenvalue(
