@@ -305,3 +305,54 @@ def test_the_metrics_taken_while_running_are_those_of_the_stored_run():
         assert both_nan or math.isclose(value[0], expected[name], rel_tol=1e-12, abs_tol=1e-15), name
         finite += not both_nan
     assert finite > 5 and runs.metrics["peak_pressure_pa"][0] > p.tank_pressure_pa
+
+
+def test_a_batch_of_closed_loops_runs_each_set_on_its_own_knots_as_its_single_run():
+    params = [with_updates(Parameters(), initial_length_m=q) for q in (1.3, 1.45)]
+    starts = [_angle_of(p) for p in params]
+    # each set its own path: from its own start, ending at its own rate
+    times, angles, rates = [0.0, 0.03], [starts, [a + 0.02 for a in starts]], [[0.0, 0.0], [0.3, 0.6]]
+    batch = run_sets(params, 0.05, PositionLoop(params, SetpointPath.of(times, angles, rates)), every=5,
+                     store=True, jit=False)  # fmt: skip
+    for k, p in enumerate(params):
+        path = SetpointPath.of(times, [a[k] for a in angles], [r[k] for r in rates])
+        single = Simulator(p, jit=False).run(0.05, PositionLoop([p], path), every=5)
+        for name in ("u", "q1", "alpha"):
+            assert np.array_equal(batch.columns(k)[name], single[name]), (k, name)
+    assert batch.columns(0)["u"][1] != batch.columns(1)["u"][1]
+
+
+def test_a_fresh_controller_holds_a_target_within_its_dead_band_and_moves_to_one_past_it():
+    p = with_updates(Parameters(), control_deadband_rad=5e-3)
+    a0 = _angle_of(p)
+    for band_widths, moves in ((0.5, False), (1.5, True)):  # holding starts only once inside the band
+        target = SetpointPath.of([0.0], [a0 + band_widths * p.control_deadband_rad])  # there at once
+        u = Simulator(p, jit=False).run(0.02, PositionLoop([p], target))["u"]
+        assert (u[0] > 0.0) == moves and (u == 0.0).all() != moves, band_widths
+
+
+def test_a_python_command_is_not_asked_after_the_run_failed():
+    euler = with_updates(Parameters(), method="euler")
+    asked: list[float] = []
+
+    def command(t: float) -> float:
+        asked.append(t)
+        return 1.0 if t < 0.1 else -0.4
+
+    sim = Simulator(euler, jit=False)
+    out = sim.run(0.5, command, stop_on_error=True)
+    assert out.stopped is not None and sim.t < 0.2
+    assert max(asked) < sim.t + euler.time_step_s  # the failed step's command at most, none after
+
+
+def test_a_payload_put_down_and_picked_up_again_is_back_on_the_hook_from_its_time():
+    p = with_updates(Parameters(), command_payload_times_s=[0.01, 0.02], command_payload_fractions=[0.0, 1.0])
+    out = Simulator(p, jit=False).run(0.03, commands.constant(0.5), every=10)
+    by_hand = Simulator(Parameters(), jit=False)
+    q1 = [by_hand.y[0]]
+    for payload_kg in (0.0, Parameters().payload_mass_kg, None):  # each 10 ms, then the next share
+        by_hand.step(0.5, 10)
+        q1.append(by_hand.y[0])
+        if payload_kg is not None:
+            by_hand.set_payload_mass(payload_kg)
+    assert np.allclose(out["q1"], q1, rtol=1e-12, atol=0.0)
