@@ -270,6 +270,9 @@ def test_a_step_that_lands_outside_the_geometry_of_eq_1_is_not_taken():
     assert 1.7 < runs.last_q1_m[0] < 1.8 and "geometry" in runs.reasons[0]  # the last good state, inside (1, 1.8) m
     assert runs.columns(0)["q1"][-1] == runs.last_q1_m[0]
     assert runs.failed_at_s[0] == pytest.approx(runs.columns(0)["t"][-1] + fig8.time_step_s)  # the failed step's end
+    steps = len(runs.columns(0)["t"]) - 1
+    states, _, most = _stepped_by_hand(fig8, commands.constant(1.0), steps)
+    assert list(runs.states[0]) == states[-1] and runs.most_substeps[0] == most  # of the steps taken
 
 
 def test_a_set_that_failed_in_an_earlier_slice_takes_no_more_samples_while_the_others_run_on():
@@ -356,3 +359,16 @@ def test_a_payload_put_down_and_picked_up_again_is_back_on_the_hook_from_its_tim
         if payload_kg is not None:
             by_hand.set_payload_mass(payload_kg)
     assert np.allclose(out["q1"], q1, rtol=1e-12, atol=0.0)
+
+
+def test_each_set_of_a_batch_takes_its_metrics_against_its_own_targets():
+    """Sets may differ in their closed-loop targets (the metrics' settings), whichever path drives them."""
+    base = with_updates(Parameters(), command_profile="angle", command_times_s=[0.0])
+    params = [with_updates(base, command_angles_rad=[a]) for a in (0.75, 0.7)]
+    runs = run_sets(params, 0.2, PositionLoop.of_parameters(params), every=4, store=True, jit=False)
+    for k, p in enumerate(params):
+        expected = analysis.metrics(runs.columns(k), params=p)
+        for name in ("target_error_deg", "worst_target_error_deg", "target_overshoot_deg"):
+            assert math.isclose(runs.metrics[name][k], expected[name], rel_tol=1e-12), (k, name)
+    errors = runs.metrics["target_error_deg"]
+    assert math.isfinite(errors[0]) and abs(errors[1] - errors[0]) > 1.0  # 0.05 rad (2.9 degrees) apart
