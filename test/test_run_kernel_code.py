@@ -300,7 +300,9 @@ def test_a_set_that_failed_in_an_earlier_slice_takes_no_more_samples_while_the_o
 
 def test_the_metrics_taken_while_running_are_those_of_the_stored_run():
     p = with_updates(Parameters(), payload_mass_kg=120.0)
-    runs = run_sets([p], 0.3, commands.steps([0.0, 0.15], [1.0, -0.6]), every=4, store=True, jit=False)
+    runs = run_sets([p], 0.3, commands.steps([0.0, 0.15], [1.0, -0.6]), every=7, store=True, jit=False)
+    t = runs.columns(0)["t"]
+    assert len(t) == 1 + 300 // 7 + 1 and t[-1] == pytest.approx(0.3)  # step 300 (past 256) sampled too
     expected = analysis.metrics(runs.columns(0), params=p)
     finite = 0
     for name, value in runs.metrics.items():
@@ -311,9 +313,12 @@ def test_the_metrics_taken_while_running_are_those_of_the_stored_run():
 
 
 def test_a_batch_of_closed_loops_runs_each_set_on_its_own_knots_as_its_single_run():
-    params = [with_updates(Parameters(), initial_length_m=q) for q in (1.3, 1.45)]
+    params = [
+        with_updates(Parameters(), initial_length_m=q, control_position_gain_1_rad=g)
+        for q, g in ((1.3, 4.0), (1.45, 7.0))
+    ]
     starts = [_angle_of(p) for p in params]
-    # each set its own path: from its own start, ending at its own rate
+    # each set its own path: from its own start, ending at its own rate; and its own gain
     times, angles, rates = [0.0, 0.03], [starts, [a + 0.02 for a in starts]], [[0.0, 0.0], [0.3, 0.6]]
     batch = run_sets(params, 0.05, PositionLoop(params, SetpointPath.of(times, angles, rates)), every=5,
                      store=True, jit=False)  # fmt: skip
