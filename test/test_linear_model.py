@@ -280,3 +280,20 @@ def test_a_sweep_takes_its_modes_without_loading_python_control():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "False"
+
+
+def test_the_hydraulic_mode_weighs_each_state_in_units_of_its_size():
+    """Two ringing modes made by hand over (q1 in m, v in m/s, p1 in Pa, x): the first moves
+    q1 and v by their whole sizes (1 m, 0.1 m/s) and x by half of its, the second v by a tenth
+    of its size and p1 by a hundredth (1e5 of 1e7 Pa). In units of each state's size the second
+    moves the tip most against the rest (0.1 of 0.11, against 1 of 2.5): it is the hydraulic mode.
+    Weighed by the sizes instead of in their units, the pascals would swamp it and the first,
+    which moves no oil, would be taken."""
+    names, sizes = ("q1", "v", "p1", "x"), (1.0, 0.1, 1e7, 1.0)
+    first, second = -1.0 + 10.0j, -2.0 + 20.0j
+    w1 = np.array([1.0, 0.1j, 0.0, 0.5j])
+    w2 = np.array([0.0, 0.01, 1e5j, 0.0])
+    vectors = np.column_stack([w1, w1.conj(), w2, w2.conj()])
+    a = np.real(vectors @ np.diag([first, first.conjugate(), second, second.conjugate()]) @ np.linalg.inv(vectors))
+    got = lm.hydraulic_eigenvalue(a, Parameters(), names, sizes)
+    assert got == pytest.approx(second, rel=1e-9)

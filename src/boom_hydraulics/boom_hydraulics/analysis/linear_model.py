@@ -230,13 +230,13 @@ def hydraulic_eigenvalue(
     (125 Hz), where the tonne at the tip stays put; the tonne's ringing is the one it shows."""
     values, vectors = np.linalg.eig(a)
     scales = np.array(_state_scales(p)[: len(names)] if sizes is None else sizes)
-    scaled = np.abs(vectors) * scales[:, None]
+    scaled = np.abs(vectors) / scales[:, None]  # each component in units of its state's size
     v = names.index("v")
     tip = scaled[..., v, :]
     if "boom_deflection_rate" in names:  # the tip across the boom: its rotation's and its bending's
         lever = np.asarray(tip_m_per_m, dtype=float)
         across = lever[..., None] * vectors[..., v, :] + vectors[..., names.index("boom_deflection_rate"), :]
-        tip = np.abs(across) * scales[v]
+        tip = np.abs(across) / scales[v]
     share = tip / np.sum(scaled, axis=-2)
     share = np.where(values.imag > 0.0, share, -1.0)
     best = np.argmax(share, axis=-1)
