@@ -206,6 +206,19 @@ def test_a_reset_puts_the_rod_where_the_node_put_it_and_a_pause_moves_the_stamps
     assert q1[11] < 1.3  # the boom, let go at rest, sinks on its oil a little: it moves from 1.3 m
 
 
+def _reset_between(before: int, after: int) -> Simulator:
+    """The node's rule stepped tick by tick: valve 0.9 from 0 s, ``before`` ticks, a reset to
+    q1 = 1.45 m keeping the time, then ``after`` ticks."""
+    sim = Simulator(Parameters())
+    drive = CommandedDrive(sim)
+    drive.push(0.0, 0.9)
+    drive.advance(before)
+    sim.reset(1.45, keep_time=True)
+    drive.reset()
+    drive.advance(after)
+    return sim
+
+
 def test_a_reset_between_published_states_is_made_at_its_own_instant():
     """The node reset at 101 ms, a step after the state of 100 ms (a publish period longer than
     its ticks): the drive runs on to 101 ms, is reset there keeping the time, and the next
@@ -213,13 +226,7 @@ def test_a_reset_between_published_states_is_made_at_its_own_instant():
     events = [RunEvent("reset", 0.101, 10, ORIGIN, cause="service", rod_position_m=1.45)]
     run = _run(_ticks(14), [_command(0.9, 3.0, None, 0)], events=events, event_logs=[ORIGIN + 101 * MS])
     given = _replayed(run)
-    sim = Simulator(Parameters())
-    drive = CommandedDrive(sim)
-    drive.push(0.0, 0.9)
-    drive.advance(101)
-    sim.reset(1.45, keep_time=True)
-    drive.reset()
-    drive.advance(9)
+    sim = _reset_between(101, 9)
     assert given[10][1]["q1"] == pytest.approx(sim.outputs()["q1"], rel=0, abs=1e-12)
     assert given[10][0] == ORIGIN + 110 * MS and given[9][1]["q1"] > Parameters().initial_length_m + 0.005
 
@@ -486,13 +493,7 @@ def test_a_reset_long_after_the_last_state_runs_the_drive_on_to_it_first():
     events = [RunEvent("reset", 0.107, 5, ORIGIN, cause="service", rod_position_m=1.45)]
     run = _run(states, [_command(0.9, 3.0, None, 0)], events=events, event_logs=[ORIGIN + 107 * MS])
     given = _replayed(run)
-    sim = Simulator(Parameters())
-    drive = CommandedDrive(sim)
-    drive.push(0.0, 0.9)
-    drive.advance(107)
-    sim.reset(1.45, keep_time=True)
-    drive.reset()
-    drive.advance(3)
+    sim = _reset_between(107, 3)
     assert given[5][0] == ORIGIN + 110 * MS
     assert given[5][1]["q1"] == pytest.approx(sim.outputs()["q1"], rel=0, abs=1e-12)
 
