@@ -55,7 +55,7 @@ from .hydraulics import (
     relief_flow,
     void_volume_m3,
 )
-from .ledger import INTEGRALS, Cylinder, Ledger, assemble, cylinder_side, electric_chain, integral_rates
+from .ledger import INTEGRALS, Chain, Cylinder, Ledger, assemble, cylinder_side, electric_chain, integral_rates
 from .mechanics import acceleration_at_lever, boom_inertia_kgm2, load_force_n
 from .outputs import by_name
 from .parameters import Parameters
@@ -583,7 +583,7 @@ def derivative(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -
         terms.supply.rate,
         terms.supply.rate2,
         terms.supply.rate3,
-        *integral_rates(_ledger_of(y, c, terms, xp)),
+        *integral_rates(_ledger_of(y, c, terms, electric_chain(terms.supply, c, xp))),
     )
     elements = (
         accumulator.fill_rate_1_s(terms.acc_flow, c.acc_size),  # eq. A2
@@ -704,7 +704,8 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
     terms = _terms(y, c, u, xp)
     q1, v, acc = y[0], y[1], terms.acc
     k = lever_rad_per_m(q1, c.a, c.b, xp)
-    terms_ledger = _ledger_of(y, c, terms, xp)
+    chain = electric_chain(terms.supply, c, xp)  # eq. D26 (battery_overloaded: eq. D11)
+    terms_ledger = _ledger_of(y, c, terms, chain)
     void1 = void_volume_m3(c.bulk_modulus, terms.vol1, y[2], c.p_cav)
     void2 = void_volume_m3(c.bulk_modulus, terms.vol2, y[3], c.p_cav)
     return (
@@ -762,7 +763,7 @@ def outputs(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> t
         1.0 * ((y[2] < c.p_cav) | (y[3] < c.p_cav)),  # cavitation
         1.0 * ((terms.q_relief1 > 0.0) | (terms.q_relief2 > 0.0)),  # relief_open
         terms.supply.saturated,  # pump_saturated: below the pump's pressure
-        electric_chain(terms.supply, c, xp).overloaded,  # battery_overloaded (eq. D11)
+        chain.overloaded,  # battery_overloaded (eq. D11)
     )
 
 
@@ -798,7 +799,8 @@ def ledger(t: float, y: list, c: Constants, u: Num, xp: ModuleType = math) -> Le
     eq. D26-D29): the drive's motor through the inverter to the battery, its pump, valve or
     checks (model/drives), and the cylinder to the hook, all from the
     model's own terms, so that its terms balance at every state (ledger.residual_w)."""
-    return _ledger_of(y, c, _terms(y, c, u, xp), xp)
+    terms = _terms(y, c, u, xp)
+    return _ledger_of(y, c, terms, electric_chain(terms.supply, c, xp))
 
 
 @jitable
@@ -818,8 +820,9 @@ def _hinge_force(y: list, c: Constants, t: Terms, xp: ModuleType) -> tuple:
 
 
 @jitable(inline="always")
-def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
-    """:func:`ledger` from the terms of the evaluation at ``y``."""
+def _ledger_of(y: list, c: Constants, terms: Terms, chain: Chain) -> Ledger:
+    """:func:`ledger` from the terms of the evaluation at ``y`` and the drive's electric ``chain``
+    (ledger.electric_chain of their supply)."""
     cylinder = cylinder_side(
         y[1],
         terms.acc,
@@ -857,7 +860,6 @@ def _ledger_of(y: list, c: Constants, terms: Terms, xp: ModuleType) -> Ledger:
     gas_power = (terms.acc_gas - c.p_tank) * terms.acc_flow
     hose_oil = c.hose_on * (terms.hose_a.oil_work + terms.hose_b.oil_work)  # eq. H6 (0 without hoses)
     hose_loss = c.hose_on * (terms.hose_a.loss + terms.hose_b.loss)
-    chain = electric_chain(terms.supply, c, xp)
     return assemble(chain, terms.supply, boom, acc_loss, gas_power, hose_oil, hose_loss, structural)  # eq. D26, D29
 
 
