@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import run_tool
+from conftest import run_tool, wait_for
 
 pytest.importorskip("rclpy")
 import lz4.frame
@@ -854,6 +854,7 @@ def test_bytes_that_are_no_mcap_file_are_refused_whichever_way_they_sort(tmp_pat
 def test_a_bag_still_being_recorded_is_refused_and_left_alone(tmp_path):
     with BagRecorder(tmp_path / "live", [STATE], flush_s=0.0) as live:
         live.write(STATE.name, 1, serialize_message(DriveState()))
+        wait_for(lambda: live.on_disk == 1, "the message on the disk")  # (the writer thread's own writes done)
         before = _snapshot(live.folder)
         with pytest.raises(BagError, match="is still being recorded; stop its recorder first"):
             recover(live.folder)
