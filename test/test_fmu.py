@@ -5,14 +5,12 @@ C host with no Python at all (test/fmu_c_host.c), and held to boom-sim's own run
 from __future__ import annotations
 
 import csv
-import functools
 import json
 import os
 import shutil
 import subprocess
 import sys
 import zipfile
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +18,9 @@ import pytest
 from conftest import CONFIG
 from fmpy_alone import fmpy_alone
 
+from boom_hydraulics import jit
+from boom_hydraulics.fmu import native
+from boom_hydraulics.model import physical
 from boom_hydraulics.model.geometry import static_rod_force_of
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve.simulation import Simulator
@@ -399,28 +400,16 @@ def test_the_fmus_parameter_derivations_are_the_models_to_the_bit(changes: dict)
     """The constants and the state at rest the FMU derives in compiled code when a host sets a
     parameter are model.physical's own (numba compiles the functions as written, from a row
     read as the Surrogate of Parameters), for every drive."""
-    from boom_hydraulics.fmu import native
-    from boom_hydraulics.model import physical
-
     params = with_updates(Parameters(), **changes)
-    c, y, surrogate = _compiled_derivations()(np.array(native.row_of(params)))
+    c, y, surrogate = _compiled_derivations(np.array(native.row_of(params)))
     assert tuple(c) == tuple(physical.constants(params))
     assert list(y) == physical.initial_state(params)
     assert [getattr(surrogate, name) for name in native.ROW] == [getattr(params, name) for name in native.ROW]
 
 
-@functools.cache
-def _compiled_derivations() -> Callable[[np.ndarray], tuple]:
+@jit.kernel(native.cache_sources())  # (cached beside the FMU's object file: compiled once, not every run)
+def _compiled_derivations(row: np.ndarray) -> tuple:
     """The derivations as the FMU's code runs them, compiled once for every case above (a row
     is a float array whatever the drive): the constants, the state at rest and the Surrogate."""
-    import numba
-
-    from boom_hydraulics.fmu import native
-    from boom_hydraulics.model import physical
-
-    @numba.njit(error_model="numpy")
-    def derive(row: np.ndarray) -> tuple:
-        p = native.surrogate_of(row)
-        return physical.constants(p), physical.initial_state(p), p
-
-    return derive
+    p = native.surrogate_of(row)
+    return physical.constants(p), physical.initial_state(p), p

@@ -16,6 +16,7 @@ from boom_hydraulics import jit
 from boom_hydraulics.model import drives, ledger, physical, valve
 from boom_hydraulics.model.drives import DRIVES, pump_controlled
 from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import physical_kernel
 
 P = Parameters()
 RNG = np.random.default_rng(23)
@@ -190,12 +191,12 @@ def test_on_a_cycle_load_sensing_draws_least_from_the_battery_and_the_fixed_pump
 numba = pytest.importorskip("numba")
 
 
-@numba.njit
+@jit.kernel(physical_kernel.SOURCES)  # (cached beside the model's kernels: compiled once, not every run)
 def _compiled_ledger(y, c, u):
     return physical.ledger(0.0, y, c, u)
 
 
-@numba.njit
+@jit.kernel(physical_kernel.SOURCES)
 def _compiled_supply(z, u, opening, q1, v, p1, p2, c):
     return drives.supply(z, u, opening, q1, v, p1, p2, c)
 

@@ -20,6 +20,7 @@ from boom_hydraulics.model import config, electric_motor, ledger, physical
 from boom_hydraulics.model.drives import DRIVES, constants
 from boom_hydraulics.model.drives import _nothing as no_supply
 from boom_hydraulics.model.parameters import Parameters, with_updates
+from boom_hydraulics.solve import physical_kernel
 
 P = Parameters()
 RNG = np.random.default_rng(49)
@@ -194,7 +195,7 @@ def test_with_every_loss_term_on_a_lift_and_lower_balances_and_books_both_standb
 numba = pytest.importorskip("numba")
 
 
-@numba.njit
+@jit.kernel(physical_kernel.SOURCES)  # (cached beside the model's kernels: compiled once, not every run)
 def _compiled_chain(s, d):
     return ledger.electric_chain(s, d)
 

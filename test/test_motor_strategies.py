@@ -8,7 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from boom_hydraulics.model import ledger, physical
+from boom_hydraulics import jit
+from boom_hydraulics.fmu import native
+from boom_hydraulics.model import drives, ledger, physical
 from boom_hydraulics.model.drives import DRIVES, constants, motor_speed
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import accelerate, commands
@@ -256,6 +258,14 @@ def test_each_strategy_runs_the_same_compiled_and_interpreted(updates):
         assert np.max(np.abs(compiled[name] - interpreted[name])) <= 1e-9 * scale, name
 
 
+@jit.kernel(native.cache_sources())  # (cached beside the FMU's object file: compiled once, not every run)
+def _compiled_drive_derivations(row: np.ndarray) -> tuple:
+    """The drive's constants and state at rest as the native FMU's code derives them from a row."""
+    p = native.surrogate_of(row)
+    d = drives.constants(p)
+    return d, drives.initial_state(p.drive, d)
+
+
 @pytest.mark.skipif(not accelerate.available(), reason="numba is switched off")
 @pytest.mark.parametrize(
     "changes",
@@ -267,18 +277,7 @@ def test_each_strategy_runs_the_same_compiled_and_interpreted(updates):
 def test_the_native_fmu_derives_the_strategies_constants_and_initial_state_to_the_bit(changes):
     """Compiled code (the native FMU) derives the drive's constants, the strategy's and the open
     centre's among them, and its initial state from the parameters as Python does."""
-    import numba
-
-    from boom_hydraulics.fmu import native
-    from boom_hydraulics.model import drives
-
-    @numba.njit(error_model="numpy")
-    def derive(row: np.ndarray) -> tuple:
-        p = native.surrogate_of(row)
-        d = drives.constants(p)
-        return d, drives.initial_state(p.drive, d)
-
     params = with_updates(P, **changes)
-    d, z = derive(np.array(native.row_of(params)))
+    d, z = _compiled_drive_derivations(np.array(native.row_of(params)))
     assert tuple(d) == tuple(constants(params))
     assert z == drives.initial_state(params.drive, constants(params))
