@@ -185,10 +185,14 @@ def test_use_sim_time_is_start_only_and_step_is_bounded(node, client):
     assert client.call(client.pause, SetBool.Request(data=True)).success
     huge = client.call(client.step, Step.Request(steps=4294967295))
     assert not huge.success and "call ~/step again" in huge.message
-    t0 = huge.sim_time_s
+    one_more = client.call(client.step, Step.Request(steps=10_001))  # one step past 10 s of them
+    assert not one_more.success and "(10000 steps of 0.001 s)" in one_more.message
+    t0 = one_more.sim_time_s
+    largest = client.call(client.step, Step.Request(steps=10_000))  # the largest call taken: 10 s
+    assert largest.success and math.isclose(largest.sim_time_s - t0, 10.0, abs_tol=1e-9)
     small = client.call(client.step, Step.Request(steps=25))
-    assert small.success and math.isclose(small.sim_time_s - t0, 25 * DT_S, abs_tol=1e-9)
-    assert client.spin_until(lambda: client.status_values("run").get("step_calls") == "1", timeout=30)
+    assert small.success and math.isclose(small.sim_time_s - largest.sim_time_s, 25 * DT_S, abs_tol=1e-9)
+    assert client.spin_until(lambda: client.status_values("run").get("step_calls") == "2", timeout=30)
     assert client.status_values("run")["pauses"] == "1"
 
 

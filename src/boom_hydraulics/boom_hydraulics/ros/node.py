@@ -73,12 +73,10 @@ from .joint_commands import JointCommands
 from .motion import Motion, Plant
 from .publishers import PublisherWatch
 from .recording import NodeRecording
+from .service_checks import pause_unchanged, step_refusal, steps_asked
 
 #: Markers go out at most this often (they are for eyes, not for control).
 MARKERS_HZ = 20.0
-#: The most simulated time one ~/step call may take, s: the executor serves nothing else
-#: meanwhile, so a larger request is refused with how to get there.
-STEP_CALL_LIMIT_S = 10.0
 #: Parameters every rclpy node declares itself (rclpy's time source and type description service).
 _RCLPY_OWN = ("use_sim_time", "start_type_description_service")
 
@@ -500,8 +498,9 @@ class BoomSimNode(Node):
 
     @_locked
     def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
-        if request.data == self.paused:
-            response.success, response.message = True, "already paused" if self.paused else "already running"
+        unchanged = pause_unchanged(request.data, self.paused)
+        if unchanged is not None:
+            response.success, response.message = True, unchanged
             return response
         self.paused = request.data
         origin_before = self.clock.origin_ns
@@ -516,21 +515,11 @@ class BoomSimNode(Node):
 
     @_locked
     def on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
-        if not self.paused:
-            response.success, response.message = False, "step works while paused; call ~/pause with data: true"
-        elif self.failure:
-            response.success, response.message = False, f"simulation stopped: {self.failure}; call ~/reset"
+        steps = steps_asked(request.steps)
+        refusal = step_refusal(self.paused, self.failure, steps, self.sim.params.time_step_s)
+        if refusal is not None:
+            response.success, response.message = False, refusal
         else:
-            steps, dt = max(1, request.steps), self.sim.params.time_step_s
-            limit = max(1, int(STEP_CALL_LIMIT_S / dt))
-            if steps > limit:
-                response.success = False
-                response.message = (
-                    f"steps: {steps} is {steps * dt:g} s of simulated time; one call takes at most "
-                    f"{STEP_CALL_LIMIT_S:g} s ({limit} steps of {dt:g} s): call ~/step again for more"
-                )
-                response.sim_time_s = self.sim.t
-                return response
             self._record_event("step", self.clock.origin_ns, steps=steps)
             self.advance(steps)
             self.run_counts.step_calls += 1
