@@ -42,7 +42,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, drive_state_cdr
+from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, FROM_BOOM, FROM_SETPOINT, RecordedPath, drive_state_cdr
 from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
@@ -52,11 +52,11 @@ from ..errors import ConfigError, RecordingError, SimulationError
 from ..files import check_apart, folder_beside
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
-from ..model.setpoints import SetpointPath
+from ..model.setpoints import LINEAR, SetpointPath, path_from_offsets
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from .control import Control, control_stretches
-from .recorded import Recorded, RecordedRun, read_run
+from .recorded import Recorded, RecordedRun, TakenPath, read_run
 from .refusals import check_calls, check_states
 from .staging import remove_stale_staging
 
@@ -71,7 +71,9 @@ class _Resimulation:
         self.pending = deque(run.parameter_changes)
         # commands wait here for the instant the node took them (see take); without drive states
         # they are queued at once, each for when it was logged or stamped
-        taken = [c for c in run.commands if c.taken_ns is not None]
+        taken: list[Recorded | TakenPath] = [c for c in run.commands if c.taken_ns is not None]
+        # and so do the paths the controller started to follow (taken between ticks as commands are)
+        taken += run.paths
         self.waiting = deque(sorted(taken, key=lambda c: (c.taken_after, c.log_ns)))
         for command in run.commands:
             if command.taken_ns is None:
@@ -111,6 +113,9 @@ class _Resimulation:
         command timeout counts from it."""
         while self.waiting and self.waiting[0].taken_after <= states and self.waiting[0].log_ns < logged_before:
             command = self.waiting.popleft()
+            if isinstance(command, TakenPath):
+                self.follow(command.path)
+                continue
             at_s = self.seconds(command.stamp_ns, command.origin_ns) if command.stamp_ns else self.sim.t
             self._push(command, at_s)
 
@@ -144,6 +149,22 @@ class _Resimulation:
         angles = [angle] + [a for _, a, _ in control.samples]
         rates = [rate] + [r for _, _, r in control.samples]
         self.drive.follow(SetpointPath.of(times, angles, rates))
+
+    def follow(self, recorded: RecordedPath) -> None:
+        """The controller follows a path the node's controller started to follow here: its knots
+        after now, as the node timed them (model.setpoints.path_from_offsets: the same path, bit
+        for bit, at the node's instant), its first knot where the node took it from: this run's
+        setpoint or boom angle, which are the node's in a run that reproduces it, and this
+        run's own with new parameters (a move from where the boom is here)."""
+        angles, rates = list(recorded.angles_rad), list(recorded.rates_rad_s)
+        if recorded.start == FROM_SETPOINT:
+            angle, rate = self.drive.setpoint()
+            angles[0] = angle
+            if recorded.order != LINEAR:
+                rates[0] = rate
+        elif recorded.start == FROM_BOOM:
+            angles[0] = float(self.sim.outputs()["alpha"])
+        self.drive.follow(path_from_offsets(self.sim.t, recorded.offsets_ns, angles, rates, recorded.order))
 
     def apply_changes(self) -> None:
         """Parameter changes due by now (the node applies them between ticks)."""
@@ -252,7 +273,7 @@ class Replay:
                 resim.event(event)
                 happened = True
             resim.take(index)
-            if now_ns in starts:  # a goal or trajectory was taken between these instants
+            if now_ns in starts and not run.paths:  # a goal or trajectory was taken between these instants
                 resim.take_over(starts[now_ns], stamp_origins)
             origin = self.origins[index]
             steps = round((resim.seconds(at_ns, origin) - resim.sim.t) / resim.sim.params.time_step_s)
@@ -296,6 +317,7 @@ def resimulate(
     # the commands, parameter changes and run events as recorded: a re-simulation of the new bag
     # finds them as in this one
     events = [Recorded(0, log_ns, events_topic, raw) for log_ns, raw in run.event_messages] if events_topic else []
+    events += [Recorded(0, p.log_ns, p.topic, p.raw) for p in run.paths]
     recorded = deque(sorted(run.commands + run.parameter_changes + events, key=lambda r: r.log_ns))
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = folder_beside(out)  # (an error names --out, not the staging folder)
