@@ -248,6 +248,8 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
     )
     try:
         mover = Mover(client)
+        paths: list[JointTrajectory] = []
+        client.node.create_subscription(JointTrajectory, "/boom_sim/setpoint_path", paths.append, 100)
         first = mover.send(math.radians(30.0))
         client.spin_sim(0.3)  # under way
         os.kill(proc.pid, signal.SIGSTOP)  # starved of the processor: the next tick catches up at once
@@ -264,6 +266,8 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
         assert client.spin_until(cancel.done, 10)
         assert mover.result(second).status == GoalStatus.STATUS_CANCELED
         client.spin_sim(1.0)
+        trajectories_s = client.sim_s()
+        _trajectories_and_joint_commands(client, mover, paths)
     finally:
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=20)
@@ -278,7 +282,48 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
     assert np.array_equal(same["t"], original["t"])
     assert np.max(np.abs(original["q1"] - same["q1"])) < 1e-9
     assert np.max(np.abs(original["u"] - same["u"])) < 1e-9
+    # and boom-resim's own bag (the paths and setpoints go with it) re-simulates the same
+    result = run_tool("boom-resim", tmp_path / "same", "--out", tmp_path / "once_more")
+    assert result.returncode == 0, result.stderr
+    assert np.array_equal(read_drive_states(tmp_path / "once_more")["q1"], same["q1"])
     # the heavy what-if: settled at 30 degrees before the second goal, then stopped by the cancel
     held = (heavy["t"] > heavy["t"][0]) & (np.abs(heavy["alpha"] - math.radians(30.0)) < 2 * DEADBAND + 5e-4)
     assert held.any()
-    assert heavy["u"][-1] == 0.0
+    assert heavy["u"][heavy["t"] <= trajectories_s][-1] == 0.0
+    # every kind of path was there: the goals' quintics from the setpoint, trajectories (cubic from
+    # the setpoint, linear from their own first point, an empty one holding the boom), joint commands
+    kinds = {(p.header.frame_id, len(p.points[0].velocities), len(p.points[0].accelerations)) for p in paths}
+    assert {("setpoint", 1, 1), ("setpoint", 1, 0), ("", 0, 0), ("boom", 0, 0), ("setpoint", 0, 0)} <= kinds, kinds
+
+
+def _trajectories_and_joint_commands(client, mover: Mover, paths: list[JointTrajectory]) -> None:
+    """After the goals of the closed-loop run: joint trajectories (cubic, its first point later than
+    now; linear, its first point now; empty, a hold), then joint commands (a velocity alone; a
+    position stamped ahead), each sent once and waited for on ~/setpoint_path."""
+    from sensor_msgs.msg import JointState
+
+    def taken(publisher, msg) -> None:
+        n = len(paths)
+        assert client.spin_until(lambda: publisher.get_subscription_count() > 0), "the node does not subscribe"
+        publisher.publish(msg)
+        assert client.spin_until(lambda: len(paths) > n), "no ~/setpoint_path"
+
+    cubic = _trajectory([(0.3, math.radians(35.0)), (0.8, math.radians(40.0))])
+    for point, rate in zip(cubic.points, (0.2, 0.0)):
+        point.velocities = [rate]
+    taken(mover.trajectories, cubic)
+    client.spin_sim(0.5)
+    taken(mover.trajectories, _trajectory([(0.0, math.radians(38.0)), (0.4, math.radians(33.0))]))
+    client.spin_sim(0.3)
+    taken(mover.trajectories, JointTrajectory(joint_names=["boom_joint"]))
+    client.spin_sim(0.3)
+    commands = client.node.create_publisher(
+        JointState, "/joint_commands", QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    taken(commands, JointState(name=["boom_joint"], velocity=[0.1]))
+    client.spin_sim(0.2)
+    ahead = JointState(name=["boom_joint"], position=[math.radians(31.0)])
+    at_ns = round((client.sim_s() + 0.2) * 1e9)  # (publish_clock: stamps are simulated time)
+    ahead.header.stamp.sec, ahead.header.stamp.nanosec = divmod(at_ns, 1_000_000_000)
+    taken(commands, ahead)
+    client.spin_sim(0.6)

@@ -100,6 +100,7 @@ class RecordedRun:
     # each path the controller started to follow, in the order taken (none in a bag from before
     # the node recorded them, or without drive states to place them)
     paths: list[TakenPath] = field(default_factory=list)
+    setpoint_topic: str | None = None  # where the node published its controller's setpoint (None: nowhere)
 
     @property
     def has_events(self) -> bool:
@@ -329,6 +330,7 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
         events=[event for _, _, event in events],
         event_messages=[(log, raw) for log, raw, _ in events],
         paths=paths,
+        setpoint_topic=setpoint_topics[0].topic if setpoint_topics else None,
     )
 
 

@@ -24,12 +24,17 @@ bags.continuity); a bag with its events only where it is not whole. A run that c
 simulated to its end writes nothing; an interrupted one (Ctrl-C: exit 130, SIGTERM: 143)
 neither, and a killed one's temporary folder is removed by the next run to the same --out.
 
-Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
-the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
-setpoints here too (cubic between ticks, from where the boom was when control began), with
-the new parameters' gains and cylinder; it lets go where the recording shows it let go. The
-setpoint between two ticks is interpolated, so such a run matches its recording closely but
-not to the last bit.
+Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory,
+joint_commands), the bag holds each path the controller started to follow (~/setpoint_path,
+where the node took it: between ticks, as a command) and its setpoint (~/setpoint, every tick
+in which it drove). The controller follows the recorded paths here, the same knots at the same
+simulated times, bit for bit, each from this run's own setpoint (or boom angle) where the node's
+started from its own, so that an unchanged run reproduces the node's exactly and a changed one
+moves from where its boom is; with the new parameters' gains and cylinder. It lets go where the
+setpoints show the node's let go (a canceled goal). A bag from before the node recorded its
+paths has only the setpoints: the controller follows them (cubic between ticks, from where the
+boom was when control began), close to the recording but not to the last bit. The new bag has
+the paths and the setpoints of this run, so that a re-simulation of it follows them again.
 """
 
 from __future__ import annotations
@@ -42,7 +47,15 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, FROM_BOOM, FROM_SETPOINT, RecordedPath, drive_state_cdr
+from ..bags.encoding import (
+    DRIVE_STATE,
+    ENERGY_LEDGER,
+    FROM_BOOM,
+    FROM_SETPOINT,
+    RecordedPath,
+    drive_state_cdr,
+    setpoint_cdr,
+)
 from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
@@ -52,11 +65,12 @@ from ..errors import ConfigError, RecordingError, SimulationError
 from ..files import check_apart, folder_beside
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
+from ..model.robot_description import JOINTS
 from ..model.setpoints import LINEAR, SetpointPath, path_from_offsets
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from .control import Control, control_stretches
-from .recorded import Recorded, RecordedRun, TakenPath, read_run
+from .recorded import JOINT_STATE, Recorded, RecordedRun, TakenPath, read_run
 from .refusals import check_calls, check_states
 from .staging import remove_stale_staging
 
@@ -249,6 +263,12 @@ class Replay:
         self.index = 0  # its index in instants
         self.done = 0
 
+    def setpoint(self) -> tuple[float, float] | None:
+        """The controller's setpoint (rad, rad/s) at the state just given, where it drove in the
+        steps up to it (as the node publishes it on ~/setpoint); None where it did not."""
+        followed = self._resim.drive.followed
+        return None if followed is None else followed.at(self.sim.t)
+
     @property
     def sim(self) -> Any:
         """The simulation at the state just given (solve.simulation.Simulator)."""
@@ -328,6 +348,8 @@ def resimulate(
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
         topics += [Topic(events_topic, EVENTS_TYPE)] if events_topic else []
         topics += [Topic(energy_topic, ENERGY_LEDGER)] if energy_topic else []
+        setpoint_topic = run.setpoint_topic  # (where the node had one: a re-simulation of the new bag lets go there)
+        topics += [Topic(setpoint_topic, JOINT_STATE)] if setpoint_topic else []
         with (
             BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
             _progress(len(replay.instants)) as progress,
@@ -341,6 +363,9 @@ def resimulate(
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
                 recorder.write(run.state_topic, log_ns, drive_state_cdr(outputs, stamp_ns))
+                setpoint = replay.setpoint()
+                if setpoint_topic and setpoint is not None:
+                    recorder.write(setpoint_topic, log_ns, setpoint_cdr(JOINTS[0], *setpoint, stamp_ns))
                 if energy_topic and replay.done % energy_every == 0:
                     sim = replay.sim
                     now = ledger_now(sim.params, sim.t, sim.y, sim.constants, sim.u)
