@@ -233,19 +233,20 @@ class TestMovesOnOneNode:
         assert ended[-1][0] == GoalStatus.STATUS_SUCCEEDED, ended[-1][1].message
 
 
-def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client, tmp_path):
+@pytest.mark.parametrize("clock", ["publish_clock", "default"])
+def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client, tmp_path, clock):
     """A recorded MoveBoom run (one goal held, its move cut by a stall of the node's process, so
     that one tick comes long after the one before, as on a loaded machine; one goal given a new
     payload and gain, then canceled) fed through boom-resim: the controller follows the paths the
     node's controller followed (~/setpoint_path), so that every recorded state comes again, the
     same stamps, the rod to 1e-9 m, the valve opening to 1e-9; with 200 kg it still reaches the
     first target, as a closed loop does. (Interpolating the per-tick setpoints instead, as boom-resim
-    did before, missed by up to 0.02 degrees in a loaded suite run, and by far more across the stall.)"""
-    from boom_hydraulics.bags.reading import read_drive_states
+    did before, missed by up to 0.02 degrees in a loaded suite run, and by far more across the stall.)
+    With publish_clock at real-time factor 2, and on the node's default clock (ROS-time stamps)."""
+    from boom_hydraulics.bags.reading import read_drive_states, read_run_description
 
-    proc = nodes.start(
-        "publish_clock:=true", "real_time_factor:=2.0", f"record_folder:={tmp_path / 'bags'}", record=True
-    )
+    pace = ("publish_clock:=true", "real_time_factor:=2.0") if clock == "publish_clock" else ()
+    proc = nodes.start(*pace, f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         mover = Mover(client)
         paths: list[JointTrajectory] = []
@@ -253,10 +254,10 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
         first = mover.send(math.radians(30.0))
         client.spin_sim(0.3)  # under way
         os.kill(proc.pid, signal.SIGSTOP)  # starved of the processor: the next tick catches up at once
-        time.sleep(0.3)  # (the stall itself, not a wait for something)
+        time.sleep(0.4)  # (the stall itself, not a wait for something)
         os.kill(proc.pid, signal.SIGCONT)
         assert mover.result(first).status == GoalStatus.STATUS_SUCCEEDED
-        client.spin_sim(1.0)  # (simulated s: at real-time factor 2, what half a second of wall time was)
+        client.spin_sim(1.0)  # (simulated s)
         second = mover.send(math.radians(45.0))
         client.spin_sim(0.5)
         client.set_parameter("payload_mass_kg", 150.0)  # the controller takes them, afresh
@@ -276,7 +277,7 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
         result = run_tool("boom-resim", bag, "--out", tmp_path / name, *extra)
         assert result.returncode == 0, result.stderr
     original, same, heavy = (read_drive_states(p) for p in (bag, tmp_path / "same", tmp_path / "heavy"))
-    # the stall: a tick 0.6 s of simulated time (0.3 s of wall time at factor 2) after the one before
+    # the stall: a tick 0.4 s of wall time after the one before (0.8 s of simulated time at factor 2)
     assert np.max(np.diff(original["t"])) > 0.3, np.max(np.diff(original["t"]))
     assert len(same["t"]) == len(original["t"]) > 50
     assert np.array_equal(same["t"], original["t"])
@@ -289,7 +290,8 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
     # the heavy what-if: settled at 30 degrees before the second goal, then stopped by the cancel
     held = (heavy["t"] > heavy["t"][0]) & (np.abs(heavy["alpha"] - math.radians(30.0)) < 2 * DEADBAND + 5e-4)
     assert held.any()
-    assert heavy["u"][heavy["t"] <= trajectories_s][-1] == 0.0
+    origin_s = read_run_description(bag).clock_origin_ns * 1e-9  # (state stamps: origin + simulated time)
+    assert heavy["u"][heavy["t"] <= trajectories_s - origin_s][-1] == 0.0
     # every kind of path was there: the goals' quintics from the setpoint, trajectories (cubic from
     # the setpoint, linear from their own first point, an empty one holding the boom), joint commands
     kinds = {(p.header.frame_id, len(p.points[0].velocities), len(p.points[0].accelerations)) for p in paths}
@@ -323,7 +325,7 @@ def _trajectories_and_joint_commands(client, mover: Mover, paths: list[JointTraj
     taken(commands, JointState(name=["boom_joint"], velocity=[0.1]))
     client.spin_sim(0.2)
     ahead = JointState(name=["boom_joint"], position=[math.radians(31.0)])
-    at_ns = round((client.sim_s() + 0.2) * 1e9)  # (publish_clock: stamps are simulated time)
+    at_ns = round((client.sim_s() + 0.2) * 1e9)  # (0.2 s after the newest state's instant, on its clock)
     ahead.header.stamp.sec, ahead.header.stamp.nanosec = divmod(at_ns, 1_000_000_000)
     taken(commands, ahead)
     client.spin_sim(0.6)
