@@ -718,7 +718,8 @@ class BoomSimNode(Node):
             path.rates_rad_s[:, 0].tolist(),
             path.order,
         )
-        self.recording.publish([(self.setpoint_path_pub, setpoint_path_cdr(JOINTS[0], recorded))], clock.now_ns())
+        message = [(self.setpoint_path_pub, setpoint_path_cdr(JOINTS[0], recorded))]
+        self.recording.publish(message, clock.now_ns(), keep_early=True)  # (a goal before the first /clock too)
 
     def publish_description(self) -> None:
         """The URDF of the current parameters on robot_description (transient local), its
