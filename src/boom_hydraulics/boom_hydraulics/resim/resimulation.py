@@ -67,6 +67,7 @@ from ..model import config
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS
 from ..model.setpoints import LINEAR, SetpointPath, path_from_offsets
+from ..programs import raise_pending
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from .control import Control, control_stretches
@@ -355,6 +356,7 @@ def resimulate(
             _progress(len(replay.instants)) as progress,
         ):
             for stamp_ns, outputs in replay:
+                raise_pending()  # a Ctrl-C or SIGTERM whose exception a finalizer swallowed stops it here
                 progress.update(replay.done - progress.n)
                 # logged when the node published the state of this instant, so that a re-simulation
                 # of this bag finds the node's instants as in the recorded run (NodeInstants)
