@@ -1,8 +1,8 @@
 """A boom_sim bag read as a run to simulate again: its description, the valve commands and
 parameter changes with the instants they act at, the setpoints of the position controller and
-the paths it followed,
-the published state instants, the node's run events (resets, pauses, steps, dropped
-backlogs: bags.run_events) and its own counts of them."""
+the paths it followed (with where the node took each), the published state instants, the
+node's run events (resets, pauses, steps, dropped backlogs: bags.run_events) and its own
+counts of them."""
 
 from __future__ import annotations
 

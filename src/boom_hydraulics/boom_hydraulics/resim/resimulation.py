@@ -125,7 +125,8 @@ class _Resimulation:
         """The commands the node took after publishing ``states`` drive states (or before),
         those logged before ``logged_before``, queued as the node queued them (ros.commands):
         at their stamp, or now if unstamped; a passed stamp acts at the next step, and the
-        command timeout counts from it."""
+        command timeout counts from it. The paths its controller took meanwhile are followed
+        from now, in the order the node logged them among the commands."""
         while self.waiting and self.waiting[0].taken_after <= states and self.waiting[0].log_ns < logged_before:
             command = self.waiting.popleft()
             if isinstance(command, TakenPath):
@@ -244,8 +245,9 @@ def read_recorded(
 
 
 class Replay:
-    """A recorded run's commands, parameter changes and controller stretches through the model
-    with parameter ``values`` (``overrides`` kept on top of the recorded changes). Iterating it
+    """A recorded run's commands, parameter changes and controller paths (or, in an older bag,
+    its setpoints) through the model with parameter ``values`` (``overrides`` kept on top of the
+    recorded changes). Iterating it
     runs the simulation and gives (stamp ns, outputs) at each state instant the node published
     (or, for a bag without DriveState, at its publish rate); ``done`` counts the instants taken.
     Raises SimulationError where the run cannot go on, ConfigError for a recorded parameter
