@@ -16,6 +16,10 @@ ros2_control's joint_trajectory_controller drives a joint:
 - A valve command that applies while either runs takes over (operator override): the goal
   is aborted with that reason, a trajectory is dropped with a warning.
 
+Each path the controller starts to follow goes out once on ``~/setpoint_path`` and into the
+bag (:meth:`Plant.follow`), its knots on whole nanoseconds from the instant taken, so that
+boom-resim follows the same path, bit for bit.
+
 The node's loop thread calls :meth:`Motion.after_steps` after every batch of steps, which
 finishes goals. The action server lives on a hidden helper node (``_<node>_move_boom``, its
 action named after the main node: ``/boom_sim/move_boom``) with a small multi-threaded
@@ -83,7 +87,9 @@ class Goal:
 class Plant:
     """What position goals need of the node: the drive they hand the valve to, the lock that
     guards it, the simulation (its time and outputs), the log, whether the node stops, whether
-    the simulation has failed, and how a stamp maps to simulated time."""
+    the simulation has failed, how a stamp maps to simulated time, and how it tells of a path
+    the controller starts to follow (:meth:`follow`: every goal, trajectory and joint command
+    hands the valve over through it)."""
 
     lock: threading.RLock
     sim: Simulator
