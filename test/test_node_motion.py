@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import re
 import signal
 import time
@@ -232,19 +233,31 @@ class TestMovesOnOneNode:
         assert ended[-1][0] == GoalStatus.STATUS_SUCCEEDED, ended[-1][1].message
 
 
-def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_path):
-    """A recorded MoveBoom run (one goal held, one given a new payload and gain, then canceled) fed
-    through boom-resim: the controller follows the recorded setpoints, unchanged within 0.02
-    degrees; with 200 kg it still reaches the first target, as a closed loop does."""
-    from boom_hydraulics.bags.reading import read_drive_states
+@pytest.mark.parametrize("clock", ["publish_clock", "default"])
+def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client, tmp_path, clock):
+    """A recorded MoveBoom run (one goal held, its move cut by a stall of the node's process, so
+    that one tick comes long after the one before, as on a loaded machine; one goal given a new
+    payload and gain, then canceled) fed through boom-resim: the controller follows the paths the
+    node's controller followed (~/setpoint_path), so that every recorded state comes again, the
+    same stamps, the rod to 1e-9 m, the valve opening to 1e-9; with 200 kg it still reaches the
+    first target, as a closed loop does. (Interpolating the per-tick setpoints instead, as boom-resim
+    did before, missed by up to 0.02 degrees in a loaded suite run, and by far more across the stall.)
+    With publish_clock at real-time factor 2, and on the node's default clock (ROS-time stamps)."""
+    from boom_hydraulics.bags.reading import read_drive_states, read_run_description
 
-    proc = nodes.start(
-        "publish_clock:=true", "real_time_factor:=2.0", f"record_folder:={tmp_path / 'bags'}", record=True
-    )
+    pace = ("publish_clock:=true", "real_time_factor:=2.0") if clock == "publish_clock" else ()
+    proc = nodes.start(*pace, f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         mover = Mover(client)
-        assert mover.result(mover.send(math.radians(30.0))).status == GoalStatus.STATUS_SUCCEEDED
-        client.spin_sim(1.0)  # (simulated s: at real-time factor 2, what half a second of wall time was)
+        paths: list[JointTrajectory] = []
+        client.node.create_subscription(JointTrajectory, "/boom_sim/setpoint_path", paths.append, 100)
+        first = mover.send(math.radians(30.0))
+        client.spin_sim(0.3)  # under way
+        os.kill(proc.pid, signal.SIGSTOP)  # starved of the processor: the next tick catches up at once
+        time.sleep(0.4)  # (the stall itself, not a wait for something)
+        os.kill(proc.pid, signal.SIGCONT)
+        assert mover.result(first).status == GoalStatus.STATUS_SUCCEEDED
+        client.spin_sim(1.0)  # (simulated s)
         second = mover.send(math.radians(45.0))
         client.spin_sim(0.5)
         client.set_parameter("payload_mass_kg", 150.0)  # the controller takes them, afresh
@@ -254,6 +267,8 @@ def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_pa
         assert client.spin_until(cancel.done, 10)
         assert mover.result(second).status == GoalStatus.STATUS_CANCELED
         client.spin_sim(1.0)
+        trajectories_s = client.sim_s()
+        _trajectories_and_joint_commands(client, mover, paths)
     finally:
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=20)
@@ -262,11 +277,57 @@ def test_a_closed_loop_run_resimulates_and_answers_what_if(nodes, client, tmp_pa
         result = run_tool("boom-resim", bag, "--out", tmp_path / name, *extra)
         assert result.returncode == 0, result.stderr
     original, same, heavy = (read_drive_states(p) for p in (bag, tmp_path / "same", tmp_path / "heavy"))
-    n = min(len(original["alpha"]), len(same["alpha"]))
-    assert n > 50, n  # a state a tick (fewer where a loaded machine delays ticks)
-    assert np.max(np.abs(original["alpha"][:n] - same["alpha"][:n])) < math.radians(0.02)
-    assert np.max(np.abs(original["u"][:n] - same["u"][:n])) < 0.02
+    # the stall: a tick 0.4 s of wall time after the one before (0.8 s of simulated time at factor 2)
+    assert np.max(np.diff(original["t"])) > 0.3, np.max(np.diff(original["t"]))
+    assert len(same["t"]) == len(original["t"]) > 50
+    assert np.array_equal(same["t"], original["t"])
+    assert np.max(np.abs(original["q1"] - same["q1"])) < 1e-9
+    assert np.max(np.abs(original["u"] - same["u"])) < 1e-9
+    # and boom-resim's own bag (the paths and setpoints go with it) re-simulates the same
+    result = run_tool("boom-resim", tmp_path / "same", "--out", tmp_path / "once_more")
+    assert result.returncode == 0, result.stderr
+    assert np.array_equal(read_drive_states(tmp_path / "once_more")["q1"], same["q1"])
     # the heavy what-if: settled at 30 degrees before the second goal, then stopped by the cancel
     held = (heavy["t"] > heavy["t"][0]) & (np.abs(heavy["alpha"] - math.radians(30.0)) < 2 * DEADBAND + 5e-4)
     assert held.any()
-    assert heavy["u"][-1] == 0.0
+    origin_s = read_run_description(bag).clock_origin_ns * 1e-9  # (state stamps: origin + simulated time)
+    assert heavy["u"][heavy["t"] <= trajectories_s - origin_s][-1] == 0.0
+    # every kind of path was there: the goals' quintics from the setpoint, trajectories (cubic from
+    # the setpoint, linear from their own first point, an empty one holding the boom), joint commands
+    kinds = {(p.header.frame_id, len(p.points[0].velocities), len(p.points[0].accelerations)) for p in paths}
+    assert {("setpoint", 1, 1), ("setpoint", 1, 0), ("", 0, 0), ("boom", 0, 0), ("setpoint", 0, 0)} <= kinds, kinds
+
+
+def _trajectories_and_joint_commands(client, mover: Mover, paths: list[JointTrajectory]) -> None:
+    """After the goals of the closed-loop run: joint trajectories (cubic, its first point later than
+    now; linear, its first point now; empty, a hold), then joint commands (a velocity alone; a
+    position stamped ahead), each waited for on ~/setpoint_path."""
+    from sensor_msgs.msg import JointState
+
+    def taken(publisher, msg, again: bool = False) -> None:
+        """``msg`` sent once (``again``: at every spin, as the node takes joint commands best-effort)
+        until the node took it."""
+        n = len(paths)
+        assert client.spin_until(lambda: publisher.get_subscription_count() > 0), "the node does not subscribe"
+        publisher.publish(msg)
+        assert client.spin_until(lambda: len(paths) > n or (again and publisher.publish(msg))), "no ~/setpoint_path"
+
+    cubic = _trajectory([(0.3, math.radians(35.0)), (0.8, math.radians(40.0))])
+    for point, rate in zip(cubic.points, (0.2, 0.0)):
+        point.velocities = [rate]
+    taken(mover.trajectories, cubic)
+    client.spin_sim(0.5)
+    taken(mover.trajectories, _trajectory([(0.0, math.radians(38.0)), (0.4, math.radians(33.0))]))
+    client.spin_sim(0.3)
+    taken(mover.trajectories, JointTrajectory(joint_names=["boom_joint"]))
+    client.spin_sim(0.3)
+    commands = client.node.create_publisher(
+        JointState, "/joint_commands", QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    taken(commands, JointState(name=["boom_joint"], velocity=[0.1]), again=True)
+    client.spin_sim(0.2)
+    ahead = JointState(name=["boom_joint"], position=[math.radians(31.0)])
+    at_ns = round((client.sim_s() + 0.2) * 1e9)  # (0.2 s after the newest state's instant, on its clock)
+    ahead.header.stamp.sec, ahead.header.stamp.nanosec = divmod(at_ns, 1_000_000_000)
+    taken(commands, ahead, again=True)
+    client.spin_sim(0.6)

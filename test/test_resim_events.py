@@ -11,14 +11,16 @@ import time
 
 import numpy as np
 import pytest
-from conftest import BOOM_SIM, run_tool, stop_process
+from conftest import BOOM_SIM, GUARD_S, run_tool, stop_process
 
 rclpy = pytest.importorskip("rclpy")
+from rclpy.action import ActionClient  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
 from boom_hydraulics.bags.reading import read_custom_data  # noqa: E402
 from boom_hydraulics.bags.run_events import parse  # noqa: E402
+from boom_hydraulics_msgs.action import MoveBoom  # noqa: E402
 from boom_hydraulics_msgs.srv import Reset, Step  # noqa: E402
 
 pytestmark = [
@@ -144,10 +146,12 @@ def _pause_step_resume_and_reset(client) -> None:
 
 
 def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exactly(nodes, client, tmp_path):
-    """Under use_sim_time (a /clock from another process), with commands stamped ahead on that
-    clock and unstamped ones (acting where the node took them: it takes commands at the states
-    it published), a pause with a command and ~/step calls in it, a resume (which moves the
-    time origin on by the pause) and a reset, re-simulated to 1e-9 m at every recorded state."""
+    """Under use_sim_time (a /clock from another process), with a MoveBoom goal taken before the
+    first /clock (the bag keeps its path: the controller drives from simulated time 0), commands
+    stamped ahead on that clock (the first takes over from the goal) and unstamped ones (acting
+    where the node took them: it takes commands at the states it published), a pause with a
+    command and ~/step calls in it, a resume (which moves the time origin on by the pause) and a
+    reset, re-simulated to 1e-9 m at every recorded state."""
     import subprocess
     import sys
     from pathlib import Path
@@ -165,6 +169,10 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
         "use_sim_time:=true", f"record_folder:={tmp_path / 'bags'}", "command_timeout_s:=0.0", record=True
     )
     assert client.spin_until(lambda: client.node.count_publishers("drive_state") > 0, timeout=20)
+    goal = ActionClient(client.node, MoveBoom, "/boom_sim/move_boom")
+    assert goal.wait_for_server(timeout_sec=GUARD_S)
+    accepted = goal.send_goal_async(MoveBoom.Goal(target_angle_rad=0.6))
+    assert client.spin_until(accepted.done) and accepted.result().accepted
     source = subprocess.Popen(
         [sys.executable, str(Path(__file__).with_name("clock_source.py")), "100.0", "1.0:60"],
         stdout=subprocess.PIPE,
@@ -195,7 +203,8 @@ def test_a_run_on_a_shared_clock_with_a_pause_steps_and_a_reset_resimulates_exac
     (bag,) = (tmp_path / "bags").iterdir()
     kinds = [e["event"] for e in _recorded_events(bag)]
     assert kinds == ["pause", "step", "step", "step", "resume", "reset"], kinds
-    _resimulates_exactly(bag, tmp_path / "again", log)
+    original = _resimulates_exactly(bag, tmp_path / "again", log)
+    assert original[0][2] != 0.0  # the goal's controller drove the valve from the first state on
 
 
 def test_a_run_that_blew_up_and_was_reset_resimulates_exactly(nodes, client, tmp_path):

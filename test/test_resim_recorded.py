@@ -1,6 +1,7 @@
 """A recorded run read back for boom-resim (resim.recorded.read_run), on small bags made here:
 when each command and parameter change acts, the states in the order the node published them,
-the setpoints, the node's own counts and run events, and the time origin of each."""
+the setpoints and the paths the controller followed, the node's own counts and run events, and
+the time origin of each."""
 
 from __future__ import annotations
 
@@ -18,11 +19,25 @@ from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, Header, String
 
 from boom_hydraulics.bags import cdr
-from boom_hydraulics.bags.encoding import DRIVE_STATE, ENERGY_LEDGER, message, parameter_event_cdr, to_cdr
+from boom_hydraulics.bags.encoding import (
+    DRIVE_STATE,
+    ENERGY_LEDGER,
+    FROM_BOOM,
+    FROM_SETPOINT,
+    JOINT_TRAJECTORY,
+    OWN_START,
+    RecordedPath,
+    message,
+    parameter_event_cdr,
+    setpoint_path_cdr,
+    to_cdr,
+    typestore,
+)
 from boom_hydraulics.bags.recording import BagRecorder, Topic, offered_qos
 from boom_hydraulics.bags.run_description import RunDescription
 from boom_hydraulics.bags.run_events import RunEvent
 from boom_hydraulics.errors import BagError
+from boom_hydraulics.model.setpoints import SetpointPath, knot_offsets_ns, move, on_whole_ns, path_from_offsets
 from boom_hydraulics.resim.recorded import (
     ARRAY_COMMAND,
     DIAGNOSTICS,
@@ -220,6 +235,67 @@ def test_the_setpoints_and_the_nodes_latest_counts_are_read(tmp_path):
     run = read_run(_bag(tmp_path / "bag", messages), _describe())
     assert run.setpoints == [(ORIGIN + 20 * MS, 0.375, -0.125), (ORIGIN + 30 * MS, 0.5, 0.25)]  # by stamp
     assert run.run_counts == {"resets": 3.0, "pauses": 2.0, "clock_origin_shift_s": 0.25}
+
+
+def _path_message(path, t0_s: float, start: str) -> bytes:
+    """~/setpoint_path of ``path`` as the node publishes it when it takes the path at ``t0_s``."""
+    recorded = RecordedPath(
+        ORIGIN + round(t0_s * 1e9),
+        start,
+        knot_offsets_ns(path, t0_s),
+        path.angles_rad[:, 0].tolist(),
+        path.rates_rad_s[:, 0].tolist(),
+        path.order,
+    )
+    return setpoint_path_cdr("boom_joint", recorded)
+
+
+def test_the_paths_the_controller_followed_read_back_bit_for_bit_where_the_node_took_them(tmp_path):
+    """Each ~/setpoint_path: after the states logged before it, the path rebuilt at the node's
+    instant equal to the one the node followed (its knots on whole ns from there) in every bit."""
+    t0 = 0.02  # the instant of the second state (sums of time steps are seldom whole ns)
+    followed = [
+        (on_whole_ns(move(t0, 0.3, 0.01, 0.6, 0.37), t0), FROM_SETPOINT),  # a goal's quintic
+        (on_whole_ns(SetpointPath.of([t0, t0 + 0.1 / 3], [0.25, 0.5], [0.125, 0.0]), t0), OWN_START),  # cubic
+        (on_whole_ns(SetpointPath.of([t0, t0 + 1 / 7], [0.25, 0.5]), t0), OWN_START),  # linear
+        (on_whole_ns(SetpointPath.of([t0], [0.4]), t0), FROM_BOOM),  # an empty trajectory's hold
+    ]
+    topic = "/crane/boom_sim/setpoint_path"
+    paths = [
+        (topic, JOINT_TRAJECTORY, ORIGIN + 25 * MS + k, _path_message(p, t0, start))
+        for k, (p, start) in enumerate(followed)
+    ]
+    run = read_run(_bag(tmp_path / "bag", _states(10, 20, 30) + paths), _describe())
+    assert [(p.taken_after, p.log_ns - ORIGIN - 25 * MS, p.path.start) for p in run.paths] == [
+        (2, k, start) for k, (_, start) in enumerate(followed)
+    ]
+    assert topic in [t.name for t in run.topics]  # (copied into boom-resim's bag)
+    for taken, (path, _) in zip(run.paths, followed):
+        r = taken.path
+        again = path_from_offsets(t0, r.offsets_ns, r.angles_rad, r.rates_rad_s, r.order)
+        assert again.order == path.order
+        for a, b in (
+            (again.times_s, path.times_s),
+            (again.angles_rad, path.angles_rad),
+            (again.rates_rad_s, path.rates_rad_s),
+        ):
+            assert a.tobytes() == b.tobytes()
+    # the node's paths move a planned knot by at most half a nanosecond
+    planned = move(t0, 0.3, 0.01, 0.6, 0.37)
+    assert abs(followed[0][0].end_s[0] - planned.end_s[0]) <= 0.5e-9 and followed[0][0].times_s[0, 0] == t0
+    # without states there is nothing to place them by; a path of two joints is not the node's
+    assert read_run(_bag(tmp_path / "alone", paths), _describe()).paths == []
+    two = (topic, JOINT_TRAJECTORY, ORIGIN + 25 * MS, _two_joints(_path_message(followed[0][0], t0, FROM_SETPOINT)))
+    with pytest.raises(BagError, match=r"a message does not fit its recorded type"):
+        read_run(_bag(tmp_path / "two", [*_states(10, 20), two]), _describe())
+
+
+def _two_joints(data: bytes) -> bytes:
+    """The path message ``data`` naming a second joint."""
+    store = typestore()
+    msg = store.deserialize_cdr(data, JOINT_TRAJECTORY)
+    msg.joint_names = ["boom_joint", "other"]
+    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
 
 
 def test_a_setpoint_without_a_position_is_one_line(tmp_path):

@@ -307,6 +307,32 @@ def test_an_interrupted_resim_ends_in_one_line_and_leaves_nothing(running_resim,
     assert list(results.iterdir()) == []
 
 
+@pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning")  # no "Exception ignored" either
+def test_a_ctrl_c_that_a_finalizer_swallowed_still_stops_a_resim_at_its_next_state(tmp_path, capsys):
+    """Python drops an exception raised in ``__del__``: a Ctrl-C landing in a finalizer while
+    boom-resim runs is raised again at its next state (as boom-sweep's batches raise it: seen as
+    an interrupted boom-resim that ran to its end and exited 0, twice in loaded test runs)."""
+    from boom_hydraulics.programs import run_main
+    from boom_hydraulics.resim.resimulation import resimulate
+
+    bag = synthetic_bag(tmp_path / "run")
+
+    class Finalized:
+        def __del__(self) -> None:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # the handler runs here, inside the finalizer: its exception is dropped
+                pass
+
+    def body() -> int:
+        Finalized()
+        resimulate(bag, tmp_path / "out")
+        return 0
+
+    assert run_main("boom-resim", body) == 130
+    assert capsys.readouterr().err.startswith("boom-resim: error: interrupted (Ctrl-C)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
 def test_a_killed_resim_is_cleaned_up_by_the_next_run(running_resim, tmp_path):
     proc, results = running_resim
     proc.kill()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import operator
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from rosbags.typesys.base import Nodetype
 from rosbags.typesys.store import Typestore
 
 from ..model.robot_description import BASE_FRAME
+from ..model.setpoints import CUBIC, LINEAR, QUINTIC
 from . import cdr
 from .recording import interface_file
 
@@ -140,6 +142,73 @@ def setpoint_cdr(joint: str, angle_rad: float, rate_rad_s: float, stamp_ns: int)
     """CDR of the sensor_msgs/JointState of a position setpoint (no effort; canonical CDR, with
     no padding after the empty effort, as strict readers such as rosbags require)."""
     return cdr.joint_state(stamp_ns, (joint,), (angle_rad,), (rate_rad_s,), ())
+
+
+JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+#: Where a recorded setpoint path's first point came from (its header.frame_id): the
+#: controller's setpoint when the node took the path, the boom's angle then, or the path's own.
+FROM_SETPOINT, FROM_BOOM, OWN_START = "setpoint", "boom", ""
+
+
+@dataclass(frozen=True)
+class RecordedPath:
+    """A setpoint path the node's controller started to follow, as ~/setpoint_path carries it:
+    knots ``offsets_ns`` after the instant stamped ``stamp_ns``; ``start`` says where the first
+    knot came from (FROM_SETPOINT, FROM_BOOM or OWN_START)."""
+
+    stamp_ns: int
+    start: str
+    offsets_ns: list[int]
+    angles_rad: list[float]
+    rates_rad_s: list[float]  # zeros for a LINEAR path
+    order: int
+
+
+def setpoint_path_cdr(joint: str, path: RecordedPath) -> bytes:
+    """CDR of the trajectory_msgs/JointTrajectory of a setpoint path: ``joint``'s positions at
+    each knot, with velocities for a cubic or quintic path and zero accelerations for a quintic
+    one, time_from_start the knot's offset (encoded by rosbags, see :func:`parameter_event_cdr`)."""
+    store = typestore()
+    types = store.types
+    duration, point_type = types["builtin_interfaces/msg/Duration"], types["trajectory_msgs/msg/JointTrajectoryPoint"]
+    points = []
+    for offset_ns, angle, rate in zip(path.offsets_ns, path.angles_rad, path.rates_rad_s):
+        sec, nanosec = divmod(offset_ns, 1_000_000_000)
+        points.append(
+            point_type(
+                positions=np.array([angle]),
+                velocities=np.array([rate] if path.order != LINEAR else [], dtype=float),
+                accelerations=np.array([0.0] if path.order == QUINTIC else [], dtype=float),
+                effort=np.array([], dtype=float),
+                time_from_start=duration(sec=sec, nanosec=nanosec),
+            )
+        )
+    sec, nanosec = divmod(path.stamp_ns, 1_000_000_000)
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=path.start
+    )
+    msg = types[JOINT_TRAJECTORY](header=header, joint_names=[joint], points=points)
+    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
+
+
+def recorded_path(msg: Any) -> RecordedPath:
+    """The setpoint path of a deserialised ~/setpoint_path message (its first joint's values).
+    Raises ValueError for a message that is not one."""
+    if len(msg.joint_names) != 1 or not msg.points:
+        raise ValueError(f"a setpoint path names one joint and has points; this one names {list(msg.joint_names)}")
+    points = msg.points
+    with_rates = all(len(p.velocities) == 1 for p in points)
+    order = (
+        QUINTIC if with_rates and all(len(p.accelerations) == 1 for p in points) else CUBIC if with_rates else LINEAR
+    )
+    return RecordedPath(
+        msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+        msg.header.frame_id,
+        [p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec for p in points],
+        [float(p.positions[0]) for p in points],
+        [float(p.velocities[0]) if with_rates else 0.0 for p in points],
+        order,
+    )
 
 
 _VALUE_FIELDS = {  # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it

@@ -151,6 +151,34 @@ def segment(order: int, w: Any, span: Any, a0: Any, a1: Any, r0: Any, r1: Any) -
     return h00 * a0 + h10 * span * r0 + h01 * a1 + h11 * span * r1, (d00 * a0 + d01 * a1) / span + d10 * r0 + d11 * r1
 
 
+def knot_offsets_ns(path: SetpointPath, t0_s: float) -> list[int]:
+    """The knot times of a single-set ``path`` after ``t0_s``, in whole nanoseconds (as a
+    JointTrajectory's time_from_start carries them)."""
+    return [round((t - t0_s) * 1e9) for t in path.times_s[:, 0].tolist()]
+
+
+def path_from_offsets(
+    t0_s: float, offsets_ns: Sequence[int], angles_rad: Sequence[float], rates_rad_s: Sequence[float], order: int
+) -> SetpointPath:
+    """A single-set path whose knots come ``offsets_ns`` after ``t0_s``: the node follows its
+    paths so (:func:`on_whole_ns`), and boom-resim rebuilds a recorded one so, bit for bit,
+    from the same ``t0_s``; ``rates_rad_s`` is not read for a LINEAR path."""
+    times = [t0_s + n * 1e-9 for n in offsets_ns]
+    return SetpointPath.of(times, list(angles_rad), None if order == LINEAR else list(rates_rad_s), order)
+
+
+def on_whole_ns(path: SetpointPath, t0_s: float) -> SetpointPath:
+    """A single-set ``path`` with its knot times moved to whole nanoseconds after ``t0_s`` (by at
+    most half a nanosecond): what a recording of it (offsets in ns) rebuilds exactly."""
+    return path_from_offsets(
+        t0_s,
+        knot_offsets_ns(path, t0_s),
+        path.angles_rad[:, 0].tolist(),
+        path.rates_rad_s[:, 0].tolist(),
+        path.order,
+    )
+
+
 def move_duration_s(start_rad: Any, target_rad: Any, max_speed_rad_s: Any) -> np.ndarray:
     """Duration of a rest-to-rest quintic move whose peak rate is ``max_speed_rad_s``."""
     return PEAK_RATIO * np.abs(np.asarray(target_rad) - np.asarray(start_rad)) / np.asarray(max_speed_rad_s)

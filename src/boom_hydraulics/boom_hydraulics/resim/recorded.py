@@ -1,7 +1,8 @@
 """A boom_sim bag read as a run to simulate again: its description, the valve commands and
-parameter changes with the instants they act at, the setpoints of the position controller,
-the published state instants, the node's run events (resets, pauses, steps, dropped
-backlogs: bags.run_events) and its own counts of them."""
+parameter changes with the instants they act at, the setpoints of the position controller and
+the paths it followed (with where the node took each), the published state instants, the
+node's run events (resets, pauses, steps, dropped backlogs: bags.run_events) and its own
+counts of them."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from typing import Any
 
 from rosbags.highlevel import AnyReader, AnyReaderError
 
-from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER
+from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, JOINT_TRAJECTORY, RecordedPath, recorded_path
 from ..bags.recording import Topic, offered_qos
 from ..bags.run_description import RunDescription
 from ..bags.run_events import RunEvent, origin_at, parse
@@ -61,6 +62,18 @@ class Recorded:
 
 
 @dataclass
+class TakenPath:
+    """A setpoint path the node's controller started to follow (~/setpoint_path), with when the
+    node took it: after ``taken_after`` drive states, logged at ``log_ns`` (as a command)."""
+
+    path: RecordedPath
+    log_ns: int
+    taken_after: int
+    topic: str
+    raw: bytes
+
+
+@dataclass
 class RecordedRun:
     """What a node recorded about its run, enough to run it again."""
 
@@ -84,6 +97,10 @@ class RecordedRun:
     # (none where the bag has no events_topic: recorded before the node recorded them)
     events: list[RunEvent] = field(default_factory=list)
     event_messages: list[tuple[int, bytes]] = field(default_factory=list)
+    # each path the controller started to follow, in the order taken (none in a bag from before
+    # the node recorded them, or without drive states to place them)
+    paths: list[TakenPath] = field(default_factory=list)
+    setpoint_topic: str | None = None  # where the node published its controller's setpoint (None: nowhere)
 
     @property
     def has_events(self) -> bool:
@@ -238,6 +255,18 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                 (_stamp_ns(msg), msg.position[0], msg.velocity[0])
                 for _, _, _, msg in _messages(reader, setpoint_topics[:1])
             )
+            path_connections = [
+                c for c in reader.connections if c.msgtype == JOINT_TRAJECTORY and c.topic.endswith("/setpoint_path")
+            ][:1]
+            paths = [
+                TakenPath(recorded_path(msg), log_ns, node_instants.count(log_ns), connection.topic, bytes(raw))
+                for connection, log_ns, raw, msg in _messages(reader, path_connections if logged_states else [])
+            ]
+            topics += [
+                Topic(c.topic, c.msgtype, tuple(getattr(c.ext, "offered_qos_profiles", ())) or (offered_qos(),))
+                for c in path_connections
+                if paths
+            ]
             run_counts: dict[str, float] = {}
             diagnostics = [c for c in reader.connections if c.msgtype == DIAGNOSTICS]
             for _, _, _, msg in _messages(reader, diagnostics):
@@ -300,6 +329,8 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
         energy_topic=energy_topic or (f"{node_name}/energy" if node_name else None),
         events=[event for _, _, event in events],
         event_messages=[(log, raw) for log, raw, _ in events],
+        paths=paths,
+        setpoint_topic=setpoint_topics[0].topic if setpoint_topics else None,
     )
 
 

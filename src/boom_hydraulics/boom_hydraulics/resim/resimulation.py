@@ -24,12 +24,17 @@ bags.continuity); a bag with its events only where it is not whole. A run that c
 simulated to its end writes nothing; an interrupted one (Ctrl-C: exit 130, SIGTERM: 143)
 neither, and a killed one's temporary folder is removed by the next run to the same --out.
 
-Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory),
-the bag holds its setpoint (~/setpoint, every tick): the controller follows the recorded
-setpoints here too (cubic between ticks, from where the boom was when control began), with
-the new parameters' gains and cylinder; it lets go where the recording shows it let go. The
-setpoint between two ticks is interpolated, so such a run matches its recording closely but
-not to the last bit.
+Where the node's position controller drove the valve (MoveBoom goals, ~/joint_trajectory,
+joint_commands), the bag holds each path the controller started to follow (~/setpoint_path,
+where the node took it: between ticks, as a command) and its setpoint (~/setpoint, every tick
+in which it drove). The controller follows the recorded paths here, the same knots at the same
+simulated times, bit for bit, each from this run's own setpoint (or boom angle) where the node's
+started from its own, so that an unchanged run reproduces the node's exactly and a changed one
+moves from where its boom is; with the new parameters' gains and cylinder. It lets go where the
+setpoints show the node's let go (a canceled goal). A bag from before the node recorded its
+paths has only the setpoints: the controller follows them (cubic between ticks, from where the
+boom was when control began), close to the recording but not to the last bit. The new bag has
+the paths and the setpoints of this run, so that a re-simulation of it follows them again.
 """
 
 from __future__ import annotations
@@ -42,7 +47,15 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, drive_state_cdr
+from ..bags.encoding import (
+    DRIVE_STATE,
+    ENERGY_LEDGER,
+    FROM_BOOM,
+    FROM_SETPOINT,
+    RecordedPath,
+    drive_state_cdr,
+    setpoint_cdr,
+)
 from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.reading import read_run_description
 from ..bags.recording import BagRecorder, Topic
@@ -52,11 +65,13 @@ from ..errors import ConfigError, RecordingError, SimulationError
 from ..files import check_apart, folder_beside
 from ..model import config
 from ..model.parameters import NAMES, from_mapping
-from ..model.setpoints import SetpointPath
+from ..model.robot_description import JOINTS
+from ..model.setpoints import LINEAR, SetpointPath, path_from_offsets
+from ..programs import raise_pending
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from .control import Control, control_stretches
-from .recorded import Recorded, RecordedRun, read_run
+from .recorded import JOINT_STATE, Recorded, RecordedRun, TakenPath, read_run
 from .refusals import check_calls, check_states
 from .staging import remove_stale_staging
 
@@ -71,7 +86,9 @@ class _Resimulation:
         self.pending = deque(run.parameter_changes)
         # commands wait here for the instant the node took them (see take); without drive states
         # they are queued at once, each for when it was logged or stamped
-        taken = [c for c in run.commands if c.taken_ns is not None]
+        taken: list[Recorded | TakenPath] = [c for c in run.commands if c.taken_ns is not None]
+        # and so do the paths the controller started to follow (taken between ticks as commands are)
+        taken += run.paths
         self.waiting = deque(sorted(taken, key=lambda c: (c.taken_after, c.log_ns)))
         for command in run.commands:
             if command.taken_ns is None:
@@ -108,9 +125,13 @@ class _Resimulation:
         """The commands the node took after publishing ``states`` drive states (or before),
         those logged before ``logged_before``, queued as the node queued them (ros.commands):
         at their stamp, or now if unstamped; a passed stamp acts at the next step, and the
-        command timeout counts from it."""
+        command timeout counts from it. The paths its controller took meanwhile are followed
+        from now, in the order the node logged them among the commands."""
         while self.waiting and self.waiting[0].taken_after <= states and self.waiting[0].log_ns < logged_before:
             command = self.waiting.popleft()
+            if isinstance(command, TakenPath):
+                self.follow(command.path)
+                continue
             at_s = self.seconds(command.stamp_ns, command.origin_ns) if command.stamp_ns else self.sim.t
             self._push(command, at_s)
 
@@ -144,6 +165,22 @@ class _Resimulation:
         angles = [angle] + [a for _, a, _ in control.samples]
         rates = [rate] + [r for _, _, r in control.samples]
         self.drive.follow(SetpointPath.of(times, angles, rates))
+
+    def follow(self, recorded: RecordedPath) -> None:
+        """The controller follows a path the node's controller started to follow here: its knots
+        after now, as the node timed them (model.setpoints.path_from_offsets: the same path, bit
+        for bit, at the node's instant), its first knot where the node took it from: this run's
+        setpoint or boom angle, which are the node's in a run that reproduces it, and this
+        run's own with new parameters (a move from where the boom is here)."""
+        angles, rates = list(recorded.angles_rad), list(recorded.rates_rad_s)
+        if recorded.start == FROM_SETPOINT:
+            angle, rate = self.drive.setpoint()
+            angles[0] = angle
+            if recorded.order != LINEAR:
+                rates[0] = rate
+        elif recorded.start == FROM_BOOM:
+            angles[0] = float(self.sim.outputs()["alpha"])
+        self.drive.follow(path_from_offsets(self.sim.t, recorded.offsets_ns, angles, rates, recorded.order))
 
     def apply_changes(self) -> None:
         """Parameter changes due by now (the node applies them between ticks)."""
@@ -208,8 +245,9 @@ def read_recorded(
 
 
 class Replay:
-    """A recorded run's commands, parameter changes and controller stretches through the model
-    with parameter ``values`` (``overrides`` kept on top of the recorded changes). Iterating it
+    """A recorded run's commands, parameter changes and controller paths (or, in an older bag,
+    its setpoints) through the model with parameter ``values`` (``overrides`` kept on top of the
+    recorded changes). Iterating it
     runs the simulation and gives (stamp ns, outputs) at each state instant the node published
     (or, for a bag without DriveState, at its publish rate); ``done`` counts the instants taken.
     Raises SimulationError where the run cannot go on, ConfigError for a recorded parameter
@@ -227,6 +265,12 @@ class Replay:
         self.instant_ns = run.clock_origin_ns  # the instant of the state just given
         self.index = 0  # its index in instants
         self.done = 0
+
+    def setpoint(self) -> tuple[float, float] | None:
+        """The controller's setpoint (rad, rad/s) at the state just given, where it drove in the
+        steps up to it (as the node publishes it on ~/setpoint); None where it did not."""
+        followed = self._resim.drive.followed
+        return None if followed is None else followed.at(self.sim.t)
 
     @property
     def sim(self) -> Any:
@@ -252,7 +296,7 @@ class Replay:
                 resim.event(event)
                 happened = True
             resim.take(index)
-            if now_ns in starts:  # a goal or trajectory was taken between these instants
+            if now_ns in starts and not run.paths:  # a goal or trajectory was taken between these instants
                 resim.take_over(starts[now_ns], stamp_origins)
             origin = self.origins[index]
             steps = round((resim.seconds(at_ns, origin) - resim.sim.t) / resim.sim.params.time_step_s)
@@ -296,6 +340,7 @@ def resimulate(
     # the commands, parameter changes and run events as recorded: a re-simulation of the new bag
     # finds them as in this one
     events = [Recorded(0, log_ns, events_topic, raw) for log_ns, raw in run.event_messages] if events_topic else []
+    events += [Recorded(0, p.log_ns, p.topic, p.raw) for p in run.paths]
     recorded = deque(sorted(run.commands + run.parameter_changes + events, key=lambda r: r.log_ns))
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = folder_beside(out)  # (an error names --out, not the staging folder)
@@ -306,11 +351,14 @@ def resimulate(
         topics = [Topic(run.state_topic, DRIVE_STATE), *run.topics]
         topics += [Topic(events_topic, EVENTS_TYPE)] if events_topic else []
         topics += [Topic(energy_topic, ENERGY_LEDGER)] if energy_topic else []
+        setpoint_topic = run.setpoint_topic  # (where the node had one: a re-simulation of the new bag lets go there)
+        topics += [Topic(setpoint_topic, JOINT_STATE)] if setpoint_topic else []
         with (
             BagRecorder(staging / "bag", topics, custom_data=custom, file_stem=out.name) as recorder,
             _progress(len(replay.instants)) as progress,
         ):
             for stamp_ns, outputs in replay:
+                raise_pending()  # a Ctrl-C or SIGTERM whose exception a finalizer swallowed stops it here
                 progress.update(replay.done - progress.n)
                 # logged when the node published the state of this instant, so that a re-simulation
                 # of this bag finds the node's instants as in the recorded run (NodeInstants)
@@ -319,6 +367,9 @@ def resimulate(
                     message = recorded.popleft()
                     recorder.write(message.topic, message.log_ns, message.raw)
                 recorder.write(run.state_topic, log_ns, drive_state_cdr(outputs, stamp_ns))
+                setpoint = replay.setpoint()
+                if setpoint_topic and setpoint is not None:
+                    recorder.write(setpoint_topic, log_ns, setpoint_cdr(JOINTS[0], *setpoint, stamp_ns))
                 if energy_topic and replay.done % energy_every == 0:
                     sim = replay.sim
                     now = ledger_now(sim.params, sim.t, sim.y, sim.constants, sim.u)

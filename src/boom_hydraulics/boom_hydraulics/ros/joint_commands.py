@@ -38,6 +38,7 @@ from collections.abc import Callable
 
 from sensor_msgs.msg import JointState
 
+from ..bags.encoding import FROM_SETPOINT, OWN_START
 from ..model.geometry import outside_stroke, stroke_angles_rad
 from ..model.robot_description import JOINTS
 from ..model.setpoints import SetpointPath
@@ -131,8 +132,9 @@ class JointCommands:
         if self._holds(path):
             return None  # the same hold again (as the hardware interface repeats it): the controller goes on as it is
         self.preempt("preempted by a joint command on joint_commands")
-        drive.follow(path)
-        self.path = path
+        # its first knot: the setpoint now where the command acts later, else the command's own
+        # angle (or, for a velocity alone, where the setpoint was, within MAX_LEAD_RAD of the boom)
+        self.path = plant.follow(path, FROM_SETPOINT if start > sim.t else OWN_START)
         return None
 
     def _holds(self, path: SetpointPath) -> bool:

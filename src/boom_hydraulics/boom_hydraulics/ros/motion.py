@@ -16,6 +16,10 @@ ros2_control's joint_trajectory_controller drives a joint:
 - A valve command that applies while either runs takes over (operator override): the goal
   is aborted with that reason, a trajectory is dropped with a warning.
 
+Each path the controller starts to follow goes out once on ``~/setpoint_path`` and into the
+bag (:meth:`Plant.follow`), its knots on whole nanoseconds from the instant taken, so that
+boom-resim follows the same path, bit for bit.
+
 The node's loop thread calls :meth:`Motion.after_steps` after every batch of steps, which
 finishes goals. The action server lives on a hidden helper node (``_<node>_move_boom``, its
 action named after the main node: ``/boom_sim/move_boom``) with a small multi-threaded
@@ -48,8 +52,9 @@ from trajectory_msgs.msg import JointTrajectory
 
 from boom_hydraulics_msgs.action import MoveBoom
 
+from ..bags.encoding import FROM_BOOM, FROM_SETPOINT, OWN_START
 from ..model.geometry import outside_stroke
-from ..model.setpoints import SetpointPath, move
+from ..model.setpoints import SetpointPath, move, on_whole_ns
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
 
@@ -82,7 +87,9 @@ class Goal:
 class Plant:
     """What position goals need of the node: the drive they hand the valve to, the lock that
     guards it, the simulation (its time and outputs), the log, whether the node stops, whether
-    the simulation has failed, and how a stamp maps to simulated time."""
+    the simulation has failed, how a stamp maps to simulated time, and how it tells of a path
+    the controller starts to follow (:meth:`follow`: every goal, trajectory and joint command
+    hands the valve over through it)."""
 
     lock: threading.RLock
     sim: Simulator
@@ -91,6 +98,18 @@ class Plant:
     stopping: threading.Event
     failure: Callable[[], str | None]
     stamp_to_sim_time: Callable[[Any], float | None]
+    # tells (publishes on ~/setpoint_path, records) a path the controller starts to follow now,
+    # with where its first knot came from (bags.encoding.FROM_SETPOINT, FROM_BOOM or OWN_START)
+    announce: Callable[[SetpointPath, str], None]
+
+    def follow(self, path: SetpointPath, start: str) -> SetpointPath:
+        """Hand the valve to the controller along ``path``, its knots put on whole nanoseconds
+        from now (so that boom-resim rebuilds it bit for bit from ~/setpoint_path), and tell of
+        it; returns the path followed. ``start``: where its first knot came from."""
+        path = on_whole_ns(path, self.sim.t)
+        self.drive.follow(path)
+        self.announce(path, start)
+        return path
 
 
 class Motion:
@@ -199,8 +218,7 @@ class Motion:
                 return
             speed = request.max_speed_rad_s or p.control_max_speed_rad_s
             angle, rate = plant.drive.setpoint()
-            path = move(sim.t, angle, rate, request.target_angle_rad, speed)
-            plant.drive.follow(path)
+            path = plant.follow(move(sim.t, angle, rate, request.target_angle_rad, speed), FROM_SETPOINT)
             end_s = float(path.end_s[0])
             timeout = request.timeout_s or DEFAULT_TIMEOUT_S
             self.goal = Goal(
@@ -254,26 +272,27 @@ class Motion:
     def on_trajectory(self, msg: JointTrajectory) -> None:
         plant = self.plant
         with plant.lock:
-            why, path = self._plan_trajectory(msg)
-            if why is not None:
+            why, path, start = self._plan_trajectory(msg)
+            if why is not None or path is None:
                 plant.logger.warning(f"joint trajectory ignored: {why}")
                 return
             self._finish(ABORTED, "preempted by a joint trajectory")
-            plant.drive.follow(path)
+            plant.follow(path, start)
             self.trajectory = True
 
-    def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None]:
+    def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None, str]:
+        """(why it is ignored or None, the path to follow, where its first knot comes from)."""
         plant = self.plant
         p, sim = plant.sim.params, plant.sim
         if p.mode != "physical":
-            return "position control needs mode: physical", None
+            return "position control needs mode: physical", None, OWN_START
         if plant.failure():
-            return f"the simulation stopped ({plant.failure()}); call ~/reset first", None
+            return f"the simulation stopped ({plant.failure()}); call ~/reset first", None, OWN_START
         angle, rate = plant.drive.setpoint()
         if not msg.points:  # JTC: an empty trajectory stops where the boom is
-            return None, SetpointPath.of([sim.t], [float(plant.sim.outputs()["alpha"])])
+            return None, SetpointPath.of([sim.t], [float(plant.sim.outputs()["alpha"])]), FROM_BOOM
         if "boom_joint" not in msg.joint_names:
-            return f"it names {list(msg.joint_names)}; this node drives boom_joint", None
+            return f"it names {list(msg.joint_names)}; this node drives boom_joint", None, OWN_START
         j = list(msg.joint_names).index("boom_joint")
         stamp = msg.header.stamp
         start = plant.stamp_to_sim_time(stamp)
@@ -282,24 +301,26 @@ class Motion:
         try:
             positions = [float(pt.positions[j]) for pt in msg.points]
         except IndexError:
-            return "a point has fewer positions than joint_names", None
+            return "a point has fewer positions than joint_names", None, OWN_START
         with_rates = all(len(pt.velocities) == len(msg.joint_names) for pt in msg.points)
         rates = [float(pt.velocities[j]) for pt in msg.points] if with_rates else None
         if not all(math.isfinite(x) for x in positions + (rates or [])):
-            return "positions and velocities must be finite", None
+            return "positions and velocities must be finite", None, OWN_START
         if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < start:
-            return "time_from_start must be non-negative and strictly increasing", None
+            return "time_from_start must be non-negative and strictly increasing", None, OWN_START
         outside = [why for x in positions if (why := outside_stroke(p, x, "position")) is not None]
         if outside:
-            return outside[0], None
+            return outside[0], None, OWN_START
+        start_from = OWN_START
         if times[0] > sim.t:  # from where the setpoint is now to the first point
+            start_from = FROM_SETPOINT
             times, positions = [sim.t, *times], [angle, *positions]
             rates = [rate, *rates] if rates is not None else None
         plant.logger.info(
             f"joint trajectory: {len(msg.points)} points over {times[-1] - sim.t:.2f} s "
             f"({'cubic' if rates is not None else 'linear'})"
         )
-        return None, SetpointPath.of(times, positions, rates)
+        return None, SetpointPath.of(times, positions, rates), start_from
 
     def _drop_trajectory(self, why: str) -> None:
         if self.trajectory:

@@ -56,13 +56,14 @@ from boom_hydraulics_msgs.srv import Reset, Step
 
 from ..bags import cdr, messages
 from ..bags.diagnostics import RunCounts, diagnostics
-from ..bags.encoding import setpoint_cdr
+from ..bags.encoding import RecordedPath, setpoint_cdr, setpoint_path_cdr
 from ..bags.energy import energy_ledger_cdr, finite, ledger_every, ledger_now
 from ..bags.recording import run_description
 from ..bags.run_events import RunEvent
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
+from ..model.setpoints import SetpointPath, knot_offsets_ns
 from ..solve import accelerate, outcomes
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
@@ -139,6 +140,8 @@ class BoomSimNode(Node):
         self.hinge_pub = self.create_publisher(WrenchStamped, "hinge_wrench", state_qos)
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
         self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
+        # each path the controller starts to follow, exactly (boom-resim follows it again)
+        self.setpoint_path_pub = self.create_publisher(JointTrajectory, "~/setpoint_path", state_qos)
         self.energy_pub = self.create_publisher(EnergyLedger, "~/energy", state_qos)
         # what the node did to its own time line (resets, pauses, steps, dropped backlogs): JSON lines
         self.events_pub = self.create_publisher(
@@ -217,6 +220,7 @@ class BoomSimNode(Node):
             self.stopping,
             lambda: self.failure,
             self.clock.stamp_to_sim_time,
+            self.announce_path,
         )
         self.motion = Motion(plant, self.get_name(), self.get_namespace())
         self.drive.on_override = self.motion.on_override
@@ -298,7 +302,7 @@ class BoomSimNode(Node):
     def _begin_recording(self) -> None:
         """Open the bag, if asked for, at the time origin: every topic this node publishes."""
         pubs = [self.state_pub, self.joint_pub, self.p1_pub, self.p2_pub, self.force_pub, self.hinge_pub, self.diag_pub]
-        pubs += [self.markers_pub, self.setpoint_pub, self.energy_pub, self.events_pub]
+        pubs += [self.markers_pub, self.setpoint_pub, self.setpoint_path_pub, self.energy_pub, self.events_pub]
         pubs += [pub for pub in (self.description_pub, self.clock_pub) if pub is not None]
         if self.recording.pending:
             description = run_description(
@@ -688,6 +692,23 @@ class BoomSimNode(Node):
             if now is not None and finite(now):
                 tick.append((self.energy_pub, energy_ledger_cdr(now, stamp_ns)))
         self.recording.publish(tick, log_ns)
+
+    def announce_path(self, path: SetpointPath, start: str) -> None:
+        """The path the controller starts to follow now (caller holds the lock), on
+        ~/setpoint_path and in the bag: stamped as the state of this instant, its knots' times
+        from it in whole ns (the node follows them so: Plant.follow), logged now, as a run
+        event, so that the bag tells between which of its states the node took it."""
+        clock = self.clock
+        recorded = RecordedPath(
+            clock.state_stamp_ns(),
+            start,
+            knot_offsets_ns(path, self.sim.t),
+            path.angles_rad[:, 0].tolist(),
+            path.rates_rad_s[:, 0].tolist(),
+            path.order,
+        )
+        message = [(self.setpoint_path_pub, setpoint_path_cdr(JOINTS[0], recorded))]
+        self.recording.publish(message, clock.now_ns(), keep_early=True)  # (a goal before the first /clock too)
 
     def publish_description(self) -> None:
         """The URDF of the current parameters on robot_description (transient local), its

@@ -1,7 +1,8 @@
 """The node's bag: every topic it publishes, its parameter changes and every command it receives.
 
 The bag starts with the stepping (its time origin, simulated time 0): at start on the node's
-own clock, at the first /clock on a shared one. Commands received before it are kept for it.
+own clock, at the first /clock on a shared one. Commands received before it are kept for it, and
+so are the paths the position controller took meanwhile (~/setpoint_path).
 Messages are serialised once: the bytes published are the bytes recorded. A recording that
 fails (a full disk) stops with one error line; the run goes on. On a shared clock (``ordered``),
 which stands still between its ticks, what the node handles at one clock reading is logged
@@ -11,6 +12,7 @@ after a tick's states (boom-resim needs it).
 
 from __future__ import annotations
 
+import functools
 import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
@@ -81,7 +83,9 @@ class NodeRecording:
         self.recorder: BagRecorder | None = None
         self.error: str | None = None
         self._folder, self._chunk_kib, self._flush_s = folder, chunk_kib, flush_s
-        self._early_commands: list[tuple[str, bytes, dict]] = []
+        # what comes before the bag begins, to go into it then, in order: the commands received
+        # and what the node published to be kept (each a call that records it)
+        self._early: list[Callable[[], None]] = []
         self._topic_names: dict[Any, str] = {}  # publisher -> its topic (rclpy asks rcl at each read)
         self._ordered = ordered
         self._last_log_ns = -1  # the last log time given (ordered)
@@ -94,14 +98,15 @@ class NodeRecording:
         return now_ns
 
     def begin(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> None:
-        """Open the bag, if asked for, at the time origin, with the commands received before it."""
+        """Open the bag, if asked for, at the time origin, with the commands received before it
+        (and the messages published to be kept: see publish)."""
         if not self.pending:
             return
         self.pending = False
         self._open(publishers, custom_data)
-        for topic, data, info in self._early_commands:
-            self.received(topic, data, info)
-        self._early_commands.clear()
+        for early in self._early:
+            early()
+        self._early.clear()
 
     def _open(self, publishers: Sequence[Any], custom_data: dict[str, str]) -> None:
         """Start :attr:`recorder`: a bag of the given publishers' topics, the parameter changes,
@@ -119,12 +124,16 @@ class NodeRecording:
         self.recorder = recorder  # at once: from here on, finish() finishes it, whatever comes
         self.node.get_logger().info(f"recording to {recorder.folder}")
 
-    def publish(self, messages: list[tuple[Any, Any]], log_ns: int) -> None:
+    def publish(self, messages: list[tuple[Any, Any]], log_ns: int, keep_early: bool = False) -> None:
         """Record (publisher, message) pairs, then publish them all: whatever a subscriber got
         is in the bag, even when a signal shuts the ROS context down in the middle of a
         tick's publishing (a tick is recorded whole; only its publishing can be cut short).
         While recording, each message is serialised once, and the bytes published are the
-        bytes recorded. A message given as CDR bytes is published and recorded as those bytes."""
+        bytes recorded. A message given as CDR bytes is published and recorded as those bytes.
+        ``keep_early``: messages (CDR bytes) published before the bag begins (no /clock yet) go
+        into it when it begins, in order with the commands received meanwhile."""
+        if self.pending and keep_early:
+            self._early += [functools.partial(self._write_now, publisher, data) for publisher, data in messages]
         if self.recorder is None:
             for publisher, msg in messages:
                 publisher.publish(msg)
@@ -133,14 +142,22 @@ class NodeRecording:
             (publisher, msg if isinstance(msg, bytes) else serialize_message(msg)) for publisher, msg in messages
         ]
         log_ns = self._log_time(log_ns)
-        names = self._topic_names
         for publisher, data in serialised:
-            name = names.get(publisher)
-            if name is None:
-                name = names[publisher] = publisher.topic_name
-            self.recorder.write(name, log_ns, data)
+            self._write(publisher, data, log_ns)
         for publisher, data in serialised:
             publisher.publish(data)
+
+    def _write_now(self, publisher: Any, data: bytes) -> None:
+        """Record ``data`` as published by ``publisher`` now (a message kept from before the bag)."""
+        self._write(publisher, data, self._log_time(self.now_ns()))
+
+    def _write(self, publisher: Any, data: bytes, log_ns: int) -> None:
+        """Record ``data`` as published by ``publisher`` (at ``log_ns`` as given: see _log_time)."""
+        assert self.recorder is not None
+        name = self._topic_names.get(publisher)
+        if name is None:
+            name = self._topic_names[publisher] = publisher.topic_name
+        self.recorder.write(name, log_ns, data)
 
     def parameter_event(self, changed_at_ns: int, changed: list[tuple[str, int, Any]]) -> None:
         """Record a parameter change as rclpy announces it on /parameter_events, stamped with
@@ -165,7 +182,7 @@ class NodeRecording:
         """Log a received command at its receive time on the node's clock, as rosbag2 does
         (its header stamp stays inside the message); publish time: when it was sent."""
         if self.pending:
-            self._early_commands.append((topic, data, info))
+            self._early.append(functools.partial(self.received, topic, data, info))
             return
         if self.recorder is None:
             return
