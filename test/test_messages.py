@@ -213,6 +213,39 @@ def test_packed_energy_ledger_is_the_canonical_cdr_of_the_same_message():
     assert list(msg.power_w) == [power[name] for name in names] and list(msg.energy_j) == integrals
 
 
+def test_a_setpoint_path_reads_in_rclpy_with_where_it_starts_in_a_field_of_its_own():
+    """~/setpoint_path as the node packs it (bags.encoding, without rclpy) is what rclpy reads
+    into boom_hydraulics_msgs/SetpointPath: where its first point came from in ``start`` (the
+    encoder's constants are the message's), the path a JointTrajectory in no frame, stamped
+    with the instant taken, its knots' times whole ns; it decodes back to the same path."""
+    from boom_hydraulics.bags.encoding import (
+        START_BOOM,
+        START_OWN,
+        START_SETPOINT,
+        RecordedPath,
+        recorded_path,
+        setpoint_path_cdr,
+    )
+    from boom_hydraulics.model.setpoints import QUINTIC
+    from boom_hydraulics_msgs.msg import SetpointPath
+
+    assert (START_OWN, START_SETPOINT, START_BOOM) == (
+        SetpointPath.START_OWN,
+        SetpointPath.START_SETPOINT,
+        SetpointPath.START_BOOM,
+    )
+    path = RecordedPath(7 * 10**9 + 3, START_BOOM, [0, 250_000_001], [0.25, 0.5], [0.125, 0.0], QUINTIC)
+    msg = deserialize_message(setpoint_path_cdr("boom_joint", path), SetpointPath)
+    trajectory = msg.trajectory
+    assert msg.start == SetpointPath.START_BOOM
+    assert trajectory.header.stamp == Time(sec=7, nanosec=3) and trajectory.header.frame_id == ""
+    assert list(trajectory.joint_names) == ["boom_joint"]
+    assert [(p.time_from_start.sec, p.time_from_start.nanosec) for p in trajectory.points] == [(0, 0), (0, 250_000_001)]
+    assert [list(p.positions) for p in trajectory.points] == [[0.25], [0.5]]
+    assert [list(p.velocities) for p in trajectory.points] == [[0.125], [0.0]]
+    assert recorded_path(msg) == path
+
+
 PUBLISHER = textwrap.dedent(
     """
     import time, rclpy

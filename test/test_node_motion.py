@@ -22,6 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 from boom_hydraulics_msgs.action import MoveBoom  # noqa: E402
+from boom_hydraulics_msgs.msg import SetpointPath  # noqa: E402
 
 pytestmark = [
     pytest.mark.usefixtures("ros_context"),
@@ -243,14 +244,16 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
     first target, as a closed loop does. (Interpolating the per-tick setpoints instead, as boom-resim
     did before, missed by up to 0.02 degrees in a loaded suite run, and by far more across the stall.)
     With publish_clock at real-time factor 2, and on the node's default clock (ROS-time stamps)."""
+    from bag_checks import check_bag
+
     from boom_hydraulics.bags.reading import read_drive_states, read_run_description
 
     pace = ("publish_clock:=true", "real_time_factor:=2.0") if clock == "publish_clock" else ()
     proc = nodes.start(*pace, f"record_folder:={tmp_path / 'bags'}", record=True)
     try:
         mover = Mover(client)
-        paths: list[JointTrajectory] = []
-        client.node.create_subscription(JointTrajectory, "/boom_sim/setpoint_path", paths.append, 100)
+        paths: list[SetpointPath] = []
+        client.node.create_subscription(SetpointPath, "/boom_sim/setpoint_path", paths.append, 100)
         first = mover.send(math.radians(30.0))
         client.spin_sim(0.3)  # under way
         os.kill(proc.pid, signal.SIGSTOP)  # starved of the processor: the next tick catches up at once
@@ -294,11 +297,19 @@ def test_a_closed_loop_run_resimulates_exactly_and_answers_what_if(nodes, client
     assert heavy["u"][heavy["t"] <= trajectories_s - origin_s][-1] == 0.0
     # every kind of path was there: the goals' quintics from the setpoint, trajectories (cubic from
     # the setpoint, linear from their own first point, an empty one holding the boom), joint commands
-    kinds = {(p.header.frame_id, len(p.points[0].velocities), len(p.points[0].accelerations)) for p in paths}
-    assert {("setpoint", 1, 1), ("setpoint", 1, 0), ("", 0, 0), ("boom", 0, 0), ("setpoint", 0, 0)} <= kinds, kinds
+    kinds = {
+        (p.start, len(p.trajectory.points[0].velocities), len(p.trajectory.points[0].accelerations)) for p in paths
+    }
+    own, setpoint, boom = SetpointPath.START_OWN, SetpointPath.START_SETPOINT, SetpointPath.START_BOOM
+    assert {(setpoint, 1, 1), (setpoint, 1, 0), (own, 0, 0), (boom, 0, 0), (setpoint, 0, 0)} <= kinds, kinds
+    assert {p.trajectory.header.frame_id for p in paths} == {""}  # joint values, in no frame
+    # the bag reads back in independent readers (MCAP with CRCs, rosbags from the bag's own
+    # definitions), every path the node published there once
+    counts = check_bag(bag)
+    assert counts["/boom_sim/setpoint_path"] == len(paths), counts
 
 
-def _trajectories_and_joint_commands(client, mover: Mover, paths: list[JointTrajectory]) -> None:
+def _trajectories_and_joint_commands(client, mover: Mover, paths: list[SetpointPath]) -> None:
     """After the goals of the closed-loop run: joint trajectories (cubic, its first point later than
     now; linear, its first point now; empty, a hold), then joint commands (a velocity alone; a
     position stamped ahead), each waited for on ~/setpoint_path."""

@@ -67,6 +67,22 @@ def test_schemas_are_the_msg_texts_with_comments_as_rosbag2_stores_them():
     assert text.count("MSG: builtin_interfaces/Time") == 1
 
 
+def test_a_setpoint_paths_schema_carries_the_trajectorys_types():
+    """SetpointPath nests a standard JointTrajectory: its schema in the bag carries every type
+    it uses, each once, so that a reader without this workspace decodes it."""
+    text = message_definition("boom_hydraulics_msgs/msg/SetpointPath")
+    assert "uint8 START_SETPOINT=1" in text and "trajectory_msgs/JointTrajectory trajectory" in text
+    nested = [line[len("MSG: ") :] for line in text.splitlines() if line.startswith("MSG: ")]
+    assert sorted(nested) == sorted(set(nested))
+    assert {
+        "trajectory_msgs/JointTrajectory",
+        "trajectory_msgs/JointTrajectoryPoint",
+        "std_msgs/Header",
+        "builtin_interfaces/Time",
+        "builtin_interfaces/Duration",
+    } == set(nested)
+
+
 def test_chunks_reach_the_disk_at_once_and_then_within_the_flush_bound(tmp_path):
     """Events, not durations: the first message reaches the disk with an hour's flush bound
     (at once, then), and the next ones in a chunk far from full once the bound is 0.3 s."""

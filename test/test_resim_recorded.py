@@ -22,10 +22,10 @@ from boom_hydraulics.bags import cdr
 from boom_hydraulics.bags.encoding import (
     DRIVE_STATE,
     ENERGY_LEDGER,
-    FROM_BOOM,
-    FROM_SETPOINT,
-    JOINT_TRAJECTORY,
-    OWN_START,
+    SETPOINT_PATH,
+    START_BOOM,
+    START_OWN,
+    START_SETPOINT,
     RecordedPath,
     message,
     parameter_event_cdr,
@@ -237,7 +237,7 @@ def test_the_setpoints_and_the_nodes_latest_counts_are_read(tmp_path):
     assert run.run_counts == {"resets": 3.0, "pauses": 2.0, "clock_origin_shift_s": 0.25}
 
 
-def _path_message(path, t0_s: float, start: str) -> bytes:
+def _path_message(path, t0_s: float, start: int) -> bytes:
     """~/setpoint_path of ``path`` as the node publishes it when it takes the path at ``t0_s``."""
     recorded = RecordedPath(
         ORIGIN + round(t0_s * 1e9),
@@ -255,14 +255,14 @@ def test_the_paths_the_controller_followed_read_back_bit_for_bit_where_the_node_
     instant equal to the one the node followed (its knots on whole ns from there) in every bit."""
     t0 = 0.02  # the instant of the second state (sums of time steps are seldom whole ns)
     followed = [
-        (on_whole_ns(move(t0, 0.3, 0.01, 0.6, 0.37), t0), FROM_SETPOINT),  # a goal's quintic
-        (on_whole_ns(SetpointPath.of([t0, t0 + 0.1 / 3], [0.25, 0.5], [0.125, 0.0]), t0), OWN_START),  # cubic
-        (on_whole_ns(SetpointPath.of([t0, t0 + 1 / 7], [0.25, 0.5]), t0), OWN_START),  # linear
-        (on_whole_ns(SetpointPath.of([t0], [0.4]), t0), FROM_BOOM),  # an empty trajectory's hold
+        (on_whole_ns(move(t0, 0.3, 0.01, 0.6, 0.37), t0), START_SETPOINT),  # a goal's quintic
+        (on_whole_ns(SetpointPath.of([t0, t0 + 0.1 / 3], [0.25, 0.5], [0.125, 0.0]), t0), START_OWN),  # cubic
+        (on_whole_ns(SetpointPath.of([t0, t0 + 1 / 7], [0.25, 0.5]), t0), START_OWN),  # linear
+        (on_whole_ns(SetpointPath.of([t0], [0.4]), t0), START_BOOM),  # an empty trajectory's hold
     ]
     topic = "/crane/boom_sim/setpoint_path"
     paths = [
-        (topic, JOINT_TRAJECTORY, ORIGIN + 25 * MS + k, _path_message(p, t0, start))
+        (topic, SETPOINT_PATH, ORIGIN + 25 * MS + k, _path_message(p, t0, start))
         for k, (p, start) in enumerate(followed)
     ]
     run = read_run(_bag(tmp_path / "bag", _states(10, 20, 30) + paths), _describe())
@@ -285,17 +285,36 @@ def test_the_paths_the_controller_followed_read_back_bit_for_bit_where_the_node_
     assert abs(followed[0][0].end_s[0] - planned.end_s[0]) <= 0.5e-9 and followed[0][0].times_s[0, 0] == t0
     # without states there is nothing to place them by; a path of two joints is not the node's
     assert read_run(_bag(tmp_path / "alone", paths), _describe()).paths == []
-    two = (topic, JOINT_TRAJECTORY, ORIGIN + 25 * MS, _two_joints(_path_message(followed[0][0], t0, FROM_SETPOINT)))
+    two = (topic, SETPOINT_PATH, ORIGIN + 25 * MS, _two_joints(_path_message(followed[0][0], t0, START_SETPOINT)))
     with pytest.raises(BagError, match=r"a message does not fit its recorded type"):
         read_run(_bag(tmp_path / "two", [*_states(10, 20), two]), _describe())
+    # a bag from when the node published its paths as bare JointTrajectory messages: none read
+    # (boom-resim follows its setpoints)
+    bare = typestore().deserialize_cdr(_path_message(followed[0][0], t0, START_SETPOINT), SETPOINT_PATH).trajectory
+    trajectory = "trajectory_msgs/msg/JointTrajectory"
+    old = (topic, trajectory, ORIGIN + 25 * MS, bytes(typestore().serialize_cdr(bare, trajectory)))
+    assert read_run(_bag(tmp_path / "old", [*_states(10, 20), old]), _describe()).paths == []
+    # nor is one that starts from neither its own point, the setpoint nor the boom
+    unknown = (topic, SETPOINT_PATH, ORIGIN + 25 * MS, _changed(_path_message(followed[0][0], t0, START_OWN), start=3))
+    with pytest.raises(BagError, match=r"a message does not fit its recorded type"):
+        read_run(_bag(tmp_path / "unknown", [*_states(10, 20), unknown]), _describe())
 
 
 def _two_joints(data: bytes) -> bytes:
     """The path message ``data`` naming a second joint."""
     store = typestore()
-    msg = store.deserialize_cdr(data, JOINT_TRAJECTORY)
-    msg.joint_names = ["boom_joint", "other"]
-    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
+    msg = store.deserialize_cdr(data, SETPOINT_PATH)
+    msg.trajectory.joint_names = ["boom_joint", "other"]
+    return bytes(store.serialize_cdr(msg, SETPOINT_PATH))
+
+
+def _changed(data: bytes, **fields: Any) -> bytes:
+    """The path message ``data`` with ``fields`` set."""
+    store = typestore()
+    msg = store.deserialize_cdr(data, SETPOINT_PATH)
+    for name, value in fields.items():
+        setattr(msg, name, value)
+    return bytes(store.serialize_cdr(msg, SETPOINT_PATH))
 
 
 def test_a_setpoint_without_a_position_is_one_line(tmp_path):

@@ -28,6 +28,7 @@ from .recording import interface_file
 DRIVE_STATE = "boom_hydraulics_msgs/msg/DriveState"
 VALVE_COMMAND = "boom_hydraulics_msgs/msg/ValveCommand"
 ENERGY_LEDGER = "boom_hydraulics_msgs/msg/EnergyLedger"
+SETPOINT_PATH = "boom_hydraulics_msgs/msg/SetpointPath"
 
 #: DriveState field -> model output name (simulation.OUTPUTS), in the message's order.
 DRIVE_STATE_FIELDS: dict[str, str] = {
@@ -61,10 +62,10 @@ _PACK_DRIVE_STATE = cdr.drive_state_packer(BASE_FRAME, *_PACK_SHAPE)
 
 @functools.cache
 def typestore() -> Typestore:
-    """Jazzy's message types, DriveState, ValveCommand and EnergyLedger (from the workspace's
-    installed .msg)."""
+    """Jazzy's message types, DriveState, ValveCommand, EnergyLedger and SetpointPath (from the
+    workspace's installed .msg)."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    for msgtype in (DRIVE_STATE, VALVE_COMMAND, ENERGY_LEDGER):
+    for msgtype in (DRIVE_STATE, VALVE_COMMAND, ENERGY_LEDGER, SETPOINT_PATH):
         store.register(get_types_from_msg(interface_file(msgtype, ".msg").read_text(), msgtype))
     return store
 
@@ -144,20 +145,20 @@ def setpoint_cdr(joint: str, angle_rad: float, rate_rad_s: float, stamp_ns: int)
     return cdr.joint_state(stamp_ns, (joint,), (angle_rad,), (rate_rad_s,), ())
 
 
-JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
-#: Where a recorded setpoint path's first point came from (its header.frame_id): the
-#: controller's setpoint when the node took the path, the boom's angle then, or the path's own.
-FROM_SETPOINT, FROM_BOOM, OWN_START = "setpoint", "boom", ""
+#: Where a recorded setpoint path's first point came from (SetpointPath.start, its constants of
+#: the same names): the path's own, the controller's setpoint when the node took the path, or the
+#: boom's angle then.
+START_OWN, START_SETPOINT, START_BOOM = 0, 1, 2
 
 
 @dataclass(frozen=True)
 class RecordedPath:
     """A setpoint path the node's controller started to follow, as ~/setpoint_path carries it:
     knots ``offsets_ns`` after the instant stamped ``stamp_ns``; ``start`` says where the first
-    knot came from (FROM_SETPOINT, FROM_BOOM or OWN_START)."""
+    knot came from (START_OWN, START_SETPOINT or START_BOOM)."""
 
     stamp_ns: int
-    start: str
+    start: int
     offsets_ns: list[int]
     angles_rad: list[float]
     rates_rad_s: list[float]  # zeros for a LINEAR path
@@ -165,9 +166,10 @@ class RecordedPath:
 
 
 def setpoint_path_cdr(joint: str, path: RecordedPath) -> bytes:
-    """CDR of the trajectory_msgs/JointTrajectory of a setpoint path: ``joint``'s positions at
-    each knot, with velocities for a cubic or quintic path and zero accelerations for a quintic
-    one, time_from_start the knot's offset (encoded by rosbags, see :func:`parameter_event_cdr`)."""
+    """CDR of the boom_hydraulics_msgs/SetpointPath of a setpoint path: where its first point came
+    from, and a trajectory_msgs/JointTrajectory of ``joint``'s positions at each knot (in no frame),
+    with velocities for a cubic or quintic path and zero accelerations for a quintic one,
+    time_from_start the knot's offset (encoded by rosbags, see :func:`parameter_event_cdr`)."""
     store = typestore()
     types = store.types
     duration, point_type = types["builtin_interfaces/msg/Duration"], types["trajectory_msgs/msg/JointTrajectoryPoint"]
@@ -185,25 +187,30 @@ def setpoint_path_cdr(joint: str, path: RecordedPath) -> bytes:
         )
     sec, nanosec = divmod(path.stamp_ns, 1_000_000_000)
     header = types["std_msgs/msg/Header"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=path.start
+        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
     )
-    msg = types[JOINT_TRAJECTORY](header=header, joint_names=[joint], points=points)
-    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
+    trajectory = types["trajectory_msgs/msg/JointTrajectory"](header=header, joint_names=[joint], points=points)
+    msg = types[SETPOINT_PATH](start=path.start, trajectory=trajectory)
+    return bytes(store.serialize_cdr(msg, SETPOINT_PATH))
 
 
 def recorded_path(msg: Any) -> RecordedPath:
     """The setpoint path of a deserialised ~/setpoint_path message (its first joint's values).
     Raises ValueError for a message that is not one."""
-    if len(msg.joint_names) != 1 or not msg.points:
-        raise ValueError(f"a setpoint path names one joint and has points; this one names {list(msg.joint_names)}")
-    points = msg.points
+    trajectory = msg.trajectory
+    if len(trajectory.joint_names) != 1 or not trajectory.points:
+        names = list(trajectory.joint_names)
+        raise ValueError(f"a setpoint path names one joint and has points; this one names {names}")
+    if msg.start not in (START_OWN, START_SETPOINT, START_BOOM):
+        raise ValueError(f"a setpoint path starts from its own point, the setpoint or the boom; this one {msg.start}")
+    points = trajectory.points
     with_rates = all(len(p.velocities) == 1 for p in points)
     order = (
         QUINTIC if with_rates and all(len(p.accelerations) == 1 for p in points) else CUBIC if with_rates else LINEAR
     )
     return RecordedPath(
-        msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
-        msg.header.frame_id,
+        trajectory.header.stamp.sec * 1_000_000_000 + trajectory.header.stamp.nanosec,
+        int(msg.start),
         [p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec for p in points],
         [float(p.positions[0]) for p in points],
         [float(p.velocities[0]) if with_rates else 0.0 for p in points],

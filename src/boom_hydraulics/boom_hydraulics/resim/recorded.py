@@ -15,7 +15,7 @@ from typing import Any
 
 from rosbags.highlevel import AnyReader, AnyReaderError
 
-from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, JOINT_TRAJECTORY, RecordedPath, recorded_path
+from ..bags.encoding import DRIVE_STATE, ENERGY_LEDGER, SETPOINT_PATH, RecordedPath, recorded_path
 from ..bags.recording import Topic, offered_qos
 from ..bags.run_description import RunDescription
 from ..bags.run_events import RunEvent, origin_at, parse
@@ -256,7 +256,7 @@ def read_run(bag: Path, description: RunDescription) -> RecordedRun:
                 for _, _, _, msg in _messages(reader, setpoint_topics[:1])
             )
             path_connections = [
-                c for c in reader.connections if c.msgtype == JOINT_TRAJECTORY and c.topic.endswith("/setpoint_path")
+                c for c in reader.connections if c.msgtype == SETPOINT_PATH and c.topic.endswith("/setpoint_path")
             ][:1]
             paths = [
                 TakenPath(recorded_path(msg), log_ns, node_instants.count(log_ns), connection.topic, bytes(raw))

@@ -50,8 +50,8 @@ from typing import Any
 from ..bags.encoding import (
     DRIVE_STATE,
     ENERGY_LEDGER,
-    FROM_BOOM,
-    FROM_SETPOINT,
+    START_BOOM,
+    START_SETPOINT,
     RecordedPath,
     drive_state_cdr,
     setpoint_cdr,
@@ -173,12 +173,12 @@ class _Resimulation:
         setpoint or boom angle, which are the node's in a run that reproduces it, and this
         run's own with new parameters (a move from where the boom is here)."""
         angles, rates = list(recorded.angles_rad), list(recorded.rates_rad_s)
-        if recorded.start == FROM_SETPOINT:
+        if recorded.start == START_SETPOINT:
             angle, rate = self.drive.setpoint()
             angles[0] = angle
             if recorded.order != LINEAR:
                 rates[0] = rate
-        elif recorded.start == FROM_BOOM:
+        elif recorded.start == START_BOOM:
             angles[0] = float(self.sim.outputs()["alpha"])
         self.drive.follow(path_from_offsets(self.sim.t, recorded.offsets_ns, angles, rates, recorded.order))
 

@@ -38,7 +38,7 @@ from collections.abc import Callable
 
 from sensor_msgs.msg import JointState
 
-from ..bags.encoding import FROM_SETPOINT, OWN_START
+from ..bags.encoding import START_OWN, START_SETPOINT
 from ..model.geometry import outside_stroke, stroke_angles_rad
 from ..model.robot_description import JOINTS
 from ..model.setpoints import SetpointPath
@@ -134,7 +134,7 @@ class JointCommands:
         self.preempt("preempted by a joint command on joint_commands")
         # its first knot: the setpoint now where the command acts later, else the command's own
         # angle (or, for a velocity alone, where the setpoint was, within MAX_LEAD_RAD of the boom)
-        self.path = plant.follow(path, FROM_SETPOINT if start > sim.t else OWN_START)
+        self.path = plant.follow(path, START_SETPOINT if start > sim.t else START_OWN)
         return None
 
     def _holds(self, path: SetpointPath) -> bool:

@@ -52,7 +52,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from boom_hydraulics_msgs.action import MoveBoom
 
-from ..bags.encoding import FROM_BOOM, FROM_SETPOINT, OWN_START
+from ..bags.encoding import START_BOOM, START_OWN, START_SETPOINT
 from ..model.geometry import outside_stroke
 from ..model.setpoints import SetpointPath, move, on_whole_ns
 from ..solve.command_queue import CommandedDrive
@@ -99,10 +99,11 @@ class Plant:
     failure: Callable[[], str | None]
     stamp_to_sim_time: Callable[[Any], float | None]
     # tells (publishes on ~/setpoint_path, records) a path the controller starts to follow now,
-    # with where its first knot came from (bags.encoding.FROM_SETPOINT, FROM_BOOM or OWN_START)
-    announce: Callable[[SetpointPath, str], None]
+    # with where its first knot came from (bags.encoding.START_OWN, START_SETPOINT or START_BOOM:
+    # boom_hydraulics_msgs/SetpointPath.start)
+    announce: Callable[[SetpointPath, int], None]
 
-    def follow(self, path: SetpointPath, start: str) -> SetpointPath:
+    def follow(self, path: SetpointPath, start: int) -> SetpointPath:
         """Hand the valve to the controller along ``path``, its knots put on whole nanoseconds
         from now (so that boom-resim rebuilds it bit for bit from ~/setpoint_path), and tell of
         it; returns the path followed. ``start``: where its first knot came from."""
@@ -218,7 +219,7 @@ class Motion:
                 return
             speed = request.max_speed_rad_s or p.control_max_speed_rad_s
             angle, rate = plant.drive.setpoint()
-            path = plant.follow(move(sim.t, angle, rate, request.target_angle_rad, speed), FROM_SETPOINT)
+            path = plant.follow(move(sim.t, angle, rate, request.target_angle_rad, speed), START_SETPOINT)
             end_s = float(path.end_s[0])
             timeout = request.timeout_s or DEFAULT_TIMEOUT_S
             self.goal = Goal(
@@ -280,19 +281,19 @@ class Motion:
             plant.follow(path, start)
             self.trajectory = True
 
-    def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None, str]:
+    def _plan_trajectory(self, msg: JointTrajectory) -> tuple[str | None, SetpointPath | None, int]:
         """(why it is ignored or None, the path to follow, where its first knot comes from)."""
         plant = self.plant
         p, sim = plant.sim.params, plant.sim
         if p.mode != "physical":
-            return "position control needs mode: physical", None, OWN_START
+            return "position control needs mode: physical", None, START_OWN
         if plant.failure():
-            return f"the simulation stopped ({plant.failure()}); call ~/reset first", None, OWN_START
+            return f"the simulation stopped ({plant.failure()}); call ~/reset first", None, START_OWN
         angle, rate = plant.drive.setpoint()
         if not msg.points:  # JTC: an empty trajectory stops where the boom is
-            return None, SetpointPath.of([sim.t], [float(plant.sim.outputs()["alpha"])]), FROM_BOOM
+            return None, SetpointPath.of([sim.t], [float(plant.sim.outputs()["alpha"])]), START_BOOM
         if "boom_joint" not in msg.joint_names:
-            return f"it names {list(msg.joint_names)}; this node drives boom_joint", None, OWN_START
+            return f"it names {list(msg.joint_names)}; this node drives boom_joint", None, START_OWN
         j = list(msg.joint_names).index("boom_joint")
         stamp = msg.header.stamp
         start = plant.stamp_to_sim_time(stamp)
@@ -301,19 +302,19 @@ class Motion:
         try:
             positions = [float(pt.positions[j]) for pt in msg.points]
         except IndexError:
-            return "a point has fewer positions than joint_names", None, OWN_START
+            return "a point has fewer positions than joint_names", None, START_OWN
         with_rates = all(len(pt.velocities) == len(msg.joint_names) for pt in msg.points)
         rates = [float(pt.velocities[j]) for pt in msg.points] if with_rates else None
         if not all(math.isfinite(x) for x in positions + (rates or [])):
-            return "positions and velocities must be finite", None, OWN_START
+            return "positions and velocities must be finite", None, START_OWN
         if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < start:
-            return "time_from_start must be non-negative and strictly increasing", None, OWN_START
+            return "time_from_start must be non-negative and strictly increasing", None, START_OWN
         outside = [why for x in positions if (why := outside_stroke(p, x, "position")) is not None]
         if outside:
-            return outside[0], None, OWN_START
-        start_from = OWN_START
+            return outside[0], None, START_OWN
+        start_from = START_OWN
         if times[0] > sim.t:  # from where the setpoint is now to the first point
-            start_from = FROM_SETPOINT
+            start_from = START_SETPOINT
             times, positions = [sim.t, *times], [angle, *positions]
             rates = [rate, *rates] if rates is not None else None
         plant.logger.info(

@@ -52,6 +52,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from boom_hydraulics_msgs.msg import DriveState, EnergyLedger, ValveCommand
+from boom_hydraulics_msgs.msg import SetpointPath as SetpointPathMessage
 from boom_hydraulics_msgs.srv import Reset, Step
 
 from ..bags import cdr, messages
@@ -141,7 +142,7 @@ class BoomSimNode(Node):
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", state_qos)
         self.setpoint_pub = self.create_publisher(JointState, "~/setpoint", state_qos)
         # each path the controller starts to follow, exactly (boom-resim follows it again)
-        self.setpoint_path_pub = self.create_publisher(JointTrajectory, "~/setpoint_path", state_qos)
+        self.setpoint_path_pub = self.create_publisher(SetpointPathMessage, "~/setpoint_path", state_qos)
         self.energy_pub = self.create_publisher(EnergyLedger, "~/energy", state_qos)
         # what the node did to its own time line (resets, pauses, steps, dropped backlogs): JSON lines
         self.events_pub = self.create_publisher(
@@ -693,7 +694,7 @@ class BoomSimNode(Node):
                 tick.append((self.energy_pub, energy_ledger_cdr(now, stamp_ns)))
         self.recording.publish(tick, log_ns)
 
-    def announce_path(self, path: SetpointPath, start: str) -> None:
+    def announce_path(self, path: SetpointPath, start: int) -> None:
         """The path the controller starts to follow now (caller holds the lock), on
         ~/setpoint_path and in the bag: stamped as the state of this instant, its knots' times
         from it in whole ns (the node follows them so: Plant.follow), logged now, as a run
