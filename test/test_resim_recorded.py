@@ -288,7 +288,7 @@ def test_the_paths_the_controller_followed_read_back_bit_for_bit_where_the_node_
     two = (topic, SETPOINT_PATH, ORIGIN + 25 * MS, _two_joints(_path_message(followed[0][0], t0, START_SETPOINT)))
     with pytest.raises(BagError, match=r"a message does not fit its recorded type"):
         read_run(_bag(tmp_path / "two", [*_states(10, 20), two]), _describe())
-    # a bag from when the node published its paths as bare JointTrajectory messages: none read
+    # another type on a topic of that name (a JointTrajectory) is no path of the node's: none read
     # (boom-resim follows its setpoints)
     bare = typestore().deserialize_cdr(_path_message(followed[0][0], t0, START_SETPOINT), SETPOINT_PATH).trajectory
     trajectory = "trajectory_msgs/msg/JointTrajectory"
