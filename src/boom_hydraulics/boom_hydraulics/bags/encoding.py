@@ -170,28 +170,18 @@ def setpoint_path_cdr(joint: str, path: RecordedPath) -> bytes:
     from, and a trajectory_msgs/JointTrajectory of ``joint``'s positions at each knot (in no frame),
     with velocities for a cubic or quintic path and zero accelerations for a quintic one,
     time_from_start the knot's offset (encoded by rosbags, see :func:`parameter_event_cdr`)."""
-    store = typestore()
-    types = store.types
-    duration, point_type = types["builtin_interfaces/msg/Duration"], types["trajectory_msgs/msg/JointTrajectoryPoint"]
-    points = []
-    for offset_ns, angle, rate in zip(path.offsets_ns, path.angles_rad, path.rates_rad_s):
-        sec, nanosec = divmod(offset_ns, 1_000_000_000)
-        points.append(
-            point_type(
-                positions=np.array([angle]),
-                velocities=np.array([rate] if path.order != LINEAR else [], dtype=float),
-                accelerations=np.array([0.0] if path.order == QUINTIC else [], dtype=float),
-                effort=np.array([], dtype=float),
-                time_from_start=duration(sec=sec, nanosec=nanosec),
-            )
+    points = [
+        message(
+            "trajectory_msgs/msg/JointTrajectoryPoint",
+            positions=np.array([angle]),
+            velocities=np.array([rate] if path.order != LINEAR else [], dtype=float),
+            accelerations=np.array([0.0] if path.order == QUINTIC else [], dtype=float),
+            time_from_start=stamp(offset_ns),  # (a Duration has a Time's fields)
         )
-    sec, nanosec = divmod(path.stamp_ns, 1_000_000_000)
-    header = types["std_msgs/msg/Header"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
-    )
-    trajectory = types["trajectory_msgs/msg/JointTrajectory"](header=header, joint_names=[joint], points=points)
-    msg = types[SETPOINT_PATH](start=path.start, trajectory=trajectory)
-    return bytes(store.serialize_cdr(msg, SETPOINT_PATH))
+        for offset_ns, angle, rate in zip(path.offsets_ns, path.angles_rad, path.rates_rad_s)
+    ]
+    trajectory = {"header": {"stamp": stamp(path.stamp_ns)}, "joint_names": [joint], "points": points}
+    return to_cdr(message(SETPOINT_PATH, start=path.start, trajectory=trajectory))
 
 
 def recorded_path(msg: Any) -> RecordedPath:
