@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 
+import numpy as np
 import pytest
 from machine_bags import params_file, record_machine
 
@@ -94,3 +95,31 @@ def test_a_bag_without_run_description_needs_a_config(machine, tmp_path, capsys)
     assert cli.main([str(machine), "--fit", "bulk_modulus_pa", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert "has no run description (not recorded by boom_sim); give --config" in err
+
+
+def test_a_machine_bag_is_read_at_the_steps_around_its_samples_with_the_values_of_every_step(machine):
+    """A bag without the node's states is simulated on a grid of time steps; the fit stops to
+    read the state only at the two steps around each recorded sample (jittered, three sensors),
+    the two np.interp reads there: the same simulated signals, bit for bit, as reading every
+    step, from fewer instants (each read of a state costs Python time that the steps between do not)."""
+    from boom_hydraulics.calibration import fit
+    from boom_hydraulics.resim.resimulation import Replay
+
+    start = params_file(machine.parent / "start.yaml", {"bulk_modulus_pa": 0.8e9})
+    problem = fit.prepare(machine, ["bulk_modulus_pa"], start)
+    theta = [1.1]  # (a fraction of the start value)
+    read = problem.simulate(theta)
+    every_step = Replay(problem.run, problem.values, problem.overrides | problem.fitted_values(theta))
+    t_ns, columns = [], {s: [] for s in problem.signals}
+    for stamp_ns, outputs in every_step:
+        t_ns.append(stamp_ns)
+        for s in problem.signals:
+            columns[s].append(outputs[s])
+    t = (np.array(t_ns) - problem.run.clock_origin_ns).astype(float) * 1e-9
+    assert np.allclose(np.diff(t), problem.start.time_step_s)  # every step
+    for s in problem.signals:
+        whole = np.interp(problem.times_s[s], t, columns[s], left=np.nan, right=np.nan)
+        assert np.array_equal(read[s], whole, equal_nan=True), s
+        assert np.isfinite(read[s]).sum() > 0.95 * len(read[s])  # (not a comparison of nan: all but the ends)
+    around = Replay(problem.run, problem.values, problem.overrides, problem.read_at_s)
+    assert len(around.instants) <= 2 * len(problem.read_at_s) < len(every_step.instants)

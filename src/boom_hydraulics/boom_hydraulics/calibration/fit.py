@@ -4,7 +4,8 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
 - **The run.** A bag of boom_sim holds its parameters and time origin (its run description):
   they are the start, changed by ``--config`` and ``--set``. A bag without one (a real
   machine's) needs ``--config``; its run starts at rest at ``initial_length_m`` at the bag's
-  first message, and the simulation is sampled every time step. A bag without commands (valve
+  first message, and the simulation is read at the time steps on either side of each
+  recorded sample. A bag without commands (valve
   commands or the controller's setpoints) is refused: there is nothing to re-simulate; so is
   a run that was reset, as boom-resim refuses it (resim.refusals.break_in_states tells a reset
   from sensor noise).
@@ -134,6 +135,7 @@ class Problem:
         }
         origin = self.run.clock_origin_ns
         self.times_s = {s: (sig.time_ns - origin).astype(float) * 1e-9 for s, sig in self.signals.items()}
+        self.read_at_s = np.unique(np.concatenate(list(self.times_s.values())))  # where simulate reads the run
         self.evaluations = 0
 
     def fitted_values(self, theta: Sequence[float]) -> dict[str, float]:
@@ -145,7 +147,7 @@ class Problem:
         self.evaluations += 1
         last_ns = max(int(sig.time_ns[-1]) for sig in self.signals.values())
         try:
-            replay = Replay(self.run, self.values, self.overrides | self.fitted_values(theta))
+            replay = Replay(self.run, self.values, self.overrides | self.fitted_values(theta), self.read_at_s)
             t_ns, columns = [], {s: [] for s in self.signals}
             for stamp_ns, outputs in replay:
                 t_ns.append(stamp_ns)

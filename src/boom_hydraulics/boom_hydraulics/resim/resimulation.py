@@ -47,6 +47,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..bags.encoding import (
     DRIVE_STATE,
     ENERGY_LEDGER,
@@ -205,6 +207,18 @@ def _grid(run: RecordedRun, time_step_s: float) -> list[int]:
     return [run.clock_origin_ns + round((k + 1) * tick_s * 1e9) for k in range(n_ticks)]
 
 
+def _around(instants: list[int], origin_ns: int, read_at_s: np.ndarray) -> list[int]:
+    """The instants of a grid next to each of the times ``read_at_s`` (s from ``origin_ns``): the
+    two that linear interpolation at it reads (np.interp on the whole grid takes the same two,
+    so it gives the same values), one at either end of the grid. A run of the same steps that
+    stops to give its state less often: a fit of a real machine's bag, its sensors read
+    together at 100 Hz, on a grid of 1 ms steps takes a fifth of the instants."""
+    at_s = (np.array(instants, dtype=np.int64) - origin_ns).astype(float) * 1e-9  # as the fit reads them
+    after = np.searchsorted(at_s, read_at_s, side="right")
+    taken = np.union1d(np.clip(after - 1, 0, len(instants) - 1), np.clip(after, 0, len(instants) - 1))
+    return [instants[k] for k in taken]
+
+
 def _progress(total: int):
     """A progress bar over the state instants, as boom-sweep shows it: on stderr, only when
     it is a terminal."""
@@ -251,13 +265,20 @@ class Replay:
     runs the simulation and gives (stamp ns, outputs) at each state instant the node published
     (or, for a bag without DriveState, at its publish rate); ``done`` counts the instants taken.
     Raises SimulationError where the run cannot go on, ConfigError for a recorded parameter
-    change that does not fit the new parameters."""
+    change that does not fit the new parameters. For a bag without DriveState, ``read_at_s``
+    (s from the run's time origin) gives the states only at the steps around those times (a
+    fit's recorded samples), where linear interpolation reads them."""
 
-    def __init__(self, run: RecordedRun, values: Mapping[str, Any], overrides: Mapping[str, Any] = ()) -> None:
+    def __init__(
+        self, run: RecordedRun, values: Mapping[str, Any], overrides: Mapping[str, Any] = (),
+        read_at_s: np.ndarray | None = None,
+    ) -> None:  # fmt: skip
         self.run = run
         self._resim = _Resimulation(run, dict(values) | dict(overrides), overrides)
         self.params = self._resim.sim.params
         self.instants = run.state_ns or _grid(run, self.params.time_step_s)
+        if read_at_s is not None and not run.state_ns:
+            self.instants = _around(self.instants, run.clock_origin_ns, read_at_s)
         # the time origin each instant is stamped with, and when the node published its state
         # (the grid's: at its instant)
         self.origins = run.state_origins_ns() or [run.clock_origin_ns] * len(self.instants)
