@@ -255,8 +255,9 @@ def test_a_run_in_many_slices_counts_and_reports_them_as_one(tmp_path, monkeypat
 def test_the_closed_loops_start_is_its_first_sample_in_the_moves_window(tmp_path, monkeypatch, chunk_rows):
     """Samples every 0.5 s: a move from 0.25 s to 1.5 s starts at the sample at 0.5 s (the one
     at 1.0 s is further on its way), whatever slices the samples come in; a move from 0.6 s
-    until the next at 1.0 s (or 0.9 s) has no sample (the one at 1.0 s is the next move's): its
-    start is not known (nan)."""
+    until the next at 1.0 s (or 0.9 s) has no sample (the one at 1.0 s is the next move's): the
+    line says so, and how to measure it, instead of nan for its start, overshoot and error (so
+    does one that starts after the last sample)."""
     from boom_hydraulics.solve import simulation
 
     monkeypatch.setattr(simulation, "CHUNK_ROWS", chunk_rows)
@@ -271,7 +272,17 @@ def test_the_closed_loops_start_is_its_first_sample_in_the_moves_window(tmp_path
         unsampled = _run("run", "--duration", "1", "--every", "500", "--profile", f"angle:0.6=20,{end}=25",
                          "--out", tmp_path / f"unsampled_{end}.csv")  # fmt: skip
         assert unsampled.returncode == 0, unsampled.stderr
-        assert unsampled.stdout.splitlines()[1].startswith("closed loop: nan -> 20.00 deg, "), end
+        assert unsampled.stdout.splitlines()[1] == (
+            f"closed loop: the move to 20.00 deg (0.6 s to {end} s) has no sample to measure it by; "
+            "sample more often (a smaller --every)"
+        ), end
+    last = _run(
+        "run", "--duration", "0.7", "--every", "500", "--profile", "angle:0.8=20", "--out", tmp_path / "last.csv"
+    )
+    assert last.stdout.splitlines()[1] == (
+        "closed loop: the move to 20.00 deg (from 0.8 s) has no sample to measure it by; sample more often "
+        "(a smaller --every)"
+    )
 
 
 @pytest.mark.parametrize(

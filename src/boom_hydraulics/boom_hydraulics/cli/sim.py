@@ -130,7 +130,14 @@ def _move_summary(params: Parameters, m: dict[str, float], start_rad: float) -> 
     """One line on the closed loop's first move (metrics ``m`` of the run's samples, elevation
     ``start_rad`` at the move's first sample): target, settling, overshoot, final error."""
     settle = m["settling_s"]
-    target = math.degrees(move_window(params)[2])
+    start_s, end_s, target_rad = move_window(params)
+    target = math.degrees(target_rad)
+    if math.isnan(start_rad):  # no sample between the move's start and the next move's
+        window = f"{start_s:g} s to {end_s:g} s" if math.isfinite(end_s) else f"from {start_s:g} s"
+        return (
+            f"closed loop: the move to {target:.2f} deg ({window}) has no sample to measure it by; sample more "
+            "often (a smaller --every)"
+        )
     return (
         f"closed loop: {math.degrees(start_rad):.2f} -> {target:.2f} deg, "
         + (f"settled within 2 % in {settle:.3f} s" if math.isfinite(settle) else "not settled within 2 %")
