@@ -20,9 +20,9 @@ from pathlib import Path
 from tables import ROOT, best_of, table, write_results
 
 sys.path.insert(0, str(ROOT / "test"))  # the tests' recorder of a machine's bag
-from machine_bags import record_machine  # noqa: E402
+from machine_bags import record_machine
 
-from boom_hydraulics.calibration import fit  # noqa: E402
+from boom_hydraulics.calibration import fit
 
 NOISE = {"q1": 2e-4, "p1": 5e4, "p2": 5e4}
 
