@@ -1,0 +1,434 @@
+"""The physical model's parts (model/physical.py) against their definitions in docs/model.md.
+
+test_physical_mode.py steps the model through runs; these tests hold one evaluation at a time
+to its equations at chosen states, each from its closed form: the rod's acceleration (eq. 11),
+the chambers' volumes and pressure rates (eq. 12, 13, "Chambers"), the stored energy and the
+energy guard's rate W' = dH/dt (the model's own derivative), the start at rest (eq. 6), the
+outputs' flags at the edges that define them, the payload's share (eq. 8, 9), the model
+elements switched on and off, and the stepping's stability bound where one mode is the
+fastest. They run interpreted in a fraction of a second each (they are make mutants' tests of
+physical.py, tools/mutants.toml)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import CONFIG
+
+from boom_hydraulics.model import accumulator, config, drives, elastic_boom, hoses, physical
+from boom_hydraulics.model.drives import DRIVES
+from boom_hydraulics.model.geometry import (
+    annulus_area_m2,
+    boom_angle_rad,
+    lever_derivative,
+    lever_rad_per_m,
+    piston_area_m2,
+)
+from boom_hydraulics.model.ledger import INTEGRALS, integral_rates
+from boom_hydraulics.model.outputs import OUTPUT_NAMES
+from boom_hydraulics.model.parameters import Parameters, with_updates
+
+P = Parameters()
+#: The 1 t loader crane: accumulator, hoses and elastic boom all on.
+CRANE = config.load(CONFIG / "loader_crane_1t.yaml")
+#: The default boom with a spring and an external rod force, so that every force of eq. 11 is at work.
+LOADED = with_updates(P, spring_stiffness_n_m=3000.0, spring_free_length_m=1.1, external_rod_force_n=-800.0)
+
+
+def _state(p: Parameters, q1: float, v: float, z1: float, z2: float, spool: float = 0.0, bristle: float = 0.0) -> list:
+    """The start's state of ``p`` with the rod at ``q1`` moving at ``v``, chamber states z1, z2,
+    the spool at ``spool`` and the seals' bristles at ``bristle``."""
+    y = list(physical.initial_state(p, q1))
+    y[0], y[1], y[2], y[3], y[4], y[7] = q1, v, z1, z2, spool, bristle
+    return y
+
+
+def _out(y: list, c: physical.Constants, u: float) -> dict:
+    return dict(zip(OUTPUT_NAMES, physical.outputs(0.5, y, c, u)))
+
+
+# ---------------------------------------------------------------------------------------------
+# the rod's acceleration and the forces on the rod (docs/model.md, "Mechanics", eq. 11)
+
+
+@pytest.mark.parametrize(("q1", "v", "bristle"), [(1.25, 0.07, 0.3), (1.45, -0.11, -0.6), (1.3, 0.0, 0.0)])
+def test_the_rods_acceleration_is_lagranges_equation_with_every_force_on_the_rod(q1, v, bristle):
+    """q1'' = (F_rod - M_g k) / (J k^2) - (k'/k) q1'^2 with F_rod = p1 S1 - p2 S2 - p_amb (S1 - S2)
+    - F_friction - F_spring + F_ext (eq. 11; LuGre seals, "Friction"), each from its definition:
+    J = m1 L1^2 / 3 + mb L1^2, M_g = (m1 L1 / 2 + mb L1) g cos(alpha); and the boom's load on
+    the rod, f_load, is F_rod (the force balance)."""
+    p = LOADED
+    c = physical.constants(p)
+    z1, z2 = 6.5e6, 1.2e6
+    y = _state(p, q1, v, z1, z2, bristle=bristle)
+    out = _out(y, c, 0.0)
+    s1 = math.pi * p.piston_diameter_m**2 / 4.0
+    s2 = s1 - math.pi * p.rod_diameter_m**2 / 4.0
+    f_hyd = z1 * s1 - z2 * s2 - p.ambient_pressure_pa * (s1 - s2)
+    # LuGre: the bristles' level g(v)/F_s = F_c/F_s + (1 - F_c/F_s) exp(-(v/v_s)^2)
+    level = p.coulomb_friction_n / p.static_friction_n
+    level += (1.0 - level) * math.exp(-((v / p.stribeck_velocity_m_s) ** 2))
+    z_ba = p.friction_presliding_m
+    bristle_rate = (v - abs(v) * bristle / level) / z_ba
+    sigma1 = p.friction_presliding_damping_n_s_m * math.exp(-((v / p.stribeck_velocity_m_s) ** 2))  # it decays too
+    f_friction = p.static_friction_n * bristle + sigma1 * z_ba * bristle_rate
+    f_friction += p.viscous_friction_n_s_m * v
+    f_spring = p.spring_stiffness_n_m * (q1 - p.spring_free_length_m)
+    f_rod = f_hyd - f_friction - f_spring + p.external_rod_force_n
+    inertia = p.boom_mass_kg * p.boom_length_m**2 / 3.0 + p.payload_mass_kg * p.boom_length_m**2
+    alpha = boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m)
+    moment = (0.5 * p.boom_mass_kg + p.payload_mass_kg) * p.boom_length_m * p.gravity_m_s2 * math.cos(alpha)
+    k, dk = lever_rad_per_m(q1, p.a_m, p.b_m), lever_derivative(q1, p.a_m, p.b_m)
+    acc = (f_rod - moment * k) / (inertia * k * k) - dk / k * v * v
+    rates = physical.derivative(0.0, y, c, 0.0)
+    assert rates[0] == v  # q1' = v
+    assert rates[1] == pytest.approx(acc, rel=1e-9, abs=1e-12)
+    assert rates[7] == pytest.approx(bristle_rate, rel=1e-12, abs=1e-12)
+    assert out["a"] == rates[1]
+    assert out["f_hyd"] == pytest.approx(f_hyd, rel=1e-12)
+    assert out["f_friction"] == pytest.approx(f_friction, rel=1e-9, abs=1e-9)
+    assert out["f_load"] == pytest.approx(f_rod, rel=1e-9)
+    assert out["alpha"] == pytest.approx(alpha, rel=1e-12)
+    assert out["alpha_rate"] == pytest.approx(k * v, rel=1e-12, abs=1e-15)
+    assert (out["q1"], out["v"], out["t"], out["u"]) == (q1, v, 0.5, 0.0)
+    assert out["p1"] == z1 and out["p2"] == z2
+
+
+def test_the_end_stops_push_the_rod_out_with_hunt_crossley_and_their_contact_is_flagged_from_its_first_touch():
+    """Pressed d into a stop at speed v the stop pushes k d + lambda d d' out of it ("End stops"),
+    which the rod's acceleration carries (eq. 11); at_end_stop is 1 from the stop's length on
+    (the force starts from zero there) and 0 a hair inside the stroke."""
+    p = P
+    c = physical.constants(p)
+    k, lam = p.end_stop_stiffness_n_m, p.end_stop_damping_n_s_m2
+    for q1, v, pushed in [(p.cylinder_max_length_m + 1e-4, 2e-3, -1.0), (p.cylinder_min_length_m - 2e-4, -3e-3, 1.0)]:
+        y = _state(p, q1, v, 2e6, 2e6)
+        free = _state(p, q1, v, 2e6, 2e6)
+        d = abs(q1 - (p.cylinder_max_length_m if pushed < 0 else p.cylinder_min_length_m))
+        force = pushed * (k * d + lam * d * abs(v))  # d' = |v|: the rod goes in deeper
+        lever = lever_rad_per_m(q1, p.a_m, p.b_m)
+        mass = c.inertia * lever * lever
+        # the same evaluation without the stop's force is the hydraulics' and the weight's acceleration
+        without = physical.derivative(0.0, free, c._replace(stop_k=0.0, stop_damping=0.0), 0.0)[1]
+        assert physical.derivative(0.0, y, c, 0.0)[1] - without == pytest.approx(force / mass, rel=1e-6)
+        assert _out(y, c, 0.0)["at_end_stop"] == 1.0
+    for q1, flag in [(p.cylinder_min_length_m, 1.0), (p.cylinder_max_length_m, 1.0)]:
+        assert _out(_state(p, q1, 0.0, 2e6, 2e6), c, 0.0)["at_end_stop"] == flag
+        assert physical.observe(0.0, _state(p, q1, 0.0, 2e6, 2e6), c, 0.0)["at_end_stop"] is True
+    for q1 in (p.cylinder_min_length_m + 1e-9, p.cylinder_max_length_m - 1e-9):
+        assert _out(_state(p, q1, 0.0, 2e6, 2e6), c, 0.0)["at_end_stop"] == 0.0
+        assert physical.observe(0.0, _state(p, q1, 0.0, 2e6, 2e6), c, 0.0)["at_end_stop"] is False
+
+
+# ---------------------------------------------------------------------------------------------
+# the chambers (docs/model.md, "Chambers", eq. 12, 13)
+
+
+def test_the_chambers_volumes_follow_the_rod_and_shrink_exponentially_pressed_into_a_stop():
+    """V1 = V1,dead + S1 (q1 - q_min), V2 = V2,dead + S2 (q_max - q1) within the stroke, with
+    dV/dq1 = S1 and -S2; pressed d into a stop the chamber at that end is V_dead exp(-S d / V_dead)
+    and its dV/dq1 S exp(-S d / V_dead), the other one its stroke's."""
+    p = P
+    c = physical.constants(p)
+    s1, s2 = piston_area_m2(p.piston_diameter_m), annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
+    v1d, v2d, lo, hi = p.piston_dead_volume_m3, p.rod_dead_volume_m3, p.cylinder_min_length_m, p.cylinder_max_length_m
+    q1 = 1.3
+    got = physical.chamber_volumes(q1, c)
+    assert got == pytest.approx((v1d + s1 * (q1 - lo), v2d + s2 * (hi - q1), s1, -s2), rel=1e-12)
+    d = 3e-3
+    e1 = math.exp(-s1 * d / v1d)
+    got = physical.chamber_volumes(lo - d, c)
+    assert got == pytest.approx((v1d * e1, v2d + s2 * (hi - lo + d), s1 * e1, -s2), rel=1e-12)
+    e2 = math.exp(-s2 * d / v2d)
+    got = physical.chamber_volumes(hi + d, c)
+    assert got == pytest.approx((v1d + s1 * (hi + d - lo), v2d * e2, s1, -s2 * e2), rel=1e-12)
+
+
+@pytest.mark.parametrize("drive", ["pressure_compensated", "fixed_pump"])
+@pytest.mark.parametrize(("q1", "v", "u"), [(1.3, 0.05, 0.4), (1.45, -0.08, -0.7), (1.05 - 2e-3, -1e-3, 0.2)])
+def test_the_chamber_pressures_change_as_eq_12_and_13_say_and_the_spool_lags_its_command(drive, q1, v, u):
+    """p1' = E / V1 (Q1 - S1 q1'), p2' = E / V2 (Q2in + S2 q1') with the flows into the chambers
+    (q_in1, q_in2) and the volumes of :func:`chamber_volumes`; the spool follows its command as
+    x_v' = (u - x_v) / tau; the supply and valve-loss energies integrate the supply power and the
+    loss (what the supply gives and the chambers do not take, "Energy accounting"); the ledger's
+    integrals its terms."""
+    p = with_updates(LOADED, drive=drive)
+    c = physical.constants(p)
+    spool = -0.25
+    y = _state(p, q1, v, 7.0e6, 1.5e6, spool=spool, bristle=0.2)
+    rates = physical.derivative(0.0, y, c, u)
+    out = _out(y, c, u)
+    vol1, vol2, dvol1, dvol2 = physical.chamber_volumes(q1, c)
+    e = p.bulk_modulus_pa
+    assert rates[2] == pytest.approx(e / vol1 * (out["q_in1"] - dvol1 * v), rel=1e-9)
+    assert rates[3] == pytest.approx(e / vol2 * (out["q_in2"] - dvol2 * v), rel=1e-9)
+    assert rates[4] == pytest.approx((u - spool) / p.spool_time_constant_s, rel=1e-12)
+    assert out["x_v"] == spool  # the paths see the lagging spool
+    p_t = p.tank_pressure_pa
+    delivered = (7.0e6 - p_t) * out["q_in1"] + (1.5e6 - p_t) * out["q_in2"]
+    assert rates[5] == out["power"]
+    assert rates[6] == pytest.approx(out["power"] - delivered, rel=1e-9, abs=1e-9)
+    terms = physical.ledger(0.0, y, c, u)
+    got = rates[physical.LEDGER_STATES : physical.LEDGER_STATES + len(INTEGRALS)]
+    assert got == tuple(integral_rates(terms))
+    assert out["battery_power"] == terms.battery_power
+    assert len(rates) == len(y)
+
+
+def test_without_spool_lag_the_paths_see_the_command_and_the_spool_state_stands_still():
+    """spool_time_constant_s 0: no lag, x_v' = 0 and the valve's paths see the command itself."""
+    p = with_updates(P, spool_time_constant_s=0.0)
+    c = physical.constants(p)
+    y = _state(p, 1.3, 0.0, 4e6, 1e6, spool=0.3)
+    assert physical.derivative(0.0, y, c, -0.6)[4] == 0.0
+    assert _out(y, c, -0.6)["x_v"] == -0.6
+    lagging = physical.constants(P)
+    assert _out(_state(P, 1.3, 0.0, 4e6, 1e6, spool=0.3), lagging, -0.6)["x_v"] == 0.3
+
+
+def test_a_cavitating_chamber_holds_the_floor_and_its_void_is_the_missing_oil():
+    """Below the floor the state z measures the void, V_void = (p_cav - z) V / E, the pressure
+    stays at p_cav, and z' = E / V (Q_in - V') + (p_cav - z) V' / V ("Chambers"); the flag is
+    strict: at the floor no void and no cavitation."""
+    p = P
+    c = physical.constants(p)
+    p_cav, e = p.cavitation_pressure_pa, p.bulk_modulus_pa
+    q1, v = 1.3, 0.06
+    z1, z2 = p_cav - 4e5, p_cav - 1e5
+    y = _state(p, q1, v, z1, z2)
+    out = _out(y, c, 0.0)
+    vol1, vol2, dvol1, dvol2 = physical.chamber_volumes(q1, c)
+    assert out["p1"] == p_cav and out["p2"] == p_cav
+    assert out["void1"] == pytest.approx((p_cav - z1) * vol1 / e, rel=1e-12)
+    assert out["void2"] == pytest.approx((p_cav - z2) * vol2 / e, rel=1e-12)
+    assert out["cavitation"] == 1.0
+    rates = physical.derivative(0.0, y, c, 0.0)
+    rate1 = e / vol1 * (out["q_in1"] - dvol1 * v) + (p_cav - z1) * dvol1 * v / vol1
+    rate2 = e / vol2 * (out["q_in2"] - dvol2 * v) + (p_cav - z2) * dvol2 * v / vol2
+    assert rates[2] == pytest.approx(rate1, rel=1e-9)
+    assert rates[3] == pytest.approx(rate2, rel=1e-9)
+    for z_1, z_2, flag in [(p_cav, p_cav, 0.0), (p_cav - 1.0, 3e6, 1.0), (3e6, p_cav - 1.0, 1.0), (3e6, 2e6, 0.0)]:
+        out = _out(_state(p, q1, v, z_1, z_2), c, 0.0)
+        assert out["cavitation"] == flag, (z_1, z_2)
+        assert (out["void1"] > 0.0, out["void2"] > 0.0) == (z_1 < p_cav, z_2 < p_cav)
+
+
+def test_a_port_relief_opens_above_its_cracking_pressure_and_passes_its_rated_flow_at_the_top_of_its_range():
+    """Q = G (p - p_crack), G = rated flow / range: a chamber at p_crack + range loses the rated
+    flow to tank (q_in1 that much below the closed valve's), the flag is 1 only above p_crack, and
+    the relief's flow times (p - p_tank) is booked as port relief loss."""
+    p = with_updates(P, spool_time_constant_s=0.0)
+    c = physical.constants(p)
+    crack, span, rated = p.relief_pressure_pa, p.relief_range_pa, p.relief_rated_flow_m3_s
+    at = _out(_state(p, 1.3, 0.0, crack, 1e6), c, 0.0)
+    assert at["relief_open"] == 0.0
+    top = crack + span
+    for y in (_state(p, 1.3, 0.0, top, 1e6), _state(p, 1.3, 0.0, 1e6, top)):
+        out = _out(y, c, 0.0)
+        assert out["relief_open"] == 1.0
+        assert physical.samples(0.0, y, c, 0.0)[8] == 1.0  # relief_open in the run's samples
+        shut = _out([*y[:2], min(y[2], 1e6), min(y[3], 1e6), *y[4:]], c, 0.0)
+        lost = shut["q_in1"] - out["q_in1"] + shut["q_in2"] - out["q_in2"]
+        assert lost == pytest.approx(rated, rel=1e-2)  # (and the closed valve's leakage, which the pressure moves)
+        loss = physical.ledger(0.0, y, c, 0.0).port_relief_loss
+        assert loss == pytest.approx(rated * (top - p.tank_pressure_pa), rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# the stored energy and the energy guard (docs/model.md, "Energy accounting", "Stepping")
+
+
+def _energy_states(p: Parameters, rng: np.random.Generator) -> list[tuple[list, float]]:
+    """States where H is smooth: the rod in the stroke or pressed into a stop, moving either
+    way, chambers above the floor or cavitating, the seals' bristles deflected, the elements'
+    states (accumulator, hoses, elastic boom) off their start; and a command."""
+    rest = physical.initial_state(p)
+    lo, hi = p.cylinder_min_length_m, p.cylinder_max_length_m
+    picks = []
+    for q1 in (rng.uniform(lo + 0.05, hi - 0.05), lo - 1.5e-3, hi + 1e-3, rng.uniform(lo + 0.05, hi - 0.05)):
+        y = [x * rng.uniform(0.9, 1.1) for x in rest]
+        y[0], y[1], y[4], y[7] = q1, rng.uniform(-0.15, 0.15), rng.uniform(-1, 1), rng.uniform(-0.5, 0.5)
+        y[2], y[3] = rng.uniform(1e6, 2e7), rng.uniform(-4e5, 8e6)  # z2 from a void to above tank
+        if len(picks) == 3:
+            y[2], y[3] = -2e5, 5e6
+        if physical.BOOM_STATE in physical.element_states(p):
+            y[physical.BOOM_STATE + 1] = rng.uniform(-0.05, 0.05)
+        picks.append((y, rng.uniform(-1, 1)))
+    return picks
+
+
+@pytest.mark.parametrize("drive", list(DRIVES))
+def test_the_energy_guards_rate_is_the_rate_of_the_stored_energy_along_the_models_own_motion(drive):
+    """W' is dH/dt along the derivative (the stepping checks their integrals against each
+    other): a central difference of :func:`energy` along dy/dt gives it, with the crane's
+    accumulator, hoses and elastic boom on, a spring and an external force, at every drive,
+    in the stroke and pressed into the stops, chambers full or cavitating; |W|' = |W'|."""
+    p = with_updates(CRANE, drive=drive, spring_stiffness_n_m=2500.0, spring_free_length_m=1.5)
+    c = physical.constants(p)
+    h = 1e-7
+    for y, u in _energy_states(p, np.random.default_rng(5)):
+        f = physical.derivative(0.0, y, c, u)
+        ahead = physical.energy([a + h * b for a, b in zip(y, f)], c)
+        behind = physical.energy([a - h * b for a, b in zip(y, f)], c)
+        w, w_abs = f[physical.ENERGY_STATES[0]], f[physical.ENERGY_STATES[1]]
+        assert w == pytest.approx((ahead - behind) / (2.0 * h), rel=2e-6, abs=1e-3), (y[0], y[2], y[3])
+        assert w_abs == abs(w)
+
+
+def test_the_stored_energy_is_the_sum_of_its_parts():
+    """H = J k^2 v^2 / 2 + (m1 L1 / 2 + mb L1) g sin(alpha) + k_s (q1 - l0)^2 / 2 + F_s z_ba s^2 / 2
+    + the stops' k d^2 / 2 + sum V (p - p_tank)^2 / (2 E) (rigid boom, no elements, the default
+    drive, which stores nothing of its own); a cavitating chamber stores nothing."""
+    p = LOADED
+    c = physical.constants(p)
+    p_t, e = p.tank_pressure_pa, p.bulk_modulus_pa
+    for q1, z1, z2 in [(1.3, 6e6, 2e6), (p.cylinder_max_length_m + 2e-3, 3e6, -1e5)]:
+        v, s = -0.09, 0.4
+        y = _state(p, q1, v, z1, z2, bristle=s)
+        k = lever_rad_per_m(q1, p.a_m, p.b_m)
+        inertia = p.boom_mass_kg * p.boom_length_m**2 / 3.0 + p.payload_mass_kg * p.boom_length_m**2
+        weight = (0.5 * p.boom_mass_kg + p.payload_mass_kg) * p.boom_length_m * p.gravity_m_s2
+        alpha = boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m)
+        vol1, vol2, _, _ = physical.chamber_volumes(q1, c)
+        p1, p2 = max(z1, p.cavitation_pressure_pa), max(z2, p.cavitation_pressure_pa)
+        d = max(q1 - p.cylinder_max_length_m, 0.0)
+        expected = (
+            0.5 * inertia * k * k * v * v
+            + weight * math.sin(alpha)
+            + 0.5 * p.spring_stiffness_n_m * (q1 - p.spring_free_length_m) ** 2
+            + 0.5 * p.static_friction_n * p.friction_presliding_m * s * s
+            + 0.5 * p.end_stop_stiffness_n_m * d * d
+            + (vol1 * (p1 - p_t) ** 2 + vol2 * (p2 - p_t) ** 2) / (2.0 * e)
+        )
+        assert physical.energy(y, c) == pytest.approx(expected, rel=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# the start (eq. 6 at rest)
+
+
+@pytest.mark.parametrize("p", [P, LOADED, with_updates(P, external_rod_force_n=1500.0, payload_mass_kg=120.0)])
+def test_the_start_holds_the_boom_at_rest_with_the_rod_chamber_at_tank_pressure(p):
+    """The start: rod at rest at q1(0), valve and spool closed, seals relaxed, energies 0, the rod
+    chamber at tank pressure and the piston chamber at the pressure that holds the boom (its
+    acceleration 0, eq. 6 with the spring and F_ext's shares)."""
+    c = physical.constants(p)
+    y = physical.initial_state(p)
+    assert len(y) == len(physical.STATE_NAMES)
+    assert y[0] == p.initial_length_m and y[1] == p.initial_velocity_m_s == 0.0
+    assert y[3] == p.tank_pressure_pa and y[2] > p.tank_pressure_pa
+    assert y[4:10] == [0.0] * 6
+    assert y[physical.LEDGER_STATES : physical.LEDGER_STATES + len(INTEGRALS)] == [0.0] * len(INTEGRALS)
+    assert physical.derivative(0.0, y, c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
+    assert physical.initial_state(p, 1.4)[0] == 1.4
+    assert physical.derivative(0.0, physical.initial_state(p, 1.4), c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_start_rests_on_the_lower_stop_on_a_force_that_carries_the_boom_and_without_oil_at_tank_pressure():
+    """Parked at q_min the stop carries the boom, an external force that carries more than the
+    boom leaves no holding pressure, and a drive without oil (the EMA) has its housing's: the
+    piston chamber at tank pressure in each; a pump-driven start has the drive's own states."""
+    for p, q1 in [
+        (P, P.cylinder_min_length_m),
+        (with_updates(P, external_rod_force_n=2e4), None),
+        (with_updates(P, drive="electro_mechanical"), None),
+    ]:
+        y = physical.initial_state(p, q1)
+        assert y[2] == p.tank_pressure_pa == y[3]
+    p = with_updates(P, drive="pump_controlled")
+    z_d = drives.initial_state(p.drive, drives.constants(p))
+    assert tuple(physical.initial_state(p)[physical.DRIVE_STATE : physical.DRIVE_STATE + 3]) == tuple(z_d)
+    assert physical.drive_states(physical.initial_state(p)) == tuple(z_d)
+
+
+def test_the_crane_starts_with_its_hoses_at_the_chambers_pressures_its_accumulator_charged_and_its_boom_bent():
+    """With the elements on: the hoses' nodes at their chamber's pressure and their flows 0, the
+    accumulator's gas at its line's pressure (eq. A1: the piston chamber's, or the supply
+    line's), the elastic boom bent by its weight, eta = -S g cos(alpha) / k_eta (eq. E5 at rest)."""
+    for position in ("piston", "supply"):
+        p = CRANE
+        if position == "supply":  # on fixed_pump's supply line, charged below the line's start
+            p = with_updates(CRANE, accumulator_position=position, drive="fixed_pump", accumulator_precharge_pa=3e5)
+        y = physical.initial_state(p)
+        a, b = physical.HOSE_STATE, physical.HOSE_STATE + hoses.LINE_B
+        seg = hoses.SEGMENTS
+        assert y[a : a + seg] == [y[2]] * seg and y[a + seg : a + 2 * seg] == [0.0] * seg
+        assert y[b : b + seg] == [y[3]] * seg and y[b + seg : b + 2 * seg] == [0.0] * seg
+        c = physical.constants(p)
+        line = y[2] if position == "piston" else drives.node_pressure(physical.drive_states(y), c)
+        fill = y[physical.ACCUMULATOR_STATE]
+        gas = accumulator.gas_pressure_pa(fill, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
+        assert gas == pytest.approx(line, rel=1e-9) and 0.0 < fill < 1.0
+        eta = y[physical.BOOM_STATE]
+        assert eta == elastic_boom.static_deflection_m(p, y[0]) < 0.0 and y[physical.BOOM_STATE + 1] == 0.0
+    assert physical.initial_state(with_updates(CRANE, accumulator_gas_volume_m3=0.0))[physical.ACCUMULATOR_STATE] == 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# the payload's share and the model elements
+
+
+def test_a_released_payload_takes_its_inertia_and_weight_off_the_boom():
+    """with_payload(c, share): J and the weight coefficient with ``share`` of the payload (eq. 8,
+    9): the whole payload is the constants themselves, none is the boom without its payload, half
+    halfway; nothing else changes; boom_masses' payload on the hook is mb (eq. E3)."""
+    p = with_updates(P, payload_mass_kg=150.0)
+    c = physical.constants(p)
+    empty = physical.constants(with_updates(p, payload_mass_kg=0.0))
+    assert physical.with_payload(c, 1.0) == c
+    none = physical.with_payload(c, 0.0)
+    assert none.inertia == pytest.approx(empty.inertia, rel=1e-12)
+    assert none.weight_coeff == pytest.approx(empty.weight_coeff, rel=1e-12)
+    half = physical.with_payload(c, 0.5)
+    assert half.inertia == pytest.approx(0.5 * (c.inertia + empty.inertia), rel=1e-12)
+    assert half.weight_coeff == pytest.approx(0.5 * (c.weight_coeff + empty.weight_coeff), rel=1e-12)
+    assert half[:3] == c[:3] and half[5:] == c[5:]
+    assert physical.boom_masses(c).payload == pytest.approx(150.0, rel=1e-12)
+    assert physical.boom_masses(none).payload == pytest.approx(0.0, abs=1e-12)
+
+
+def test_the_elements_switched_on_are_the_states_that_move_and_a_state_without_them_steps_alone():
+    """element_states: none by default; the crane's accumulator, hoses and elastic boom; a drive
+    without oil keeps only the elastic boom (no lines for the others). A state of BASE_SIZE (the
+    elements off) has a derivative of its own size and reads the elements' states as 0."""
+    assert physical.element_states(P) == ()
+    assert physical.element_states(CRANE) == (physical.ACCUMULATOR_STATE, *physical.HOSE_STATES, *physical.BOOM_STATES)
+    ema = with_updates(CRANE, drive="electro_mechanical")
+    assert physical.element_states(ema) == physical.BOOM_STATES
+    assert physical.accumulator_volume_m3(ema) == 0.0 and physical.hose_length_m(ema) == 0.0
+    assert physical.accumulator_volume_m3(CRANE) == CRANE.accumulator_gas_volume_m3 > 0.0
+    assert physical.hose_length_m(CRANE) == CRANE.hose_length_m > 0.0
+    assert physical.element_states(with_updates(CRANE, hose_length_m=0.0, boom_bending_stiffness_n_m2=0.0)) == (
+        physical.ACCUMULATOR_STATE,
+    )
+    c = physical.constants(P)
+    y = physical.initial_state(P)
+    base = y[: physical.BASE_SIZE]
+    assert len(physical.derivative(0.0, base, c, 0.3)) == physical.BASE_SIZE
+    assert physical.derivative(0.0, base, c, 0.3) == physical.derivative(0.0, y, c, 0.3)[: physical.BASE_SIZE]
+    assert physical.component(base, physical.BOOM_STATE) == 0.0 and physical.component(y, 1) == y[1]
+    rates = physical.derivative(0.0, y, c, 0.3)
+    assert rates[physical.BASE_SIZE :] == (0.0,) * (len(y) - physical.BASE_SIZE)
+
+
+def test_the_elastic_booms_deflection_moves_at_its_rate_and_is_published():
+    """eta' is the state eta_rate, published as boom_deflection and boom_deflection_rate."""
+    c = physical.constants(CRANE)
+    y = physical.initial_state(CRANE)
+    y[physical.BOOM_STATE], y[physical.BOOM_STATE + 1] = -0.02, 0.037
+    rates = physical.derivative(0.0, y, c, 0.0)
+    assert rates[physical.BOOM_STATE] == 0.037
+    out = _out(y, c, 0.0)
+    assert (out["boom_deflection"], out["boom_deflection_rate"]) == (-0.02, 0.037)
+
+
+def test_the_ledgers_integrals_are_read_by_name():
+    """ledger_integrals: the state's ledger integrals (ledger.INTEGRALS) by name, J."""
+    y = list(physical.initial_state(P))
+    for k in range(len(INTEGRALS)):
+        y[physical.LEDGER_STATES + k] = 10.0 + k
+    assert physical.ledger_integrals(y) == {name: 10.0 + k for k, name in enumerate(INTEGRALS)}
+    assert physical.LIFT_WORK == physical.LEDGER_STATES + INTEGRALS.index("lift_work")
+    assert physical.BATTERY_RETURNED == physical.LEDGER_STATES + INTEGRALS.index("battery_returned")
