@@ -432,3 +432,33 @@ def test_the_ledgers_integrals_are_read_by_name():
     assert physical.ledger_integrals(y) == {name: 10.0 + k for k, name in enumerate(INTEGRALS)}
     assert physical.LIFT_WORK == physical.LEDGER_STATES + INTEGRALS.index("lift_work")
     assert physical.BATTERY_RETURNED == physical.LEDGER_STATES + INTEGRALS.index("battery_returned")
+
+
+# ---------------------------------------------------------------------------------------------
+# the hinge force (docs/model.md, "Elastic boom", eq. E8)
+
+
+@pytest.mark.parametrize(("q1", "v", "payload_kg"), [(1.37, 0.0, 50.0), (1.6, 0.0, 0.0), (1.5, 0.12, 200.0)])
+def test_the_hinge_force_of_a_rigid_boom_is_newtons_law_for_boom_and_payload(q1, v, payload_kg):
+    """R = sum(m a) - (m1 + mb) g - F_rod e_rod (eq. E8) for a rigid boom in its own frame (x to
+    the tip, z normal): the weight's share along the boom (m1 + mb) g sin(alpha) and normal to it
+    (m1 + mb) g cos(alpha), the rod's force along e_rod = (a - b xi, b sqrt(1 - xi^2)) / q1, and
+    the centre of mass's acceleration (-M1 alpha'^2, M1 alpha''), M1 = m1 L1 / 2 + mb L1; at
+    rest the boom's statics."""
+    p = with_updates(P, payload_mass_kg=payload_kg)
+    c = physical.constants(p)
+    y = _state(p, q1, v, 5.5e6, 1.0e6)
+    out = _out(y, c, 0.0)
+    alpha = boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m)
+    mass = p.boom_mass_kg + payload_kg
+    first_moment = (0.5 * p.boom_mass_kg + payload_kg) * p.boom_length_m
+    xi = (p.a_m**2 + p.b_m**2 - q1 * q1) / (2.0 * p.a_m * p.b_m)  # eq. 1
+    e_rod = ((p.a_m - p.b_m * xi) / q1, p.b_m * math.sqrt(1.0 - xi * xi) / q1)
+    k, dk = lever_rad_per_m(q1, p.a_m, p.b_m), lever_derivative(q1, p.a_m, p.b_m)
+    alpha_rate, alpha_acc = k * v, k * out["a"] + dk * v * v
+    f_rod = out["f_load"]  # every force on the rod but the boom's (the force balance, above)
+    g = p.gravity_m_s2
+    expected_x = -first_moment * alpha_rate**2 + mass * g * math.sin(alpha) - f_rod * e_rod[0]
+    expected_z = first_moment * alpha_acc + mass * g * math.cos(alpha) - f_rod * e_rod[1]
+    assert out["hinge_force_x"] == pytest.approx(expected_x, rel=1e-9)
+    assert out["hinge_force_z"] == pytest.approx(expected_z, rel=1e-9)
