@@ -259,13 +259,24 @@ def _energy_states(p: Parameters, rng: np.random.Generator) -> list[tuple[list, 
     return picks
 
 
-@pytest.mark.parametrize("drive", list(DRIVES))
-def test_the_energy_guards_rate_is_the_rate_of_the_stored_energy_along_the_models_own_motion(drive):
+#: The elements off, all on (the crane's), or the accumulator on fixed_pump's supply line.
+ELEMENTS = {
+    "none": {"accumulator_gas_volume_m3": 0.0, "hose_length_m": 0.0, "boom_bending_stiffness_n_m2": 0.0},
+    "all": {},
+    "supply": {"accumulator_position": "supply", "accumulator_precharge_pa": 3e5},
+}
+
+
+@pytest.mark.parametrize(
+    ("drive", "elements"), [(d, "all") for d in DRIVES] + [(d, "none") for d in DRIVES] + [("fixed_pump", "supply")]
+)
+def test_the_energy_guards_rate_is_the_rate_of_the_stored_energy_along_the_models_own_motion(drive, elements):
     """W' is dH/dt along the derivative (the stepping checks their integrals against each
     other): a central difference of :func:`energy` along dy/dt gives it, with the crane's
-    accumulator, hoses and elastic boom on, a spring and an external force, at every drive,
-    in the stroke and pressed into the stops, chambers full or cavitating; |W|' = |W'|."""
-    p = with_updates(CRANE, drive=drive, spring_stiffness_n_m=2500.0, spring_free_length_m=1.5)
+    accumulator, hoses and elastic boom on or off (or the accumulator on the supply line), a
+    spring and an external force, at every drive, in the stroke and pressed into the stops,
+    chambers full or cavitating; |W|' = |W'|."""
+    p = with_updates(CRANE, drive=drive, spring_stiffness_n_m=2500.0, spring_free_length_m=1.5, **ELEMENTS[elements])
     c = physical.constants(p)
     h = 1e-7
     for y, u in _energy_states(p, np.random.default_rng(5)):
@@ -462,3 +473,148 @@ def test_the_hinge_force_of_a_rigid_boom_is_newtons_law_for_boom_and_payload(q1,
     expected_z = first_moment * alpha_acc + mass * g * math.cos(alpha) - f_rod * e_rod[1]
     assert out["hinge_force_x"] == pytest.approx(expected_x, rel=1e-9)
     assert out["hinge_force_z"] == pytest.approx(expected_z, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# the elastic boom's mode (docs/model.md, "Elastic boom", eq. E3-E7)
+
+
+@pytest.mark.parametrize(("v", "eta", "eta_rate"), [(0.05, -0.012, 0.02), (-0.08, -0.02, -0.04)])
+def test_the_elastic_booms_mode_and_the_rod_follow_e4_to_e7(v, eta, eta_rate):
+    """With the mode on (the crane, EI > 0): eta'' = (J R_eta - m_c R_alpha) / (J m_eta - m_c^2)
+    (E6) with R_alpha = F_rod / k - M_g + S g sin(alpha) eta (E4) and R_eta = -k_eta eta - c_eta eta'
+    - S g cos(alpha) (E5), k_eta = 3 EI / L1^3, c_eta = 2 zeta sqrt(k_eta m_eta), the masses of E3 with
+    the payload on the hook; the rod's acceleration is the rigid boom's plus
+    (S g sin(alpha) eta - m_c eta'') / (J k) (E7)."""
+    p = CRANE
+    c = physical.constants(p)
+    q1 = 1.8
+    y = _state(p, q1, v, 9.0e6, 1.5e6)
+    y[physical.BOOM_STATE], y[physical.BOOM_STATE + 1] = eta, eta_rate
+    rigid = physical.derivative(0.0, y, c._replace(boom_on=0.0), 0.0)
+    rates = physical.derivative(0.0, y, c, 0.0)
+    f_rod = _out(y, c._replace(boom_on=0.0), 0.0)["f_load"]  # every force on the rod but the boom's
+    m1, mb, length, g = p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m, p.gravity_m_s2
+    inertia = m1 * length**2 / 3.0 + mb * length**2
+    coupling, modal, participation = elastic_boom.modal_masses(m1, mb, length)
+    k_eta = 3.0 * p.boom_bending_stiffness_n_m2 / length**3
+    c_eta = 2.0 * p.boom_damping_ratio * math.sqrt(k_eta * modal)
+    alpha = boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m)
+    k = lever_rad_per_m(q1, p.a_m, p.b_m)
+    r_alpha = f_rod / k - (0.5 * m1 + mb) * length * g * math.cos(alpha) + participation * g * math.sin(alpha) * eta
+    r_eta = -k_eta * eta - c_eta * eta_rate - participation * g * math.cos(alpha)
+    eta_acc = (inertia * r_eta - coupling * r_alpha) / (inertia * modal - coupling**2)
+    assert rates[physical.BOOM_STATE] == eta_rate
+    assert rates[physical.BOOM_STATE + 1] == pytest.approx(eta_acc, rel=1e-9)
+    extra = (participation * g * math.sin(alpha) * eta - coupling * eta_acc) / (inertia * k)
+    assert rates[1] == pytest.approx(rigid[1] + extra, rel=1e-9)
+    # the structure's damping is the ledger's structural loss, c_eta eta'^2 (eq. E5)
+    assert physical.ledger(0.0, y, c, 0.0).structural_loss == pytest.approx(c_eta * eta_rate**2, rel=1e-9)
+    masses = physical.boom_masses(c)
+    assert masses == pytest.approx((coupling, modal, participation, mb), rel=1e-12)
+    off = physical.boom_masses(c._replace(boom_on=0.0))
+    assert (off.coupling, off.participation) == (0.0, 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# the valve's loss, a floor of zero
+
+
+@pytest.mark.parametrize("p", [LOADED, CRANE])
+def test_the_valve_loss_energy_grows_by_the_valves_leakages_and_reliefs_loss_beside_the_hoses(p):
+    """valve_loss_energy' is what the supply gives and the chambers (and, with them on, the hoses
+    and an accumulator on the piston's line) do not keep: with today's valve drive, the ledger's
+    valve loss, leakage loss and port relief loss (docs/model.md, "Energy accounting"), the hoses'
+    flows and losses and the reliefs at work."""
+    c = physical.constants(p)
+    rng = np.random.default_rng(3)
+    for z1 in (9.0e6, p.relief_pressure_pa + 0.4 * p.relief_range_pa):
+        y = _state(p, 1.5 if p is CRANE else 1.3, 0.05, z1, 1.2e6, spool=0.4)
+        for i in physical.HOSE_STATES if p is CRANE else ():
+            y[i] = y[i] * rng.uniform(0.8, 1.2) + rng.uniform(-2e-4, 2e-4)  # the hoses' pressures and flows
+        rates = physical.derivative(0.0, y, c, 0.5)
+        terms = physical.ledger(0.0, y, c, 0.5)
+        lost = terms.valve_loss + terms.leakage_loss + terms.port_relief_loss
+        assert rates[6] == pytest.approx(lost, rel=1e-9)
+        assert lost > 0.0 and (terms.port_relief_loss > 0.0) == (z1 > p.relief_pressure_pa)
+        if p is CRANE:
+            assert terms.line_loss > 0.0
+
+
+def test_a_chamber_drawn_to_a_floor_of_zero_reads_zero_pressure_and_stays_finite():
+    """cavitation_pressure_pa 0 (a perfect vacuum): a chamber drawn below it reads 0 Pa, its void
+    is -z V / E, and every output and rate stays finite."""
+    p = with_updates(P, cavitation_pressure_pa=0.0)
+    c = physical.constants(p)
+    for z1, z2 in [(0.0, 3e6), (-2e5, 0.0), (0.0, 0.0)]:
+        y = _state(p, 1.3, -0.05, z1, z2)
+        out = _out(y, c, -0.3)
+        assert out["p1"] == max(z1, 0.0) and out["p2"] == max(z2, 0.0)
+        assert all(math.isfinite(x) for x in physical.outputs(0.0, y, c, -0.3))
+        assert all(math.isfinite(x) for x in physical.derivative(0.0, y, c, -0.3))
+        assert math.isfinite(physical.stiffness_rate(y, c, -0.3, p.time_step_s))
+        assert out["cavitation"] == (1.0 if min(z1, z2) < 0.0 else 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# the stepping's stability bound (stiffness_rate; docs/model.md, "Stepping")
+
+
+def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
+    """The largest |lambda| of the derivative's Jacobian at ``y`` over the states that move the
+    model (central differences)."""
+    moving = [i for i, kind in enumerate(physical.STATE_SCALES) if kind != "energy"]
+    columns = []
+    for i in moving:
+        h = 1.0 if physical.STATE_SCALES[i] == "pressure" else 1e-7
+        ahead, behind = list(y), list(y)
+        ahead[i] += h
+        behind[i] -= h
+        fa, fb = physical.derivative(0.0, ahead, c, u), physical.derivative(0.0, behind, c, u)
+        columns.append([(fa[k] - fb[k]) / (2.0 * h) for k in moving])
+    return float(np.max(np.abs(np.linalg.eigvals(np.array(columns).T))))
+
+
+@pytest.mark.parametrize(
+    ("p", "q1", "v", "u"),
+    [
+        (P, None, 0.0, 0.0),  # at rest: the spool's lag
+        (P, 1.37, 0.05, 0.6),  # the open valve's chambers
+        (with_updates(P, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=2e6), None, 0.0, 0.3),
+        (with_updates(P, drive="fixed_pump"), 1.37, 0.05, 0.6),  # its supply line
+        (CRANE, 1.8, 0.1, 0.3),  # the hoses' waves and the elastic boom
+    ],
+)
+def test_the_stability_bound_covers_the_fastest_mode_and_is_tight_where_one_mode_dominates(p, q1, v, u):
+    """stiffness_rate is the Jacobian's largest |lambda| or more (else an explicit method rings up;
+    to 1 %, the margin of the methods' stability limits, where two modes couple) and, where one of
+    the modes it names dominates, no more than 1.35 times it (else the run takes needless substeps)."""
+    c = physical.constants(p)
+    y = list(physical.initial_state(p, q1))
+    y[1] = v
+    if q1 is not None:
+        y[2], y[3] = 8e6, 2e6
+    lam = _largest_eigenvalue(y, c, u)
+    assert 0.99 * lam <= physical.stiffness_rate(y, c, u, p.time_step_s) <= 1.35 * lam
+
+
+def test_the_stability_bound_is_the_spool_lags_rate_or_the_stops_damping_where_either_is_fastest():
+    """With a fast spool (tau 10 us) the bound is 1 / tau; pressed into a stop with its damping
+    the fastest mode, (sigma1 + b_d + lambda (d + |v| dt + 0.1 mm)) / (J k^2): the stop's
+    Hunt-Crossley damping at the depth this step can reach, against the boom's mass at the rod."""
+    fast = with_updates(P, spool_time_constant_s=1e-5)
+    c = physical.constants(fast)
+    assert physical.stiffness_rate(physical.initial_state(fast), c, 0.5, fast.time_step_s) == pytest.approx(
+        1e5, rel=1e-12
+    )
+    p = with_updates(P, end_stop_damping_n_s_m2=1e11, spool_time_constant_s=0.0)
+    c = physical.constants(p)
+    dt = p.time_step_s
+    for q1, v in [(p.cylinder_min_length_m - 5e-4, -0.01), (p.cylinder_max_length_m + 3e-4, 0.02)]:
+        y = _state(p, q1, v, 2e6, 2e6)
+        d = max(p.cylinder_min_length_m - q1, q1 - p.cylinder_max_length_m)
+        k = lever_rad_per_m(q1, p.a_m, p.b_m)
+        mass = c.inertia * k * k
+        damping = p.friction_presliding_damping_n_s_m + p.viscous_friction_n_s_m
+        damping += p.end_stop_damping_n_s_m2 * (d + abs(v) * dt + 1e-4)
+        assert physical.stiffness_rate(y, c, 0.0, dt) == pytest.approx(damping / mass, rel=1e-9)
