@@ -580,6 +580,7 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
     [
         (P, None, 0.0, 0.0),  # at rest: the spool's lag
         (P, 1.37, 0.05, 0.6),  # the open valve's chambers
+        (P, 1.37, 0.0, 0.0),  # at rest in mid-stroke, the spool at its command: the oil springs
         (with_updates(P, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=2e6), None, 0.0, 0.3),
         (with_updates(P, drive="fixed_pump"), 1.37, 0.05, 0.6),  # its supply line
         (CRANE, 1.8, 0.1, 0.3),  # the hoses' waves and the elastic boom
@@ -618,3 +619,80 @@ def test_the_stability_bound_is_the_spool_lags_rate_or_the_stops_damping_where_e
         damping = p.friction_presliding_damping_n_s_m + p.viscous_friction_n_s_m
         damping += p.end_stop_damping_n_s_m2 * (d + abs(v) * dt + 1e-4)
         assert physical.stiffness_rate(y, c, 0.0, dt) == pytest.approx(damping / mass, rel=1e-9)
+
+
+def test_a_relief_counts_in_the_bound_from_where_this_step_can_reach_its_cracking_pressure():
+    """A port relief's E / V G counts where the chamber's pressure can reach p_crack within the
+    step: z + E / V (Q_max + S |v|) dt > p_crack, Q_max the most the valve can feed it; a hair
+    short of that reach it does not (the spool closed, the relief the fastest mode there)."""
+    p = with_updates(P, spool_time_constant_s=0.0)
+    c = physical.constants(p)
+    dt, q1, v = p.time_step_s, 1.3, 0.04
+    vol1, vol2, _, _ = physical.chamber_volumes(q1, c)
+    g = p.relief_rated_flow_m3_s / p.relief_range_pa
+    for chamber, vol, area in [(2, vol1, c.s1), (3, vol2, c.s2)]:
+        reach = p.bulk_modulus_pa / vol * (c.max_flow + area * abs(v)) * dt
+        bounds = []
+        for short in (0.999, 1.001):
+            y = _state(p, q1, v, 1e6, 1e6)
+            y[chamber] = p.relief_pressure_pa - short * reach
+            bounds.append(physical.stiffness_rate(y, c, 0.0, dt))
+        relief = p.bulk_modulus_pa / vol * g
+        assert bounds[0] >= relief > bounds[1], chamber
+
+
+@pytest.mark.parametrize(("v", "eta", "eta_rate"), [(0.06, -0.015, 0.03), (-0.04, -0.01, -0.02)])
+def test_the_hinge_force_of_the_elastic_boom_adds_the_modes_share(v, eta, eta_rate):
+    """Eq. E8 with the mode on: the mode adds S (eta'' - alpha'^2 eta) normal to the boom and
+    -S (2 alpha' eta' + alpha'' eta) along it, to the rigid boom's Newton for boom and payload."""
+    p = CRANE
+    c = physical.constants(p)
+    q1 = 1.8
+    y = _state(p, q1, v, 9.0e6, 1.5e6)
+    y[physical.BOOM_STATE], y[physical.BOOM_STATE + 1] = eta, eta_rate
+    out = _out(y, c, 0.0)
+    f_rod = _out(y, c._replace(boom_on=0.0), 0.0)["f_load"]  # every force on the rod but the boom's
+    eta_acc = physical.derivative(0.0, y, c, 0.0)[physical.BOOM_STATE + 1]
+    m1, mb, length, g = p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m, p.gravity_m_s2
+    participation = elastic_boom.modal_masses(m1, mb, length)[2]
+    first_moment = (0.5 * m1 + mb) * length
+    alpha = boom_angle_rad(q1, p.a_m, p.b_m, p.support_height_m)
+    xi = (p.a_m**2 + p.b_m**2 - q1 * q1) / (2.0 * p.a_m * p.b_m)  # eq. 1
+    e_rod = ((p.a_m - p.b_m * xi) / q1, p.b_m * math.sqrt(1.0 - xi * xi) / q1)
+    k, dk = lever_rad_per_m(q1, p.a_m, p.b_m), lever_derivative(q1, p.a_m, p.b_m)
+    alpha_rate, alpha_acc = k * v, k * out["a"] + dk * v * v
+    along = -first_moment * alpha_rate**2 - participation * (2.0 * alpha_rate * eta_rate + alpha_acc * eta)
+    normal = first_moment * alpha_acc + participation * (eta_acc - alpha_rate**2 * eta)
+    assert out["hinge_force_x"] == pytest.approx(along + (m1 + mb) * g * math.sin(alpha) - f_rod * e_rod[0], rel=1e-9)
+    assert out["hinge_force_z"] == pytest.approx(normal + (m1 + mb) * g * math.cos(alpha) - f_rod * e_rod[1], rel=1e-9)
+
+
+def test_with_hoses_the_chambers_dead_volumes_give_up_the_lines_oil_but_half_a_segment():
+    """The hoses' oil, but the half segment at each port, is their own states' (eq. H1): each
+    chamber's dead volume is the set's less (N - 1/2) A l, A the hose's bore, l its segment."""
+    p = CRANE
+    c = physical.constants(p)
+    segment = p.hose_length_m / hoses.SEGMENTS
+    share = (hoses.SEGMENTS - 0.5) * math.pi * p.hose_inner_diameter_m**2 / 4.0 * segment
+    q1 = 1.7
+    vol1, vol2, _, _ = physical.chamber_volumes(q1, c)
+    s1, s2 = piston_area_m2(p.piston_diameter_m), annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
+    assert vol1 == pytest.approx(p.piston_dead_volume_m3 - share + s1 * (q1 - p.cylinder_min_length_m), rel=1e-12)
+    assert vol2 == pytest.approx(p.rod_dead_volume_m3 - share + s2 * (p.cylinder_max_length_m - q1), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("static_n", "coulomb_n", "level"), [(150.0, 100.0, 100.0 / 150.0), (150.0, 0.0, 1e-3), (0.0, 0.0, 1.0)]
+)
+def test_sliding_fast_the_seals_bristles_settle_at_the_coulomb_level_floored_at_a_thousandth(
+    static_n, coulomb_n, level
+):
+    """Sliding at 1 m/s (far past the Stribeck speed) the bristles move as
+    ds/dt = (v - |v| s / r) / z_ba with r = F_c / F_s ("Friction"): at least 1e-3 (no division by
+    a Coulomb force of 0), and 1 without stiction (F_s = 0)."""
+    p = with_updates(P, static_friction_n=static_n, coulomb_friction_n=coulomb_n)
+    c = physical.constants(p)
+    y = _state(p, 1.3, 1.0, 4e6, 1e6, bristle=0.4e-3)
+    assert physical.derivative(0.0, y, c, 0.0)[7] == pytest.approx(
+        (1.0 - 0.4e-3 / level) / p.friction_presliding_m, rel=1e-9
+    )
