@@ -580,10 +580,11 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
     [
         (P, None, 0.0, 0.0),  # at rest: the spool's lag
         (P, 1.37, 0.05, 0.6),  # the open valve's chambers
-        (P, 1.37, 0.0, 0.0),  # at rest in mid-stroke, the spool at its command: the oil springs
+        (P, 1.37, 0.0, 0.0),  # at rest in mid-stroke: the oil springs
         (with_updates(P, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=2e6), None, 0.0, 0.3),
         (with_updates(P, drive="fixed_pump"), 1.37, 0.05, 0.6),  # its supply line
         (CRANE, 1.8, 0.1, 0.3),  # the hoses' waves and the elastic boom
+        (CRANE, 1.8, 0.05, 1.0),  # the hoses' port nodes against the valve wide open
     ],
 )
 def test_the_stability_bound_covers_the_fastest_mode_and_is_tight_where_one_mode_dominates(p, q1, v, u):
@@ -592,7 +593,7 @@ def test_the_stability_bound_covers_the_fastest_mode_and_is_tight_where_one_mode
     the modes it names dominates, no more than 1.35 times it (else the run takes needless substeps)."""
     c = physical.constants(p)
     y = list(physical.initial_state(p, q1))
-    y[1] = v
+    y[1], y[4] = v, u  # the spool at its command
     if q1 is not None:
         y[2], y[3] = 8e6, 2e6
     lam = _largest_eigenvalue(y, c, u)
@@ -696,3 +697,21 @@ def test_sliding_fast_the_seals_bristles_settle_at_the_coulomb_level_floored_at_
     assert physical.derivative(0.0, y, c, 0.0)[7] == pytest.approx(
         (1.0 - 0.4e-3 / level) / p.friction_presliding_m, rel=1e-9
     )
+
+
+def test_compiled_code_adds_the_elements_rates_to_a_state_longer_than_the_base_and_a_list_always():
+    """How compiled code decides with_elements on the state's type (its typing function, run
+    as Python): a tuple of BASE_SIZE or fewer (the kernels' state with the elements off) gets the
+    rates alone, a longer one the elements' rates after them, and a list (the ros2 step's whole
+    state) the elements' too; the interpreted with_elements decides on the length alike."""
+    types = pytest.importorskip("numba").types
+    rates, elements = (1.0, 2.0), (3.0,)
+    for size, whole in [(physical.BASE_SIZE - 1, False), (physical.BASE_SIZE, False), (physical.BASE_SIZE + 1, True)]:
+        typed = types.UniTuple(types.float64, size)
+        chosen = physical._with_elements_compiled(
+            typed, types.UniTuple(types.float64, 2), types.UniTuple(types.float64, 1)
+        )
+        assert chosen(None, rates, elements) == ((1.0, 2.0, 3.0) if whole else rates), size
+        assert physical.with_elements([0.0] * size, rates, elements) == chosen(None, rates, elements)
+    listed = physical._with_elements_compiled(types.List(types.float64), types.UniTuple(types.float64, 2), types.none)
+    assert listed(None, rates, elements) == (1.0, 2.0, 3.0)
