@@ -333,6 +333,8 @@ def test_the_start_holds_the_boom_at_rest_with_the_rod_chamber_at_tank_pressure(
     assert y[4:10] == [0.0] * 6
     assert y[physical.LEDGER_STATES : physical.LEDGER_STATES + len(INTEGRALS)] == [0.0] * len(INTEGRALS)
     assert physical.derivative(0.0, y, c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
+    terms = physical.ledger(0.0, y, c, 0.0)  # a rigid boom at rest: no structural loss, no kinetic power
+    assert terms.structural_loss == 0.0 and terms.kinetic_power == pytest.approx(0.0, abs=1e-12)
     assert physical.initial_state(p, 1.4)[0] == 1.4
     assert physical.derivative(0.0, physical.initial_state(p, 1.4), c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
 
@@ -553,6 +555,11 @@ def test_a_chamber_drawn_to_a_floor_of_zero_reads_zero_pressure_and_stays_finite
         assert all(math.isfinite(x) for x in physical.outputs(0.0, y, c, -0.3))
         assert all(math.isfinite(x) for x in physical.derivative(0.0, y, c, -0.3))
         assert math.isfinite(physical.stiffness_rate(y, c, -0.3, p.time_step_s))
+        # no accumulator, hoses or elastic boom: their rates and the ledger's terms of them stay 0
+        rates = physical.derivative(0.0, y, c, -0.3)
+        assert rates[physical.BASE_SIZE :] == (0.0,) * (len(y) - physical.BASE_SIZE)
+        terms = physical.ledger(0.0, y, c, -0.3)
+        assert (terms.accumulator_loss, terms.gas_power, terms.line_loss, terms.structural_loss) == (0.0,) * 4
         assert out["cavitation"] == (1.0 if min(z1, z2) < 0.0 else 0.0)
 
 
@@ -715,3 +722,34 @@ def test_compiled_code_adds_the_elements_rates_to_a_state_longer_than_the_base_a
         assert physical.with_elements([0.0] * size, rates, elements) == chosen(None, rates, elements)
     listed = physical._with_elements_compiled(types.List(types.float64), types.UniTuple(types.float64, 2), types.none)
     assert listed(None, rates, elements) == (1.0, 2.0, 3.0)
+
+
+def test_the_stability_bound_is_the_springs_against_the_booms_mass_with_a_stop_counted_within_reach():
+    """Without spool lag, the valve closed and the stops' damping 0, the fastest mode is the
+    springs against the boom's mass at the rod, sqrt(k / (J k^2)) with
+    k = E (S1^2 / V1 + S2^2 / V2) + F_s / z_ba + k_spring, and the stop's k_stop added where the
+    rod is within this step's reach of a stop (|v| dt + 0.1 mm), pressed into it or not; sliding
+    faster, the seals' relaxation."""
+    p = with_updates(P, spool_time_constant_s=0.0, spring_stiffness_n_m=3e4, end_stop_damping_n_s_m2=0.0)
+    c = physical.constants(p)
+    dt = p.time_step_s
+
+    def expected(q1: float, stop: bool) -> float:
+        vol1, vol2, _, _ = physical.chamber_volumes(q1, c)
+        k = p.bulk_modulus_pa * (c.s1**2 / vol1 + c.s2**2 / vol2)
+        k += p.static_friction_n / p.friction_presliding_m + p.spring_stiffness_n_m + stop * p.end_stop_stiffness_n_m
+        return math.sqrt(k / (c.inertia * lever_rad_per_m(q1, p.a_m, p.b_m) ** 2))
+
+    v = 2e-3  # slow: the seals' relaxation |v| / (z_ba r) stays below
+    reach = v * dt + 1e-4
+    lo, hi = p.cylinder_min_length_m, p.cylinder_max_length_m
+    for q1, stop in [(1.2, False), (1.6, False), (lo + 0.9 * reach, True), (lo + 1.1 * reach, False)]:
+        y = _state(p, q1, -v, 4e6, 1e6)
+        assert physical.stiffness_rate(y, c, 0.0, dt) == pytest.approx(expected(q1, stop), rel=1e-12), q1
+    for q1, stop in [(hi - 0.9 * reach, True), (hi - 1.1 * reach, False), (hi + 1e-3, True), (lo - 1e-3, True)]:
+        y = _state(p, q1, v, 4e6, 1e6)
+        assert physical.stiffness_rate(y, c, 0.0, dt) == pytest.approx(expected(q1, stop), rel=1e-12), q1
+    # sliding faster, the seals' relaxation |v| / (z_ba F_c / F_s) ("Friction") is the fastest
+    for v in (0.05, -0.08):
+        relaxation = abs(v) / (p.friction_presliding_m * p.coulomb_friction_n / p.static_friction_n)
+        assert physical.stiffness_rate(_state(p, 1.6, v, 4e6, 1e6), c, 0.0, dt) == pytest.approx(relaxation, rel=1e-12)
