@@ -212,6 +212,7 @@ def test_a_cavitating_chamber_holds_the_floor_and_its_void_is_the_missing_oil():
     for z_1, z_2, flag in [(p_cav, p_cav, 0.0), (p_cav - 1.0, 3e6, 1.0), (3e6, p_cav - 1.0, 1.0), (3e6, 2e6, 0.0)]:
         out = _out(_state(p, q1, v, z_1, z_2), c, 0.0)
         assert out["cavitation"] == flag, (z_1, z_2)
+        assert physical.samples(0.0, _state(p, q1, v, z_1, z_2), c, 0.0)[7] == flag  # the run's samples alike
         assert (out["void1"] > 0.0, out["void2"] > 0.0) == (z_1 < p_cav, z_2 < p_cav)
 
 
@@ -422,6 +423,10 @@ def test_the_elements_switched_on_are_the_states_that_move_and_a_state_without_t
     assert len(physical.derivative(0.0, base, c, 0.3)) == physical.BASE_SIZE
     assert physical.derivative(0.0, base, c, 0.3) == physical.derivative(0.0, y, c, 0.3)[: physical.BASE_SIZE]
     assert physical.component(base, physical.BOOM_STATE) == 0.0 and physical.component(y, 1) == y[1]
+    # lowering (v < 0), a state without them still publishes a rigid boom's deflection as 0.0, not -0.0
+    lowering = [*base[:1], -0.1, *base[2:]]
+    out = _out(lowering, c, 0.0)
+    assert (repr(out["boom_deflection"]), repr(out["boom_deflection_rate"])) == ("0.0", "0.0")
     rates = physical.derivative(0.0, y, c, 0.3)
     assert rates[physical.BASE_SIZE :] == (0.0,) * (len(y) - physical.BASE_SIZE)
 
@@ -753,3 +758,40 @@ def test_the_stability_bound_is_the_springs_against_the_booms_mass_with_a_stop_c
     for v in (0.05, -0.08):
         relaxation = abs(v) / (p.friction_presliding_m * p.coulomb_friction_n / p.static_friction_n)
         assert physical.stiffness_rate(_state(p, 1.6, v, 4e6, 1e6), c, 0.0, dt) == pytest.approx(relaxation, rel=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# the accumulator (docs/model.md, "Accumulator", eq. A1-A6)
+
+
+@pytest.mark.parametrize("position", ["piston", "supply"])
+def test_the_accumulator_fills_through_its_orifice_from_its_own_line(position):
+    """x' = Q / V0 (A2), Q the orifice's flow (A3) from the line it sits on (the piston chamber,
+    or fixed_pump's supply line) into its gas at p0 (1 - x)^-n (A1), K = C_d A sqrt(2 / rho) of
+    its orifice; the ledger books (p_line - p_gas) Q as its loss (A6) and (p_gas - p_tank) Q as
+    the gas's power. The position is compared by value: a name built at run time (from a file)
+    is the same position."""
+    name = "".join(["pis", "ton"]) if position == "piston" else "".join(["sup", "ply"])
+    drive = "pressure_compensated" if position == "piston" else "fixed_pump"
+    p = with_updates(
+        P, drive=drive, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=3e5, accumulator_position=name
+    )
+    c = physical.constants(p)
+    y = _state(p, 1.3, 0.02, 6e6, 1e6)
+    fill = 0.35
+    y[physical.ACCUMULATOR_STATE] = fill
+    line = 6e6 if position == "piston" else drives.node_pressure(physical.drive_states(y), c)
+    gas = p.accumulator_precharge_pa * (1.0 - fill) ** -p.accumulator_polytropic_exponent
+    area = math.pi * p.accumulator_orifice_diameter_m**2 / 4.0
+    k = p.discharge_coefficient * area * math.sqrt(2.0 / p.density_kg_m3)
+    flow = accumulator.port_flow_m3_s(fill, line, gas, k, p.transition_pressure_pa**2)
+    assert flow != 0.0
+    rates = physical.derivative(0.0, y, c, 0.3)
+    assert rates[physical.ACCUMULATOR_STATE] == pytest.approx(flow / 1e-3, rel=1e-9)
+    terms = physical.ledger(0.0, y, c, 0.3)
+    assert terms.accumulator_loss == pytest.approx((line - gas) * flow, rel=1e-9)
+    assert terms.gas_power == pytest.approx((gas - p.tank_pressure_pa) * flow, rel=1e-9)
+    # on the piston's line its flow leaves the chamber's: Q1 less it
+    without = _out(y, c._replace(acc_on=0.0, acc_piston=0.0, acc_supply=0.0), 0.3)["q_in1"]
+    taken = flow if position == "piston" else 0.0
+    assert _out(y, c, 0.3)["q_in1"] == pytest.approx(without - taken, rel=1e-9)
