@@ -326,7 +326,15 @@ def test_the_stored_energy_is_the_sum_of_its_parts():
 # the start (eq. 6 at rest)
 
 
-@pytest.mark.parametrize("p", [P, LOADED, with_updates(P, external_rod_force_n=1500.0, payload_mass_kg=120.0)])
+@pytest.mark.parametrize(
+    "p",
+    [
+        P,
+        LOADED,
+        with_updates(P, external_rod_force_n=1500.0, payload_mass_kg=120.0),
+        with_updates(P, rod_diameter_m=0.8 * P.piston_diameter_m),  # a thick rod: the annulus under S1 / 2
+    ],
+)
 def test_the_start_holds_the_boom_at_rest_with_the_rod_chamber_at_tank_pressure(p):
     """The start: rod at rest at q1(0), valve and spool closed, seals relaxed, energies 0, the rod
     chamber at tank pressure and the piston chamber at the pressure that holds the boom (its
@@ -846,3 +854,21 @@ def test_the_stored_energy_holds_each_hoses_own_nodes_and_flows():
         lines.append(hoses.line_energy(z, q, c, p.cavitation_pressure_pa, p.tank_pressure_pa))
     without = physical.energy(y, c._replace(hose_on=0.0))
     assert physical.energy(y, c) - without == pytest.approx(sum(lines), rel=1e-9)
+
+
+def test_with_hoses_the_valve_feeds_the_hoses_port_nodes_and_a_chamber_near_its_relief_adds_it():
+    """With hoses the drive holds each line at the hose's port node (half a segment's oil,
+    hoses.port_stiffness): the chamber's rate is E_port G (G = dQ/dp the drive's, drives.stiffness),
+    and a chamber that can reach its relief within the step adds its own E / V G_relief; the other
+    chamber, far from its relief, does not."""
+    p = CRANE
+    c = physical.constants(p)
+    u, q1 = 1.0, 1.8
+    y = _state(p, q1, 0.0, p.relief_pressure_pa + 1e5, 2e6, spool=u)
+    port = hoses.port_stiffness(c)
+    g_a, g_b, _ = drives.stiffness(physical.drive_states(y), u, u, port, port, p.time_step_s, c, math, 1e300)
+    vol1 = physical.chamber_volumes(q1, c)[0]
+    relief = p.bulk_modulus_pa / vol1 * p.relief_rated_flow_m3_s / p.relief_range_pa
+    bound = physical.stiffness_rate(y, c, u, p.time_step_s)
+    assert bound == pytest.approx(port * g_a + relief, rel=1e-9)
+    assert bound > port * g_b
