@@ -872,3 +872,42 @@ def test_with_hoses_the_valve_feeds_the_hoses_port_nodes_and_a_chamber_near_its_
     bound = physical.stiffness_rate(y, c, u, p.time_step_s)
     assert bound == pytest.approx(port * g_a + relief, rel=1e-9)
     assert bound > port * g_b
+
+
+def test_the_state_layout_names_each_index_the_model_reads():
+    """The indices the stepping, the ledger and the outputs read are those of the states named so
+    (STATE_NAMES), one scale per state, the model elements' last (BASE_SIZE before them)."""
+    names = physical.STATE_NAMES
+    assert len(physical.STATE_SCALES) == len(names) == len(set(names))
+    assert physical.ENERGY_STATES == (names.index("energy_change"), names.index("energy_change_abs"))
+    assert physical.DRIVE_STATES == tuple(names.index(n) for n in ("drive_state", "drive_state_2", "drive_state_3"))
+    assert physical.DRIVE_STATE == physical.DRIVE_STATES[0]
+    assert physical.LEDGER_STATES == names.index(INTEGRALS[0]) and physical.LIFT_WORK == names.index("lift_work")
+    assert physical.BATTERY_DRAWN == names.index("battery_drawn") and physical.BATTERY_RETURNED == names.index(
+        "battery_returned"
+    )
+    assert physical.ACCUMULATOR_STATE == names.index("accumulator_fill") == physical.BASE_SIZE
+    assert physical.HOSE_STATES == tuple(names.index(n) for n in hoses.STATE_NAMES)
+    assert physical.BOOM_STATES == (names.index("boom_deflection"), names.index("boom_deflection_rate"))
+    assert physical.BASE_SIZE + 1 + len(hoses.STATE_NAMES) + 2 == len(names)
+    assert physical.ELEMENT_UNITS == {
+        physical.ACCUMULATOR_STATE: "1",
+        **dict(zip(physical.HOSE_STATES, hoses.STATE_UNITS)),
+        names.index("boom_deflection"): "m",
+        names.index("boom_deflection_rate"): "m/s",
+    }
+
+
+def test_with_hoses_the_drive_sees_its_ports_pressures_the_hoses_first_nodes():
+    """With hoses the drive feeds the hoses' first nodes and sees their pressures, not the
+    chambers' (eq. H4): its supply power is that of the same drive without hoses whose chambers
+    stand at those nodes' pressures."""
+    p = CRANE
+    c = physical.constants(p)
+    y = _state(p, 1.8, 0.03, 9.0e6, 1.5e6, spool=0.6)
+    port_a, port_b = 7.5e6, 2.5e6
+    y[physical.HOSE_STATE], y[physical.HOSE_STATE + hoses.LINE_B] = port_a, port_b
+    bare = c._replace(hose_on=0.0)
+    at_ports = [*y[:2], port_a, port_b, *y[4:]]
+    assert _out(y, c, 0.6)["power"] == pytest.approx(_out(at_ports, bare, 0.6)["power"], rel=1e-12)
+    assert _out(y, c, 0.6)["power"] != _out(y, bare, 0.6)["power"]
