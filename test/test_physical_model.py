@@ -611,7 +611,8 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
         (P, 1.37, 0.0, 0.0),  # at rest in mid-stroke: the oil springs
         (with_updates(P, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=2e6), None, 0.0, 0.3),
         (with_updates(P, drive="fixed_pump"), 1.37, 0.05, 0.6),  # its supply line
-        (CRANE, 1.8, 0.1, 0.3),  # the hoses' waves and the elastic boom
+        (CRANE, 1.8, 0.1, 0.3),  # the hoses' port nodes and the elastic boom
+        (CRANE, 1.8, 0.0, 0.05),  # the hoses' highest wave (the valve barely open)
         (CRANE, 1.8, 0.05, 1.0),  # the hoses' port nodes against the valve wide open
         # the EMA's screw against the elastic boom's light root (the bound adds rates: within 2 times)
         (with_updates(CRANE, drive="electro_mechanical"), 1.8, 0.0, 0.0),
