@@ -925,3 +925,12 @@ def test_with_hoses_the_drive_sees_its_ports_pressures_the_hoses_first_nodes():
     at_ports = [*y[:2], port_a, port_b, *y[4:]]
     assert _out(y, c, 0.6)["power"] == pytest.approx(_out(at_ports, bare, 0.6)["power"], rel=1e-12)
     assert _out(y, c, 0.6)["power"] != _out(y, bare, 0.6)["power"]
+
+
+def test_physical_mode_steps_in_the_substeps_its_bound_asks_for_and_paper_mode_at_the_users_step():
+    """The run loop takes substeps so that dt times stiffness_rate stays within the method's
+    stability limit in physical mode (STABILITY_BOUND) and none in paper mode ("Stepping")."""
+    from boom_hydraulics.solve import batch, integrators
+
+    assert batch.stability_limit(P) == integrators.METHODS[P.method].stability_limit > 0.0
+    assert batch.stability_limit(with_updates(P, mode="paper")) == 0.0
