@@ -465,6 +465,8 @@ def test_the_ledgers_integrals_are_read_by_name():
     for k in range(len(INTEGRALS)):
         y[physical.LEDGER_STATES + k] = 10.0 + k
     assert physical.ledger_integrals(y) == {name: 10.0 + k for k, name in enumerate(INTEGRALS)}
+    with pytest.raises(ValueError):  # a state cut short names no fewer integrals: it is refused
+        physical.ledger_integrals(y[: physical.LIFT_WORK])
     assert physical.LIFT_WORK == physical.LEDGER_STATES + INTEGRALS.index("lift_work")
     assert physical.BATTERY_RETURNED == physical.LEDGER_STATES + INTEGRALS.index("battery_returned")
 
