@@ -812,9 +812,11 @@ def _hinge_force(y: list, c: Constants, t: Terms, xp: ModuleType) -> tuple:
     rod_axial = (c.a - c.b * x) / q1  # the rod's direction, base A to eye K, in the boom's frame (eq. 1)
     rod_normal = c.b * xp.sqrt(1.0 - x * x) / q1
     eta, eta_rate = component(y, BOOM_STATE), component(y, BOOM_STATE + 1)
+    # sin(alpha) of its own: the terms hold it only where the elastic boom is on (0 for a rigid boom)
+    sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
     return elastic_boom.hinge_force_n(
         *(t.lever * v, t.lever * t.acc + t.lever_slope * v * v, eta, eta_rate, t.boom_acc),
-        *(t.sin_alpha, t.cos_alpha, t.f_rod, rod_axial, rod_normal, c.boom_mass + m.payload),
+        *(sin_alpha, t.cos_alpha, t.f_rod, rod_axial, rod_normal, c.boom_mass + m.payload),
         *(c.weight_coeff / c.gravity, m.participation, c.gravity),
     )
 
