@@ -5,10 +5,9 @@ the simulated signals match the recorded ones, by ``scipy.optimize.least_squares
   they are the start, changed by ``--config`` and ``--set``. A bag without one (a real
   machine's) needs ``--config``; its run starts at rest at ``initial_length_m`` at the bag's
   first message, and the simulation is read at the time steps on either side of each
-  recorded sample. A bag without commands (valve
-  commands or the controller's setpoints) is refused: there is nothing to re-simulate; so is
-  a run that was reset, as boom-resim refuses it (resim.refusals.break_in_states tells a reset
-  from sensor noise).
+  recorded sample. A bag without commands (valve commands or the controller's setpoints) is
+  refused: there is nothing to re-simulate; so is a run that was reset, as boom-resim refuses
+  it (resim.refusals.break_in_states tells a reset from sensor noise).
 - **The samples.** Each recorded sample is compared at the instant it shows (its stamp, where
   on the run's clock; see :mod:`.signals`) with the simulation there (linear between the
   simulated instants).
