@@ -336,12 +336,14 @@ def test_the_stored_energy_is_the_sum_of_its_parts():
         LOADED,
         with_updates(P, external_rod_force_n=1500.0, payload_mass_kg=120.0),
         with_updates(P, rod_diameter_m=0.8 * P.piston_diameter_m),  # a thick rod: the annulus under S1 / 2
+        CRANE,  # the elastic boom bent by its weight: E4's S g sin(alpha) eta in the holding force
     ],
 )
 def test_the_start_holds_the_boom_at_rest_with_the_rod_chamber_at_tank_pressure(p):
     """The start: rod at rest at q1(0), valve and spool closed, seals relaxed, energies 0, the rod
     chamber at tank pressure and the piston chamber at the pressure that holds the boom (its
-    acceleration 0, eq. 6 with the spring and F_ext's shares)."""
+    acceleration 0, eq. 6 with the spring and F_ext's shares; the elastic boom's mode at rest
+    too, eq. E4 and E5)."""
     c = physical.constants(p)
     y = physical.initial_state(p)
     assert len(y) == len(physical.STATE_NAMES)
@@ -349,11 +351,15 @@ def test_the_start_holds_the_boom_at_rest_with_the_rod_chamber_at_tank_pressure(
     assert y[3] == p.tank_pressure_pa and y[2] > p.tank_pressure_pa
     assert y[4:10] == [0.0] * 6
     assert y[physical.LEDGER_STATES : physical.LEDGER_STATES + len(INTEGRALS)] == [0.0] * len(INTEGRALS)
-    assert physical.derivative(0.0, y, c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
-    terms = physical.ledger(0.0, y, c, 0.0)  # a rigid boom at rest: no structural loss, no kinetic power
+    mode = physical.BOOM_STATE + 1  # eta''
+    rates = physical.derivative(0.0, y, c, 0.0)
+    assert rates[1] == pytest.approx(0.0, abs=1e-9) and rates[mode] == pytest.approx(0.0, abs=1e-9)
+    terms = physical.ledger(0.0, y, c, 0.0)  # at rest: no structural loss, no kinetic power
     assert terms.structural_loss == 0.0 and terms.kinetic_power == pytest.approx(0.0, abs=1e-12)
-    assert physical.initial_state(p, 1.4)[0] == 1.4
-    assert physical.derivative(0.0, physical.initial_state(p, 1.4), c, 0.0)[1] == pytest.approx(0.0, abs=1e-9)
+    q1 = 0.5 * (p.initial_length_m + p.cylinder_max_length_m)  # another length within the stroke
+    assert physical.initial_state(p, q1)[0] == q1
+    rates = physical.derivative(0.0, physical.initial_state(p, q1), c, 0.0)
+    assert rates[1] == pytest.approx(0.0, abs=1e-9) and rates[mode] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_the_start_rests_on_the_lower_stop_on_a_force_that_carries_the_boom_and_without_oil_at_tank_pressure():
@@ -591,6 +597,14 @@ def test_a_chamber_drawn_to_a_floor_of_zero_reads_zero_pressure_and_stays_finite
 # the stepping's stability bound (stiffness_rate; docs/model.md, "Stepping")
 
 
+#: A 1 L accumulator on the supply line, pre-charged far below the line's pressure.
+SUPPLY_ACCUMULATOR = {
+    "accumulator_position": "supply",
+    "accumulator_gas_volume_m3": 1e-3,
+    "accumulator_precharge_pa": 3e5,
+}
+
+
 def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
     """The largest |lambda| of the derivative's Jacobian at ``y`` over the states that move the
     model (central differences)."""
@@ -614,6 +628,9 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
         (P, 1.37, 0.0, 0.0, 0.0, 1.35),  # at rest in mid-stroke: the oil springs
         (with_updates(P, accumulator_gas_volume_m3=1e-3, accumulator_precharge_pa=2e6), None, 0.0, 0.3, 0.3, 1.35),
         (with_updates(P, drive="fixed_pump"), 1.37, 0.05, 0.6, 0.6, 1.35),  # its supply line
+        # an accumulator on that line: its orifice beside the relief's and the valve's paths
+        (with_updates(P, drive="fixed_pump", **SUPPLY_ACCUMULATOR), None, 0.0, 0.0, 0.0, 1.35),
+        (with_updates(P, drive="fixed_pump", **SUPPLY_ACCUMULATOR), 1.37, 0.05, 0.6, 0.6, 1.35),
         (CRANE, 1.8, 0.1, 0.3, 0.3, 1.35),  # the hoses' port nodes and the elastic boom
         (CRANE, 1.8, 0.0, 0.05, 0.05, 1.35),  # the hoses' highest wave (the valve barely open)
         (CRANE, 1.8, 0.05, 1.0, 1.0, 1.35),  # the hoses' port nodes against the valve wide open
@@ -835,11 +852,15 @@ def test_the_accumulator_fills_through_its_orifice_from_its_own_line(position):
 def test_with_an_accumulator_the_bound_is_its_orifice_between_the_gas_and_the_lines_oil_springs():
     """Where it is the fastest mode, the bound is the accumulator's orifice's laminar slope
     K / sqrt(p_tr) times the gas spring and its line's oil spring in series (E / V1 on the piston
-    chamber, E / V_s on fixed_pump's supply line; accumulator.fastest_rate_1_s)."""
-    for position, drive in [("piston", "pressure_compensated"), ("supply", "fixed_pump")]:
+    chamber, E / V_s on fixed_pump's supply line; accumulator.fastest_rate_1_s), plus the rate at
+    which the line's other paths drain its oil (E / V1 G_valve, none where a hose takes the valve's
+    flow to its port node; the supply line's own rate)."""
+    cases = [("piston", "pressure_compensated", 0.0), ("supply", "fixed_pump", 0.0)]
+    for position, drive, hose_m in [*cases, ("piston", "pressure_compensated", 0.5)]:  # (0.5 m: a hose)
         p = with_updates(
             P,
             drive=drive,
+            hose_length_m=hose_m,
             accumulator_gas_volume_m3=1e-3,
             accumulator_precharge_pa=3e5,
             accumulator_position=position,
@@ -854,7 +875,15 @@ def test_with_an_accumulator_the_bound_is_its_orifice_between_the_gas_and_the_li
         rate = accumulator.fastest_rate_1_s(
             fill, 3e5, p.accumulator_polytropic_exponent, 1e-3, line, k / math.sqrt(p.transition_pressure_pa)
         )
+        stiff1, stiff2 = (p.bulk_modulus_pa / v for v in physical.chamber_volumes(y[0], c)[:2])
+        z = physical.drive_states(y)
+        g_a, _, own = drives.stiffness(z, 0.0, 0.0, stiff1, stiff2, p.time_step_s, c, math, 1e300)
+        rate += (stiff1 * g_a if hose_m == 0.0 else 0.0) if position == "piston" else own
         assert physical.stiffness_rate(y, c, 0.0, p.time_step_s) == pytest.approx(rate, rel=1e-12), position
+        if position == "piston" and hose_m == 0.0:  # within reach of its relief, that drains the chamber too
+            y[2] = p.relief_pressure_pa + 1e5
+            rate += stiff1 * p.relief_rated_flow_m3_s / p.relief_range_pa
+            assert physical.stiffness_rate(y, c, 0.0, p.time_step_s) == pytest.approx(rate, rel=1e-12)
 
 
 def test_the_stored_energy_holds_each_hoses_own_nodes_and_flows():

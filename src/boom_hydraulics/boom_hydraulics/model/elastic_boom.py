@@ -34,7 +34,7 @@ from types import ModuleType
 from typing import Any
 
 from ..jit import jitable
-from .geometry import cos_boom_angle
+from .geometry import cos_boom_angle, lever_rad_per_m, sin_boom_angle
 
 Num = Any  # float or numpy.ndarray
 
@@ -197,3 +197,13 @@ def static_deflection_m(p: Any, q1_m: float) -> float:
     _, _, participation = modal_masses(p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m)
     cos_alpha = cos_boom_angle(q1_m, p.a_m, p.b_m, p.support_height_m)
     return -participation * p.gravity_m_s2 * cos_alpha / stiffness
+
+
+@jitable
+def static_rod_force_share_n(p: Any, q1_m: float, eta_m: float) -> float:
+    """What the rod must push beyond eq. 6's rigid boom to hold the boom bent by ``eta_m`` at
+    rest at cylinder length ``q1_m``, -k S g sin(alpha) eta (eq. E4 with alpha'' = eta'' = 0:
+    F_rod / k = M_g - S g sin(alpha) eta), N; 0 for a rigid boom (eta 0)."""
+    _, _, participation = modal_masses(p.boom_mass_kg, p.payload_mass_kg, p.boom_length_m)
+    sin_alpha = sin_boom_angle(q1_m, p.a_m, p.b_m, p.support_height_m)
+    return -lever_rad_per_m(q1_m, p.a_m, p.b_m) * participation * p.gravity_m_s2 * sin_alpha * eta_m

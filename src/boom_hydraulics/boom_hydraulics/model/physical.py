@@ -316,7 +316,8 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     lower end stop the boom is parked on it, with the piston chamber at tank pressure. The
     drive starts in its own initial state (model/drives: the pump was running)."""
     q1 = p.initial_length_m if q1_m is None else q1_m
-    force = static_rod_force_of(p, q1)
+    eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
+    force = static_rod_force_of(p, q1) + elastic_boom.static_rod_force_share_n(p, q1, eta)  # eq. 6 (E4 at rest)
     s1 = piston_area_m2(p.piston_diameter_m)
     s2 = annulus_area_m2(p.piston_diameter_m, p.rod_diameter_m)
     spring = p.spring_stiffness_n_m * (q1 - p.spring_free_length_m)
@@ -333,7 +334,6 @@ def initial_state(p: Parameters, q1_m: float | None = None) -> list[float]:
     if accumulator_volume_m3(p) > 0.0:
         fill = accumulator.initial_fill(line, p.accumulator_precharge_pa, p.accumulator_polytropic_exponent)
     lines = [p1] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS + [p2] * hoses.SEGMENTS + [0.0] * hoses.SEGMENTS  # at rest
-    eta = elastic_boom.static_deflection_m(p, q1)  # the elastic boom starts bent by its weight (eq. E5 at rest)
     body = [q1, p.initial_velocity_m_s, p1, p2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, z_d[0], z_d[1], z_d[2]]
     return body + [0.0] * len(INTEGRALS) + [fill] + lines + [eta, 0.0]
 
@@ -369,7 +369,6 @@ class Terms(NamedTuple):
     hose_a: hoses.Line  # the hose from port A to the piston chamber (its rates 0 without hoses)
     hose_b: hoses.Line  # from port B to the rod chamber
     f_rod: Num  # every force on the rod but the boom's, N (eq. 11)
-    sin_alpha: Num
     boom_acc: Num  # eta'', the elastic boom's, m/s^2 (eq. E6)
     boom_damping: Num  # c_eta, N s/m (eq. E5)
     boom_kinetic: Num  # d/dt of the elastic boom's mode's kinetic energy (eq. E1), W; 0 off
@@ -456,7 +455,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     cos_alpha = cos_boom_angle(q1, c.a, c.b, c.h, xp)
     acc = acceleration_at_lever(v, f_rod, c.inertia, c.weight_coeff * cos_alpha, k, dk)  # eq. 11
     # the elastic boom's mode (elastic_boom, eq. E4-E7): 0 and the rod's acceleration untouched when off
-    sin_alpha, boom_acc, damping, boom_kinetic, boom_potential = 0.0 * q1, 0.0 * q1, 0.0 * q1, 0.0 * q1, 0.0 * q1
+    boom_acc, damping, boom_kinetic, boom_potential = 0.0 * q1, 0.0 * q1, 0.0 * q1, 0.0 * q1
     if in_use(c.boom_on):
         sin_alpha = sin_boom_angle(q1, c.a, c.b, c.h, xp)
         m = boom_masses(c)
@@ -480,7 +479,7 @@ def _terms(y: list, c: Constants, u: Num, xp: ModuleType) -> Terms:
     return Terms(
         *(p1, p2, vol1, vol2, dvol1, dvol2, q_in1, q_in2, q_r1, q_r2, dz1, dz2, f_hyd, f_stop, ds, f_friction),
         *(k, dk, cos_alpha, acc, loss, supply, acc_flow, acc_gas, acc_line, hose_a, hose_b),
-        *(f_rod, sin_alpha, boom_acc, damping, boom_kinetic, boom_potential),
+        *(f_rod, boom_acc, damping, boom_kinetic, boom_potential),
     )
 
 
@@ -685,11 +684,14 @@ def stiffness_rate(y: list, c: Constants, u: Num, dt: float, xp: ModuleType = ma
     rate = larger(rate, damping)
     rate = larger(rate, relaxation)
     rate = larger(rate, own)
-    if in_use(c.acc_on):  # the accumulator's orifice between its gas spring and its line's oil spring
+    if in_use(c.acc_on):  # the accumulator's orifice between its gas spring and its line's oil spring,
+        # beside the other paths that drain that line's oil: the piston chamber's relief and the drive's
+        # path (with hoses the drive feeds the hose's port node instead), or the supply line's own
         line = c.acc_piston * stiff1 + c.acc_supply * c.bulk_modulus / c.line_volume
         fill = component(y, ACCUMULATOR_STATE)
         acc = accumulator.fastest_rate_1_s(fill, c.acc_precharge, c.acc_exponent, c.acc_size, line, c.acc_slope)
-        rate = larger(rate, c.acc_on * acc)
+        piston = stiff1 * (c.g_relief * relief_near1 + (1.0 - c.hose_on) * g_a)
+        rate = larger(rate, c.acc_on * (acc + c.acc_piston * piston + c.acc_supply * own))
     if in_use(c.hose_on):
         rate = larger(rate, waves)
     # the elastic boom's mode, beside the oil springs against the boom with the mode free (0 off)
