@@ -21,6 +21,8 @@ from rosbags.typesys import Stores, get_typestore
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
+from boom_hydraulics.bags.encoding import START_SETPOINT
+from boom_hydraulics.bags.reading import read_drive_states
 from boom_hydraulics.model import config
 
 pytestmark = pytest.mark.skipif(shutil.which("boom-sim") is None, reason="boom-sim not on PATH (tools/with-env)")
@@ -158,19 +160,34 @@ def test_a_client_that_offers_neither_name_is_refused_at_the_handshake(server):
     assert refused.value.response.status_code == 400
 
 
-def test_a_target_angle_moves_the_boom_there_and_one_outside_the_stroke_is_refused(client):
-    client.subscribe("/drive_state", "/boom_sim/setpoint")
-    client.advertise(3, "/boom_sim/target_angle_deg", "cdr", "std_msgs/msg/Float64")
+#: The client's channel of target angles (advertised with :func:`_advertise_target`).
+TARGET_CHANNEL = 3
+
+
+def _advertise_target(client: FoxgloveClient) -> None:
+    client.advertise(TARGET_CHANNEL, "/boom_sim/target_angle_deg", "cdr", "std_msgs/msg/Float64")
+
+
+def _target(client: FoxgloveClient, deg: float) -> None:
+    """Publish a target angle of ``deg`` degrees as CDR, as the app does."""
     as_cdr = JAZZY.types["std_msgs/msg/Float64"]
+    client.publish(TARGET_CHANNEL, bytes(JAZZY.serialize_cdr(as_cdr(data=deg), "std_msgs/msg/Float64")))
 
-    def target(deg: float) -> None:
-        client.publish(3, bytes(JAZZY.serialize_cdr(as_cdr(data=deg), "std_msgs/msg/Float64")))
 
-    target(20.0)
+def test_a_target_angle_moves_the_boom_there_and_one_outside_the_stroke_is_refused(client):
+    """A target angle moves the boom there along the path told on /boom_sim/setpoint_path (as
+    the node tells a MoveBoom goal's: from the controller's setpoint to the target), with the
+    setpoint on /boom_sim/setpoint meanwhile; one outside the stroke is refused in one line."""
+    client.subscribe("/drive_state", "/boom_sim/setpoint", "/boom_sim/setpoint_path")
+    _advertise_target(client)
+    _target(client, 20.0)
+    _, told = client.next_message("/boom_sim/setpoint_path")
+    assert told.start == START_SETPOINT and list(told.trajectory.joint_names) == ["boom_joint"]
+    assert told.trajectory.points[-1].positions[0] == pytest.approx(math.radians(20.0), abs=1e-12)
     client.until("/drive_state", lambda s: abs(math.degrees(s.boom_angle_rad) - 20.0) < 0.5)
     _, setpoint = client.next_message("/boom_sim/setpoint")  # the controller's setpoint, as the node's
     assert setpoint.name == ["boom_joint"]
-    target(170.0)
+    _target(client, 170.0)
     refusal = client.status(lambda m: m["message"].startswith("target angle refused"))
     assert refusal["level"] == 1 and "outside the stroke" in refusal["message"]
 
@@ -241,6 +258,32 @@ def test_ctrl_c_twice_ends_it_cleanly_with_the_bag_the_node_would_record(tmp_pat
     # boom-resim takes it as one of the node's bags: the commands and the parameter change through
     # the model again give the recorded run, to within the motion of one tick
     check_resim_within_a_tick(bag, tmp_path / "again")
+
+
+def test_a_recorded_target_move_resimulates_exactly(tmp_path):
+    """A bag with a target move and no valve command: boom-resim's controller follows the path
+    the run told (/boom_sim/setpoint_path) from the same instant, so the run comes back to 1e-9 m
+    at every recorded state (not only to within a tick, as an unstamped valve command does)."""
+    bag = tmp_path / "target_bag"
+    live = LiveServer("--record", str(bag), "--max-catch-up-s", "10")  # a loaded machine's late ticks catch up
+    try:
+        with FoxgloveClient(live.port) as client:
+            client.subscribe("/drive_state")
+            client.next_message("/drive_state")
+            _advertise_target(client)
+            _target(client, 15.0)
+            client.until("/drive_state", lambda s: abs(math.degrees(s.boom_angle_rad) - 15.0) < 0.5)
+    finally:
+        live.interrupt()
+        status, _, err = live.wait()
+    assert status == 0, err
+    assert check_bag(bag)["/boom_sim/setpoint_path"] == 1
+    again = tmp_path / "again"
+    done = subprocess.run(["boom-resim", str(bag), "--out", str(again)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    recorded, repeated = read_drive_states(bag), read_drive_states(again)
+    assert len(repeated["q1"]) == len(recorded["q1"])
+    assert np.max(np.abs(repeated["q1"] - recorded["q1"])) < 1e-9
 
 
 def test_the_parameters_offered_are_the_ones_the_node_declares():

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import foxglove
 from rosbags.interfaces import Qos
 
-from ..bags.encoding import DRIVE_STATE, typestore
+from ..bags.encoding import DRIVE_STATE, SETPOINT_PATH, typestore
 from ..bags.recording import Topic, message_definition, offered_qos
 from ..errors import RecordingError
 
@@ -48,11 +48,12 @@ FORCE = Outlet("/rod_force", "geometry_msgs/msg/WrenchStamped")
 HINGE = Outlet("/hinge_wrench", "geometry_msgs/msg/WrenchStamped")
 MARKERS = Outlet(f"{NODE}/markers", "visualization_msgs/msg/MarkerArray")
 SETPOINT = Outlet(f"{NODE}/setpoint", JOINT_STATE)
+PATH = Outlet(f"{NODE}/setpoint_path", SETPOINT_PATH)  # each path the controller starts to follow
 DESCRIPTION = Outlet("/robot_description", "std_msgs/msg/String", latched=True)
 DIAGNOSTICS = Outlet("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
 TF = Outlet("/tf", TF_MESSAGE, recorded=False)
 TF_STATIC = Outlet("/tf_static", TF_MESSAGE, latched=True, recorded=False)
-OUTLETS = (DRIVE, JOINTS, PISTON, ROD, FORCE, HINGE, MARKERS, SETPOINT, DESCRIPTION, DIAGNOSTICS, TF, TF_STATIC)
+OUTLETS = (DRIVE, JOINTS, PISTON, ROD, FORCE, HINGE, MARKERS, SETPOINT, PATH, DESCRIPTION, DIAGNOSTICS, TF, TF_STATIC)
 
 
 def schema_text(msgtype: str) -> str:

@@ -3,8 +3,8 @@
 The node's stepping without ROS: a :class:`~..solve.simulation.Simulator` under a
 :class:`~..solve.command_queue.CommandedDrive` (the stamp rule, the command timeout, the
 position controller), paced by a :class:`.clock.LiveClock`; each tick publishes what the
-node publishes (the state topics at every tick, the setpoint while the controller drives,
-the markers at 20 Hz, the diagnostics once a second) through a sink, plus the frames
+node publishes (the state topics at every tick, the setpoint while the controller drives and
+each path it starts to follow, the markers at 20 Hz, the diagnostics once a second) through a sink, plus the frames
 robot_state_publisher would send. Valve commands, target angles and parameter sets come in
 from other threads (the server's callbacks); one lock keeps them and the ticks apart.
 
@@ -25,12 +25,12 @@ from foxglove import Parameter
 
 from ..bags import messages
 from ..bags.diagnostics import CommandCounts, RunCounts, diagnostics
-from ..bags.encoding import message, setpoint_cdr, to_cdr
+from ..bags.encoding import START_SETPOINT, RecordedPath, message, setpoint_cdr, setpoint_path_cdr, to_cdr
 from ..errors import ConfigError, SimulationError
 from ..model.geometry import outside_stroke
 from ..model.parameters import Parameters
 from ..model.robot_description import JOINTS, TIP_JOINT, urdf
-from ..model.setpoints import move
+from ..model.setpoints import knot_offsets_ns, move, on_whole_ns
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from . import parameters as live_parameters
@@ -41,6 +41,7 @@ from .channels import (
     FORCE,
     HINGE,
     MARKERS,
+    PATH,
     PISTON,
     ROD,
     SETPOINT,
@@ -283,7 +284,15 @@ class LiveRun:
             self.notice(1, "target", f"target angle refused: {why}")
             return
         angle, rate = self.drive.setpoint()
-        self.drive.follow(move(self.sim.t, angle, rate, target, p.control_max_speed_rad_s))
+        t = self.sim.t
+        path = on_whole_ns(move(t, angle, rate, target, p.control_max_speed_rad_s), t)  # as the node's goals
+        self.drive.follow(path)
+        # on /boom_sim/setpoint_path and in the bag, as the node tells of a goal's path: boom-resim
+        # follows it from its own setpoint at this instant (START_SETPOINT)
+        angles, rates = path.angles_rad[:, 0].tolist(), path.rates_rad_s[:, 0].tolist()
+        offsets = knot_offsets_ns(path, t)
+        told = RecordedPath(self.clock.state_stamp_ns(), START_SETPOINT, offsets, angles, rates, path.order)
+        self._out([(PATH, setpoint_path_cdr(JOINTS[0], told))], self.clock.now_ns())
         self.notice(0, "target", f"moving to {angle_deg:g} deg from {math.degrees(angle):.2f} deg")
 
     # --- parameters -------------------------------------------------------------------------
