@@ -21,17 +21,20 @@ ROS2 = {"method": "ros2", "time_step_s": 0.002}
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str], list[str], list[str], Path]:
-    """A ros2 FMU written by write_fmu in this process, numba compiling its code afresh into an
-    empty cache folder (test_fmu.py's boom-sim export may load its rk4 code from the user's
-    cache): its path, the folder's files after, sys.path before and after, and the cache folder."""
+    """A ros2 FMU written by write_fmu in this process, with the kernels' cache as a user has it
+    (jit.cache_folder, keyed on the model's sources): numba compiles its code where the cache
+    lacks it (a machine's first run, or a changed source: about a minute), and the export
+    takes it from the cache after. Its path, the folder's files after, sys.path before and
+    after, and the cache folder of its object file."""
+    from boom_hydraulics.fmu import native
     from boom_hydraulics.fmu.export import write_fmu
 
-    folder, cache = tmp_path_factory.mktemp("ros2"), tmp_path_factory.mktemp("cache")
+    folder = tmp_path_factory.mktemp("ros2")
     before = list(sys.path)
-    with pytest.MonkeyPatch.context() as patch:  # (the kernels the tests step took their folder at import)
-        patch.setenv("BOOM_HYDRAULICS_CACHE", str(cache))
-        write_fmu(with_updates(Parameters(), **ROS2), folder / "boom_drive.fmu")
-    return folder / "boom_drive.fmu", sorted(p.name for p in folder.iterdir()), before, list(sys.path), cache
+    write_fmu(with_updates(Parameters(), **ROS2), folder / "boom_drive.fmu")
+    cached = native.cached_object_path("ros2")
+    assert cached is not None
+    return folder / "boom_drive.fmu", sorted(p.name for p in folder.iterdir()), before, list(sys.path), cached.parent
 
 
 def _lifted_and_lowered(path: Path, name: str, changes: dict | None = None) -> list[float]:
@@ -100,14 +103,13 @@ def test_the_drives_and_their_settings_chosen_before_initialization_step_as_the_
 
 
 def test_a_second_export_takes_the_compiled_code_from_the_cache(exported, tmp_path, monkeypatch) -> None:
-    """numba's object file, cached by the first export, is what the next export of the method
-    links, with other parameters too (they are the FMU's start values, not its code): nothing
-    is compiled, and the binary is the first one's but for what the parameters change; another
+    """numba's object file, cached by an export, is what the next export of the method links,
+    with other parameters too (they are the FMU's start values, not its code): nothing is
+    compiled, and the binary is the first one's but for what the parameters change; another
     method is not taken from it."""
     from boom_hydraulics.fmu import export, native
 
     path, _, _, _, cache = exported
-    monkeypatch.setenv("BOOM_HYDRAULICS_CACHE", str(cache))
     cached = native.cached_object_path("ros2")
     assert cached is not None and cached.is_relative_to(cache) and cached.exists()
     assert native.cached_object_path("rk4") != cached
