@@ -3,10 +3,11 @@
 The node's stepping without ROS: a :class:`~..solve.simulation.Simulator` under a
 :class:`~..solve.command_queue.CommandedDrive` (the stamp rule, the command timeout, the
 position controller), paced by a :class:`.clock.LiveClock`; each tick publishes what the
-node publishes (the state topics at every tick, the setpoint while the controller drives and
-each path it starts to follow, the markers at 20 Hz, the diagnostics once a second) through a sink, plus the frames
-robot_state_publisher would send. Valve commands, target angles and parameter sets come in
-from other threads (the server's callbacks); one lock keeps them and the ticks apart.
+node publishes (the state topics at every tick, the setpoint while the controller drives,
+the markers at 20 Hz, the diagnostics once a second) through a sink, plus the frames
+robot_state_publisher would send, and a target angle the path the controller starts to
+follow. Valve commands, target angles and parameter sets come in from other threads (the
+server's callbacks); one lock keeps them and the ticks apart.
 
 Nothing here knows the WebSocket server: it hands (outlet, CDR bytes, log time) to the
 sink and one-line notices to the notifier.
