@@ -190,6 +190,51 @@ def test_off_the_mode_stays_still_and_the_rod_moves_as_the_rigid_boom_bit_for_bi
     assert physical.initial_state(p)[physical.BOOM_STATE] == 0.0
 
 
+def test_the_shape_s_integrals_and_the_modal_masses_are_the_shape_s_own_by_quadrature():
+    """E1-E3 against the shape itself: phi(xi) = (3 xi^2 - xi^3)/2 bends from a clamp (phi(0) =
+    phi'(0) = 0) to the tip (phi(1) = 1); its slope is its derivative; int phi, int xi phi, int
+    phi^2 and int phi''^2 are the module's constants; the modal masses are the boom's mass
+    m1/L1 per metre plus the tip mass against phi, x phi and phi^2, and k_eta is EI int phi''^2
+    along the boom (Simpson's rule on 2001 points: exact for these polynomials to rounding)."""
+    from scipy.integrate import simpson
+
+    xi = np.linspace(0.0, 1.0, 2001)
+    phi = elastic_boom.mode_shape(xi)
+    assert phi[0] == 0.0 and phi[-1] == 1.0 and elastic_boom.mode_slope(0.0) == 0.0
+    slope = elastic_boom.mode_slope(xi)
+    assert np.allclose(slope[1:-1], (phi[2:] - phi[:-2]) / (xi[2:] - xi[:-2]), atol=1e-6)
+    curvature = 3.0 * (1.0 - xi)  # phi'' of the cubic, and the slope's own derivative:
+    assert np.allclose(curvature[1:-1], (slope[2:] - slope[:-2]) / (xi[2:] - xi[:-2]), atol=1e-6)
+    assert simpson(phi, x=xi) == pytest.approx(elastic_boom.SHAPE_FIRST, rel=1e-12)
+    assert simpson(xi * phi, x=xi) == pytest.approx(elastic_boom.SHAPE_MOMENT, rel=1e-12)
+    assert simpson(phi * phi, x=xi) == pytest.approx(elastic_boom.SHAPE_SQUARE, rel=1e-12)
+    assert simpson(curvature**2, x=xi) == pytest.approx(elastic_boom.SHAPE_CURVATURE, rel=1e-12)
+    boom_kg, tip_kg, length = 180.0, 650.0, 4.2
+    x = xi * length
+    per_metre = boom_kg / length
+    coupling, modal, participation = elastic_boom.modal_masses(boom_kg, tip_kg, length)
+    assert coupling == pytest.approx(simpson(per_metre * x * phi, x=x) + tip_kg * length, rel=1e-12)
+    assert modal == pytest.approx(simpson(per_metre * phi * phi, x=x) + tip_kg, rel=1e-12)
+    assert participation == pytest.approx(simpson(per_metre * phi, x=x) + tip_kg, rel=1e-12)
+    bending = 3.1e6
+    along = simpson((curvature / length**2) ** 2, x=x)  # (d^2 phi / dx^2)^2 along the boom
+    assert elastic_boom.modal_stiffness_n_m(bending, length) == pytest.approx(bending * along, rel=1e-12)
+    assert elastic_boom.modal_stiffness_n_m(0.0, 0.0) == 0.0  # no boom, no mode (and no division by 0)
+
+
+def test_the_static_tip_deflection_is_the_tip_load_s_and_the_boom_weight_s_closed_forms():
+    """At rest (E5) the tip hangs P L^3 / (3 EI) + q L^4 / (8 EI) below the rigid boom, P and q
+    the payload's and the boom's weight per metre normal to the boom (exact: the tip-load shape
+    gives the uniform load's tip deflection too); a rigid boom (EI = 0) does not bend."""
+    for q1 in (CRANE.cylinder_min_length_m + 0.05, CRANE.initial_length_m, CRANE.cylinder_max_length_m - 0.05):
+        alpha = boom_angle_rad(q1, CRANE.a_m, CRANE.b_m, CRANE.support_height_m)
+        normal = CRANE.gravity_m_s2 * math.cos(alpha)
+        tip = CRANE.payload_mass_kg * normal * L**3 / (3.0 * EI)
+        spread = CRANE.boom_mass_kg / L * normal * L**4 / (8.0 * EI)
+        assert elastic_boom.static_deflection_m(CRANE, q1) == pytest.approx(-(tip + spread), rel=1e-12)
+    assert elastic_boom.static_deflection_m(with_updates(CRANE, boom_bending_stiffness_n_m2=0.0), 1.9) == 0.0
+
+
 def test_the_static_deflection_is_the_module_s_equilibrium():
     """initial_state's eta zeroes the mode's rate with the boom at rest (eq. E5)."""
     y = physical.initial_state(CRANE)
