@@ -219,6 +219,8 @@ def test_the_shape_s_integrals_and_the_modal_masses_are_the_shape_s_own_by_quadr
     bending = 3.1e6
     along = simpson((curvature / length**2) ** 2, x=x)  # (d^2 phi / dx^2)^2 along the boom
     assert elastic_boom.modal_stiffness_n_m(bending, length) == pytest.approx(bending * along, rel=1e-12)
+    short = 0.8  # a boom under a metre: the guard for a zero length leaves it alone
+    assert elastic_boom.modal_stiffness_n_m(bending, short) == pytest.approx(3.0 * bending / short**3, rel=1e-12)
     assert elastic_boom.modal_stiffness_n_m(0.0, 0.0) == 0.0  # no boom, no mode (and no division by 0)
 
 
