@@ -21,7 +21,7 @@ from rosbags.typesys.base import Nodetype
 from rosbags.typesys.store import Typestore
 
 from ..model.robot_description import BASE_FRAME
-from ..model.setpoints import CUBIC, LINEAR, QUINTIC
+from ..model.setpoints import CUBIC, LINEAR, QUINTIC, SetpointPath, knot_offsets_ns
 from . import cdr
 from .recording import interface_file
 
@@ -163,6 +163,13 @@ class RecordedPath:
     angles_rad: list[float]
     rates_rad_s: list[float]  # zeros for a LINEAR path
     order: int
+
+    @classmethod
+    def taken(cls, path: SetpointPath, t0_s: float, stamp_ns: int, start: int) -> RecordedPath:
+        """The single-set ``path`` the controller takes at simulated time ``t0_s``, the state of
+        that instant stamped ``stamp_ns``: its knots after it in whole ns (as it follows them)."""
+        angles, rates = path.angles_rad[:, 0].tolist(), path.rates_rad_s[:, 0].tolist()
+        return cls(stamp_ns, start, knot_offsets_ns(path, t0_s), angles, rates, path.order)
 
 
 def setpoint_path_cdr(joint: str, path: RecordedPath) -> bytes:

@@ -5,7 +5,7 @@ The node's stepping without ROS: a :class:`~..solve.simulation.Simulator` under 
 position controller), paced by a :class:`.clock.LiveClock`; each tick publishes what the
 node publishes (the state topics at every tick, the setpoint while the controller drives,
 the markers at 20 Hz, the diagnostics once a second) through a sink, plus the frames
-robot_state_publisher would send, and a target angle the path the controller starts to
+robot_state_publisher would send, and for a target angle the path the controller starts to
 follow. Valve commands, target angles and parameter sets come in from other threads (the
 server's callbacks); one lock keeps them and the ticks apart.
 
@@ -31,7 +31,7 @@ from ..errors import ConfigError, SimulationError
 from ..model.geometry import outside_stroke
 from ..model.parameters import Parameters
 from ..model.robot_description import JOINTS, TIP_JOINT, urdf
-from ..model.setpoints import knot_offsets_ns, move, on_whole_ns
+from ..model.setpoints import move, on_whole_ns
 from ..solve.command_queue import CommandedDrive, stale, valve_opening
 from ..solve.simulation import Simulator
 from . import parameters as live_parameters
@@ -290,9 +290,7 @@ class LiveRun:
         self.drive.follow(path)
         # on /boom_sim/setpoint_path and in the bag, as the node tells of a goal's path: boom-resim
         # follows it from its own setpoint at this instant (START_SETPOINT)
-        angles, rates = path.angles_rad[:, 0].tolist(), path.rates_rad_s[:, 0].tolist()
-        offsets = knot_offsets_ns(path, t)
-        told = RecordedPath(self.clock.state_stamp_ns(), START_SETPOINT, offsets, angles, rates, path.order)
+        told = RecordedPath.taken(path, t, self.clock.state_stamp_ns(), START_SETPOINT)
         self._out([(PATH, setpoint_path_cdr(JOINTS[0], told))], self.clock.now_ns())
         self.notice(0, "target", f"moving to {angle_deg:g} deg from {math.degrees(angle):.2f} deg")
 

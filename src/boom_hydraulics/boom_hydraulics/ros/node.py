@@ -64,7 +64,7 @@ from ..bags.run_events import RunEvent
 from ..errors import BoomHydraulicsError, ConfigError, SimulationError
 from ..model.parameters import NAMES, from_mapping
 from ..model.robot_description import JOINTS, urdf
-from ..model.setpoints import SetpointPath, knot_offsets_ns
+from ..model.setpoints import SetpointPath
 from ..solve import accelerate, outcomes
 from ..solve.command_queue import CommandedDrive
 from ..solve.simulation import Simulator
@@ -700,14 +700,7 @@ class BoomSimNode(Node):
         from it in whole ns (the node follows them so: Plant.follow), logged now, as a run
         event, so that the bag tells between which of its states the node took it."""
         clock = self.clock
-        recorded = RecordedPath(
-            clock.state_stamp_ns(),
-            start,
-            knot_offsets_ns(path, self.sim.t),
-            path.angles_rad[:, 0].tolist(),
-            path.rates_rad_s[:, 0].tolist(),
-            path.order,
-        )
+        recorded = RecordedPath.taken(path, self.sim.t, clock.state_stamp_ns(), start)
         message = [(self.setpoint_path_pub, setpoint_path_cdr(JOINTS[0], recorded))]
         self.recording.publish(message, clock.now_ns(), keep_early=True)  # (a goal before the first /clock too)
 
