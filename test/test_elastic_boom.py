@@ -224,6 +224,31 @@ def test_the_shape_s_integrals_and_the_modal_masses_are_the_shape_s_own_by_quadr
     assert elastic_boom.modal_stiffness_n_m(0.0, 0.0) == 0.0  # no boom, no mode (and no division by 0)
 
 
+@pytest.mark.parametrize("damping_ratio", [0.0, 0.02, 3.0])
+def test_the_modes_rate_bound_is_its_frequency_and_damping_rate_with_the_rotation_free(damping_ratio):
+    """fastest_rate against the eigenvalues of the boom free to turn (E4 without the cylinder:
+    masses [[J, m_c], [m_c, m_eta]], the mode's k_eta and c_eta): beside the rotation's two zero
+    roots the mode's pair has lambda1 lambda2 = k_eta / m_f and -(lambda1 + lambda2) = c_eta / m_f,
+    so the bound sqrt(k_eta / m_f) + c_eta / m_f is sqrt(|lambda1 lambda2|) + |lambda1 + lambda2|
+    (undamped, underdamped and overdamped alike), which covers both roots."""
+    boom_kg, tip_kg, length = 180.0, 650.0, 4.2
+    inertia = (boom_kg / 3.0 + tip_kg) * length**2  # eq. 8
+    coupling, modal, _ = elastic_boom.modal_masses(boom_kg, tip_kg, length)
+    stiffness = elastic_boom.modal_stiffness_n_m(3.1e6, length)
+    damping = elastic_boom.modal_damping_n_s_m(damping_ratio, stiffness, modal)
+    masses = np.array([[inertia, coupling], [coupling, modal]])
+    spring, dashpot = np.diag([0.0, stiffness]), np.diag([0.0, damping])
+    system = np.block(
+        [[np.zeros((2, 2)), np.eye(2)], [-np.linalg.solve(masses, spring), -np.linalg.solve(masses, dashpot)]]
+    )
+    roots = sorted(np.linalg.eigvals(system), key=abs)
+    assert abs(roots[0]) < 1e-9 and abs(roots[1]) < 1e-9  # the rotation, free
+    pair = roots[2:]
+    bound = elastic_boom.fastest_rate(inertia, coupling, modal, stiffness, damping)
+    assert bound == pytest.approx(math.sqrt(abs(pair[0] * pair[1])) + abs(pair[0] + pair[1]), rel=1e-9)
+    assert bound >= (1.0 - 1e-12) * max(abs(r) for r in pair)  # (undamped: equal, to rounding)
+
+
 def test_the_static_tip_deflection_is_the_tip_load_s_and_the_boom_weight_s_closed_forms():
     """At rest (E5) the tip hangs P L^3 / (3 EI) + q L^4 / (8 EI) below the rigid boom, P and q
     the payload's and the boom's weight per metre normal to the boom (exact: the tip-load shape
