@@ -191,6 +191,22 @@ def _inverse_sum(values: np.ndarray) -> float:
     return total
 
 
+def test_a_batch_loop_is_numbas_parallel_range_where_compiled(monkeypatch: pytest.MonkeyPatch):
+    """jit.prange, the loop over a batch's sets: numba's prange (a kernel made with parallel=True
+    spreads it over the cores), Python's range without numba."""
+    import importlib
+
+    assert jit.prange is numba.prange
+    monkeypatch.setitem(sys.modules, "numba", None)  # numba not installed
+    try:
+        without = importlib.reload(jit)
+        assert without.prange is range and without.numba is None and not without.available()
+    finally:
+        monkeypatch.undo()
+        importlib.reload(jit)
+    assert jit.prange is numba.prange
+
+
 def test_a_kernel_is_compiled_without_the_gil_with_numpys_division_and_cached_in_its_sources_folder(cache: Path):
     saved = numba.config.CACHE_DIR
     inverse = jit.kernel(SOURCES)(_inverse)
@@ -225,10 +241,15 @@ def test_a_kernel_looks_its_folder_up_once_per_sources_and_compiles_uncached_whe
     jit.kernel(SOURCES)(_scaled_kernel)
     assert len(looked) == 1
     monkeypatch.setattr(jit, "_folder", lambda sources: None)
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache.parent / "numba-default"))  # where numba's own would go
     uncached = jit.kernel(SOURCES)(_inverse)
     assert jit.in_cache(uncached) is False and uncached(2.0) == 0.5
     assert jit.in_cache(uncached) is True  # compiled in this process: its next call does not wait
-    assert not cache.exists() or not list(cache.rglob("*.nbi"))
+    assert uncached(0.0) == np.inf and uncached.targetoptions["nogil"]  # as a cached kernel is
+    assert jit.in_cache(jit.kernel(SOURCES)(_inverse)) is False  # and the next process compiles it again
+    summed = jit.kernel(SOURCES, parallel=True)(_inverse_sum)
+    assert summed.targetoptions["parallel"] and summed(np.array([2.0, 2.0])) == 1.0
+    assert not list(cache.parent.rglob("*.nbi"))  # nothing written, anywhere
 
 
 def _scaled_kernel(x: float) -> float:
