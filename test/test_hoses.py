@@ -161,6 +161,102 @@ def test_the_ledger_closes_at_every_instant_and_the_energy_rate_is_the_energys_d
     assert rates[physical.ENERGY_STATES[0]] == pytest.approx((ahead - behind) / (2 * h), rel=1e-5)
 
 
+def test_the_lines_states_are_named_port_first_and_their_constants_are_their_definitions():
+    """Each line's node pressures p0 (the port) .. p3 and flows q1 .. q4 (q4 into the chamber),
+    as the CSV, the FMU and linearize name them; c = sqrt(K_eff / rho) (eq. H2), 1 / K_eff =
+    1 / E + 1 / K_wall (eq. H1), and per segment l = L / 4 the oil A l, I = rho l / A and
+    R = 128 rho nu l / (pi d^4) (eq. H3), each in round numbers."""
+    line = ["p0", "p1", "p2", "p3", "q1", "q2", "q3", "q4"]
+    assert hoses.STATE_NAMES == tuple(f"hose_{end}_{name}" for end in "ab" for name in line)
+    assert hoses.STATE_UNITS == ("Pa",) * 4 + ("m^3/s",) * 4 + ("Pa",) * 4 + ("m^3/s",) * 4
+    assert hoses.wave_speed_m_s(1.0e9, 1000.0) == pytest.approx(1000.0, rel=1e-15)
+    assert hoses.wave_speed_m_s(4.0e9, 1000.0) == pytest.approx(2000.0, rel=1e-15)
+    assert hoses.effective_modulus_pa(1.0e9, 1.0e9) == pytest.approx(0.5e9, rel=1e-15)
+    assert hoses.effective_modulus_pa(1.0e9, 3.0e9) == pytest.approx(0.75e9, rel=1e-15)
+    length, diameter, nu, rho = 2.0, 0.02, 4.0e-5, 900.0
+    c = hoses.hose_constants(length, diameter, 3.0e9, nu, 1.0e9, rho)
+    area, segment = math.pi * 0.01**2, 0.5
+    assert c.hose_on == 1.0 and c.hose_modulus == pytest.approx(0.75e9, rel=1e-15)
+    assert c.hose_node_volume == pytest.approx(area * segment, rel=1e-15)
+    assert c.hose_inertance == pytest.approx(rho * segment / area, rel=1e-15)
+    assert c.hose_resistance == pytest.approx(128.0 * rho * nu * segment / (math.pi * diameter**4), rel=1e-15)
+    assert c.hose_chamber_share == pytest.approx(3.5 * area * segment, rel=1e-15)
+    none = hoses.hose_constants(0.0, diameter, 3.0e9, nu, 1.0e9, rho)  # no hose: a 1 m one's finite constants
+    assert none.hose_on == 0.0 and none.hose_chamber_share == 0.0
+    assert none.hose_inertance == pytest.approx(rho * 0.25 / area, rel=1e-15)
+    short = hoses.hose_constants(0.4, diameter, 3.0e9, nu, 1.0e9, rho)  # under a metre, its own
+    assert short.hose_on == 1.0 and short.hose_node_volume == pytest.approx(area * 0.1, rel=1e-15)
+
+
+def test_a_steady_flow_drops_the_hagen_poiseuille_pressure_along_the_line():
+    """A steady laminar flow Q through the whole line, port to chamber, loses
+    128 mu L Q / (pi d^4) (mu = rho nu) in equal steps, and every rate is then 0; the line keeps
+    no energy more or less (its energy rate is 0) and its friction R sum q^2 is Q times the drop."""
+    length, diameter, nu, rho = 3.0, 0.0127, 3.2e-5, 870.0
+    c = hoses.hose_constants(length, diameter, 3.2e9, nu, 1.4e9, rho)
+    flow, chamber = 4.0e-4, 8.0e6
+    drop = 128.0 * rho * nu * length * flow / (math.pi * diameter**4)  # the whole line's
+    z = tuple(chamber + drop * (4 - k) / 4 for k in range(4))
+    line = hoses.line(z, (flow,) * 4, flow, chamber, c, 5.0e3, 1.0e5)
+    assert line.port_pressure == z[0] and line.end_flow == flow
+    scale = drop / c.hose_inertance  # what one segment's drop would accelerate its flow by
+    for rate in (line.dq1, line.dq2, line.dq3, line.dq4):
+        assert abs(rate) < 1e-9 * scale
+    for rate in (line.dz0, line.dz1, line.dz2, line.dz3):
+        assert rate == 0.0
+    assert line.loss == pytest.approx(flow * drop, rel=1e-12)
+    assert abs(line.energy_rate) < 1e-9 * line.loss
+
+
+def _along(z: tuple, q: tuple, line: hoses.Line, h: float) -> tuple[tuple, tuple]:
+    """The line's states ``h`` seconds along its rates."""
+    rates_z = (line.dz0, line.dz1, line.dz2, line.dz3)
+    rates_q = (line.dq1, line.dq2, line.dq3, line.dq4)
+    return tuple(a + h * b for a, b in zip(z, rates_z)), tuple(a + h * b for a, b in zip(q, rates_q))
+
+
+def test_a_line_whose_nodes_cavitate_stores_what_its_energy_rate_says():
+    """Nodes held at the cavitation floor keep their (floor) pressure while their voids fill or
+    grow, so their oil stores nothing more: the line's energy rate is d/dt of line_energy along
+    its rates (central differences), with nodes below, at and above the floor."""
+    c = hoses.hose_constants(2.0, 0.0127, 3.2e9, 3.2e-5, 1.4e9, 870.0)
+    p_cav, p_tank = 5.0e3, 1.0e5
+    cases = [
+        ((-2.0e5, 3.0e6, -1.0e5, 4.0e6), (1.0e-4, -2.0e-4, 3.0e-4, 1.0e-4)),
+        ((2.0e6, -3.0e5, 1.0e6, -4.0e5), (-1.0e-4, 2.0e-4, -3.0e-4, 2.0e-4)),
+        ((-1.0e6, -2.0e6, -3.0e6, -4.0e6), (3.0e-4, 1.0e-4, 2.0e-4, 1.0e-4)),  # all void
+    ]
+    for z, q in cases:
+        line = hoses.line(z, q, 5.0e-4, 2.0e6, c, p_cav, p_tank)
+        h = 1e-9
+        ahead = hoses.line_energy(*_along(z, q, line, h), c, p_cav, p_tank)
+        behind = hoses.line_energy(*_along(z, q, line, -h), c, p_cav, p_tank)
+        assert line.energy_rate == pytest.approx((ahead - behind) / (2.0 * h), rel=1e-6, abs=1e-6), z
+
+
+def test_a_batch_that_mixes_a_hose_and_none_gives_each_set_its_own_rates():
+    """In a batch (the constants and the state an array per set, as boom-sweep's lock-step runs
+    take them) the hoses' equations run for every set once any set has a hose: a set without
+    one gets its own rates, finite, its hose states still, as when it runs alone."""
+    from boom_hydraulics.solve.closed_loop import stacked_constants
+
+    sets = [HOSE, Parameters(), with_updates(Parameters(), hose_length_m=0.4)]
+    c = stacked_constants(sets)
+    alone = []
+    states = []
+    for p in sets:
+        y = physical.initial_state(p)
+        y[1] = 0.05
+        states.append(y)
+        alone.append(physical.derivative(0.0, y, physical.constants(p), 0.6))
+    y = [np.array(column) for column in zip(*states)]
+    together = physical.derivative(0.0, y, c, 0.6, np)
+    for k, own in enumerate(alone):
+        got = [float(np.asarray(rate)[k]) if np.ndim(rate) else float(rate) for rate in together]
+        assert np.all(np.isfinite(got)), k
+        assert got == pytest.approx(list(own), rel=1e-12, abs=1e-12), k
+
+
 def test_a_cycle_with_hoses_keeps_its_energy_balance_and_loses_energy_in_them(tmp_path):
     """boom-sim over a lift and lower with hoses: the energy check passes every step, the
     ledger's integrals balance, the hoses' friction is a loss > 0, and the stability bound takes

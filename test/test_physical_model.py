@@ -33,6 +33,8 @@ from boom_hydraulics.model.parameters import Parameters, with_updates
 P = Parameters()
 #: The 1 t loader crane: accumulator, hoses and elastic boom all on.
 CRANE = config.load(CONFIG / "loader_crane_1t.yaml")
+#: Dead volumes that hold a 1 m hose of 20 mm bore (its oil leaves them) and little else.
+WIDE_HOSE_DEAD = {"piston_dead_volume_m3": 2.9e-4, "rod_dead_volume_m3": 2.9e-4}
 #: The default boom with a spring and an external rod force, so that every force of eq. 11 is at work.
 LOADED = with_updates(P, spring_stiffness_n_m=3000.0, spring_free_length_m=1.1, external_rod_force_n=-800.0)
 
@@ -635,6 +637,8 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
         (CRANE, 1.8, 0.0, 0.05, 0.05, 1.35),  # the hoses' highest wave (the valve barely open)
         (CRANE, 1.8, 0.05, 1.0, 1.0, 1.35),  # the hoses' port nodes against the valve wide open
         (CRANE, 1.8, 0.05, 0.0, 1.0, 1.35),  # the spool still wide open, closing on a command to close
+        # a wide hose's last flow into a piston chamber near its end of stroke, six times stiffer than a node
+        (with_updates(P, hose_length_m=1.0, hose_inner_diameter_m=0.02, **WIDE_HOSE_DEAD), 1.052, 0.0, 0.0, 0.0, 1.5),
         # where the bound adds rates, within about twice: the EMA's screw against the elastic boom's light
         # root, and without hoses that root on the oil springs, their rate plus the mode's
         (with_updates(CRANE, drive="electro_mechanical"), 1.8, 0.0, 0.0, 0.0, 2.0),
