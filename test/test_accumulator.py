@@ -14,7 +14,7 @@ from conftest import CONFIG, run_tool
 from boom_hydraulics.analysis import linear_model as lm
 from boom_hydraulics.analysis.operating_point import operating_point
 from boom_hydraulics.errors import ConfigError
-from boom_hydraulics.model import accumulator, ledger, physical
+from boom_hydraulics.model import accumulator, hydraulics, ledger, physical
 from boom_hydraulics.model.config import load
 from boom_hydraulics.model.parameters import Parameters, with_updates
 from boom_hydraulics.solve import commands
@@ -62,6 +62,61 @@ def test_the_gas_spring_is_the_polytrope_and_its_stiffness_n_p_over_v_gas():
         > accumulator.port_flow_m3_s(0.01, 5.0e6, p0, k, 9e10)
         > accumulator.port_flow_m3_s(0.03, 5.0e6, p0, k, 9e10)
     )
+
+
+def test_the_gas_law_holds_its_floor_past_a_full_bladder_and_p0_below_an_empty_one():
+    """A stage beyond any relief pressure (fill 1 and past it) takes the least gas share, 1e-3:
+    p0 / 1e-3^n, finite (eq. A1); below an empty bladder the gas stays at p0 and its energy goes
+    on along (p0 - p_t) V0 x, so that its rate stays (p_gas - p_t) V0 dx/dt (eq. A5)."""
+    p0, size, p_t = 6.0e6, 0.75e-3, 1.0e5
+    for n in (1.0, 1.4):
+        floor = p0 * 1e-3**-n
+        for fill in (0.999, 1.0, 1.5):
+            assert accumulator.gas_pressure_pa(fill, p0, n) == pytest.approx(floor, rel=1e-12), (n, fill)
+        assert accumulator.gas_stiffness_pa_m3(1.5, p0, n, size) == pytest.approx(n * floor / (1e-3 * size), rel=1e-12)
+        for fill in (-0.01, -0.3):
+            assert accumulator.gas_energy_j(fill, p0, n, size, p_t) == pytest.approx(
+                size * (p0 - p_t) * fill, rel=1e-12
+            )
+
+
+def test_a_nearly_empty_bladders_energy_is_the_polytropic_work_to_rounding():
+    """Where (n - 1) ln(V0 / V_gas) is under 1e-8 the work takes its series (eq. A5): at a fill of
+    2^-26 (1 - x exact in binary) it is the closed form ((1 - x)^(1 - n) - 1) / (n - 1) p0 V0 -
+    p_t V0 x, computed to 40 digits, to 1e-13."""
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 40
+    p0, size, p_t, fill = 6.0e6, 0.75e-3, 1.0e5, 2.0**-26
+    for n in (1.2, 1.4):
+        x, m = Decimal(fill), Decimal(str(n))
+        work = ((1 - x) ** (1 - m) - 1) / (m - 1)
+        exact = float(Decimal(size) * (Decimal(p0) * work - Decimal(p_t) * x))
+        assert accumulator.gas_energy_j(fill, p0, n, size, p_t) == pytest.approx(exact, rel=1e-13, abs=0.0), n
+    exact = float(Decimal(size) * (-Decimal(p0) * (1 - Decimal(fill)).ln() - Decimal(p_t) * Decimal(fill)))
+    assert accumulator.gas_energy_j(fill, p0, 1.0, size, p_t) == pytest.approx(exact, rel=1e-13, abs=0.0)  # isothermal
+
+
+def test_the_poppet_throttles_only_an_outflow_and_closes_smoothly_over_the_last_2_percent():
+    """An inflow passes the orifice's whole flow at any fill; an outflow passes it from a fill of
+    CLOSING_FILL (2 %) on, and below it smoothstep(x / 0.02) of it: a half at 1 %, 0.15625 at
+    0.5 %, none at 0 (eq. A3, A4)."""
+    p0, k, transition2 = 6.0e6, 1e-7, 9e10
+    assert accumulator.CLOSING_FILL == 0.02
+    for line in (7.0e6, 6.5e6, 6.0e6 + 0.5, 5.0e6, 6.0e6 - 0.5):  # (and half a pascal either side)
+        orifice = hydraulics.orifice_flow(k, line - p0, transition2)
+        inflow = line > p0
+        for fill, gate in [(0.0, 0.0), (0.005, 0.15625), (0.01, 0.5), (0.02, 1.0), (0.3, 1.0)]:
+            flow = accumulator.port_flow_m3_s(fill, line, p0, k, transition2)
+            assert flow == pytest.approx(orifice * (1.0 if inflow else gate), rel=1e-12, abs=0.0), (line, fill)
+
+
+def test_the_start_fills_the_bladder_to_hold_the_lines_pressure_and_leaves_it_empty_below_p0():
+    p0 = 8.0e6
+    assert accumulator.initial_fill(16.0e6, p0, 1.0) == pytest.approx(0.5, rel=1e-15)  # p0 V0 = 2 p0 V_gas
+    assert accumulator.initial_fill(p0 * 2.0**1.4, p0, 1.4) == pytest.approx(0.5, rel=1e-12)
+    for line in (p0, 7.9e6, 1.0e5, 0.0):
+        assert accumulator.initial_fill(line, p0, 1.4) == 0.0, line
 
 
 def _stiffness_closed_form(p: Parameters, point) -> tuple[float, float]:
