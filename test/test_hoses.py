@@ -171,6 +171,7 @@ def test_the_lines_states_are_named_port_first_and_their_constants_are_their_def
     assert hoses.STATE_UNITS == ("Pa",) * 4 + ("m^3/s",) * 4 + ("Pa",) * 4 + ("m^3/s",) * 4
     assert hoses.wave_speed_m_s(1.0e9, 1000.0) == pytest.approx(1000.0, rel=1e-15)
     assert hoses.wave_speed_m_s(4.0e9, 1000.0) == pytest.approx(2000.0, rel=1e-15)
+    assert hoses.wave_speed_m_s(1.1e9, 870.0) == pytest.approx(math.sqrt(1.1e9 / 870.0), rel=1e-15)
     assert hoses.effective_modulus_pa(1.0e9, 1.0e9) == pytest.approx(0.5e9, rel=1e-15)
     assert hoses.effective_modulus_pa(1.0e9, 3.0e9) == pytest.approx(0.75e9, rel=1e-15)
     length, diameter, nu, rho = 2.0, 0.02, 4.0e-5, 900.0
@@ -184,6 +185,12 @@ def test_the_lines_states_are_named_port_first_and_their_constants_are_their_def
     none = hoses.hose_constants(0.0, diameter, 3.0e9, nu, 1.0e9, rho)  # no hose: a 1 m one's finite constants
     assert none.hose_on == 0.0 and none.hose_chamber_share == 0.0
     assert none.hose_inertance == pytest.approx(rho * 0.25 / area, rel=1e-15)
+    # eq. H7 and H8 at a K / rho that is no whole number (c = 1124.4 m/s)
+    c_oil = math.sqrt(1.1e9 / 870.0)
+    assert hoses.line_frequencies_hz(2.0, 1.1e9, 870.0) == pytest.approx((c_oil / 8.0, c_oil / 4.0), rel=1e-14)
+    quarter = 2.0 * c_oil / 0.5 * math.sin(math.pi / 8.0 * 0.5) / (2.0 * math.pi)
+    half = 2.0 * c_oil / 0.5 * math.sin(math.pi / 4.0 * 0.5) / (2.0 * math.pi)
+    assert hoses.discrete_frequencies_hz(2.0, 1.1e9, 870.0) == pytest.approx((quarter, half), rel=1e-14)
     short = hoses.hose_constants(0.4, diameter, 3.0e9, nu, 1.0e9, rho)  # under a metre, its own
     assert short.hose_on == 1.0 and short.hose_node_volume == pytest.approx(area * 0.1, rel=1e-15, abs=0.0)
 

@@ -637,6 +637,15 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
         (CRANE, 1.8, 0.0, 0.05, 0.05, 1.35),  # the hoses' highest wave (the valve barely open)
         (CRANE, 1.8, 0.05, 1.0, 1.0, 1.35),  # the hoses' port nodes against the valve wide open
         (CRANE, 1.8, 0.05, 0.0, 1.0, 1.35),  # the spool still wide open, closing on a command to close
+        # a thin hose of viscous oil: the highest wave with its friction's R / I (711 1/s) beside it
+        (
+            with_updates(P, hose_length_m=1.0, hose_inner_diameter_m=0.003, oil_viscosity_m2_s=2e-4),
+            1.37,
+            0.0,
+            0.0,
+            0.0,
+            1.35,
+        ),
         # a wide hose's last flow into a piston chamber near its end of stroke, six times stiffer than a node
         (with_updates(P, hose_length_m=1.0, hose_inner_diameter_m=0.02, **WIDE_HOSE_DEAD), 1.052, 0.0, 0.0, 0.0, 1.5),
         # where the bound adds rates, within about twice: the EMA's screw against the elastic boom's light
