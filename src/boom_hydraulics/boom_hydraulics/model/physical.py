@@ -397,7 +397,10 @@ def drive_states(y: list) -> tuple:
     return (y[DRIVE_STATE], y[DRIVE_STATE + 1], y[DRIVE_STATE + 2])
 
 
-@jitable
+# inlined into its callers (and _hose_energy too), where ``first`` is a constant: called, it took
+# the whole state by value and read it at indices known only at run time, which made the hoses'
+# share of a derivative and of the energy 2 and 4 times what it is inlined (bench_elements)
+@jitable(inline="always")
 def hose_states(y: list, first: int) -> tuple:
     """(node states, flows) of the hose whose states start at ``first`` (_HA or _HB)."""
     nodes = (component(y, first), component(y, first + 1), component(y, first + 2), component(y, first + 3))
@@ -528,7 +531,7 @@ def _boom_energy(y: list, c: Constants, alpha_rate: Num, xp: ModuleType) -> Num:
     )
 
 
-@jitable
+@jitable(inline="always")
 def _hose_energy(y: list, first: int, c: Constants) -> Num:
     """What the hose whose states start at ``first`` stores, J (hoses.line_energy)."""
     z, q = hose_states(y, first)
