@@ -61,6 +61,13 @@ if "PYTEST_XDIST_WORKER" in os.environ or "ROS_DOMAIN_ID" not in os.environ:
     os.environ["ROS_DOMAIN_ID"] = str(claim_domain())
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
+# The tests that stop a program with Ctrl-C send SIGINT to this process or to those it starts: a
+# test run started with SIGINT ignored (a background job of a script, `make test &`, nohup), which
+# every process it starts inherits, would see none of them act. Python's own handler is put back
+# here (and a handled signal is SIGINT's default action again in a program the tests start).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 #: What the node compiles at its start (ros/node.py warms a new model or method the same way):
 #: Simulator.warm, its stepping, its outputs and the run loop of its position controller.
