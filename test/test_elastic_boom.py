@@ -260,6 +260,16 @@ def test_the_static_tip_deflection_is_the_tip_load_s_and_the_boom_weight_s_close
         spread = CRANE.boom_mass_kg / L * normal * L**4 / (8.0 * EI)
         assert elastic_boom.static_deflection_m(CRANE, q1) == pytest.approx(-(tip + spread), rel=1e-12)
     assert elastic_boom.static_deflection_m(with_updates(CRANE, boom_bending_stiffness_n_m2=0.0), 1.9) == 0.0
+    # a boom as soft as a rope (k_eta = 3 EI / L^3 under 1 N/m) still bends by the closed form, however far
+    soft, q1 = 2.0, CRANE.initial_length_m
+    alpha = boom_angle_rad(q1, CRANE.a_m, CRANE.b_m, CRANE.support_height_m)
+    normal = CRANE.gravity_m_s2 * math.cos(alpha)
+    closed = CRANE.payload_mass_kg * normal * L**3 / (3.0 * soft) + CRANE.boom_mass_kg / L * normal * L**4 / (
+        8.0 * soft
+    )
+    assert elastic_boom.modal_stiffness_n_m(soft, L) < 1.0
+    loose = with_updates(CRANE, boom_bending_stiffness_n_m2=soft)
+    assert elastic_boom.static_deflection_m(loose, q1) == pytest.approx(-closed, rel=1e-12)
 
 
 def test_the_static_deflection_is_the_module_s_equilibrium():
