@@ -35,6 +35,8 @@ P = Parameters()
 CRANE = config.load(CONFIG / "loader_crane_1t.yaml")
 #: Dead volumes that hold a 1 m hose of 20 mm bore (its oil leaves them) and little else.
 WIDE_HOSE_DEAD = {"piston_dead_volume_m3": 2.9e-4, "rod_dead_volume_m3": 2.9e-4}
+#: A 1 m hose of 3 mm bore with oil of 200 cSt.
+THIN_VISCOUS_HOSE = {"hose_length_m": 1.0, "hose_inner_diameter_m": 0.003, "oil_viscosity_m2_s": 2e-4}
 #: The default boom with a spring and an external rod force, so that every force of eq. 11 is at work.
 LOADED = with_updates(P, spring_stiffness_n_m=3000.0, spring_free_length_m=1.1, external_rod_force_n=-800.0)
 
@@ -638,14 +640,7 @@ def _largest_eigenvalue(y: list, c: physical.Constants, u: float) -> float:
         (CRANE, 1.8, 0.05, 1.0, 1.0, 1.35),  # the hoses' port nodes against the valve wide open
         (CRANE, 1.8, 0.05, 0.0, 1.0, 1.35),  # the spool still wide open, closing on a command to close
         # a thin hose of viscous oil: the highest wave with its friction's R / I (711 1/s) beside it
-        (
-            with_updates(P, hose_length_m=1.0, hose_inner_diameter_m=0.003, oil_viscosity_m2_s=2e-4),
-            1.37,
-            0.0,
-            0.0,
-            0.0,
-            1.35,
-        ),
+        (with_updates(P, **THIN_VISCOUS_HOSE), 1.37, 0.0, 0.0, 0.0, 1.35),
         # a wide hose's last flow into a piston chamber near its end of stroke, six times stiffer than a node
         (with_updates(P, hose_length_m=1.0, hose_inner_diameter_m=0.02, **WIDE_HOSE_DEAD), 1.052, 0.0, 0.0, 0.0, 1.5),
         # where the bound adds rates, within about twice: the EMA's screw against the elastic boom's light
